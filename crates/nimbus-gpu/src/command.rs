@@ -1,0 +1,561 @@
+//! One-shot command submission, barriers, upload and readback.
+//!
+//! [`Context::submit_one_shot`] records a primary command buffer from a pooled transient
+//! command pool, submits it with a fence under the queue lock, and waits on the fence for at
+//! most [`ONE_SHOT_TIMEOUT_NS`] before returning "GPU timeout". After a timeout or a device
+//! loss the command buffer may still be pending, so its pool and fence are leaked rather
+//! than reset under the GPU. One-shots may nest (an upload recorded from inside another
+//! one-shot's closure takes a different pool).
+//!
+//! Every transfer is fenced, so separate calls never overlap on the GPU; the barriers below
+//! still order them in the device's memory model, which is what a discrete GPU's caches and
+//! the synchronization validation layer check:
+//!
+//! | operation              | before the copy                                | after the copy                               |
+//! |------------------------|------------------------------------------------|----------------------------------------------|
+//! | upload (staging)       | compute/transfer write -> transfer write       | transfer write -> compute shader read/write  |
+//! | readback (staging)     | compute/transfer write -> transfer read        | transfer write -> host read                  |
+//! | readback (mapped)      | compute/transfer write -> host read            |                                              |
+//! | upload (mapped)        | none: host writes before a submit are visible  |                                              |
+
+use crate::buffer::{Buffer, BufferDesc};
+use crate::context::Context;
+use crate::error::{vk_error, VkResultExt};
+use crate::image::Image;
+use anyhow::{bail, Context as _, Result};
+use ash::vk;
+
+/// How long a one-shot may run before [`Context::submit_one_shot`] reports a GPU timeout.
+pub const ONE_SHOT_TIMEOUT_NS: u64 = 600 * 1_000_000_000;
+
+const WRITES_BEFORE: vk::AccessFlags = vk::AccessFlags::from_raw(
+    vk::AccessFlags::SHADER_WRITE.as_raw() | vk::AccessFlags::TRANSFER_WRITE.as_raw(),
+);
+const STAGES_BEFORE: vk::PipelineStageFlags = vk::PipelineStageFlags::from_raw(
+    vk::PipelineStageFlags::COMPUTE_SHADER.as_raw() | vk::PipelineStageFlags::TRANSFER.as_raw(),
+);
+const SHADER_ACCESS: vk::AccessFlags = vk::AccessFlags::from_raw(
+    vk::AccessFlags::SHADER_READ.as_raw()
+        | vk::AccessFlags::SHADER_WRITE.as_raw()
+        | vk::AccessFlags::UNIFORM_READ.as_raw(),
+);
+
+/// Records a global memory barrier.
+pub fn memory_barrier(
+    ctx: &Context,
+    cmd: vk::CommandBuffer,
+    src_stage: vk::PipelineStageFlags,
+    src_access: vk::AccessFlags,
+    dst_stage: vk::PipelineStageFlags,
+    dst_access: vk::AccessFlags,
+) {
+    let barrier = vk::MemoryBarrier::default()
+        .src_access_mask(src_access)
+        .dst_access_mask(dst_access);
+    unsafe {
+        ctx.device().cmd_pipeline_barrier(
+            cmd,
+            src_stage,
+            dst_stage,
+            vk::DependencyFlags::empty(),
+            &[barrier],
+            &[],
+            &[],
+        )
+    };
+}
+
+/// Orders a dispatch's shader writes before the next dispatch's shader reads and writes.
+pub fn compute_barrier(ctx: &Context, cmd: vk::CommandBuffer) {
+    memory_barrier(
+        ctx,
+        cmd,
+        vk::PipelineStageFlags::COMPUTE_SHADER,
+        vk::AccessFlags::SHADER_WRITE,
+        vk::PipelineStageFlags::COMPUTE_SHADER,
+        vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE,
+    );
+}
+
+/// Whether a failed one-shot's command pool may be reused.
+enum PoolState {
+    Reusable,
+    MaybePending,
+}
+
+impl Context {
+    fn acquire_command_pool(&self) -> Result<vk::CommandPool> {
+        if let Some(pool) = self
+            .command_pools
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .pop()
+        {
+            return Ok(pool);
+        }
+        let info = vk::CommandPoolCreateInfo::default()
+            .flags(vk::CommandPoolCreateFlags::TRANSIENT)
+            .queue_family_index(self.queue_family_index());
+        let pool = unsafe { self.device().create_command_pool(&info, None) }
+            .vk_context(|| "vkCreateCommandPool for the one-shot pool")?;
+        self.set_name(pool, "nimbus one-shot pool");
+        Ok(pool)
+    }
+
+    fn release_command_pool(&self, pool: vk::CommandPool) {
+        self.command_pools
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .push(pool);
+    }
+
+    /// Records `record` into a fresh command buffer, submits it, and waits for it to finish.
+    pub fn submit_one_shot<R>(
+        &self,
+        name: &str,
+        record: impl FnOnce(vk::CommandBuffer) -> Result<R>,
+    ) -> Result<R> {
+        let pool = self.acquire_command_pool()?;
+        match self.one_shot_in(pool, name, record) {
+            Ok(value) => {
+                self.release_command_pool(pool);
+                Ok(value)
+            }
+            Err((PoolState::Reusable, e)) => {
+                self.release_command_pool(pool);
+                Err(e)
+            }
+            Err((PoolState::MaybePending, e)) => Err(e),
+        }
+    }
+
+    fn one_shot_in<R>(
+        &self,
+        pool: vk::CommandPool,
+        name: &str,
+        record: impl FnOnce(vk::CommandBuffer) -> Result<R>,
+    ) -> std::result::Result<R, (PoolState, anyhow::Error)> {
+        let device = self.device();
+        let reusable = |e: anyhow::Error| (PoolState::Reusable, e);
+        let alloc_info = vk::CommandBufferAllocateInfo::default()
+            .command_pool(pool)
+            .level(vk::CommandBufferLevel::PRIMARY)
+            .command_buffer_count(1);
+        let cmd = unsafe { device.allocate_command_buffers(&alloc_info) }
+            .vk_context(|| format!("vkAllocateCommandBuffers for one-shot '{name}'"))
+            .and_then(|v| {
+                v.first()
+                    .copied()
+                    .context("driver returned no command buffer")
+            })
+            .map_err(reusable)?;
+        self.set_name(cmd, name);
+        let free = || unsafe { device.free_command_buffers(pool, &[cmd]) };
+
+        let recorded = (|| {
+            let begin = vk::CommandBufferBeginInfo::default()
+                .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
+            unsafe { device.begin_command_buffer(cmd, &begin) }
+                .vk_context(|| format!("vkBeginCommandBuffer for one-shot '{name}'"))?;
+            let value = record(cmd).with_context(|| format!("recording one-shot '{name}'"))?;
+            unsafe { device.end_command_buffer(cmd) }
+                .vk_context(|| format!("vkEndCommandBuffer for one-shot '{name}'"))?;
+            Ok(value)
+        })();
+        let value = match recorded {
+            Ok(v) => v,
+            Err(e) => {
+                free();
+                return Err(reusable(e));
+            }
+        };
+
+        let fence = match unsafe { device.create_fence(&vk::FenceCreateInfo::default(), None) } {
+            Ok(f) => f,
+            Err(e) => {
+                free();
+                return Err(reusable(vk_error(
+                    e,
+                    format!("vkCreateFence for one-shot '{name}'"),
+                )));
+            }
+        };
+        self.set_name(fence, name);
+        let cmds = [cmd];
+        let submit = vk::SubmitInfo::default().command_buffers(&cmds);
+        let submitted = {
+            let queue = self.lock_queue();
+            unsafe { device.queue_submit(*queue, &[submit], fence) }
+        };
+        if let Err(e) = submitted {
+            unsafe { device.destroy_fence(fence, None) };
+            free();
+            return Err(reusable(vk_error(
+                e,
+                format!("vkQueueSubmit for one-shot '{name}'"),
+            )));
+        }
+        match unsafe { device.wait_for_fences(&[fence], true, ONE_SHOT_TIMEOUT_NS) } {
+            Ok(()) => {}
+            Err(vk::Result::TIMEOUT) => {
+                return Err((
+                    PoolState::MaybePending,
+                    anyhow::anyhow!(
+                        "GPU timeout: one-shot '{name}' did not finish within {} s",
+                        ONE_SHOT_TIMEOUT_NS / 1_000_000_000
+                    ),
+                ));
+            }
+            Err(e) => {
+                return Err((
+                    PoolState::MaybePending,
+                    vk_error(e, format!("vkWaitForFences for one-shot '{name}'")),
+                ));
+            }
+        }
+        unsafe { device.destroy_fence(fence, None) };
+        free();
+        Ok(value)
+    }
+
+    /// Writes `data` into `dst` at byte `offset`: through the mapping for a mapped buffer,
+    /// else through a staging buffer and a copy between the barriers in the module docs.
+    pub fn upload_buffer(&self, dst: &Buffer, offset: u64, data: &[u8]) -> Result<()> {
+        let len = data.len() as u64;
+        let end = offset.checked_add(len).filter(|&end| end <= dst.size);
+        if end.is_none() {
+            bail!(
+                "upload of {len} bytes at offset {offset} overflows buffer '{}' ({} bytes)",
+                dst.name,
+                dst.size
+            );
+        }
+        if data.is_empty() {
+            return Ok(());
+        }
+        if let Some(ptr) = dst.mapped_ptr() {
+            // SAFETY: the range is inside the mapping (checked above) and all submitted work
+            // has been waited on, so the GPU is not accessing it.
+            unsafe {
+                std::ptr::copy_nonoverlapping(data.as_ptr(), ptr.add(offset as usize), data.len())
+            };
+            return Ok(());
+        }
+        if !dst.desc.usage.contains(vk::BufferUsageFlags::TRANSFER_DST) {
+            bail!(
+                "buffer '{}' lacks TRANSFER_DST usage; cannot upload into it",
+                dst.name
+            );
+        }
+        let mut staging = self.create_buffer(
+            &BufferDesc::host_to_gpu(len, vk::BufferUsageFlags::empty()),
+            &format!("staging upload for '{}'", dst.name),
+        )?;
+        let copied = match staging.mapped_slice_mut() {
+            Some(slice) => {
+                slice.copy_from_slice(data);
+                Ok(())
+            }
+            None => Err(anyhow::anyhow!(
+                "staging buffer for '{}' is not mapped",
+                dst.name
+            )),
+        };
+        let result = copied.and_then(|()| {
+            self.submit_one_shot(&format!("upload '{}'", dst.name), |cmd| {
+                memory_barrier(
+                    self,
+                    cmd,
+                    STAGES_BEFORE,
+                    WRITES_BEFORE,
+                    vk::PipelineStageFlags::TRANSFER,
+                    vk::AccessFlags::TRANSFER_WRITE,
+                );
+                let region = vk::BufferCopy {
+                    src_offset: 0,
+                    dst_offset: offset,
+                    size: len,
+                };
+                unsafe {
+                    self.device()
+                        .cmd_copy_buffer(cmd, staging.raw, dst.raw, &[region])
+                };
+                memory_barrier(
+                    self,
+                    cmd,
+                    vk::PipelineStageFlags::TRANSFER,
+                    vk::AccessFlags::TRANSFER_WRITE,
+                    vk::PipelineStageFlags::COMPUTE_SHADER,
+                    SHADER_ACCESS,
+                );
+                Ok(())
+            })
+        });
+        self.destroy_buffer(staging);
+        result
+    }
+
+    /// Reads the whole of `src` back to the host.
+    pub fn readback_buffer(&self, src: &Buffer) -> Result<Vec<u8>> {
+        self.readback_buffer_range(src, 0, src.size)
+    }
+
+    /// Reads `size` bytes of `src` from byte `offset`, after making compute and transfer
+    /// writes visible to the host (see the module docs for the barriers).
+    pub fn readback_buffer_range(&self, src: &Buffer, offset: u64, size: u64) -> Result<Vec<u8>> {
+        if offset.checked_add(size).is_none_or(|end| end > src.size) {
+            bail!(
+                "readback of {size} bytes at offset {offset} overflows buffer '{}' ({} bytes)",
+                src.name,
+                src.size
+            );
+        }
+        if size == 0 {
+            return Ok(Vec::new());
+        }
+        if src.is_mapped() {
+            self.submit_one_shot(&format!("readback '{}'", src.name), |cmd| {
+                memory_barrier(
+                    self,
+                    cmd,
+                    STAGES_BEFORE,
+                    WRITES_BEFORE,
+                    vk::PipelineStageFlags::HOST,
+                    vk::AccessFlags::HOST_READ,
+                );
+                Ok(())
+            })?;
+            let slice = src
+                .mapped_slice()
+                .with_context(|| format!("buffer '{}' lost its mapping", src.name))?;
+            return Ok(slice[offset as usize..(offset + size) as usize].to_vec());
+        }
+        if !src.desc.usage.contains(vk::BufferUsageFlags::TRANSFER_SRC) {
+            bail!(
+                "buffer '{}' lacks TRANSFER_SRC usage; cannot read it back",
+                src.name
+            );
+        }
+        let staging = self.create_buffer(
+            &BufferDesc::gpu_to_host(size, vk::BufferUsageFlags::empty()),
+            &format!("staging readback for '{}'", src.name),
+        )?;
+        let result = self
+            .submit_one_shot(&format!("readback '{}'", src.name), |cmd| {
+                memory_barrier(
+                    self,
+                    cmd,
+                    STAGES_BEFORE,
+                    WRITES_BEFORE,
+                    vk::PipelineStageFlags::TRANSFER,
+                    vk::AccessFlags::TRANSFER_READ,
+                );
+                let region = vk::BufferCopy {
+                    src_offset: offset,
+                    dst_offset: 0,
+                    size,
+                };
+                unsafe {
+                    self.device()
+                        .cmd_copy_buffer(cmd, src.raw, staging.raw, &[region])
+                };
+                memory_barrier(
+                    self,
+                    cmd,
+                    vk::PipelineStageFlags::TRANSFER,
+                    vk::AccessFlags::TRANSFER_WRITE,
+                    vk::PipelineStageFlags::HOST,
+                    vk::AccessFlags::HOST_READ,
+                );
+                Ok(())
+            })
+            .and_then(|()| {
+                staging
+                    .mapped_slice()
+                    .map(<[u8]>::to_vec)
+                    .with_context(|| format!("staging buffer for '{}' is not mapped", src.name))
+            });
+        self.destroy_buffer(staging);
+        result
+    }
+
+    /// Fills the whole of `dst` with the 32-bit `value`, ordered like an upload.
+    pub fn fill_buffer(&self, dst: &Buffer, value: u32) -> Result<()> {
+        if !dst.desc.usage.contains(vk::BufferUsageFlags::TRANSFER_DST) {
+            bail!(
+                "buffer '{}' lacks TRANSFER_DST usage; cannot fill it",
+                dst.name
+            );
+        }
+        self.submit_one_shot(&format!("fill '{}'", dst.name), |cmd| {
+            memory_barrier(
+                self,
+                cmd,
+                STAGES_BEFORE,
+                WRITES_BEFORE,
+                vk::PipelineStageFlags::TRANSFER,
+                vk::AccessFlags::TRANSFER_WRITE,
+            );
+            unsafe {
+                self.device()
+                    .cmd_fill_buffer(cmd, dst.raw, 0, vk::WHOLE_SIZE, value)
+            };
+            memory_barrier(
+                self,
+                cmd,
+                vk::PipelineStageFlags::TRANSFER,
+                vk::AccessFlags::TRANSFER_WRITE,
+                vk::PipelineStageFlags::COMPUTE_SHADER,
+                SHADER_ACCESS,
+            );
+            Ok(())
+        })
+    }
+
+    fn image_byte_size(image: &Image) -> Result<u64> {
+        image.desc.byte_size().with_context(|| {
+            format!(
+                "image '{}': format {:?} has no known texel size for upload/readback",
+                image.name, image.desc.format
+            )
+        })
+    }
+
+    /// Writes tightly packed texels covering the whole image; the image stays `GENERAL`.
+    pub fn upload_image(&self, dst: &Image, data: &[u8]) -> Result<()> {
+        let size = Self::image_byte_size(dst)?;
+        if data.len() as u64 != size {
+            bail!(
+                "upload to image '{}' ({}x{}x{} {:?}) needs {size} bytes, got {}",
+                dst.name,
+                dst.desc.extent.width,
+                dst.desc.extent.height,
+                dst.desc.extent.depth,
+                dst.desc.format,
+                data.len()
+            );
+        }
+        if !dst.desc.usage.contains(vk::ImageUsageFlags::TRANSFER_DST) {
+            bail!(
+                "image '{}' lacks TRANSFER_DST usage; cannot upload into it",
+                dst.name
+            );
+        }
+        let mut staging = self.create_buffer(
+            &BufferDesc::host_to_gpu(size, vk::BufferUsageFlags::empty()),
+            &format!("staging upload for '{}'", dst.name),
+        )?;
+        let copied = match staging.mapped_slice_mut() {
+            Some(slice) => {
+                slice.copy_from_slice(data);
+                Ok(())
+            }
+            None => Err(anyhow::anyhow!(
+                "staging buffer for '{}' is not mapped",
+                dst.name
+            )),
+        };
+        let result = copied.and_then(|()| {
+            self.submit_one_shot(&format!("upload '{}'", dst.name), |cmd| {
+                memory_barrier(
+                    self,
+                    cmd,
+                    STAGES_BEFORE,
+                    WRITES_BEFORE,
+                    vk::PipelineStageFlags::TRANSFER,
+                    vk::AccessFlags::TRANSFER_WRITE,
+                );
+                let region = whole_image_copy(dst);
+                unsafe {
+                    self.device().cmd_copy_buffer_to_image(
+                        cmd,
+                        staging.raw,
+                        dst.raw,
+                        vk::ImageLayout::GENERAL,
+                        &[region],
+                    )
+                };
+                memory_barrier(
+                    self,
+                    cmd,
+                    vk::PipelineStageFlags::TRANSFER,
+                    vk::AccessFlags::TRANSFER_WRITE,
+                    vk::PipelineStageFlags::COMPUTE_SHADER,
+                    SHADER_ACCESS,
+                );
+                Ok(())
+            })
+        });
+        self.destroy_buffer(staging);
+        result
+    }
+
+    /// Reads the whole image back as tightly packed texels (x fastest, then y, then z).
+    pub fn readback_image(&self, src: &Image) -> Result<Vec<u8>> {
+        let size = Self::image_byte_size(src)?;
+        if !src.desc.usage.contains(vk::ImageUsageFlags::TRANSFER_SRC) {
+            bail!(
+                "image '{}' lacks TRANSFER_SRC usage; cannot read it back",
+                src.name
+            );
+        }
+        let staging = self.create_buffer(
+            &BufferDesc::gpu_to_host(size, vk::BufferUsageFlags::empty()),
+            &format!("staging readback for '{}'", src.name),
+        )?;
+        let result = self
+            .submit_one_shot(&format!("readback '{}'", src.name), |cmd| {
+                memory_barrier(
+                    self,
+                    cmd,
+                    STAGES_BEFORE,
+                    WRITES_BEFORE,
+                    vk::PipelineStageFlags::TRANSFER,
+                    vk::AccessFlags::TRANSFER_READ,
+                );
+                let region = whole_image_copy(src);
+                unsafe {
+                    self.device().cmd_copy_image_to_buffer(
+                        cmd,
+                        src.raw,
+                        vk::ImageLayout::GENERAL,
+                        staging.raw,
+                        &[region],
+                    )
+                };
+                memory_barrier(
+                    self,
+                    cmd,
+                    vk::PipelineStageFlags::TRANSFER,
+                    vk::AccessFlags::TRANSFER_WRITE,
+                    vk::PipelineStageFlags::HOST,
+                    vk::AccessFlags::HOST_READ,
+                );
+                Ok(())
+            })
+            .and_then(|()| {
+                staging
+                    .mapped_slice()
+                    .map(<[u8]>::to_vec)
+                    .with_context(|| format!("staging buffer for '{}' is not mapped", src.name))
+            });
+        self.destroy_buffer(staging);
+        result
+    }
+}
+
+fn whole_image_copy(image: &Image) -> vk::BufferImageCopy {
+    vk::BufferImageCopy {
+        buffer_offset: 0,
+        buffer_row_length: 0,
+        buffer_image_height: 0,
+        image_subresource: vk::ImageSubresourceLayers {
+            aspect_mask: vk::ImageAspectFlags::COLOR,
+            mip_level: 0,
+            base_array_layer: 0,
+            layer_count: 1,
+        },
+        image_offset: vk::Offset3D::default(),
+        image_extent: image.desc.extent,
+    }
+}

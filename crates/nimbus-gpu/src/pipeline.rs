@@ -1,0 +1,310 @@
+//! Compute pipelines: one descriptor set, optional push constants, specialization constants.
+//!
+//! Each pipeline owns its single set layout (set 0) and its pipeline layout; the shader
+//! module is destroyed once the pipeline exists. Specialization constants are 4 bytes each
+//! (`bool` is a `VkBool32`), which is how render-plan features are compiled in or out.
+
+use crate::context::Context;
+use crate::descriptor::DescriptorSet;
+use crate::error::{vk_error, VkResultExt};
+use anyhow::{bail, Context as _, Result};
+use ash::vk;
+use std::collections::HashSet;
+use std::ffi::CString;
+
+const SPIRV_MAGIC: u32 = 0x0723_0203;
+
+/// One binding of set 0, visible to the compute stage, one descriptor.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BindingDesc {
+    pub binding: u32,
+    pub ty: vk::DescriptorType,
+}
+
+impl BindingDesc {
+    pub const fn storage_buffer(binding: u32) -> Self {
+        Self {
+            binding,
+            ty: vk::DescriptorType::STORAGE_BUFFER,
+        }
+    }
+
+    pub const fn uniform_buffer(binding: u32) -> Self {
+        Self {
+            binding,
+            ty: vk::DescriptorType::UNIFORM_BUFFER,
+        }
+    }
+
+    pub const fn storage_image(binding: u32) -> Self {
+        Self {
+            binding,
+            ty: vk::DescriptorType::STORAGE_IMAGE,
+        }
+    }
+
+    /// A `COMBINED_IMAGE_SAMPLER` (`sampler2D` / `sampler3D` in GLSL).
+    pub const fn sampled_image(binding: u32) -> Self {
+        Self {
+            binding,
+            ty: vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
+        }
+    }
+}
+
+/// A specialization constant's value; every variant is 4 bytes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum SpecValue {
+    U32(u32),
+    I32(i32),
+    F32(f32),
+    /// Encoded as `VkBool32` (0 or 1).
+    Bool(bool),
+}
+
+impl SpecValue {
+    /// The 4 bytes the driver reads for this constant.
+    pub fn to_bytes(self) -> [u8; 4] {
+        match self {
+            SpecValue::U32(v) => v.to_ne_bytes(),
+            SpecValue::I32(v) => v.to_ne_bytes(),
+            SpecValue::F32(v) => v.to_ne_bytes(),
+            SpecValue::Bool(v) => u32::from(v).to_ne_bytes(),
+        }
+    }
+}
+
+/// Everything needed to build a compute pipeline.
+#[derive(Clone, Copy, Debug)]
+pub struct ComputePipelineDesc<'a> {
+    pub spirv: &'a [u32],
+    pub entry: &'a str,
+    pub bindings: &'a [BindingDesc],
+    /// Bytes of push constants, a multiple of 4; 0 for none.
+    pub push_constant_size: u32,
+    /// `(constant_id, value)` pairs.
+    pub specialization: &'a [(u32, SpecValue)],
+}
+
+/// A compute pipeline with its layouts. Free it with [`Context::destroy_compute_pipeline`].
+#[derive(Debug)]
+pub struct ComputePipeline {
+    pub raw: vk::Pipeline,
+    pub layout: vk::PipelineLayout,
+    pub set_layout: vk::DescriptorSetLayout,
+    pub push_constant_size: u32,
+    pub name: String,
+    /// The set-0 bindings, used to check descriptor writes.
+    pub bindings: Vec<BindingDesc>,
+}
+
+impl ComputePipeline {
+    /// Binds the pipeline and `set`, pushes `push_constants` and dispatches `groups`.
+    pub fn dispatch(
+        &self,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        set: &DescriptorSet,
+        push_constants: &[u8],
+        groups: [u32; 3],
+    ) -> Result<()> {
+        if set.set_layout != self.set_layout {
+            bail!(
+                "descriptor set '{}' was not created for pipeline '{}'",
+                set.name,
+                self.name
+            );
+        }
+        if push_constants.len() != self.push_constant_size as usize {
+            bail!(
+                "pipeline '{}' takes {} bytes of push constants, got {}",
+                self.name,
+                self.push_constant_size,
+                push_constants.len()
+            );
+        }
+        let max = ctx.info().max_compute_work_group_count;
+        if groups.iter().zip(max).any(|(&g, m)| g > m) {
+            bail!(
+                "pipeline '{}': dispatch of {groups:?} groups exceeds the device limit {max:?}",
+                self.name
+            );
+        }
+        let device = ctx.device();
+        unsafe {
+            device.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, self.raw);
+            device.cmd_bind_descriptor_sets(
+                cmd,
+                vk::PipelineBindPoint::COMPUTE,
+                self.layout,
+                0,
+                &[set.raw],
+                &[],
+            );
+            if !push_constants.is_empty() {
+                device.cmd_push_constants(
+                    cmd,
+                    self.layout,
+                    vk::ShaderStageFlags::COMPUTE,
+                    0,
+                    push_constants,
+                );
+            }
+            device.cmd_dispatch(cmd, groups[0], groups[1], groups[2]);
+        }
+        Ok(())
+    }
+}
+
+impl Context {
+    /// Builds a compute pipeline (set layout, pipeline layout, specialized pipeline).
+    pub fn create_compute_pipeline(
+        &self,
+        desc: &ComputePipelineDesc<'_>,
+        name: &str,
+    ) -> Result<ComputePipeline> {
+        if desc.spirv.first() != Some(&SPIRV_MAGIC) {
+            bail!("pipeline '{name}': the shader code is not SPIR-V (missing magic number)");
+        }
+        let max_push = self.info().max_push_constants_size;
+        if !desc.push_constant_size.is_multiple_of(4) || desc.push_constant_size > max_push {
+            bail!(
+                "pipeline '{name}': push constant size {} must be a multiple of 4 and at most {max_push}",
+                desc.push_constant_size
+            );
+        }
+        let mut seen = HashSet::new();
+        if let Some(b) = desc.bindings.iter().find(|b| !seen.insert(b.binding)) {
+            bail!("pipeline '{name}': binding {} is declared twice", b.binding);
+        }
+        let mut seen = HashSet::new();
+        if let Some((id, _)) = desc.specialization.iter().find(|(id, _)| !seen.insert(*id)) {
+            bail!("pipeline '{name}': specialization constant {id} is given twice");
+        }
+        let entry = CString::new(desc.entry)
+            .with_context(|| format!("pipeline '{name}': entry point name contains NUL"))?;
+        let device = self.device();
+
+        let set_bindings: Vec<_> = desc
+            .bindings
+            .iter()
+            .map(|b| {
+                vk::DescriptorSetLayoutBinding::default()
+                    .binding(b.binding)
+                    .descriptor_type(b.ty)
+                    .descriptor_count(1)
+                    .stage_flags(vk::ShaderStageFlags::COMPUTE)
+            })
+            .collect();
+        let set_layout_info = vk::DescriptorSetLayoutCreateInfo::default().bindings(&set_bindings);
+        let set_layout = unsafe { device.create_descriptor_set_layout(&set_layout_info, None) }
+            .vk_context(|| format!("vkCreateDescriptorSetLayout for '{name}'"))?;
+        self.set_name(set_layout, &format!("{name} (set layout)"));
+
+        let set_layouts = [set_layout];
+        let push_ranges = [vk::PushConstantRange {
+            stage_flags: vk::ShaderStageFlags::COMPUTE,
+            offset: 0,
+            size: desc.push_constant_size,
+        }];
+        let push_ranges: &[vk::PushConstantRange] = if desc.push_constant_size > 0 {
+            &push_ranges
+        } else {
+            &[]
+        };
+        let layout_info = vk::PipelineLayoutCreateInfo::default()
+            .set_layouts(&set_layouts)
+            .push_constant_ranges(push_ranges);
+        let layout = match unsafe { device.create_pipeline_layout(&layout_info, None) } {
+            Ok(l) => l,
+            Err(e) => {
+                unsafe { device.destroy_descriptor_set_layout(set_layout, None) };
+                return Err(vk_error(e, format!("vkCreatePipelineLayout for '{name}'")));
+            }
+        };
+        self.set_name(layout, &format!("{name} (layout)"));
+        let destroy_layouts = || unsafe {
+            device.destroy_pipeline_layout(layout, None);
+            device.destroy_descriptor_set_layout(set_layout, None);
+        };
+
+        let module_info = vk::ShaderModuleCreateInfo::default().code(desc.spirv);
+        let module = match unsafe { device.create_shader_module(&module_info, None) } {
+            Ok(m) => m,
+            Err(e) => {
+                destroy_layouts();
+                return Err(vk_error(e, format!("vkCreateShaderModule for '{name}'")));
+            }
+        };
+        self.set_name(module, &format!("{name} (module)"));
+
+        let map_entries: Vec<_> = desc
+            .specialization
+            .iter()
+            .enumerate()
+            .map(|(i, (id, _))| vk::SpecializationMapEntry {
+                constant_id: *id,
+                offset: 4 * i as u32,
+                size: 4,
+            })
+            .collect();
+        let spec_data: Vec<u8> = desc
+            .specialization
+            .iter()
+            .flat_map(|(_, v)| v.to_bytes())
+            .collect();
+        let spec_info = vk::SpecializationInfo::default()
+            .map_entries(&map_entries)
+            .data(&spec_data);
+        let stage = vk::PipelineShaderStageCreateInfo::default()
+            .stage(vk::ShaderStageFlags::COMPUTE)
+            .module(module)
+            .name(&entry)
+            .specialization_info(&spec_info);
+        let info = vk::ComputePipelineCreateInfo::default()
+            .stage(stage)
+            .layout(layout);
+        let created =
+            unsafe { device.create_compute_pipelines(vk::PipelineCache::null(), &[info], None) };
+        unsafe { device.destroy_shader_module(module, None) };
+        let raw = match created {
+            Ok(pipelines) => pipelines.first().copied(),
+            Err((pipelines, e)) => {
+                for p in pipelines.into_iter().filter(|p| *p != vk::Pipeline::null()) {
+                    unsafe { device.destroy_pipeline(p, None) };
+                }
+                destroy_layouts();
+                return Err(vk_error(
+                    e,
+                    format!(
+                        "vkCreateComputePipelines for '{name}' (entry '{}')",
+                        desc.entry
+                    ),
+                ));
+            }
+        };
+        let Some(raw) = raw else {
+            destroy_layouts();
+            bail!("vkCreateComputePipelines for '{name}' returned no pipeline");
+        };
+        self.set_name(raw, name);
+        Ok(ComputePipeline {
+            raw,
+            layout,
+            set_layout,
+            push_constant_size: desc.push_constant_size,
+            name: name.to_owned(),
+            bindings: desc.bindings.to_vec(),
+        })
+    }
+
+    /// Destroys the pipeline and its layouts. The GPU must be done with it.
+    pub fn destroy_compute_pipeline(&self, pipeline: ComputePipeline) {
+        let device = self.device();
+        unsafe {
+            device.destroy_pipeline(pipeline.raw, None);
+            device.destroy_pipeline_layout(pipeline.layout, None);
+            device.destroy_descriptor_set_layout(pipeline.set_layout, None);
+        }
+    }
+}

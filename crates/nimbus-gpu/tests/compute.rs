@@ -1,0 +1,194 @@
+//! A specialized compute pipeline with push constants, checked on the CPU.
+
+mod common;
+
+use nimbus_gpu::{
+    compute_barrier, vk, BindingDesc, BufferDesc, ComputePipelineDesc, DescriptorWrite, SpecValue,
+};
+
+const SHADER: &str = r#"
+#version 450
+layout(local_size_x = 64) in;
+layout(constant_id = 0) const uint SPEC = 1u;
+layout(constant_id = 1) const bool FLAG = false;
+layout(constant_id = 2) const float BIAS = 0.0;
+layout(push_constant) uniform Push { uint add; uint count; } push;
+layout(std430, set = 0, binding = 0) writeonly buffer Out { uint data[]; } out_buf;
+void main() {
+    uint i = gl_GlobalInvocationID.x;
+    if (i >= push.count) {
+        return;
+    }
+    out_buf.data[i] = i * SPEC + push.add + (FLAG ? 1000000u : 0u) + uint(BIAS);
+}
+"#;
+
+#[test]
+fn specialization_and_push_constants_reach_the_shader() {
+    let ctx = common::validated_context();
+    let spirv = common::compile_compute(SHADER, "spec_push.comp");
+    let count: u32 = 1000;
+    let (spec, add, bias) = (7u32, 11u32, 3.0f32);
+
+    let bindings = [BindingDesc::storage_buffer(0)];
+    let pipeline = ctx
+        .create_compute_pipeline(
+            &ComputePipelineDesc {
+                spirv: &spirv,
+                entry: "main",
+                bindings: &bindings,
+                push_constant_size: 8,
+                specialization: &[
+                    (0, SpecValue::U32(spec)),
+                    (1, SpecValue::Bool(true)),
+                    (2, SpecValue::F32(bias)),
+                ],
+            },
+            "spec push",
+        )
+        .expect("pipeline");
+    let out = ctx
+        .create_buffer(
+            &BufferDesc::gpu_only(u64::from(count) * 4, vk::BufferUsageFlags::STORAGE_BUFFER),
+            "spec push out",
+        )
+        .expect("buffer");
+    let set = ctx
+        .create_descriptor_set(
+            &pipeline,
+            &[DescriptorWrite::StorageBuffer {
+                binding: 0,
+                buffer: &out,
+            }],
+            "spec push set",
+        )
+        .expect("descriptor set");
+
+    let push: [u32; 2] = [add, count];
+    let push_bytes: &[u8] = bytemuck::cast_slice(&push);
+    ctx.submit_one_shot("spec push dispatch", |cmd| {
+        // Dispatch twice to exercise the barrier; the second overwrites the first.
+        pipeline.dispatch(&ctx, cmd, &set, push_bytes, [count.div_ceil(64), 1, 1])?;
+        compute_barrier(&ctx, cmd);
+        pipeline.dispatch(&ctx, cmd, &set, push_bytes, [count.div_ceil(64), 1, 1])
+    })
+    .expect("dispatch");
+
+    let bytes = ctx.readback_buffer(&out).expect("readback");
+    let values: &[u32] = bytemuck::cast_slice(&bytes);
+    for (i, &v) in values.iter().enumerate() {
+        let expected = i as u32 * spec + add + 1_000_000 + bias as u32;
+        assert_eq!(v, expected, "out[{i}]");
+    }
+
+    // Wrong push-constant size is refused before anything is recorded.
+    let err = ctx
+        .submit_one_shot("bad push", |cmd| {
+            pipeline.dispatch(&ctx, cmd, &set, &[0; 4], [1, 1, 1])
+        })
+        .unwrap_err();
+    assert!(
+        format!("{err:#}").contains("takes 8 bytes of push constants, got 4"),
+        "{err:#}"
+    );
+
+    // A set that leaves a binding unwritten is refused.
+    let err = ctx
+        .create_descriptor_set(&pipeline, &[], "empty set")
+        .unwrap_err();
+    assert!(format!("{err:#}").contains("binding 0"), "{err:#}");
+
+    ctx.destroy_descriptor_set(set);
+    ctx.destroy_buffer(out);
+    ctx.destroy_compute_pipeline(pipeline);
+    common::assert_no_validation_errors(&ctx);
+}
+
+#[test]
+fn bad_pipeline_descriptions_are_errors() {
+    let ctx = common::validated_context();
+    let not_spirv = [0u32, 1, 2, 3];
+    let err = ctx
+        .create_compute_pipeline(
+            &ComputePipelineDesc {
+                spirv: &not_spirv,
+                entry: "main",
+                bindings: &[],
+                push_constant_size: 0,
+                specialization: &[],
+            },
+            "garbage",
+        )
+        .unwrap_err();
+    assert!(format!("{err:#}").contains("not SPIR-V"), "{err:#}");
+
+    let spirv = common::compile_compute(SHADER, "spec_push.comp");
+    let err = ctx
+        .create_compute_pipeline(
+            &ComputePipelineDesc {
+                spirv: &spirv,
+                entry: "main",
+                bindings: &[BindingDesc::storage_buffer(0)],
+                push_constant_size: 6,
+                specialization: &[],
+            },
+            "odd push",
+        )
+        .unwrap_err();
+    assert!(format!("{err:#}").contains("multiple of 4"), "{err:#}");
+    common::assert_no_validation_errors(&ctx);
+}
+
+#[test]
+fn synchronization_validation_catches_a_missing_barrier() {
+    let ctx = common::validated_context();
+    let spirv = common::compile_compute(SHADER, "spec_push.comp");
+    let pipeline = ctx
+        .create_compute_pipeline(
+            &ComputePipelineDesc {
+                spirv: &spirv,
+                entry: "main",
+                bindings: &[BindingDesc::storage_buffer(0)],
+                push_constant_size: 8,
+                specialization: &[],
+            },
+            "hazard",
+        )
+        .expect("pipeline");
+    let out = ctx
+        .create_buffer(
+            &BufferDesc::gpu_only(256, vk::BufferUsageFlags::STORAGE_BUFFER),
+            "hazard out",
+        )
+        .expect("buffer");
+    let set = ctx
+        .create_descriptor_set(
+            &pipeline,
+            &[DescriptorWrite::StorageBuffer {
+                binding: 0,
+                buffer: &out,
+            }],
+            "hazard set",
+        )
+        .expect("set");
+    let push: [u32; 2] = [0, 64];
+    // A transfer write followed by a shader write with no barrier between them.
+    ctx.submit_one_shot("hazard", |cmd| {
+        unsafe {
+            ctx.device()
+                .cmd_fill_buffer(cmd, out.raw, 0, vk::WHOLE_SIZE, 0)
+        };
+        pipeline.dispatch(&ctx, cmd, &set, bytemuck::cast_slice(&push), [1, 1, 1])
+    })
+    .expect("dispatch");
+    let errors = ctx.take_validation_errors();
+    assert!(
+        errors.iter().any(|e| e.contains("SYNC-HAZARD")),
+        "synchronization validation did not flag a missing barrier: {errors:?}"
+    );
+
+    ctx.destroy_descriptor_set(set);
+    ctx.destroy_buffer(out);
+    ctx.destroy_compute_pipeline(pipeline);
+    common::assert_no_validation_errors(&ctx);
+}

@@ -1,0 +1,101 @@
+//! Nimbus scene files: parsing and validation into [`Scene`] and the types it holds
+//! (pure CPU, no Vulkan).
+//!
+//! The format is the contract in `shared/SCENE_FORMAT.md`. [`load`] reads a file,
+//! [`parse_str`] parses text; both return a fully validated [`Scene`] or an error
+//! that names the file, the table and the field, e.g.
+//!
+//! ```text
+//! scenes/room.toml: [[light]] #2 (type = "directional"): field `direction`: must not be the zero vector
+//! ```
+//!
+//! Array entries are numbered from 1 in messages (`#2` is the second `[[light]]`).
+//! Unknown fields, unknown `type` strings, wrong value types, missing required fields,
+//! missing files and out-of-range values are all errors; nothing here panics on user
+//! input.
+//!
+//! # Values
+//! - Numbers: integers are accepted wherever a float is expected. Every number must be
+//!   finite (TOML's `nan` and `inf` are rejected) and representable as f32. Integer
+//!   fields reject floats.
+//! - Vectors: arrays of exactly 3 numbers. Directions are normalized; a zero direction
+//!   is an error.
+//! - Colours: a number `x` means `[x, x, x]`, otherwise an array of exactly 3 numbers.
+//! - Files: resolved against the scene file's directory (absolute paths are kept) and
+//!   checked to exist when the scene is loaded; contents are read later, except the
+//!   48-byte header of `.vol` files.
+//!
+//! # Defaults (beyond those in SCENE_FORMAT.md)
+//! - `[camera]` is required, with `position` and `look_at`; when `[[camera.keyframe]]`
+//!   entries exist, `position` / `look_at` may be left out and default to the first
+//!   keyframe's. Each keyframe needs `frame`, `position` and `look_at`.
+//! - Media: `albedo` 1 (no absorption), `g` 0, `rotation_deg` [0, 0, 0]; grid
+//!   `density_scale` 1, `emission_scale` 1. Shapes: `albedo` 0.
+//! - Directional light: `gobo_origin` [0, 0, 0] (an error without `gobo`).
+//! - Environment light: `scale` 1; `radiance` 1 when `file` is given (the two multiply);
+//!   one of `radiance` / `file` is required.
+//! - Procedural grids: `noise_seed` 0.
+//!
+//! # Validated ranges
+//! | what | range |
+//! |---|---|
+//! | `width`, `height` | 1..=16384, width·height <= 64 Mi pixels |
+//! | `frames` | 1..=1 000 000 |
+//! | `spp` | 1..=65536 |
+//! | `seed`, `noise_seed` | 0..=2^63−1 (TOML integers are signed) |
+//! | `horizontal_fov_deg` | (0, 180) exclusive |
+//! | camera | `position` ≠ `look_at` (relative 1e-6), `up` not within ~0.006° of the view direction, also for every keyframe and every interpolated pose in `0..frames` |
+//! | keyframe / medium `frame` | u32, unique within their list (lists are sorted) |
+//! | `sigma_t`, `density_scale` | [0, 1e9] 1/m |
+//! | `albedo` (media and shapes) | each component in [0, 1] |
+//! | `g` | (−1, 1) exclusive |
+//! | `size`, `radius`, quad edge lengths, grid extents | (0, 1e7] m |
+//! | `irradiance`, `radiance`, `intensity`, `scale`, `emission_scale` | components >= 0 |
+//! | `bounds_min` < `bounds_max` | componentwise |
+//! | grid `dims` | each 1..=4096, product <= 2^31 voxels |
+//! | raw grid files | exactly nx·ny·nz·4 bytes (·3 channels for `velocity`) |
+//! | `.vol` files | magic `VOL`, version 3, encoding 1 (float32), 1 channel (3 for `velocity`), dims as above, size 48 + n·channels·4; `dims`, if given, must match the header |
+//! | environment `file` | ends in `.exr` (any case) and exists |
+//! | gobo | 3..=64 `[u, v]` points, convex, non-zero area, no repeated consecutive point; clockwise input is reversed to counter-clockwise |
+//! | quad | `edge_u`, `edge_v` non-zero and not parallel (sin angle > 1e-6) |
+//! | media | no two share volume: exact separating-axis test on (rotated) boxes and grid AABBs; touching within 1e-6 × the scene scale is allowed |
+//! | `max_bounces` | 1..=1024 |
+//! | `volume` | `"restir"`, `"baseline"` |
+//! | `box_estimator` | `"mcwvds"`, `"reds"`, `"rees"`, `"rm"`, `"mcds"` |
+//! | restir `candidates` | 1..=4096 |
+//! | restir `temporal_limit` | 1..=1024 (turn temporal reuse off with `temporal = false`) |
+//! | restir `spatial_neighbors` | 0..=64 |
+//! | restir `spatial_radius_px` | [0, 16384] |
+//! | restir `spatial_rounds` | 0..=16 |
+//! | restir `mip_candidates`, `mip_indirect`, `mip_reuse` | 0..=16 |
+//! | grid `procedural` | `"cloud"` (not allowed for `velocity`) |
+
+mod fields;
+mod files;
+mod geometry;
+mod parse;
+mod types;
+
+use std::path::Path;
+
+use anyhow::{anyhow, Result};
+
+pub use files::{
+    check_grid_dims, read_vol_header, VolHeader, MAX_GRID_DIM, MAX_GRID_VOXELS, VOL_HEADER_BYTES,
+};
+pub use geometry::MAX_GOBO_POINTS;
+pub use parse::{MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_LENGTH_M, MAX_SIGMA_T};
+pub use types::*;
+
+/// Reads and validates the scene file at `path`.
+pub fn load(path: &Path) -> Result<Scene> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| anyhow!("{}: cannot read scene file: {e}", path.display()))?;
+    parse_str(&text, path)
+}
+
+/// Parses and validates a scene from `text`. `source` names the scene in error
+/// messages, and relative file paths resolve against `source.parent()`.
+pub fn parse_str(text: &str, source: &Path) -> Result<Scene> {
+    parse::parse_scene(text, source)
+}

@@ -1,0 +1,19 @@
+// Descriptor binding numbers shared by every pass (set 0). Mirrored in
+// src/bindings.rs; a test checks that the two agree.
+#ifndef NIMBUS_BINDINGS_GLSL
+#define NIMBUS_BINDINGS_GLSL
+
+#define BINDING_FRAME_UNIFORMS 0
+#define BINDING_ACCUM 1
+#define BINDING_ACCUM_SQ 2
+#define BINDING_STATS 3
+#define BINDING_BOX_MEDIA 4
+#define BINDING_SHAPES 5
+#define BINDING_LIGHTS 6
+#define BINDING_GOBO_PLANES 7
+
+// Indices into the stats buffer (uint counters).
+#define STAT_NON_FINITE 0
+#define STAT_COUNT 4
+
+#endif

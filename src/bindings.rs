@@ -1,0 +1,28 @@
+//! Descriptor binding numbers (set 0), mirrored from `shaders/include/bindings.glsl`.
+//! `tests/layout.rs` parses the header and checks every value here.
+
+pub const FRAME_UNIFORMS: u32 = 0;
+pub const ACCUM: u32 = 1;
+pub const ACCUM_SQ: u32 = 2;
+pub const STATS: u32 = 3;
+pub const BOX_MEDIA: u32 = 4;
+pub const SHAPES: u32 = 5;
+pub const LIGHTS: u32 = 6;
+pub const GOBO_PLANES: u32 = 7;
+
+/// Index of the non-finite sample counter in the stats buffer.
+pub const STAT_NON_FINITE: usize = 0;
+/// Number of u32 counters in the stats buffer.
+pub const STAT_COUNT: usize = 4;
+
+/// Every binding with its GLSL name, for the layout test.
+pub const ALL: [(&str, u32); 8] = [
+    ("BINDING_FRAME_UNIFORMS", FRAME_UNIFORMS),
+    ("BINDING_ACCUM", ACCUM),
+    ("BINDING_ACCUM_SQ", ACCUM_SQ),
+    ("BINDING_STATS", STATS),
+    ("BINDING_BOX_MEDIA", BOX_MEDIA),
+    ("BINDING_SHAPES", SHAPES),
+    ("BINDING_LIGHTS", LIGHTS),
+    ("BINDING_GOBO_PLANES", GOBO_PLANES),
+];

@@ -1,0 +1,38 @@
+//! Nimbus: a raw-Vulkan compute renderer for participating media.
+//!
+//! The root package turns a scene into a render plan ([`plan`]) and runs it
+//! ([`renderer`]), one compute pass per module under [`passes`]. See
+//! `shared/ARCHITECTURE.md` for the layering.
+
+pub mod bindings;
+pub mod gpu_scene;
+pub mod output;
+pub mod passes;
+pub mod plan;
+pub mod profile;
+pub mod reference;
+pub mod renderer;
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Result;
+use nimbus_scene::Scene;
+
+/// SPIR-V of every shader, compiled by `build.rs`.
+pub mod shaders {
+    include!(concat!(env!("OUT_DIR"), "/shaders.rs"));
+}
+
+/// The default scene (`assets/scenes/window.toml`), embedded in the binary.
+pub const DEFAULT_SCENE: &str = include_str!("../assets/scenes/window.toml");
+
+/// Load `path`, or the embedded default scene when there is none.
+pub fn load_scene(path: Option<&Path>) -> Result<Scene> {
+    match path {
+        Some(path) => nimbus_scene::load(path),
+        None => nimbus_scene::parse_str(
+            DEFAULT_SCENE,
+            &PathBuf::from("assets/scenes/window.toml (embedded default)"),
+        ),
+    }
+}

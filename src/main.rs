@@ -1,0 +1,250 @@
+//! `nimbus`: the command-line renderer and GPU profiler.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use anyhow::{bail, Context as _, Result};
+use clap::{Args, Parser, Subcommand};
+use nimbus::{load_scene, output, plan, profile, renderer};
+use nimbus_gpu::{enumerate_devices, Context, ContextDesc};
+
+#[derive(Parser)]
+#[command(name = "nimbus", version, about = "Raw-Vulkan compute renderer for participating media")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render a scene to an image (.exr linear radiance, .png tonemapped).
+    Render(RenderArgs),
+    /// Render warm-up + N frames and report per-pass GPU milliseconds.
+    Profile(ProfileArgs),
+    /// List the Vulkan devices (pick one with NIMBUS_DEVICE=<substring of its name>).
+    Devices,
+}
+
+/// Overrides of the scene's `[render]` table and renderer knobs.
+#[derive(Args, Clone, Debug, Default)]
+struct Overrides {
+    /// Frames to render (the output is their mean).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
+    frames: Option<u32>,
+    /// Samples per pixel per frame.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    spp: Option<u32>,
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16384))]
+    width: Option<u32>,
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16384))]
+    height: Option<u32>,
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Samples along each camera ray for the box estimators (N_sample of the paper).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    box_samples: Option<u32>,
+}
+
+#[derive(Args)]
+struct RenderArgs {
+    /// Scene file (TOML); without one, the embedded default scene (a room with a window).
+    scene: Option<PathBuf>,
+    /// Output image: .exr (linear float RGB) or .png (tonemapped sRGB).
+    #[arg(long, short)]
+    out: Option<PathBuf>,
+    /// Print the render plan (passes and shader features, and why) and exit.
+    #[arg(long)]
+    explain: bool,
+    /// Exposure multiplier applied before tonemapping a .png.
+    #[arg(long, default_value_t = 1.0)]
+    exposure: f32,
+    #[command(flatten)]
+    overrides: Overrides,
+}
+
+#[derive(Args)]
+struct ProfileArgs {
+    /// Scene file (TOML); without one, the embedded default scene.
+    scene: Option<PathBuf>,
+    /// Measured frames.
+    #[arg(long, default_value_t = 32, value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    frames: u32,
+    /// Frames rendered before measuring.
+    #[arg(long, default_value_t = 4)]
+    warmup: u32,
+    /// Write the per-pass statistics as JSON.
+    #[arg(long)]
+    json: Option<PathBuf>,
+    /// Write a Chrome trace (open in Perfetto or chrome://tracing).
+    #[arg(long)]
+    trace: Option<PathBuf>,
+    #[command(flatten)]
+    overrides: Overrides,
+}
+
+fn main() -> ExitCode {
+    match run(Cli::parse()) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(cli: Cli) -> Result<()> {
+    match cli.command {
+        Command::Render(args) => render(args),
+        Command::Profile(args) => profile_cmd(args),
+        Command::Devices => devices(),
+    }
+}
+
+fn apply(scene: &mut nimbus_scene::Scene, o: &Overrides) {
+    let r = &mut scene.render;
+    r.frames = o.frames.unwrap_or(r.frames);
+    r.spp = o.spp.unwrap_or(r.spp);
+    r.width = o.width.unwrap_or(r.width);
+    r.height = o.height.unwrap_or(r.height);
+    r.seed = o.seed.unwrap_or(r.seed);
+}
+
+fn render(args: RenderArgs) -> Result<()> {
+    let mut scene = load_scene(args.scene.as_deref())?;
+    apply(&mut scene, &args.overrides);
+    let plan = plan::build(&scene, args.overrides.box_samples)?;
+    if args.explain {
+        print!("{}", plan.explain(&scene));
+        return Ok(());
+    }
+    let Some(out) = args.out else {
+        bail!("--out FILE is required to render (or pass --explain to print the plan)");
+    };
+    check_output_path(&out)?;
+    let ctx = Context::new(&ContextDesc::from_env())?;
+    eprintln!("device: {}", ctx.info().name);
+    let result = renderer::render(
+        &ctx,
+        &scene,
+        &plan,
+        &renderer::RenderOptions {
+            progress: true,
+            warmup_frames: 0,
+        },
+    )?;
+    output::write_image(&out, &result.image, args.exposure)?;
+    let gpu_ms: f64 = result
+        .frame_timings
+        .iter()
+        .filter_map(|f| f.first())
+        .map(|s| s.duration_ms())
+        .sum();
+    eprintln!(
+        "wrote {} ({}x{}, {} frame(s) x {} spp) in {:.2} s, GPU {:.1} ms",
+        out.display(),
+        scene.render.width,
+        scene.render.height,
+        result.frames,
+        scene.render.spp,
+        result.wall_time.as_secs_f64(),
+        gpu_ms
+    );
+    if result.non_finite_samples > 0 {
+        eprintln!(
+            "warning: {} sample(s) were not finite and were dropped",
+            result.non_finite_samples
+        );
+    }
+    report_validation(&ctx)
+}
+
+fn profile_cmd(args: ProfileArgs) -> Result<()> {
+    let mut scene = load_scene(args.scene.as_deref())?;
+    apply(&mut scene, &args.overrides);
+    scene.render.frames = args.frames;
+    let plan = plan::build(&scene, args.overrides.box_samples)?;
+    let ctx = Context::new(&ContextDesc::from_env())?;
+    let result = renderer::render(
+        &ctx,
+        &scene,
+        &plan,
+        &renderer::RenderOptions {
+            progress: true,
+            warmup_frames: args.warmup,
+        },
+    )?;
+    if result.frame_timings.is_empty() {
+        bail!(
+            "device '{}' reported no timestamps; nothing to profile",
+            ctx.info().name
+        );
+    }
+    let report = profile::Report::new(&ctx, &scene, &result);
+    print!("{}", report.table());
+    if let Some(path) = &args.json {
+        std::fs::write(path, report.json()?)
+            .with_context(|| format!("writing {}", path.display()))?;
+        eprintln!("wrote {}", path.display());
+    }
+    if let Some(path) = &args.trace {
+        let mut file = std::io::BufWriter::new(
+            std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?,
+        );
+        nimbus_gpu::write_chrome_trace(&result.frame_timings, &mut file)
+            .with_context(|| format!("writing {}", path.display()))?;
+        eprintln!("wrote {}", path.display());
+    }
+    report_validation(&ctx)
+}
+
+fn devices() -> Result<()> {
+    let devices = enumerate_devices()?;
+    if devices.is_empty() {
+        bail!("no Vulkan devices found (install mesa-vulkan-drivers for lavapipe)");
+    }
+    let chosen = nimbus_gpu::context::select_device(&devices, None).ok();
+    for d in &devices {
+        let mark = if Some(d.index) == chosen { "*" } else { " " };
+        println!(
+            "{mark} {}: {} ({}, Vulkan {}, driver {} {}, timestamps: {} valid bits, {} ns/tick)",
+            d.index,
+            d.name,
+            d.device_type_name(),
+            d.api_version_string,
+            d.driver_name,
+            d.driver_info,
+            d.timestamp_valid_bits,
+            d.timestamp_period_ns
+        );
+    }
+    println!("(* = picked by default; NIMBUS_DEVICE=<substring of a name> picks another)");
+    Ok(())
+}
+
+fn check_output_path(out: &Path) -> Result<()> {
+    let ext = out
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    match ext.as_deref() {
+        Some("exr" | "png") => Ok(()),
+        _ => bail!(
+            "--out {}: unsupported image type; use .exr (linear radiance) or .png (tonemapped)",
+            out.display()
+        ),
+    }
+}
+
+/// Validation errors seen during a run fail it (they are on with NIMBUS_VALIDATION=1).
+fn report_validation(ctx: &Context) -> Result<()> {
+    let errors = ctx.validation_errors();
+    if errors.is_empty() {
+        Ok(())
+    } else {
+        bail!(
+            "{} Vulkan validation error(s):\n{}",
+            errors.len(),
+            errors.join("\n")
+        )
+    }
+}

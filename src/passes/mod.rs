@@ -1,0 +1,3 @@
+//! One module per pass: each creates its pipeline and records its dispatch.
+
+pub mod crepuscular;

@@ -1,0 +1,226 @@
+//! The render plan: which passes and shader features a scene needs, and why.
+//!
+//! A scene decides what runs: a pass the scene does not need is not dispatched, and a
+//! shader feature it does not use is compiled out through a specialization constant.
+//! Features of the scene format that no pass renders yet are errors here, naming the
+//! scene file and the table, never silently skipped.
+
+use std::fmt::Write as _;
+
+use anyhow::{bail, Result};
+use nimbus_scene::{BoxEstimator, Light, Medium, Scene};
+
+/// Samples along each camera ray for the box estimators when the scene names none.
+pub const DEFAULT_BOX_SAMPLES: u32 = 16;
+
+/// The passes and features for one scene.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RenderPlan {
+    pub crepuscular: Option<CrepuscularPlan>,
+    /// Every pass the renderer knows, with whether it runs and why.
+    pub decisions: Vec<Decision>,
+}
+
+/// Settings of the crepuscular-ray (box medium / direct lighting) pass.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CrepuscularPlan {
+    pub estimator: BoxEstimator,
+    pub samples_along_ray: u32,
+    pub features: CrepuscularFeatures,
+}
+
+/// The pass's specialization constants.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct CrepuscularFeatures {
+    pub has_media: bool,
+    pub has_shapes: bool,
+    pub has_gobos: bool,
+    pub has_env: bool,
+}
+
+/// One line of `--explain`: a pass or feature, in or out, and the reason.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Decision {
+    pub name: &'static str,
+    pub enabled: bool,
+    pub reason: String,
+}
+
+/// The estimator ids of `SC_ESTIMATOR` in `shaders/box/crepuscular.comp`.
+pub fn estimator_id(estimator: BoxEstimator) -> u32 {
+    match estimator {
+        BoxEstimator::Mcwvds => 0,
+        BoxEstimator::Reds => 1,
+        BoxEstimator::Rees => 2,
+        BoxEstimator::Rm => 3,
+        BoxEstimator::Mcds => 4,
+    }
+}
+
+/// Build the plan for `scene`, or say which part of it cannot be rendered yet.
+pub fn build(scene: &Scene, samples_along_ray: Option<u32>) -> Result<RenderPlan> {
+    let file = scene.source.display();
+
+    // Reject what no pass renders yet, naming where it is.
+    for (i, medium) in scene.media.iter().enumerate() {
+        if let Medium::Grid(_) = medium {
+            bail!(
+                "{file}: [[medium]] #{} (type = \"grid\"): heterogeneous grid media are not supported yet \
+                 (they arrive with the Volumetric ReSTIR and baseline integrators)",
+                i + 1
+            );
+        }
+    }
+    for (i, light) in scene.lights.iter().enumerate() {
+        let kind = match light {
+            Light::Directional { .. } => continue,
+            Light::Environment { file: None, .. } => continue,
+            Light::Environment { file: Some(_), .. } => "type = \"environment\" with a `file`",
+            Light::Point { .. } => "type = \"point\"",
+            Light::Sphere { .. } => "type = \"sphere\"",
+        };
+        bail!(
+            "{file}: [[light]] #{} ({kind}): not supported yet by the crepuscular pass \
+             (directional lights and constant environments are)",
+            i + 1
+        );
+    }
+    let integrator = &scene.integrator;
+    if integrator.max_bounces > 1 {
+        bail!(
+            "{file}: [integrator] field `max_bounces` = {}: multiple scattering is not supported yet; \
+             the crepuscular pass renders single scattering (max_bounces = 1)",
+            integrator.max_bounces
+        );
+    }
+    if integrator.box_estimator != BoxEstimator::Rm && !scene.media.is_empty() {
+        bail!(
+            "{file}: [integrator] field `box_estimator` = \"{}\": not supported yet; \
+             set box_estimator = \"rm\" (ray marching) — the default \"mcwvds\" and the \
+             other estimators of the box-medium paper are being implemented",
+            integrator.box_estimator.name()
+        );
+    }
+    let samples_along_ray = samples_along_ray.unwrap_or(DEFAULT_BOX_SAMPLES);
+    if samples_along_ray == 0 || samples_along_ray > 65_536 {
+        bail!("samples along a camera ray must be in 1..=65536, got {samples_along_ray}");
+    }
+
+    let media = scene.media.len();
+    let shapes = scene.shapes.len();
+    let directional = scene
+        .lights
+        .iter()
+        .filter(|l| matches!(l, Light::Directional { .. }))
+        .count();
+    let gobos = scene
+        .lights
+        .iter()
+        .filter(|l| matches!(l, Light::Directional { gobo: Some(_), .. }))
+        .count();
+    let env = scene
+        .lights
+        .iter()
+        .any(|l| matches!(l, Light::Environment { .. }));
+
+    let features = CrepuscularFeatures {
+        has_media: media > 0,
+        has_shapes: shapes > 0,
+        has_gobos: gobos > 0,
+        has_env: env,
+    };
+    let estimator = integrator.box_estimator;
+    let mut decisions = vec![Decision {
+        name: "pass crepuscular",
+        enabled: true,
+        reason: if media > 0 {
+            format!(
+                "{media} box medium(s), {directional} directional light(s): single scattering by {} \
+                 with {samples_along_ray} samples along each camera ray",
+                estimator.name()
+            )
+        } else {
+            format!("no media: direct lighting of {shapes} shape(s) and the background only")
+        },
+    }];
+    decisions.push(Decision {
+        name: "  SC_HAS_MEDIA",
+        enabled: features.has_media,
+        reason: if features.has_media {
+            format!("{media} box medium(s) scatter and attenuate")
+        } else {
+            "no media: in-scattering and transmittance compiled out".into()
+        },
+    });
+    decisions.push(Decision {
+        name: "  SC_HAS_SHAPES",
+        enabled: features.has_shapes,
+        reason: if features.has_shapes {
+            format!("{shapes} shape(s) occlude light and reflect it (Lambertian)")
+        } else {
+            "no shapes: shadow rays compiled out".into()
+        },
+    });
+    decisions.push(Decision {
+        name: "  SC_HAS_GOBOS",
+        enabled: features.has_gobos,
+        reason: if features.has_gobos {
+            format!("{gobos} light(s) masked by a gobo")
+        } else {
+            "no light has a gobo".into()
+        },
+    });
+    decisions.push(Decision {
+        name: "  SC_HAS_ENV",
+        enabled: features.has_env,
+        reason: if features.has_env {
+            "constant environment seen by escaping rays (it does not light the medium or surfaces \
+             in the single-scattering box pass)"
+                .into()
+        } else {
+            "no environment: escaping rays see black".into()
+        },
+    });
+    decisions.push(Decision {
+        name: "pass restir (initial, temporal, spatial, shade)",
+        enabled: false,
+        reason: "no grid media".into(),
+    });
+    decisions.push(Decision {
+        name: "pass baseline path tracer",
+        enabled: false,
+        reason: "no grid media".into(),
+    });
+
+    Ok(RenderPlan {
+        crepuscular: Some(CrepuscularPlan {
+            estimator,
+            samples_along_ray,
+            features,
+        }),
+        decisions,
+    })
+}
+
+impl RenderPlan {
+    /// The text of `nimbus render --explain`.
+    pub fn explain(&self, scene: &Scene) -> String {
+        let r = &scene.render;
+        let mut out = String::new();
+        let _ = writeln!(
+            out,
+            "render plan for {}: {}x{} pixels, {} frame(s) x {} spp, seed {}",
+            scene.source.display(),
+            r.width,
+            r.height,
+            r.frames,
+            r.spp,
+            r.seed
+        );
+        for d in &self.decisions {
+            let mark = if d.enabled { "[on ]" } else { "[off]" };
+            let _ = writeln!(out, "  {mark} {:<48} {}", d.name, d.reason);
+        }
+        out
+    }
+}

@@ -1,0 +1,283 @@
+//! Runs a render plan: creates the passes, records one submission per frame, reads the
+//! accumulated image back.
+//!
+//! Every frame adds one estimate per pixel (the mean of its `spp` samples) to a running
+//! sum and a running sum of squares, so the output is the mean over frames and each
+//! pixel also carries the standard error of that mean.
+
+use std::time::{Duration, Instant};
+
+use anyhow::{bail, Result};
+use nimbus_gpu::{vk, Buffer, BufferDesc, Context, Profiler, ScopeResult};
+use nimbus_scene::Scene;
+
+use crate::bindings;
+use crate::gpu_scene::{GpuScene, PassPush};
+use crate::output::ImageRgb;
+use crate::passes::crepuscular::{CrepuscularPass, Targets};
+use crate::plan::RenderPlan;
+
+/// How to run a render.
+#[derive(Clone, Debug, Default)]
+pub struct RenderOptions {
+    /// Show a progress bar once the render has run for a second.
+    pub progress: bool,
+    /// Frames to render and discard before the measured ones (for profiling).
+    pub warmup_frames: u32,
+}
+
+/// The result of a render.
+#[derive(Clone, Debug)]
+pub struct RenderResult {
+    /// Mean radiance over frames, W/(m²·sr).
+    pub image: ImageRgb,
+    /// Per-pixel standard error of `image` (zero with a single frame).
+    pub std_error: ImageRgb,
+    pub frames: u32,
+    /// Samples whose radiance was NaN or infinite; they were dropped, never written.
+    pub non_finite_samples: u64,
+    /// GPU timestamps of each measured frame (empty if the device has none).
+    pub frame_timings: Vec<Vec<ScopeResult>>,
+    /// Wall-clock time of the whole render, warm-up included.
+    pub wall_time: Duration,
+}
+
+/// Render `scene` with `plan` on `ctx`.
+pub fn render(ctx: &Context, scene: &Scene, plan: &RenderPlan, opts: &RenderOptions) -> Result<RenderResult> {
+    let start = Instant::now();
+    let r = &scene.render;
+    let pixels = u64::from(r.width) * u64::from(r.height);
+    let accum_bytes = pixels * 16;
+    let max_range = u64::from(ctx.info().max_storage_buffer_range);
+    if accum_bytes > max_range {
+        bail!(
+            "{}: [render] {}x{} pixels need a {} MiB accumulation buffer; device '{}' allows {} MiB per storage buffer",
+            scene.source.display(),
+            r.width,
+            r.height,
+            accum_bytes >> 20,
+            ctx.info().name,
+            max_range >> 20
+        );
+    }
+    let Some(crepuscular_plan) = &plan.crepuscular else {
+        bail!("internal: the render plan has no pass to run");
+    };
+    let gpu_scene = GpuScene::build(scene)?;
+
+    // Create the render targets; `Resources` frees them whatever happens next.
+    let mut res = Resources::default();
+    let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
+    let uniforms = res.push(ctx.create_buffer(
+        &BufferDesc::gpu_only(std::mem::size_of::<crate::gpu_scene::FrameUniforms>() as u64, vk::BufferUsageFlags::UNIFORM_BUFFER),
+        "frame uniforms",
+    ))?;
+    let accum = res.push(ctx.create_buffer(&BufferDesc::gpu_only(accum_bytes, storage), "accum"))?;
+    let accum_sq = res.push(ctx.create_buffer(&BufferDesc::gpu_only(accum_bytes, storage), "accum squares"))?;
+    let stats = res.push(ctx.create_buffer(
+        &BufferDesc::gpu_only((bindings::STAT_COUNT * 4) as u64, storage),
+        "stats",
+    ))?;
+    let result = (|| {
+        let b = &res.buffers;
+        let targets = Targets {
+            uniforms: &b[uniforms],
+            accum: &b[accum],
+            accum_sq: &b[accum_sq],
+            stats: &b[stats],
+        };
+        let pass = CrepuscularPass::new(ctx, crepuscular_plan, &gpu_scene, &targets)?;
+        let run = run_frames(ctx, scene, plan, &gpu_scene, &pass, &targets, opts);
+        pass.destroy(ctx);
+        let (frame_timings, frames) = run?;
+        read_result(ctx, scene, &targets, frames, frame_timings, start)
+    })();
+    res.destroy(ctx);
+    result
+}
+
+/// Frames loop: uniforms for the frame's camera, one submission, timestamps resolved.
+fn run_frames(
+    ctx: &Context,
+    scene: &Scene,
+    plan: &RenderPlan,
+    gpu_scene: &GpuScene,
+    pass: &CrepuscularPass,
+    targets: &Targets,
+    opts: &RenderOptions,
+) -> Result<(Vec<Vec<ScopeResult>>, u32)> {
+    let r = &scene.render;
+    let samples_along_ray = plan.crepuscular.as_ref().map_or(1, |p| p.samples_along_ray);
+    let mut profiler = if ctx.info().timestamp_valid_bits > 0 {
+        Some(Profiler::new(ctx, 4, "frame")?)
+    } else {
+        None
+    };
+    let total = opts.warmup_frames + r.frames;
+    let progress = Progress::new(opts.progress, u64::from(total));
+    let mut timings = Vec::new();
+    let mut last_camera = None;
+    let mut outcome = Ok(());
+    for i in 0..total {
+        // Warm-up frames render into the sums too; they are cleared afterwards.
+        if i == opts.warmup_frames && i > 0 {
+            if let Err(e) = clear_targets(ctx, targets) {
+                outcome = Err(e);
+                break;
+            }
+        }
+        let frame = i.saturating_sub(opts.warmup_frames);
+        let camera = scene.camera.frame_at(frame);
+        let uniforms = gpu_scene.frame_uniforms(scene, &camera, samples_along_ray);
+        if last_camera != Some(camera) || i == 0 {
+            if let Err(e) = ctx.upload_buffer(targets.uniforms, 0, bytemuck::bytes_of(&uniforms)) {
+                outcome = Err(e);
+                break;
+            }
+            last_camera = Some(camera);
+        }
+        if i == 0 {
+            if let Err(e) = clear_targets(ctx, targets) {
+                outcome = Err(e);
+                break;
+            }
+        }
+        let push = PassPush {
+            frame: i,
+            sample_base: 0,
+            ..Default::default()
+        };
+        let recorded = ctx.submit_one_shot(&format!("frame {i}"), |cmd| {
+            if let Some(p) = profiler.as_mut() {
+                p.begin_frame(cmd);
+                p.begin_scope(ctx, cmd, "frame")?;
+                p.begin_scope(ctx, cmd, "crepuscular")?;
+            }
+            pass.record(ctx, cmd, &uniforms, &push)?;
+            if let Some(p) = profiler.as_mut() {
+                p.end_scope(ctx, cmd)?;
+                p.end_scope(ctx, cmd)?;
+            }
+            Ok(())
+        });
+        if let Err(e) = recorded {
+            outcome = Err(e);
+            break;
+        }
+        if let Some(p) = profiler.as_mut() {
+            match p.resolve(ctx) {
+                Ok(scopes) if i >= opts.warmup_frames => timings.push(scopes),
+                Ok(_) => {}
+                Err(e) => {
+                    outcome = Err(e);
+                    break;
+                }
+            }
+        }
+        progress.tick();
+    }
+    progress.finish();
+    if let Some(p) = profiler {
+        p.destroy(ctx);
+    }
+    outcome.map(|()| (timings, r.frames))
+}
+
+fn clear_targets(ctx: &Context, targets: &Targets) -> Result<()> {
+    ctx.fill_buffer(targets.accum, 0)?;
+    ctx.fill_buffer(targets.accum_sq, 0)?;
+    ctx.fill_buffer(targets.stats, 0)
+}
+
+/// Read the sums back and turn them into the mean image and its standard error.
+fn read_result(
+    ctx: &Context,
+    scene: &Scene,
+    targets: &Targets,
+    frames: u32,
+    frame_timings: Vec<Vec<ScopeResult>>,
+    start: Instant,
+) -> Result<RenderResult> {
+    let r = &scene.render;
+    let sum: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(&ctx.readback_buffer(targets.accum)?);
+    let sum_sq: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(&ctx.readback_buffer(targets.accum_sq)?);
+    let stats: Vec<u32> = bytemuck::pod_collect_to_vec(&ctx.readback_buffer(targets.stats)?);
+    let mut image = ImageRgb::new(r.width, r.height);
+    let mut std_error = ImageRgb::new(r.width, r.height);
+    for (i, (s, q)) in sum.iter().zip(&sum_sq).enumerate() {
+        let n = f64::from(s[3]).max(1.0);
+        for c in 0..3 {
+            let mean = f64::from(s[c]) / n;
+            // Unbiased sample variance of the frame estimates, clamped against rounding.
+            let var = if n > 1.0 {
+                ((f64::from(q[c]) / n - mean * mean) * n / (n - 1.0)).max(0.0)
+            } else {
+                0.0
+            };
+            image.data[i][c] = mean as f32;
+            std_error.data[i][c] = (var / n).sqrt() as f32;
+        }
+    }
+    Ok(RenderResult {
+        image,
+        std_error,
+        frames,
+        non_finite_samples: u64::from(stats[bindings::STAT_NON_FINITE]),
+        frame_timings,
+        wall_time: start.elapsed(),
+    })
+}
+
+/// Buffers owned by a render, destroyed together.
+#[derive(Default)]
+struct Resources {
+    buffers: Vec<Buffer>,
+}
+
+impl Resources {
+    fn push(&mut self, buffer: Result<Buffer>) -> Result<usize> {
+        self.buffers.push(buffer?);
+        Ok(self.buffers.len() - 1)
+    }
+
+    fn destroy(self, ctx: &Context) {
+        for b in self.buffers {
+            ctx.destroy_buffer(b);
+        }
+    }
+}
+
+/// A progress bar that appears only once a render has taken more than a second.
+struct Progress {
+    bar: Option<indicatif::ProgressBar>,
+    start: Instant,
+}
+
+impl Progress {
+    fn new(enabled: bool, total: u64) -> Self {
+        let bar = enabled.then(|| {
+            let bar = indicatif::ProgressBar::with_draw_target(Some(total), indicatif::ProgressDrawTarget::hidden());
+            if let Ok(style) = indicatif::ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} frames, {elapsed} elapsed, ETA {eta}") {
+                bar.set_style(style.progress_chars("=> "));
+            }
+            bar.set_message("rendering");
+            bar
+        });
+        Self { bar, start: Instant::now() }
+    }
+
+    fn tick(&self) {
+        if let Some(bar) = &self.bar {
+            if bar.is_hidden() && self.start.elapsed() > Duration::from_secs(1) {
+                bar.set_draw_target(indicatif::ProgressDrawTarget::stderr());
+            }
+            bar.inc(1);
+        }
+    }
+
+    fn finish(&self) {
+        if let Some(bar) = &self.bar {
+            bar.finish_and_clear();
+        }
+    }
+}
