@@ -148,8 +148,8 @@ impl GpuScene {
                 Light::Environment {
                     radiance,
                     file: None,
-                    ..
-                } => env_radiance += *radiance,
+                    scale,
+                } => env_radiance += *radiance * *scale,
                 other => bail!("internal: the box pass was given an unsupported light {other:?}"),
             }
         }
@@ -164,7 +164,12 @@ impl GpuScene {
     }
 
     /// The per-frame uniforms for camera frame `camera` of `scene`.
-    pub fn frame_uniforms(&self, scene: &Scene, camera: &CameraFrame, samples_along_ray: u32) -> FrameUniforms {
+    pub fn frame_uniforms(
+        &self,
+        scene: &Scene,
+        camera: &CameraFrame,
+        samples_along_ray: u32,
+    ) -> FrameUniforms {
         let r = &scene.render;
         let tan_y = camera.tan_half_fov_x * r.height as f32 / r.width as f32;
         FrameUniforms {

@@ -9,7 +9,11 @@ use nimbus::{load_scene, output, plan, profile, renderer};
 use nimbus_gpu::{enumerate_devices, Context, ContextDesc};
 
 #[derive(Parser)]
-#[command(name = "nimbus", version, about = "Raw-Vulkan compute renderer for participating media")]
+#[command(
+    name = "nimbus",
+    version,
+    about = "Raw-Vulkan compute renderer for participating media"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -28,9 +32,6 @@ enum Command {
 /// Overrides of the scene's `[render]` table and renderer knobs.
 #[derive(Args, Clone, Debug, Default)]
 struct Overrides {
-    /// Frames to render (the output is their mean).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
-    frames: Option<u32>,
     /// Samples per pixel per frame.
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=65536))]
     spp: Option<u32>,
@@ -55,6 +56,9 @@ struct RenderArgs {
     /// Print the render plan (passes and shader features, and why) and exit.
     #[arg(long)]
     explain: bool,
+    /// Frames to render (the output is their mean).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
+    frames: Option<u32>,
     /// Exposure multiplier applied before tonemapping a .png.
     #[arg(long, default_value_t = 1.0)]
     exposure: f32,
@@ -102,7 +106,6 @@ fn run(cli: Cli) -> Result<()> {
 
 fn apply(scene: &mut nimbus_scene::Scene, o: &Overrides) {
     let r = &mut scene.render;
-    r.frames = o.frames.unwrap_or(r.frames);
     r.spp = o.spp.unwrap_or(r.spp);
     r.width = o.width.unwrap_or(r.width);
     r.height = o.height.unwrap_or(r.height);
@@ -112,6 +115,7 @@ fn apply(scene: &mut nimbus_scene::Scene, o: &Overrides) {
 fn render(args: RenderArgs) -> Result<()> {
     let mut scene = load_scene(args.scene.as_deref())?;
     apply(&mut scene, &args.overrides);
+    scene.render.frames = args.frames.unwrap_or(scene.render.frames);
     let plan = plan::build(&scene, args.overrides.box_samples)?;
     if args.explain {
         print!("{}", plan.explain(&scene));

@@ -272,7 +272,10 @@ mod tests {
         let err = write_image(Path::new("/tmp/out.pfm"), &gradient(2, 2), 1.0).unwrap_err();
         let message = format!("{err:#}");
         assert!(message.contains("/tmp/out.pfm"), "{message}");
-        assert!(message.contains(".exr") && message.contains(".png"), "{message}");
+        assert!(
+            message.contains(".exr") && message.contains(".png"),
+            "{message}"
+        );
     }
 
     #[test]

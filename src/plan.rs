@@ -10,9 +10,6 @@ use std::fmt::Write as _;
 use anyhow::{bail, Result};
 use nimbus_scene::{BoxEstimator, Light, Medium, Scene};
 
-/// Samples along each camera ray for the box estimators when the scene names none.
-pub const DEFAULT_BOX_SAMPLES: u32 = 16;
-
 /// The passes and features for one scene.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RenderPlan {
@@ -58,6 +55,7 @@ pub fn estimator_id(estimator: BoxEstimator) -> u32 {
 }
 
 /// Build the plan for `scene`, or say which part of it cannot be rendered yet.
+/// `samples_along_ray` overrides the scene's `[integrator] box_samples`.
 pub fn build(scene: &Scene, samples_along_ray: Option<u32>) -> Result<RenderPlan> {
     let file = scene.source.display();
 
@@ -101,7 +99,7 @@ pub fn build(scene: &Scene, samples_along_ray: Option<u32>) -> Result<RenderPlan
             integrator.box_estimator.name()
         );
     }
-    let samples_along_ray = samples_along_ray.unwrap_or(DEFAULT_BOX_SAMPLES);
+    let samples_along_ray = samples_along_ray.unwrap_or(integrator.box_samples);
     if samples_along_ray == 0 || samples_along_ray > 65_536 {
         bail!("samples along a camera ray must be in 1..=65536, got {samples_along_ray}");
     }

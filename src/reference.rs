@@ -119,7 +119,7 @@ pub fn render(scene: &Scene, opts: &ReferenceOptions) -> anyhow::Result<Vec<[f64
 
     // Average L over an n×n midpoint grid inside pixel (x, y).
     let pixel = |x: u32, y: u32| -> [f64; 3] {
-        let mut sum = [0.0; 3];
+        let mut sum = DVec3::ZERO;
         for j in 0..n {
             for i in 0..n {
                 let px = f64::from(x) + (f64::from(i) + 0.5) / f64::from(n);
@@ -128,13 +128,10 @@ pub fn render(scene: &Scene, opts: &ReferenceOptions) -> anyhow::Result<Vec<[f64
                     .ray_direction(px as f32, py as f32, width, height)
                     .as_dvec3()
                     .normalize();
-                let l = prepared.radiance(origin, dir, opts.rel_tol);
-                for c in 0..3 {
-                    sum[c] += l[c];
-                }
+                sum += DVec3::from_array(prepared.radiance(origin, dir, opts.rel_tol));
             }
         }
-        sum.map(|s| s / f64::from(n * n))
+        (sum / f64::from(n * n)).to_array()
     };
 
     // Hand rows to worker threads from a shared counter.
@@ -158,7 +155,10 @@ pub fn render(scene: &Scene, opts: &ReferenceOptions) -> anyhow::Result<Vec<[f64
             .collect();
         workers
             .into_iter()
-            .flat_map(|w| w.join().unwrap_or_else(|panic| std::panic::resume_unwind(panic)))
+            .flat_map(|w| {
+                w.join()
+                    .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
+            })
             .collect()
     });
     rows.sort_by_key(|(y, _)| *y);
@@ -194,9 +194,9 @@ pub fn unoccluded_single_scatter(
         let x = origin + t * d;
         let T_cam = (-sigma_t * (t - t0)).exp();
         let T_light = (-sigma_t * bounds.chord_length(x, -omega, 0.0, f64::INFINITY)).exp();
-        [T_cam * T_light, 0.0, 0.0]
+        DVec3::new(T_cam * T_light, 0.0, 0.0)
     };
-    integrate_adaptive(&pieces, integrand, rel_tol.max(f64::EPSILON), 0.0)[0]
+    integrate_adaptive(&pieces, integrand, rel_tol.max(f64::EPSILON), 0.0).x
 }
 
 /// The Henyey–Greenstein phase function, normalized over the sphere; `cos_theta` is the
@@ -309,7 +309,8 @@ impl OrientedBox {
 
     /// Length of o + t·d, t ∈ [t_min, t_max], inside the box.
     fn chord_length(&self, o: DVec3, d: DVec3, t_min: f64, t_max: f64) -> f64 {
-        self.clip(o, d, t_min, t_max).map_or(0.0, |(t0, t1)| t1 - t0)
+        self.clip(o, d, t_min, t_max)
+            .map_or(0.0, |(t0, t1)| t1 - t0)
     }
 
     /// Unit outward normal of the faces perpendicular to local `axis` (sign open).
@@ -461,7 +462,12 @@ impl PreparedShape {
                 // The quad's plane and the four planes swept along ω by its edges.
                 push_plane_crossing(o, d, corner, normal, cuts);
                 let far = corner + edge_u + edge_v;
-                for (point, edge) in [(corner, edge_u), (corner, edge_v), (far, edge_u), (far, edge_v)] {
+                for (point, edge) in [
+                    (corner, edge_u),
+                    (corner, edge_v),
+                    (far, edge_u),
+                    (far, edge_v),
+                ] {
                     push_plane_crossing(o, d, point, edge.cross(omega), cuts);
                 }
             }
@@ -737,7 +743,8 @@ impl PreparedScene {
             let mut cuts = Vec::new();
             for light in &self.lights {
                 for m in &self.media {
-                    m.bounds.push_edge_plane_crossings(o, d, light.omega, &mut cuts);
+                    m.bounds
+                        .push_edge_plane_crossings(o, d, light.omega, &mut cuts);
                 }
                 for shape in &self.shapes {
                     shape.push_shadow_crossings(o, d, light.omega, &mut cuts);
@@ -751,7 +758,7 @@ impl PreparedScene {
                 piece_medium.push(segment.medium);
             }
         }
-        let integrand = |t: f64, medium: usize| -> [f64; 3] {
+        let integrand = |t: f64, medium: usize| -> DVec3 {
             let m = &self.media[medium];
             let x = o + t * d;
             let T_cam = (-Self::camera_optical_depth(&segments, &self.media, t)).exp();
@@ -760,12 +767,12 @@ impl PreparedScene {
                 .iter()
                 .map(|l| henyey_greenstein(l.omega.dot(-d), m.g) * self.irradiance_at(x, l))
                 .sum();
-            (T_cam * m.sigma_s * inscattered).to_array()
+            T_cam * m.sigma_s * inscattered
         };
         let abs_tol = rel_tol * end_radiance.max_element();
         let inscattering =
             integrate_adaptive_tagged(&pieces, &piece_medium, integrand, rel_tol, abs_tol);
-        (DVec3::from_array(inscattering) + end_radiance).to_array()
+        (inscattering + end_radiance).to_array()
     }
 }
 
@@ -787,6 +794,7 @@ fn split_interval(t0: f64, t1: f64, cuts: &[f64]) -> Vec<(f64, f64)> {
 
 /// Gauss–Kronrod nodes on [−1, 1] (non-negative half, descending) and weights, from
 /// QUADPACK's `qk15`. Odd indices are the 7-point Gauss nodes.
+#[allow(clippy::excessive_precision)]
 const XGK: [f64; 8] = [
     0.991_455_371_120_812_639_206_854_697_526_329,
     0.949_107_912_342_758_524_526_189_684_047_851,
@@ -797,6 +805,7 @@ const XGK: [f64; 8] = [
     0.207_784_955_007_898_467_600_689_403_773_245,
     0.0,
 ];
+#[allow(clippy::excessive_precision)]
 const WGK: [f64; 8] = [
     0.022_935_322_010_529_224_963_732_008_058_970,
     0.063_092_092_629_978_553_290_700_663_189_204,
@@ -808,6 +817,7 @@ const WGK: [f64; 8] = [
     0.209_482_141_084_727_828_012_999_174_891_714,
 ];
 /// Weights of the 7-point Gauss rule at XGK[1], XGK[3], XGK[5], XGK[7].
+#[allow(clippy::excessive_precision)]
 const WG: [f64; 4] = [
     0.129_484_966_168_869_693_270_611_432_679_082,
     0.279_705_391_489_276_667_901_467_771_423_780,
@@ -816,27 +826,21 @@ const WG: [f64; 4] = [
 ];
 
 /// K15 on [a, b] and the error estimate max_c |K15 − G7|.
-fn gauss_kronrod_15(f: &impl Fn(f64) -> [f64; 3], a: f64, b: f64) -> ([f64; 3], f64) {
+fn gauss_kronrod_15(f: &impl Fn(f64) -> DVec3, a: f64, b: f64) -> (DVec3, f64) {
     let (mid, half) = (0.5 * (a + b), 0.5 * (b - a));
     let f_mid = f(mid);
-    let mut kronrod = f_mid.map(|v| WGK[7] * v);
-    let mut gauss = f_mid.map(|v| WG[3] * v);
+    let mut kronrod = WGK[7] * f_mid;
+    let mut gauss = WG[3] * f_mid;
     for k in 0..7 {
         let dx = half * XGK[k];
-        let (f_left, f_right) = (f(mid - dx), f(mid + dx));
-        for c in 0..3 {
-            let pair = f_left[c] + f_right[c];
-            kronrod[c] += WGK[k] * pair;
-            if k % 2 == 1 {
-                gauss[c] += WG[k / 2] * pair;
-            }
+        let pair = f(mid - dx) + f(mid + dx);
+        kronrod += WGK[k] * pair;
+        if k % 2 == 1 {
+            gauss += WG[k / 2] * pair;
         }
     }
-    let kronrod = kronrod.map(|v| v * half);
-    let error = (0..3)
-        .map(|c| (kronrod[c] - gauss[c] * half).abs())
-        .fold(0.0, f64::max);
-    (kronrod, error)
+    let error = ((kronrod - gauss) * half).abs().max_element();
+    (kronrod * half, error)
 }
 
 struct Piece {
@@ -844,7 +848,7 @@ struct Piece {
     b: f64,
     tag: usize,
     depth: u32,
-    value: [f64; 3],
+    value: DVec3,
     error: f64,
 }
 
@@ -868,10 +872,10 @@ impl Ord for Piece {
 /// Integrates f over the union of `pieces`, see [`integrate_adaptive_tagged`].
 fn integrate_adaptive(
     pieces: &[(f64, f64)],
-    f: impl Fn(f64) -> [f64; 3],
+    f: impl Fn(f64) -> DVec3,
     rel_tol: f64,
     abs_tol: f64,
-) -> [f64; 3] {
+) -> DVec3 {
     let tags = vec![0; pieces.len()];
     integrate_adaptive_tagged(pieces, &tags, |t, _| f(t), rel_tol, abs_tol)
 }
@@ -883,10 +887,10 @@ fn integrate_adaptive(
 fn integrate_adaptive_tagged(
     pieces: &[(f64, f64)],
     tags: &[usize],
-    f: impl Fn(f64, usize) -> [f64; 3],
+    f: impl Fn(f64, usize) -> DVec3,
     rel_tol: f64,
     abs_tol: f64,
-) -> [f64; 3] {
+) -> DVec3 {
     let estimate = |a: f64, b: f64, tag: usize, depth: u32| {
         let (value, error) = gauss_kronrod_15(&|t| f(t, tag), a, b);
         Piece {
@@ -905,22 +909,17 @@ fn integrate_adaptive_tagged(
         .collect();
     let mut finished: Vec<Piece> = Vec::new();
     let total = |heap: &BinaryHeap<Piece>, finished: &[Piece]| {
-        let mut value = [0.0; 3];
-        let mut error = 0.0;
-        for p in heap.iter().chain(finished) {
-            for c in 0..3 {
-                value[c] += p.value[c];
-            }
-            error += p.error;
-        }
-        (value, error)
+        heap.iter()
+            .chain(finished)
+            .fold((DVec3::ZERO, 0.0), |(value, error), p| {
+                (value + p.value, error + p.error)
+            })
     };
 
     // Track the totals incrementally and refresh them exactly now and then.
     let (mut value, mut error) = total(&heap, &finished);
     for bisection in 0..MAX_BISECTIONS {
-        let tolerance = abs_tol.max(rel_tol * value.iter().fold(0.0, |m, v| f64::max(m, v.abs())));
-        if error <= tolerance {
+        if error <= abs_tol.max(rel_tol * value.abs().max_element()) {
             break;
         }
         let Some(worst) = heap.pop() else {
@@ -933,9 +932,7 @@ fn integrate_adaptive_tagged(
         }
         let left = estimate(worst.a, mid, worst.tag, worst.depth + 1);
         let right = estimate(mid, worst.b, worst.tag, worst.depth + 1);
-        for c in 0..3 {
-            value[c] += left.value[c] + right.value[c] - worst.value[c];
-        }
+        value += left.value + right.value - worst.value;
         error += left.error + right.error - worst.error;
         heap.push(left);
         heap.push(right);
@@ -1014,24 +1011,24 @@ mod tests {
     fn gauss_kronrod_constants_integrate_polynomials_exactly() {
         // K15 is exact to degree 22 and G7 to degree 13; x^k on [0, 1] is 1/(k+1).
         for k in 0..=13 {
-            let f = |t: f64| [t.powi(k), 0.0, 0.0];
+            let f = |t: f64| DVec3::splat(t.powi(k));
             let (value, error) = gauss_kronrod_15(&f, 0.0, 1.0);
-            assert_close(value[0], 1.0 / f64::from(k + 1), 1e-14);
+            assert_close(value.x, 1.0 / f64::from(k + 1), 1e-14);
             assert!(error < 1e-14, "k = {k}: G7 error estimate {error:e}");
         }
-        let (value, _) = gauss_kronrod_15(&|t: f64| [t.powi(22), 0.0, 0.0], 0.0, 1.0);
-        assert_close(value[0], 1.0 / 23.0, 1e-14);
+        let (value, _) = gauss_kronrod_15(&|t: f64| DVec3::splat(t.powi(22)), 0.0, 1.0);
+        assert_close(value.x, 1.0 / 23.0, 1e-14);
     }
 
     #[test]
     fn adaptive_quadrature_finds_a_step() {
         // The step sits away from every initial cut, so only adaptivity finds it.
         let step = 0.123_456_789;
-        let f = |t: f64| [if t < step { 1.0 } else { 0.0 }, t.exp(), 0.0];
+        let f = |t: f64| DVec3::new(if t < step { 1.0 } else { 0.0 }, t.exp(), 0.0);
         let pieces = split_interval(0.0, 1.0, &[]);
         let value = integrate_adaptive(&pieces, f, 1e-12, 0.0);
-        assert_close(value[0], step, 1e-11);
-        assert_close(value[1], std::f64::consts::E - 1.0, 1e-12);
+        assert_close(value.x, step, 1e-11);
+        assert_close(value.y, std::f64::consts::E - 1.0, 1e-12);
     }
 
     #[test]
@@ -1039,8 +1036,8 @@ mod tests {
         // ∫ p dω = 2π ∫_{-1}^{1} p(μ) dμ.
         for g in [-0.9, -0.3, 0.0, 0.5, 0.95] {
             let pieces = split_interval(-1.0, 1.0, &[]);
-            let f = |mu: f64| [2.0 * PI * henyey_greenstein(mu, g), 0.0, 0.0];
-            let total = integrate_adaptive(&pieces, f, 1e-13, 0.0)[0];
+            let f = |mu: f64| DVec3::splat(2.0 * PI * henyey_greenstein(mu, g));
+            let total = integrate_adaptive(&pieces, f, 1e-13, 0.0).x;
             assert_close(total, 1.0, 1e-11);
         }
         assert_close(henyey_greenstein(0.3, 0.0), 1.0 / (4.0 * PI), 1e-15);
@@ -1140,7 +1137,12 @@ mod tests {
     fn vanishing_extinction_gives_the_chord_length() {
         // Through the centre along the rotated local x axis the chord is size.x.
         let rotation = Vec3::new(12.0, 34.0, 56.0);
-        let medium = box_medium(Vec3::new(0.5, 0.0, -1.0), Vec3::new(1.7, 0.4, 0.9), rotation, 0.0);
+        let medium = box_medium(
+            Vec3::new(0.5, 0.0, -1.0),
+            Vec3::new(1.7, 0.4, 0.9),
+            rotation,
+            0.0,
+        );
         let axis = rotation_xyz_deg_f64(rotation) * DVec3::X;
         let origin = medium.center.as_dvec3() - 3.0 * axis;
         let light = DVec3::new(0.3, -1.0, 0.2);
@@ -1196,14 +1198,23 @@ mod tests {
         // Light straight down onto a ray along +x at y = z = 0; a sphere above the box
         // shadows |x − xc| ≤ r, and T_ω = e^{−σt h} from the box top at height h.
         let sigma_t = 0.5f32;
-        let medium = box_medium(Vec3::new(2.0, 0.0, 0.0), Vec3::new(4.0, 2.0, 2.0), Vec3::ZERO, sigma_t);
+        let medium = box_medium(
+            Vec3::new(2.0, 0.0, 0.0),
+            Vec3::new(4.0, 2.0, 2.0),
+            Vec3::ZERO,
+            sigma_t,
+        );
         let (xc, r) = (2.75, 0.375);
         let sphere = Shape::Sphere {
             center: Vec3::new(xc as f32, 3.0, 0.0),
             radius: r as f32,
             albedo: Vec3::ONE,
         };
-        let s = scene(vec![medium.clone()], vec![sphere], vec![sun(Vec3::NEG_Y, 2.0)]);
+        let s = scene(
+            vec![medium.clone()],
+            vec![sphere],
+            vec![sun(Vec3::NEG_Y, 2.0)],
+        );
         let origin = DVec3::new(-1.0, 0.0, 0.0);
         let actual = radiance(&s, origin, DVec3::X, &TIGHT).unwrap();
 
@@ -1212,9 +1223,9 @@ mod tests {
         let lit = |a: f64, b: f64| ((-sigma * a).exp() - (-sigma * b).exp()) / sigma;
         let path = lit(0.0, xc - r) + lit(xc + r, 4.0);
         let p = 1.0 / (4.0 * PI);
-        for c in 0..3 {
-            let sigma_s = f64::from(medium.albedo[c]) * sigma;
-            assert_close(actual[c], sigma_s * p * 2.0 * (-sigma).exp() * path, 1e-9);
+        for (actual, albedo) in actual.into_iter().zip(medium.albedo.to_array()) {
+            let sigma_s = f64::from(albedo) * sigma;
+            assert_close(actual, sigma_s * p * 2.0 * (-sigma).exp() * path, 1e-9);
         }
     }
 
@@ -1223,7 +1234,12 @@ mod tests {
         // A vertical sun has gobo axes u = +x, v = −z; the square u ∈ [0.5, 1.5] lights
         // only x ∈ [0.5, 1.5] + origin.x of the ray along +x.
         let sigma_t = 0.9f32;
-        let medium = box_medium(Vec3::new(2.0, 0.0, 0.0), Vec3::new(4.0, 2.0, 2.0), Vec3::ZERO, sigma_t);
+        let medium = box_medium(
+            Vec3::new(2.0, 0.0, 0.0),
+            Vec3::new(4.0, 2.0, 2.0),
+            Vec3::ZERO,
+            sigma_t,
+        );
         let gobo = Gobo {
             polygon: vec![
                 Vec2::new(0.5, -1.0),
@@ -1281,8 +1297,17 @@ mod tests {
 
     #[test]
     fn render_averages_footprints_in_row_major_order() {
-        let medium = box_medium(Vec3::ZERO, Vec3::new(2.0, 1.0, 1.0), Vec3::new(0.0, 30.0, 0.0), 1.0);
-        let s = scene(vec![medium], Vec::new(), vec![sun(Vec3::new(1.0, -1.0, -0.5), 2.0)]);
+        let medium = box_medium(
+            Vec3::ZERO,
+            Vec3::new(2.0, 1.0, 1.0),
+            Vec3::new(0.0, 30.0, 0.0),
+            1.0,
+        );
+        let s = scene(
+            vec![medium],
+            Vec::new(),
+            vec![sun(Vec3::new(1.0, -1.0, -0.5), 2.0)],
+        );
         let opts = ReferenceOptions {
             rel_tol: 1e-8,
             footprint_samples: 2,
@@ -1314,8 +1339,14 @@ mod tests {
             intensity: Vec3::ONE,
         };
         let s = scene(Vec::new(), Vec::new(), vec![point]);
-        let message = format!("{:#}", radiance(&s, DVec3::ZERO, DVec3::X, &TIGHT).unwrap_err());
-        assert!(message.contains("not supported by the reference"), "{message}");
+        let message = format!(
+            "{:#}",
+            radiance(&s, DVec3::ZERO, DVec3::X, &TIGHT).unwrap_err()
+        );
+        assert!(
+            message.contains("not supported by the reference"),
+            "{message}"
+        );
 
         let mut s = scene(Vec::new(), Vec::new(), Vec::new());
         s.integrator.max_bounces = 3;

@@ -43,7 +43,12 @@ pub struct RenderResult {
 }
 
 /// Render `scene` with `plan` on `ctx`.
-pub fn render(ctx: &Context, scene: &Scene, plan: &RenderPlan, opts: &RenderOptions) -> Result<RenderResult> {
+pub fn render(
+    ctx: &Context,
+    scene: &Scene,
+    plan: &RenderPlan,
+    opts: &RenderOptions,
+) -> Result<RenderResult> {
     let start = Instant::now();
     let r = &scene.render;
     let pixels = u64::from(r.width) * u64::from(r.height);
@@ -69,11 +74,16 @@ pub fn render(ctx: &Context, scene: &Scene, plan: &RenderPlan, opts: &RenderOpti
     let mut res = Resources::default();
     let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
     let uniforms = res.push(ctx.create_buffer(
-        &BufferDesc::gpu_only(std::mem::size_of::<crate::gpu_scene::FrameUniforms>() as u64, vk::BufferUsageFlags::UNIFORM_BUFFER),
+        &BufferDesc::gpu_only(
+            std::mem::size_of::<crate::gpu_scene::FrameUniforms>() as u64,
+            vk::BufferUsageFlags::UNIFORM_BUFFER,
+        ),
         "frame uniforms",
     ))?;
-    let accum = res.push(ctx.create_buffer(&BufferDesc::gpu_only(accum_bytes, storage), "accum"))?;
-    let accum_sq = res.push(ctx.create_buffer(&BufferDesc::gpu_only(accum_bytes, storage), "accum squares"))?;
+    let accum =
+        res.push(ctx.create_buffer(&BufferDesc::gpu_only(accum_bytes, storage), "accum"))?;
+    let accum_sq =
+        res.push(ctx.create_buffer(&BufferDesc::gpu_only(accum_bytes, storage), "accum squares"))?;
     let stats = res.push(ctx.create_buffer(
         &BufferDesc::gpu_only((bindings::STAT_COUNT * 4) as u64, storage),
         "stats",
@@ -200,7 +210,8 @@ fn read_result(
 ) -> Result<RenderResult> {
     let r = &scene.render;
     let sum: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(&ctx.readback_buffer(targets.accum)?);
-    let sum_sq: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(&ctx.readback_buffer(targets.accum_sq)?);
+    let sum_sq: Vec<[f32; 4]> =
+        bytemuck::pod_collect_to_vec(&ctx.readback_buffer(targets.accum_sq)?);
     let stats: Vec<u32> = bytemuck::pod_collect_to_vec(&ctx.readback_buffer(targets.stats)?);
     let mut image = ImageRgb::new(r.width, r.height);
     let mut std_error = ImageRgb::new(r.width, r.height);
@@ -256,14 +267,22 @@ struct Progress {
 impl Progress {
     fn new(enabled: bool, total: u64) -> Self {
         let bar = enabled.then(|| {
-            let bar = indicatif::ProgressBar::with_draw_target(Some(total), indicatif::ProgressDrawTarget::hidden());
-            if let Ok(style) = indicatif::ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} frames, {elapsed} elapsed, ETA {eta}") {
+            let bar = indicatif::ProgressBar::with_draw_target(
+                Some(total),
+                indicatif::ProgressDrawTarget::hidden(),
+            );
+            if let Ok(style) = indicatif::ProgressStyle::with_template(
+                "{msg} [{bar:40}] {pos}/{len} frames, {elapsed} elapsed, ETA {eta}",
+            ) {
                 bar.set_style(style.progress_chars("=> "));
             }
             bar.set_message("rendering");
             bar
         });
-        Self { bar, start: Instant::now() }
+        Self {
+            bar,
+            start: Instant::now(),
+        }
     }
 
     fn tick(&self) {

@@ -62,7 +62,10 @@ fn identical_images_pass() {
     let metrics = harness.compare("pattern", &img, STRICT).unwrap().unwrap();
     assert_eq!(metrics.rel_mse, 0.0);
     assert_eq!(metrics.mean_flip, 0.0);
-    assert!(!harness.output_dir.exists(), "a pass writes no failure images");
+    assert!(
+        !harness.output_dir.exists(),
+        "a pass writes no failure images"
+    );
 }
 
 #[test]
@@ -125,7 +128,10 @@ fn size_mismatch_fails() {
             .compare("pattern", &ImageRgb::new(8, 8), STRICT)
             .unwrap_err()
     );
-    assert!(message.contains("8x8") && message.contains("48x32"), "{message}");
+    assert!(
+        message.contains("8x8") && message.contains("48x32"),
+        "{message}"
+    );
 }
 
 #[test]
@@ -163,7 +169,10 @@ fn missing_golden_fails_with_instructions() {
 fn bad_names_are_rejected() {
     let harness = scratch_harness("names");
     for name in ["", "../escape", "a/b", "with space"] {
-        assert!(harness.compare(name, &pattern(), STRICT).is_err(), "{name:?}");
+        assert!(
+            harness.compare(name, &pattern(), STRICT).is_err(),
+            "{name:?}"
+        );
     }
 }
 

@@ -58,9 +58,11 @@ fn struct_sizes(text: &str) -> HashMap<String, usize> {
                 "uint" | "int" | "float" => 4,
                 other => panic!("layout test: unsupported member type {other} in {decl}"),
             };
-            let count = member
-                .split_once('[')
-                .map_or(1, |(_, n)| n.trim_end_matches(']').parse::<usize>().expect("array size"));
+            let count = member.split_once('[').map_or(1, |(_, n)| {
+                n.trim_end_matches(']')
+                    .parse::<usize>()
+                    .expect("array size")
+            });
             *size += elem * count;
         }
     }
@@ -76,7 +78,11 @@ fn binding_numbers_match_the_glsl_header() {
     assert_eq!(defs["STAT_NON_FINITE"], bindings::STAT_NON_FINITE as i64);
     assert_eq!(defs["STAT_COUNT"], bindings::STAT_COUNT as i64);
     let glsl_bindings = defs.keys().filter(|k| k.starts_with("BINDING_")).count();
-    assert_eq!(glsl_bindings, bindings::ALL.len(), "a binding is missing on one side");
+    assert_eq!(
+        glsl_bindings,
+        bindings::ALL.len(),
+        "a binding is missing on one side"
+    );
 }
 
 #[test]

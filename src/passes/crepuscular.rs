@@ -57,7 +57,12 @@ fn upload_records<T: bytemuck::Pod>(ctx: &Context, records: &[T], name: &str) ->
 }
 
 impl CrepuscularPass {
-    pub fn new(ctx: &Context, plan: &CrepuscularPlan, scene: &GpuScene, targets: &Targets) -> Result<Self> {
+    pub fn new(
+        ctx: &Context,
+        plan: &CrepuscularPlan,
+        scene: &GpuScene,
+        targets: &Targets,
+    ) -> Result<Self> {
         let spirv = spirv_words(shaders::BOX_CREPUSCULAR)?;
         let layout = [
             BindingDesc::uniform_buffer(bindings::FRAME_UNIFORMS),
@@ -86,18 +91,46 @@ impl CrepuscularPass {
             scene_buffers.push(upload_records(ctx, &non_empty(&scene.media), "box media")?);
             scene_buffers.push(upload_records(ctx, &non_empty(&scene.shapes), "shapes")?);
             scene_buffers.push(upload_records(ctx, &non_empty(&scene.lights), "lights")?);
-            scene_buffers.push(upload_records(ctx, &non_empty(&scene.gobo_planes), "gobo planes")?);
+            scene_buffers.push(upload_records(
+                ctx,
+                &non_empty(&scene.gobo_planes),
+                "gobo planes",
+            )?);
             ctx.create_descriptor_set(
                 &pipeline,
                 &[
-                    DescriptorWrite::UniformBuffer { binding: bindings::FRAME_UNIFORMS, buffer: targets.uniforms },
-                    DescriptorWrite::StorageBuffer { binding: bindings::ACCUM, buffer: targets.accum },
-                    DescriptorWrite::StorageBuffer { binding: bindings::ACCUM_SQ, buffer: targets.accum_sq },
-                    DescriptorWrite::StorageBuffer { binding: bindings::STATS, buffer: targets.stats },
-                    DescriptorWrite::StorageBuffer { binding: bindings::BOX_MEDIA, buffer: &scene_buffers[0] },
-                    DescriptorWrite::StorageBuffer { binding: bindings::SHAPES, buffer: &scene_buffers[1] },
-                    DescriptorWrite::StorageBuffer { binding: bindings::LIGHTS, buffer: &scene_buffers[2] },
-                    DescriptorWrite::StorageBuffer { binding: bindings::GOBO_PLANES, buffer: &scene_buffers[3] },
+                    DescriptorWrite::UniformBuffer {
+                        binding: bindings::FRAME_UNIFORMS,
+                        buffer: targets.uniforms,
+                    },
+                    DescriptorWrite::StorageBuffer {
+                        binding: bindings::ACCUM,
+                        buffer: targets.accum,
+                    },
+                    DescriptorWrite::StorageBuffer {
+                        binding: bindings::ACCUM_SQ,
+                        buffer: targets.accum_sq,
+                    },
+                    DescriptorWrite::StorageBuffer {
+                        binding: bindings::STATS,
+                        buffer: targets.stats,
+                    },
+                    DescriptorWrite::StorageBuffer {
+                        binding: bindings::BOX_MEDIA,
+                        buffer: &scene_buffers[0],
+                    },
+                    DescriptorWrite::StorageBuffer {
+                        binding: bindings::SHAPES,
+                        buffer: &scene_buffers[1],
+                    },
+                    DescriptorWrite::StorageBuffer {
+                        binding: bindings::LIGHTS,
+                        buffer: &scene_buffers[2],
+                    },
+                    DescriptorWrite::StorageBuffer {
+                        binding: bindings::GOBO_PLANES,
+                        buffer: &scene_buffers[3],
+                    },
                 ],
                 "crepuscular set",
             )
@@ -119,7 +152,13 @@ impl CrepuscularPass {
     }
 
     /// Record one dispatch over a `width` x `height` image.
-    pub fn record(&self, ctx: &Context, cmd: vk::CommandBuffer, uniforms: &FrameUniforms, push: &PassPush) -> Result<()> {
+    pub fn record(
+        &self,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        uniforms: &FrameUniforms,
+        push: &PassPush,
+    ) -> Result<()> {
         let groups = [
             uniforms.image[0].div_ceil(GROUP_SIZE[0]),
             uniforms.image[1].div_ceil(GROUP_SIZE[1]),
@@ -140,8 +179,11 @@ impl CrepuscularPass {
 
 /// SPIR-V bytes as words (the embedded bytes carry no alignment guarantee).
 pub fn spirv_words(bytes: &[u8]) -> Result<Vec<u32>> {
-    if bytes.len() % 4 != 0 {
-        bail!("embedded SPIR-V of {} bytes is not a whole number of words", bytes.len());
+    if !bytes.len().is_multiple_of(4) {
+        bail!(
+            "embedded SPIR-V of {} bytes is not a whole number of words",
+            bytes.len()
+        );
     }
     Ok(bytes
         .chunks_exact(4)

@@ -19,7 +19,7 @@
 //! | upload (mapped)        | none: host writes before a submit are visible  |                                              |
 
 use crate::buffer::{Buffer, BufferDesc};
-use crate::context::Context;
+use crate::context::{lock, Context};
 use crate::error::{vk_error, VkResultExt};
 use crate::image::Image;
 use anyhow::{bail, Context as _, Result};
@@ -85,12 +85,7 @@ enum PoolState {
 
 impl Context {
     fn acquire_command_pool(&self) -> Result<vk::CommandPool> {
-        if let Some(pool) = self
-            .command_pools
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner)
-            .pop()
-        {
+        if let Some(pool) = lock(&self.command_pools).pop() {
             return Ok(pool);
         }
         let info = vk::CommandPoolCreateInfo::default()
@@ -103,10 +98,7 @@ impl Context {
     }
 
     fn release_command_pool(&self, pool: vk::CommandPool) {
-        self.command_pools
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner)
-            .push(pool);
+        lock(&self.command_pools).push(pool);
     }
 
     /// Records `record` into a fresh command buffer, submits it, and waits for it to finish.

@@ -29,7 +29,10 @@
 //!   `compute/transfer write -> transfer read` before its copy and `transfer write -> host
 //!   read` after it (a mapped readback gets `compute/transfer write -> host read`). All are
 //!   global memory barriers; passes separate dependent dispatches with
-//!   [`compute_barrier`].
+//!   [`compute_barrier`]. With validation on, synchronization validation flags hazards
+//!   inside one command buffer (a missing `compute_barrier` between passes); the layer in
+//!   Debian 12 (1.3.239) does not flag hazards across fenced submissions, so the barriers
+//!   of separate uploads and readbacks hold by construction, not by the layer's check.
 //! - **Submission**: [`Context::submit_one_shot`] waits on a fence before it returns
 //!   (timing out with an error after ten minutes rather than hanging), so after any call
 //!   into this crate returns, the GPU is idle with respect to the work it submitted.
@@ -46,7 +49,7 @@ pub mod profiler;
 pub use ash::vk;
 pub use buffer::{Buffer, BufferDesc};
 pub use command::compute_barrier;
-pub use context::{enumerate_devices, Context, ContextDesc, DeviceInfo};
+pub use context::{enumerate_devices, select_device, Context, ContextDesc, DeviceInfo};
 pub use descriptor::{DescriptorSet, DescriptorWrite};
 pub use error::VkError;
 pub use gpu_allocator::MemoryLocation;

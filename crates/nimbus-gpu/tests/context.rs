@@ -25,6 +25,7 @@ fn lists_devices_and_creates_a_validated_context() {
 
     let ctx = common::validated_context();
     let info = ctx.info();
+    eprintln!("{info:#?}");
     assert!(ctx.validation_enabled());
     assert_eq!(devices[info.index].name, info.name);
     assert!(info.compute_queue_family.is_some());

@@ -78,7 +78,13 @@ const SHAPE_TYPES: &[(&str, &[&str])] = &[
 ];
 const GRID_KEYS: &[&str] = &["file", "dims", "procedural", "noise_seed"];
 const GRID_FRAME_KEYS: &[&str] = &["frame", "density"];
-const INTEGRATOR_KEYS: &[&str] = &["max_bounces", "volume", "box_estimator", "restir"];
+const INTEGRATOR_KEYS: &[&str] = &[
+    "max_bounces",
+    "volume",
+    "box_estimator",
+    "box_samples",
+    "restir",
+];
 const RESTIR_KEYS: &[&str] = &[
     "candidates",
     "temporal",
@@ -718,6 +724,7 @@ fn parse_integrator(source: &Source, table: &toml::Table) -> Result<Integrator> 
             ],
         )?,
         box_estimator: f.choice("box_estimator", Some(defaults.box_estimator), &estimators)?,
+        box_samples: f.u32_in("box_samples", Some(defaults.box_samples), 1..=65536)?,
         restir: match f.opt_table("restir")? {
             Some(table) => parse_restir(source, table)?,
             None => defaults.restir,

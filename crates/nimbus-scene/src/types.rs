@@ -204,6 +204,9 @@ pub struct Integrator {
     pub max_bounces: u32,
     pub volume: VolumeIntegrator,
     pub box_estimator: BoxEstimator,
+    /// N_sample of the box-medium paper: samples along each camera ray taken by the
+    /// box estimators (a Nimbus setting, `[integrator] box_samples`, default 16).
+    pub box_samples: u32,
     pub restir: RestirSettings,
 }
 
@@ -213,6 +216,7 @@ impl Default for Integrator {
             max_bounces: 1,
             volume: VolumeIntegrator::Restir,
             box_estimator: BoxEstimator::Mcwvds,
+            box_samples: 16,
             restir: RestirSettings::default(),
         }
     }

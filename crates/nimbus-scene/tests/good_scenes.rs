@@ -24,6 +24,7 @@ fn minimal_scene_gets_every_default() {
     assert_eq!(scene.integrator.max_bounces, 1);
     assert_eq!(scene.integrator.volume, VolumeIntegrator::Restir);
     assert_eq!(scene.integrator.box_estimator, BoxEstimator::Mcwvds);
+    assert_eq!(scene.integrator.box_samples, 16);
     let restir = &scene.integrator.restir;
     assert_eq!(restir.candidates, 4);
     assert!(restir.temporal);
@@ -200,6 +201,7 @@ radius = 0.25
 max_bounces = 8
 volume = "baseline"
 box_estimator = "rees"
+box_samples = 48
 
 [integrator.restir]
 candidates = 16
@@ -383,6 +385,7 @@ mip_reuse = 0
             max_bounces: 8,
             volume: VolumeIntegrator::Baseline,
             box_estimator: BoxEstimator::Rees,
+            box_samples: 48,
             restir: RestirSettings {
                 candidates: 16,
                 temporal: false,

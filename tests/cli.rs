@@ -1,0 +1,169 @@
+//! The `nimbus` command line: rendering, explaining, profiling, and clear errors for
+//! bad input. Runs the real binary with validation layers on (NIMBUS_VALIDATION=1),
+//! under which any validation error makes the command fail.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn nimbus(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_nimbus"))
+        .args(args)
+        .env("NIMBUS_VALIDATION", "1")
+        .output()
+        .expect("run nimbus")
+}
+
+fn text(bytes: &[u8]) -> String {
+    String::from_utf8_lossy(bytes).into_owned()
+}
+
+/// A fresh directory for one test's files.
+fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join("cli")
+        .join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("scratch dir");
+    dir
+}
+
+#[test]
+fn explain_prints_the_plan_of_the_default_scene() {
+    let out = nimbus(&["render", "--explain"]);
+    let stdout = text(&out.stdout);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    assert!(stdout.contains("[on ] pass crepuscular"), "{stdout}");
+    assert!(stdout.contains("[off]   SC_HAS_GOBOS"), "{stdout}");
+    assert!(stdout.contains("[on ]   SC_HAS_SHAPES"), "{stdout}");
+    assert!(stdout.contains("[off] pass baseline"), "{stdout}");
+}
+
+#[test]
+fn render_writes_exr_and_png() {
+    let dir = scratch("render");
+    for name in ["small.exr", "small.png"] {
+        let path = dir.join(name);
+        let out = nimbus(&[
+            "render",
+            "--out",
+            path.to_str().unwrap(),
+            "--width",
+            "32",
+            "--height",
+            "24",
+            "--frames",
+            "1",
+            "--spp",
+            "1",
+        ]);
+        assert!(out.status.success(), "{}", text(&out.stderr));
+        assert!(path.exists());
+    }
+    let img = nimbus::output::read_exr(&dir.join("small.exr")).expect("read exr");
+    assert_eq!((img.width, img.height), (32, 24));
+    assert!(img.mean()[0] > 0.0, "the default scene is not black");
+}
+
+#[test]
+fn profile_reports_the_crepuscular_pass_from_timestamps() {
+    let dir = scratch("profile");
+    let json = dir.join("profile.json");
+    let trace = dir.join("trace.json");
+    let out = nimbus(&[
+        "profile",
+        "--width",
+        "32",
+        "--height",
+        "24",
+        "--frames",
+        "3",
+        "--warmup",
+        "1",
+        "--json",
+        json.to_str().unwrap(),
+        "--trace",
+        trace.to_str().unwrap(),
+    ]);
+    let stdout = text(&out.stdout);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    assert!(stdout.contains("frame/crepuscular"), "{stdout}");
+
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).expect("JSON report");
+    assert_eq!(report["frames"], 3);
+    let passes = report["passes"].as_array().expect("passes");
+    let pass = passes
+        .iter()
+        .find(|p| p["pass"] == "frame/crepuscular")
+        .expect("crepuscular pass in the report");
+    let (min, median, max) = (
+        pass["min_ms"].as_f64().unwrap(),
+        pass["median_ms"].as_f64().unwrap(),
+        pass["max_ms"].as_f64().unwrap(),
+    );
+    assert!(min > 0.0 && min <= median && median <= max, "{pass}");
+
+    let trace: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&trace).unwrap()).expect("trace JSON");
+    let events = trace["traceEvents"].as_array().expect("traceEvents");
+    assert_eq!(
+        events.iter().filter(|e| e["name"] == "crepuscular").count(),
+        3
+    );
+}
+
+/// Bad input ends in an error that names the file, the table and the field.
+#[test]
+fn bad_scenes_give_clear_errors() {
+    let dir = scratch("bad");
+    let cases = [
+        (
+            "unknown.toml",
+            "[camera]\nposition = [0, 0, 1]\nlook_at = [0, 0, 0]\nfov = 3\n",
+            &["unknown.toml", "[camera]", "fov"][..],
+        ),
+        (
+            "zero.toml",
+            "[camera]\nposition = [0, 0, 1]\nlook_at = [0, 0, 0]\n[[light]]\ntype = \"directional\"\ndirection = [0, 0, 0]\nirradiance = 1\n",
+            &["zero.toml", "[[light]] #1", "direction"][..],
+        ),
+        (
+            "nan.toml",
+            "[camera]\nposition = [0, 0, 1]\nlook_at = [0, 0, 0]\n[[medium]]\ntype = \"box\"\ncenter = [0, 0, 0]\nsize = [1, 1, 1]\nsigma_t = nan\n",
+            &["nan.toml", "[[medium]] #1", "sigma_t"][..],
+        ),
+        (
+            "grid.toml",
+            "[camera]\nposition = [0, 0, 3]\nlook_at = [0, 0, 0]\n[[medium]]\ntype = \"grid\"\nbounds_min = [-1, -1, -1]\nbounds_max = [1, 1, 1]\ndensity = { procedural = \"cloud\", dims = [8, 8, 8] }\n",
+            &["grid.toml", "[[medium]] #1", "not supported yet"][..],
+        ),
+        (
+            "bounces.toml",
+            "[camera]\nposition = [0, 0, 3]\nlook_at = [0, 0, 0]\n[integrator]\nmax_bounces = 4\n",
+            &["bounces.toml", "[integrator]", "max_bounces"][..],
+        ),
+    ];
+    for (name, body, needles) in cases {
+        let path = dir.join(name);
+        std::fs::write(&path, body).unwrap();
+        let out = nimbus(&["render", path.to_str().unwrap(), "--explain"]);
+        let stderr = text(&out.stderr);
+        assert!(!out.status.success(), "{name} should fail");
+        assert!(!stderr.contains("panicked"), "{name}: {stderr}");
+        for needle in needles {
+            assert!(
+                stderr.contains(needle),
+                "{name}: {needle:?} missing in: {stderr}"
+            );
+        }
+    }
+
+    let missing = dir.join("missing.toml");
+    let out = nimbus(&["render", missing.to_str().unwrap(), "--out", "x.exr"]);
+    assert!(!out.status.success());
+    assert!(text(&out.stderr).contains("missing.toml"));
+
+    let out = nimbus(&["render", "--out", dir.join("image.jpg").to_str().unwrap()]);
+    assert!(!out.status.success());
+    assert!(text(&out.stderr).contains(".exr"), "{}", text(&out.stderr));
+}
