@@ -239,52 +239,17 @@ impl Context {
                 dst.name
             );
         }
-        let mut staging = self.create_buffer(
-            &BufferDesc::host_to_gpu(len, vk::BufferUsageFlags::empty()),
-            &format!("staging upload for '{}'", dst.name),
-        )?;
-        let copied = match staging.mapped_slice_mut() {
-            Some(slice) => {
-                slice.copy_from_slice(data);
-                Ok(())
-            }
-            None => Err(anyhow::anyhow!(
-                "staging buffer for '{}' is not mapped",
-                dst.name
-            )),
-        };
-        let result = copied.and_then(|()| {
-            self.submit_one_shot(&format!("upload '{}'", dst.name), |cmd| {
-                memory_barrier(
-                    self,
-                    cmd,
-                    STAGES_BEFORE,
-                    WRITES_BEFORE,
-                    vk::PipelineStageFlags::TRANSFER,
-                    vk::AccessFlags::TRANSFER_WRITE,
-                );
-                let region = vk::BufferCopy {
-                    src_offset: 0,
-                    dst_offset: offset,
-                    size: len,
-                };
-                unsafe {
-                    self.device()
-                        .cmd_copy_buffer(cmd, staging.raw, dst.raw, &[region])
-                };
-                memory_barrier(
-                    self,
-                    cmd,
-                    vk::PipelineStageFlags::TRANSFER,
-                    vk::AccessFlags::TRANSFER_WRITE,
-                    vk::PipelineStageFlags::COMPUTE_SHADER,
-                    SHADER_ACCESS,
-                );
-                Ok(())
-            })
-        });
-        self.destroy_buffer(staging);
-        result
+        self.upload_staged(&dst.name, data, |cmd, staging| {
+            let region = vk::BufferCopy {
+                src_offset: 0,
+                dst_offset: offset,
+                size: len,
+            };
+            unsafe {
+                self.device()
+                    .cmd_copy_buffer(cmd, staging, dst.raw, &[region])
+            };
+        })
     }
 
     /// Reads the whole of `src` back to the host.
@@ -404,6 +369,53 @@ impl Context {
         })
     }
 
+    /// Copies `data` into a mapped staging buffer and submits `copy` (which records the
+    /// copy out of the staging buffer) between the upload barriers of the module docs.
+    fn upload_staged(
+        &self,
+        dst_name: &str,
+        data: &[u8],
+        copy: impl FnOnce(vk::CommandBuffer, vk::Buffer),
+    ) -> Result<()> {
+        let mut staging = self.create_buffer(
+            &BufferDesc::host_to_gpu(data.len() as u64, vk::BufferUsageFlags::empty()),
+            &format!("staging upload for '{dst_name}'"),
+        )?;
+        let copied = match staging.mapped_slice_mut() {
+            Some(slice) => {
+                slice.copy_from_slice(data);
+                Ok(())
+            }
+            None => Err(anyhow::anyhow!(
+                "staging buffer for '{dst_name}' is not mapped"
+            )),
+        };
+        let result = copied.and_then(|()| {
+            self.submit_one_shot(&format!("upload '{dst_name}'"), |cmd| {
+                memory_barrier(
+                    self,
+                    cmd,
+                    STAGES_BEFORE,
+                    WRITES_BEFORE,
+                    vk::PipelineStageFlags::TRANSFER,
+                    vk::AccessFlags::TRANSFER_WRITE,
+                );
+                copy(cmd, staging.raw);
+                memory_barrier(
+                    self,
+                    cmd,
+                    vk::PipelineStageFlags::TRANSFER,
+                    vk::AccessFlags::TRANSFER_WRITE,
+                    vk::PipelineStageFlags::COMPUTE_SHADER,
+                    SHADER_ACCESS,
+                );
+                Ok(())
+            })
+        });
+        self.destroy_buffer(staging);
+        result
+    }
+
     fn image_byte_size(image: &Image) -> Result<u64> {
         image.desc.byte_size().with_context(|| {
             format!(
@@ -433,53 +445,18 @@ impl Context {
                 dst.name
             );
         }
-        let mut staging = self.create_buffer(
-            &BufferDesc::host_to_gpu(size, vk::BufferUsageFlags::empty()),
-            &format!("staging upload for '{}'", dst.name),
-        )?;
-        let copied = match staging.mapped_slice_mut() {
-            Some(slice) => {
-                slice.copy_from_slice(data);
-                Ok(())
-            }
-            None => Err(anyhow::anyhow!(
-                "staging buffer for '{}' is not mapped",
-                dst.name
-            )),
-        };
-        let result = copied.and_then(|()| {
-            self.submit_one_shot(&format!("upload '{}'", dst.name), |cmd| {
-                memory_barrier(
-                    self,
+        self.upload_staged(&dst.name, data, |cmd, staging| {
+            let region = whole_image_copy(dst);
+            unsafe {
+                self.device().cmd_copy_buffer_to_image(
                     cmd,
-                    STAGES_BEFORE,
-                    WRITES_BEFORE,
-                    vk::PipelineStageFlags::TRANSFER,
-                    vk::AccessFlags::TRANSFER_WRITE,
-                );
-                let region = whole_image_copy(dst);
-                unsafe {
-                    self.device().cmd_copy_buffer_to_image(
-                        cmd,
-                        staging.raw,
-                        dst.raw,
-                        vk::ImageLayout::GENERAL,
-                        &[region],
-                    )
-                };
-                memory_barrier(
-                    self,
-                    cmd,
-                    vk::PipelineStageFlags::TRANSFER,
-                    vk::AccessFlags::TRANSFER_WRITE,
-                    vk::PipelineStageFlags::COMPUTE_SHADER,
-                    SHADER_ACCESS,
-                );
-                Ok(())
-            })
-        });
-        self.destroy_buffer(staging);
-        result
+                    staging,
+                    dst.raw,
+                    vk::ImageLayout::GENERAL,
+                    &[region],
+                )
+            };
+        })
     }
 
     /// Reads the whole image back as tightly packed texels (x fastest, then y, then z).
