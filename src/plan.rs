@@ -10,6 +10,11 @@ use std::fmt::Write as _;
 use anyhow::{bail, Result};
 use nimbus_scene::{BoxEstimator, Light, Medium, Scene};
 
+/// Most box media the crepuscular pass takes (`MAX_MEDIA` in crepuscular.comp).
+pub const MAX_BOX_MEDIA: usize = 16;
+/// Most directional lights the crepuscular pass takes (`MAX_LIGHTS` in crepuscular.comp).
+pub const MAX_DIRECTIONAL_LIGHTS: usize = 16;
+
 /// The passes and features for one scene.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RenderPlan {
@@ -23,6 +28,8 @@ pub struct RenderPlan {
 pub struct CrepuscularPlan {
     pub estimator: BoxEstimator,
     pub samples_along_ray: u32,
+    /// K: scattering orders 1..=K are summed (1 = single scattering).
+    pub max_bounces: u32,
     pub features: CrepuscularFeatures,
 }
 
@@ -33,6 +40,7 @@ pub struct CrepuscularFeatures {
     pub has_shapes: bool,
     pub has_gobos: bool,
     pub has_env: bool,
+    pub pixel_jitter: bool,
 }
 
 /// One line of `--explain`: a pass or feature, in or out, and the reason.
@@ -84,19 +92,20 @@ pub fn build(scene: &Scene, samples_along_ray: Option<u32>) -> Result<RenderPlan
         );
     }
     let integrator = &scene.integrator;
-    if integrator.max_bounces > 1 {
+    let box_media = scene.media.len();
+    if box_media > MAX_BOX_MEDIA {
         bail!(
-            "{file}: [integrator] field `max_bounces` = {}: multiple scattering is not supported yet; \
-             the crepuscular pass renders single scattering (max_bounces = 1)",
-            integrator.max_bounces
+            "{file}: [[medium]]: {box_media} box media, the crepuscular pass takes at most {MAX_BOX_MEDIA}"
         );
     }
-    if integrator.box_estimator != BoxEstimator::Rm && !scene.media.is_empty() {
+    let directional_lights = scene
+        .lights
+        .iter()
+        .filter(|l| matches!(l, Light::Directional { .. }))
+        .count();
+    if directional_lights > MAX_DIRECTIONAL_LIGHTS {
         bail!(
-            "{file}: [integrator] field `box_estimator` = \"{}\": not supported yet; \
-             set box_estimator = \"rm\" (ray marching) — the default \"mcwvds\" and the \
-             other estimators of the box-medium paper are being implemented",
-            integrator.box_estimator.name()
+            "{file}: [[light]]: {directional_lights} directional lights, the crepuscular pass takes at most {MAX_DIRECTIONAL_LIGHTS}"
         );
     }
     let samples_along_ray = samples_along_ray.unwrap_or(integrator.box_samples);
@@ -106,11 +115,7 @@ pub fn build(scene: &Scene, samples_along_ray: Option<u32>) -> Result<RenderPlan
 
     let media = scene.media.len();
     let shapes = scene.shapes.len();
-    let directional = scene
-        .lights
-        .iter()
-        .filter(|l| matches!(l, Light::Directional { .. }))
-        .count();
+    let directional = directional_lights;
     let gobos = scene
         .lights
         .iter()
@@ -126,15 +131,22 @@ pub fn build(scene: &Scene, samples_along_ray: Option<u32>) -> Result<RenderPlan
         has_shapes: shapes > 0,
         has_gobos: gobos > 0,
         has_env: env,
+        pixel_jitter: scene.render.pixel_jitter,
     };
+    let max_bounces = integrator.max_bounces;
     let estimator = integrator.box_estimator;
     let mut decisions = vec![Decision {
         name: "pass crepuscular",
         enabled: true,
         reason: if media > 0 {
             format!(
-                "{media} box medium(s), {directional} directional light(s): single scattering by {} \
-                 with {samples_along_ray} samples along each camera ray",
+                "{media} box medium(s), {directional} directional light(s): {} by {} \
+                 with {samples_along_ray} samples along each path segment",
+                if max_bounces == 1 {
+                    "single scattering".to_string()
+                } else {
+                    format!("scattering orders 1..={max_bounces} (path tracing)")
+                },
                 estimator.name()
             )
         } else {
@@ -180,6 +192,24 @@ pub fn build(scene: &Scene, samples_along_ray: Option<u32>) -> Result<RenderPlan
         },
     });
     decisions.push(Decision {
+        name: "  SC_MAX_BOUNCES",
+        enabled: max_bounces > 1,
+        reason: if max_bounces > 1 {
+            format!("K = {max_bounces}: paths continue by free-flight collisions and Lambertian reflections")
+        } else {
+            "K = 1: single-scattering variant, path continuation compiled out".into()
+        },
+    });
+    decisions.push(Decision {
+        name: "  SC_PIXEL_JITTER",
+        enabled: features.pixel_jitter,
+        reason: if features.pixel_jitter {
+            "rays jittered over the pixel footprint (box filter)".into()
+        } else {
+            "[render] pixel_jitter = false: every ray through the pixel centre".into()
+        },
+    });
+    decisions.push(Decision {
         name: "pass restir (initial, temporal, spatial, shade)",
         enabled: false,
         reason: "no grid media".into(),
@@ -194,6 +224,7 @@ pub fn build(scene: &Scene, samples_along_ray: Option<u32>) -> Result<RenderPlan
         crepuscular: Some(CrepuscularPlan {
             estimator,
             samples_along_ray,
+            max_bounces,
             features,
         }),
         decisions,

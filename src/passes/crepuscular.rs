@@ -32,7 +32,7 @@ pub struct Targets<'a> {
 }
 
 /// The specialization constants of `crepuscular.comp` for a plan.
-pub fn specialization(plan: &CrepuscularPlan) -> [(u32, SpecValue); 5] {
+pub fn specialization(plan: &CrepuscularPlan) -> [(u32, SpecValue); 7] {
     let f = plan.features;
     [
         (0, SpecValue::Bool(f.has_shapes)),
@@ -40,6 +40,8 @@ pub fn specialization(plan: &CrepuscularPlan) -> [(u32, SpecValue); 5] {
         (2, SpecValue::Bool(f.has_env)),
         (3, SpecValue::U32(estimator_id(plan.estimator))),
         (4, SpecValue::Bool(f.has_media)),
+        (5, SpecValue::U32(plan.max_bounces)),
+        (6, SpecValue::Bool(f.pixel_jitter)),
     ]
 }
 

@@ -22,6 +22,8 @@
 
 #![allow(dead_code)]
 
+pub mod gpu;
+
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, ensure, Context};

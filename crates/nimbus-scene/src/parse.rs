@@ -23,7 +23,7 @@ pub const MAX_IMAGE_SIDE: u32 = 16384;
 pub const MAX_IMAGE_PIXELS: u64 = 64 << 20;
 
 const TOP_KEYS: &[&str] = &["render", "camera", "light", "medium", "shape", "integrator"];
-const RENDER_KEYS: &[&str] = &["width", "height", "frames", "spp", "seed"];
+const RENDER_KEYS: &[&str] = &["width", "height", "frames", "spp", "seed", "pixel_jitter"];
 const CAMERA_KEYS: &[&str] = &[
     "position",
     "look_at",
@@ -181,6 +181,7 @@ fn parse_render(source: &Source, table: &toml::Table) -> Result<RenderSettings> 
         frames: f.u32_in("frames", Some(defaults.frames), 1..=1_000_000)?,
         spp: f.u32_in("spp", Some(defaults.spp), 1..=65536)?,
         seed: f.int_in("seed", Some(0), 0..=i64::MAX)? as u64,
+        pixel_jitter: f.opt_bool("pixel_jitter")?.unwrap_or(defaults.pixel_jitter),
     })
 }
 

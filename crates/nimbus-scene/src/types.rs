@@ -29,6 +29,11 @@ pub struct RenderSettings {
     pub frames: u32,
     pub spp: u32,
     pub seed: u64,
+    /// Nimbus setting `[render] pixel_jitter` (default true): jitter camera rays over
+    /// the pixel footprint (box filter). False shoots every ray through the pixel
+    /// centre — the radiance at the centre instead of the footprint mean, for tests
+    /// and estimator studies that need the same camera ray in every sample.
+    pub pixel_jitter: bool,
 }
 
 impl Default for RenderSettings {
@@ -39,6 +44,7 @@ impl Default for RenderSettings {
             frames: 1,
             spp: 1,
             seed: 0,
+            pixel_jitter: true,
         }
     }
 }

@@ -102,6 +102,7 @@ height = 200
 frames = 8
 spp = 4
 seed = 42
+pixel_jitter = false
 
 [camera]
 position = [0, 1, 10]
@@ -226,7 +227,8 @@ mip_reuse = 0
             height: 200,
             frames: 8,
             spp: 4,
-            seed: 42
+            seed: 42,
+            pixel_jitter: false
         }
     );
     let camera = &scene.camera;

@@ -1,0 +1,327 @@
+// Analytic single scattering in a homogeneous box under collimated light (Velinov &
+// Mitchell, Sec. 4-5): the unoccluded transmittance integral T_box over a camera segment
+// (the paper's trapezoid segments, Eq. 6-8) and whole-volume distance sampling (Eq. 9-11).
+// Pure math: no buffers, no bindings.
+//
+// Frame. Everything is in the box's rotated, unscaled local frame (metres): local =
+// R^T (x - center), the box is |x_a| <= h_a. The camera ray is o + t d (d unit) and the
+// light travels along omega (unit), so light reaches x from the boundary along -omega.
+//
+// Light distance. The ray x - s omega (s >= 0) leaves slab a (|omega_a| > 0) through the
+// face it entered by, x_a - s omega_a = -sign(omega_a) h_a, so
+//     s_a(x) = (h_a + sign(omega_a) x_a) / |omega_a|,     d_m(x) = min_a s_a(x).
+// A slab the light is parallel to (|omega_a| <= BOX_PARALLEL_EPS) limits nothing for x
+// inside it (the slab is closed, as in intersect_slabs). On the camera ray each s_a is
+// linear in t with slope B_a = d_a / omega_a, so d_m(t) is concave and piecewise linear,
+// the lower envelope of at most 3 lines: at most 2 breakpoints, at most 3 pieces. The
+// pieces are exactly the paper's trapezoid segments (the light-ray exit face is constant
+// on each) and the breakpoints are the box-section corners projected onto the camera ray.
+//
+// Optical depth. Camera transmittance starts at t_enter (max(box entry, 0)); on a piece
+// the optical depth of camera entry -> x(t) -> boundary towards the light is
+//     tau(t) = sigma_t ((t - t_enter) + d_m(t)) = tau0 + sigma_t c (t - t_start),
+// with the paper's slope c = 1 + B_k for the piece's exit face k. c is NOT confined to
+// [0, 2]: |d_k| <= 1 but |omega_k| may be small (grazing light), so c lies in
+// [1 - 1/|omega_k|, 1 + 1/|omega_k|]; c < 0 (optical depth falling along the ray: walking
+// towards the lit face faster than away from the camera) and c = 0 (d = -omega, Eq. 7)
+// both happen. tau(t) >= 0 always.
+//
+// Piece integral (Eq. 6 with the factor 1 / (sigma_t c) the printed equation drops):
+//     I = int_0^L exp(-tau0 - sigma_t c s) ds = exp(-tau0) L f(x),   x = sigma_t c L,
+//     f(x) = (1 - exp(-x)) / x  (f(0) = 1: the paper's linear limit I = L exp(-tau0)).
+// For x < 0, exp(-tau0) underflows where f(x) ~ exp(|x|)/|x| overflows, so the integral
+// is taken from the piece's low end instead: I = exp(-min(tau0, tau1)) L f(|x|), tau1 the
+// depth at the piece end, computed directly (a sum of non-negative terms, no
+// cancellation). The parallel cases need no special code: d = -omega makes every slab
+// slope -1 (c = 0, Eq. 7) and d = omega makes it +1 (c = 2, Eq. 8), one piece each.
+//
+// Sampling (Eq. 9-11). A piece is chosen with probability I_k / T_box (CDF over the
+// pieces, Eq. 9), the random number is rescaled into it (Eq. 10), and the offset inside
+// the piece is a truncated exponential with rate |sigma_t c| sampled from the piece's
+// low-depth end: s = -log(1 - (1 - exp(-x)) r) / (sigma_t c) for c >= 0 and the mirror
+// image L - s(1 - r) for c < 0, which is the same distribution without exp(|x|)
+// overflowing. pdf(t) = exp(-tau(t)) / T_box (Eq. 11), evaluated as
+// (I_k / T_box) * (density of t within piece k), which uses only I_k, L and sigma_t c and
+// matches the sampler exactly. When T_box == 0 (empty interval, or every piece underflowed)
+// nothing can be sampled: sample_wvds returns t_a with pdf 0, and callers must treat the
+// contribution as zero (check pdf > 0 before dividing by it).
+//
+// Precision (float32). Optical depths reach 1e7 and more; exp(-tau) then underflows to 0,
+// which is the right answer. Every intermediate stays finite for scene limits (sizes
+// <= 1e7 m, sigma_t <= 1e9 /m): lines only exist for |omega_a| > 1e-20, so |B_a| <= 1e20
+// and sigma_t c <= 1e29. Accuracy is limited by the inputs, not the formulas: rounding a
+// position of magnitude S to f32 moves tau by about 2^-24 sigma_t S / |omega_k|, which
+// matters only for optically thick boxes seen from far away (tests/box_analytic.rs
+// measures everything else to within 1e-5 of an f64 quadrature).
+#ifndef NIMBUS_BOX_ANALYTIC_GLSL
+#define NIMBUS_BOX_ANALYTIC_GLSL
+
+#include "constants.glsl"
+
+#define BOX_MAX_PIECES 3
+// A light component at or below this magnitude makes the light parallel to that slab.
+#define BOX_PARALLEL_EPS 1e-20
+// The largest float below 1: random numbers are clamped to it so that 1 - r > 0.
+#define BOX_ONE_MINUS_EPSILON 0.99999994
+
+struct BoxPieces {
+    uint count;                      // non-empty pieces, 0..3
+    float t_start[BOX_MAX_PIECES];   // along the camera ray (same t as the caller's ray); t_start[0] = t_a even when count == 0
+    float len[BOX_MAX_PIECES];       // piece length along the camera ray (the brief's `length`: glslang parses `.length` as the array method)
+    float tau0[BOX_MAX_PIECES];      // optical depth at t_start: sigma_t * ((t_start - t_enter) + d_m(t_start))
+    float slope[BOX_MAX_PIECES];     // sigma_t * c
+    float integral[BOX_MAX_PIECES];  // Eq. 6 for the piece
+    float total;                     // sum of integral[]: the unoccluded transmittance integral T_box over [t_a, t_b]
+};
+
+// Stable (1 - exp(-x)) / x for any finite x (x -> 0 gives 1). For x < -88 the true value
+// exceeds e^88 / 88 and the result saturates there (finite); callers here pass x >= 0.
+float one_minus_exp_over_x(float x) {
+    // Sum the Taylor series sum_n (-x)^n / (n + 1)! near 0: truncation < 1e-9 relative
+    // for |x| <= 0.5, where 1 - exp(-x) would lose up to -log2(x) bits (and GPU exp may
+    // be off by a few ulp of 1, i.e. 2e-4 relative at x = 1e-3).
+    if (abs(x) <= 0.5) {
+        return 1.0 + x * (-1.0 / 2.0 + x * (1.0 / 6.0 + x * (-1.0 / 24.0 + x * (1.0 / 120.0
+            + x * (-1.0 / 720.0 + x * (1.0 / 5040.0 + x * (-1.0 / 40320.0 + x * (1.0 / 362880.0))))))));
+    }
+    // Domain: x > 0.5, so the division is safe and 1 - exp(-x) >= 0.39 keeps its digits.
+    if (x > 0.0) {
+        return (1.0 - exp(-x)) / x;
+    }
+    // Domain: x < -0.5; exp's argument is clamped to 88 (e^88 < FLT_MAX).
+    return (exp(min(-x, 88.0)) - 1.0) / -x;
+}
+
+// -log(1 - a) for a in [0, 1): the atanh series near 0, log elsewhere.
+float box_neg_log1m(float a) {
+    // Sum 2 atanh(z) = 2 (z + z^3/3 + ... + z^17/17) with z = a / (2 - a) <= 1/3 for
+    // a <= 0.5 (truncation < 2e-10 relative); GPU log has only absolute accuracy near 1.
+    if (a <= 0.5) {
+        // Domain: 2 - a >= 1.5.
+        float z = a / (2.0 - a);
+        float z2 = z * z;
+        float series = 1.0 + z2 * (1.0 / 3.0 + z2 * (1.0 / 5.0 + z2 * (1.0 / 7.0 + z2 * (1.0 / 9.0
+            + z2 * (1.0 / 11.0 + z2 * (1.0 / 13.0 + z2 * (1.0 / 15.0 + z2 * (1.0 / 17.0))))))));
+        return 2.0 * z * series;
+    }
+    // Domain: 1 - a in (0, 0.5] (a < 1), where log is accurate to a few ulp.
+    return -log(max(1.0 - a, 1.17549435e-38));
+}
+
+// Sample v in [0, 1] with density proportional to exp(-x v), x >= 0 (a truncated
+// exponential over a unit interval), from r in [0, 1): the inverse of its CDF.
+float box_sample_truncated_exp(float x, float r) {
+    // Handle a nearly flat density: v = r (1 + x (r - 1) / 2), error O(x^2) < 1e-12.
+    if (x < 1e-6) {
+        return r * (1.0 + 0.5 * x * (r - 1.0));
+    }
+    float e = exp(-x); // Domain: x >= 1e-6 (+inf gives 0).
+    // Invert CDF(v) = (1 - exp(-x v)) / (1 - exp(-x)): v = -log(1 - a) / x with
+    // a = r (1 - exp(-x)).
+    float neg_log;
+    float a = r * ((x <= 0.5) ? x * one_minus_exp_over_x(x) : 1.0 - e);
+    if (a <= 0.5) {
+        neg_log = box_neg_log1m(a);
+    } else {
+        // Form 1 - a = (1 - r) + r exp(-x) without cancellation (1 - r is exact for
+        // r >= 0.5, which a > 0.5 implies); Domain: it is >= 1 - r > 0 for r < 1.
+        neg_log = -log(max((1.0 - r) + r * e, 1.17549435e-38));
+    }
+    // Domain: x >= 1e-6.
+    return clamp(neg_log / x, 0.0, 1.0);
+}
+
+// Distance to the box boundary towards the light (along -omega) from local point x inside
+// the box; 0 if no component of omega exceeds BOX_PARALLEL_EPS (omega not unit).
+float box_light_distance(vec3 x_local, vec3 omega_local, vec3 half_size) {
+    float d_m = FAR;
+    bool limited = false;
+    for (int a = 0; a < 3; ++a) {
+        float w = omega_local[a];
+        if (abs(w) > BOX_PARALLEL_EPS) {
+            // Domain: |w| > 1e-20.
+            d_m = min(d_m, (half_size[a] + sign(w) * x_local[a]) / abs(w));
+            limited = true;
+        }
+    }
+    return limited ? max(d_m, 0.0) : 0.0;
+}
+
+// The pieces of T_box over the camera segment [t_a, t_b] (see the header).
+// o_local, d_local: camera ray in the box's local frame (d unit); omega_local: light travel
+// direction (unit); half_size: box half extents; sigma_t: extinction; t_enter <= t_a <= t_b.
+BoxPieces box_pieces(vec3 o_local, vec3 d_local, vec3 omega_local, vec3 half_size, float sigma_t, float t_enter, float t_a, float t_b) {
+    BoxPieces p;
+    p.count = 0u;
+    p.total = 0.0;
+    for (int i = 0; i < BOX_MAX_PIECES; ++i) {
+        p.t_start[i] = t_a;
+        p.len[i] = 0.0;
+        p.tau0[i] = 0.0;
+        p.slope[i] = 0.0;
+        p.integral[i] = 0.0;
+    }
+    // Return no pieces for an empty (or NaN) interval.
+    float span = t_b - t_a;
+    if (!(span > 0.0)) {
+        return p;
+    }
+
+    // Build the light-exit lines s_j(u) = A_j + B_j u, u = t - t_a, of the slabs the light
+    // crosses; re-basing at t_a keeps u small and A exact for a camera inside the box.
+    vec3 x_a = fma(vec3(t_a), d_local, o_local);
+    float A[3] = float[3](0.0, 0.0, 0.0);
+    float B[3] = float[3](0.0, 0.0, 0.0);
+    int n = 0;
+    for (int a = 0; a < 3; ++a) {
+        float w = omega_local[a];
+        if (abs(w) > BOX_PARALLEL_EPS) {
+            // Domain: |w| > 1e-20, so |A| <= 1e28 and |B| <= 1e20 for scene-sized inputs.
+            A[n] = (half_size[a] + sign(w) * x_a[a]) / abs(w);
+            B[n] = d_local[a] / w;
+            ++n;
+        }
+    }
+    // Handle a non-unit omega with no usable component: the light is not attenuated.
+    if (n == 0) {
+        A[0] = 0.0;
+        B[0] = 0.0;
+        n = 1;
+    }
+
+    // Start on the line lowest at u = 0 (on a tie, the one that stays lowest).
+    int k = 0;
+    for (int j = 1; j < n; ++j) {
+        if (A[j] < A[k] || (A[j] == A[k] && B[j] < B[k])) {
+            k = j;
+        }
+    }
+
+    // Walk the lower envelope; each switch goes to a line with a smaller slope, so there
+    // are at most n pieces.
+    float delta = max(t_a - t_enter, 0.0);
+    float u_s = 0.0;
+    for (int iter = 0; iter < BOX_MAX_PIECES; ++iter) {
+        // Find the earliest u in [u_s, span] where another line drops below line k.
+        float s_k0 = A[k] + B[k] * u_s;
+        float s_k1 = A[k] + B[k] * span;
+        float u_e = span;
+        int next = -1;
+        for (int j = 0; j < n; ++j) {
+            if (j == k || !(B[j] < B[k])) {
+                continue;
+            }
+            float g1 = s_k1 - (A[j] + B[j] * span);
+            if (g1 > 0.0) {
+                float g0 = max((A[j] + B[j] * u_s) - s_k0, 0.0);
+                // Domain: g0 + g1 >= g1 > 0; the fraction lies in [0, 1].
+                float u = u_s + (span - u_s) * (g0 / (g0 + g1));
+                if (u < u_e || (u == u_e && (next < 0 || B[j] < B[next]))) {
+                    u_e = u;
+                    next = j;
+                }
+            }
+        }
+
+        // Add the piece [u_s, u_e] on line k unless it is empty.
+        float len = u_e - u_s;
+        if (len > 0.0) {
+            uint i = p.count;
+            float d_s = max(s_k0, 0.0);
+            float d_e = max(A[k] + B[k] * u_e, 0.0);
+            float tau_s = sigma_t * ((delta + u_s) + d_s);
+            float tau_e = sigma_t * ((delta + u_e) + d_e);
+            float slope = sigma_t * (1.0 + B[k]);
+            float x = slope * len;
+            // Integrate from the end with the smaller depth (Eq. 6, stable for c < 0).
+            // Domain: tau_low >= 0 and finite, so exp(-tau_low) lies in [0, 1] (0 for
+            // tau_low > 104, the right answer); f(|x|) in (0, 1].
+            float tau_low = (x >= 0.0) ? tau_s : tau_e;
+            p.t_start[i] = t_a + u_s;
+            p.len[i] = len;
+            p.tau0[i] = tau_s;
+            p.slope[i] = slope;
+            p.integral[i] = exp(-tau_low) * len * one_minus_exp_over_x(abs(x));
+            p.total += p.integral[i];
+            p.count = i + 1u;
+        }
+        if (next < 0) {
+            break;
+        }
+        k = next;
+        u_s = u_e;
+    }
+    return p;
+}
+
+// pdf of t at fraction v in [0, 1] of piece k: (I_k / T_box) times the truncated
+// exponential density of the piece (Eq. 11). Requires total > 0 and a non-empty piece.
+float box_piece_pdf(BoxPieces p, uint k, float v) {
+    float len = p.len[k];
+    float x = abs(p.slope[k]) * len;
+    // The density falls away from the piece's low-depth end.
+    float w = (p.slope[k] >= 0.0) ? v : 1.0 - v;
+    // Domain: x * w >= 0, so exp gives (0, 1]; len > 0 and f(x) >= min(1, 0.39 / x) > 0
+    // for finite x >= 0; total > 0.
+    float density = exp(-x * w) / (len * one_minus_exp_over_x(x));
+    return (p.integral[k] / p.total) * density;
+}
+
+// Whole-volume distance sampling: t in [t_a, t_b] with pdf = integrand / total; u in [0,1).
+// Returns t_a with pdf 0 when total == 0 (callers must then count no contribution).
+float sample_wvds(BoxPieces p, float u, out float pdf) {
+    pdf = 0.0;
+    if (!(p.total > 0.0)) {
+        return p.t_start[0];
+    }
+    // Select piece k with probability integral[k] / total (Eq. 9).
+    float target = clamp(u, 0.0, BOX_ONE_MINUS_EPSILON) * p.total;
+    uint k = 0u;
+    float below = 0.0;
+    float cum = 0.0;
+    for (uint i = 0u; i < p.count; ++i) {
+        if (p.integral[i] > 0.0) {
+            k = i;
+            below = cum;
+        }
+        cum += p.integral[i];
+        if (p.integral[i] > 0.0 && target < cum) {
+            break;
+        }
+    }
+    // Rescale the random number into the piece (Eq. 10). Domain: integral[k] > 0, since
+    // total > 0 makes some piece positive and k is the last positive one reached.
+    float r = clamp((target - below) / p.integral[k], 0.0, BOX_ONE_MINUS_EPSILON);
+    // Invert the piece's truncated exponential from its low-depth end.
+    float x = abs(p.slope[k]) * p.len[k];
+    float v = (p.slope[k] >= 0.0)
+        ? box_sample_truncated_exp(x, r)
+        : 1.0 - box_sample_truncated_exp(x, min(1.0 - r, BOX_ONE_MINUS_EPSILON));
+    pdf = box_piece_pdf(p, k, v);
+    return p.t_start[k] + v * p.len[k];
+}
+
+// pdf of sample_wvds at t (0 outside [t_a, t_b] or when total == 0).
+float wvds_pdf(BoxPieces p, float t) {
+    if (!(p.total > 0.0) || !(t >= p.t_start[0])) {
+        return 0.0;
+    }
+    // Find the last piece starting at or before t.
+    uint k = 0u;
+    for (uint i = 1u; i < p.count; ++i) {
+        if (t >= p.t_start[i]) {
+            k = i;
+        }
+    }
+    float s = t - p.t_start[k];
+    float len = p.len[k];
+    // Accept t up to a rounding slack past the end (t_start + length is itself rounded).
+    if (s > len + 1e-6 * max(abs(t), len)) {
+        return 0.0;
+    }
+    // Domain: len > 0 for every counted piece.
+    float v = clamp(s / len, 0.0, 1.0);
+    return box_piece_pdf(p, k, v);
+}
+
+#endif

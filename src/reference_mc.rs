@@ -1,0 +1,1446 @@
+//! An independent brute-force Monte Carlo reference for multiple scattering in
+//! homogeneous box media, in f64 on the CPU.
+//!
+//! This is the oracle for the renderer's multiple-scattering (K > 1) box pass, where the
+//! quadrature reference ([`crate::reference`]) stops at single scattering. It shares no
+//! algorithm with the GPU passes (no distance sampling over the whole volume, no ratio
+//! estimators, no majorants) and none of its geometry code with either: it is the
+//! plainest analog path tracer that estimates the model below, with its own small f64
+//! ray–box, ray–quad and ray–sphere tests and its own random number generator.
+//!
+//! # Model
+//!
+//! The same as the renderer's box pass and [`crate::reference`]:
+//!
+//! - **Media**: homogeneous boxes, world = center + R·local, R =
+//!   `rotation_xyz_deg(rotation_deg)`, local ∈ [−size/2, size/2]; scalar σt, σs =
+//!   albedo·σt per RGB channel, Henyey–Greenstein phase p(cosθ) with θ the angle between
+//!   the travel directions before and after scattering. Disjoint; vacuum elsewhere; no
+//!   refraction at boundaries.
+//! - **Shapes**: opaque two-sided Lambertian quads, oriented boxes and spheres with RGB
+//!   albedo (0 = black occluder).
+//! - **Lights**: directional lights (travel direction ω, irradiance E, optional convex
+//!   gobo), and constant environment radiance that only camera rays that escape see
+//!   (it lights nothing).
+//!
+//! The radiance along a camera ray is the sum over k = 1..K (K = `max_bounces`) of the
+//! light that scattered exactly k times — a scattering is a real collision in a medium
+//! or a reflection off a shape — plus the environment seen through the media by the
+//! camera ray itself.
+//!
+//! # Estimator
+//!
+//! Each path starts on the camera ray with throughput β = 1 and repeats:
+//!
+//! 1. Find the nearest shape hit t_S, then sample a free-flight distance by analog
+//!    tracking: walk the ray's in-medium spans in order, in each draw an exponential
+//!    distance with rate σt, and stop at the first that lands inside its span before t_S.
+//! 2. **Medium collision** at x (the k-th scattering): β ← β·albedo (σs/σt, the
+//!    collision estimator's weight), then next-event estimation to every directional
+//!    light, L += β · p(ω·(−d)) · E · V_ω(x) · T_ω(x), where d is the direction the path
+//!    travelled from the camera into x (light travelling along ω is scattered into −d).
+//!    Stop if k = K, else continue from x in a direction sampled from the HG lobe
+//!    around d (weight 1).
+//! 3. **Shape hit** at x (the k-th scattering): β ← β·albedo, then L += β/π ·
+//!    max(0, n·(−ω)) · E · V_ω(x) · T_ω(x) with n facing the incoming ray. Stop if k = K,
+//!    else continue in a cosine-distributed direction around n (weight 1, the albedo is
+//!    already in β).
+//! 4. **Escape**: add the environment radiance only if k = 0 (the camera ray itself).
+//!
+//! V_ω is the gobo mask times shape visibility towards −ω, T_ω = exp(−Σ σt·ℓ) the
+//! transmittance through every medium to infinity. The estimate of order k is added at
+//! the k-th scattering, so a path with K scatterings estimates exactly orders 1..K; no
+//! Russian roulette, no path is cut early except when β is exactly 0.
+//!
+//! Every path has its own random stream (xoshiro256** seeded through SplitMix64 from
+//! the seed and the path's index), so results are bit-for-bit deterministic for a seed,
+//! whatever the thread count, and runs with different K but the same seed use common
+//! random numbers: each path's K = 1 estimate is a prefix of its K = 4 estimate.
+
+use std::f64::consts::PI;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use anyhow::{bail, ensure};
+use glam::{DMat3, DVec2, DVec3, Vec3};
+use nimbus_scene::{Gobo, Light, Medium, Scene, Shape};
+
+/// Settings of a Monte Carlo reference run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct McOptions {
+    /// K, the most scattering events on a path, ≥ 1 (1 = single scattering).
+    pub max_bounces: u32,
+    /// Paths per ray ([`radiance_mc`]) or per pixel ([`render_mc`]), ≥ 2.
+    pub paths: u32,
+    /// Random seed; same seed, same scene, same result.
+    pub seed: u64,
+}
+
+/// A Monte Carlo estimate: per-channel mean and standard error of the mean.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct McEstimate {
+    pub mean: [f64; 3],
+    /// sqrt(sample variance / paths).
+    pub std_error: [f64; 3],
+}
+
+/// A rendered image: (mean, standard error) per pixel, row-major from the top left.
+pub type McImage = (Vec<[f64; 3]>, Vec<[f64; 3]>);
+
+/// Paths per work item of [`radiance_mc`] (the unit shared among threads).
+const CHUNK_PATHS: u32 = 4096;
+
+/// The radiance (W/(m²·sr), RGB) reaching `origin` along the camera ray origin + t·dir,
+/// t ≥ 0, with up to `opts.max_bounces` scatterings, from `opts.paths` independent
+/// paths. `dir` need not be normalized. The scene's own `max_bounces` is ignored.
+pub fn radiance_mc(
+    scene: &Scene,
+    origin: DVec3,
+    dir: DVec3,
+    opts: &McOptions,
+) -> anyhow::Result<McEstimate> {
+    check_options(opts)?;
+    let d = dir.normalize_or_zero();
+    ensure!(
+        d != DVec3::ZERO && d.is_finite() && origin.is_finite(),
+        "Monte Carlo reference: bad camera ray origin {origin}, direction {dir}"
+    );
+    let tracer = Tracer::new(scene)?;
+    Ok(tracer.radiance(origin, d, opts).estimate())
+}
+
+/// Renders the scene's frame 0: mean and standard error per pixel, `width * height`
+/// each, row-major from the top left. Each pixel averages `opts.paths` paths; path i
+/// goes through stratum i mod footprint² of a footprint × footprint grid over the
+/// pixel, jittered uniformly within it (box filter), so `opts.paths` must be a multiple
+/// of footprint². `footprint = 0` sends every path through the pixel centre (the
+/// radiance there, as `[render] pixel_jitter = false`). The standard error treats the
+/// paths as independent, which overestimates it slightly under stratification. Rows
+/// are shared among `available_parallelism` threads; the result does not depend on
+/// the thread count.
+pub fn render_mc(scene: &Scene, opts: &McOptions, footprint: u32) -> anyhow::Result<McImage> {
+    check_options(opts)?;
+    let strata = footprint.checked_mul(footprint).filter(|&s| s > 0);
+    if let Some(strata) = strata {
+        ensure!(
+            opts.paths.is_multiple_of(strata),
+            "Monte Carlo reference: paths per pixel ({}) must be a multiple of \
+             footprint² = {strata}",
+            opts.paths
+        );
+    }
+    ensure!(
+        scene.camera.keyframes.is_empty() || scene.render.frames <= 1,
+        "{}: animated cameras are not supported by the Monte Carlo reference (it renders \
+         frame 0 only)",
+        scene.source.display()
+    );
+    let tracer = Tracer::new(scene)?;
+    let camera = CameraRays::new(scene);
+    let (width, height) = (scene.render.width, scene.render.height);
+
+    // One pixel: paths through jittered strata of its footprint, one stream per path.
+    let pixel = |x: u32, y: u32| -> Sums {
+        let pixel_index = u64::from(y) * u64::from(width) + u64::from(x);
+        let mut sums = Sums::default();
+        for path in 0..opts.paths {
+            let mut rng = Rng::new(opts.seed, (pixel_index << 32) | u64::from(path));
+            let (px, py) = match strata {
+                None => (f64::from(x) + 0.5, f64::from(y) + 0.5),
+                Some(strata) => {
+                    let s = path % strata;
+                    let (sx, sy) = (s % footprint, s / footprint);
+                    let f = f64::from(footprint);
+                    (
+                        f64::from(x) + (f64::from(sx) + rng.uniform()) / f,
+                        f64::from(y) + (f64::from(sy) + rng.uniform()) / f,
+                    )
+                }
+            };
+            let d = camera.direction(px, py);
+            let (l, segments) = tracer.trace_path(camera.position, d, opts.max_bounces, &mut rng);
+            sums.add(l, segments);
+        }
+        sums
+    };
+
+    // Hand rows to worker threads from a shared counter.
+    let threads = std::thread::available_parallelism().map_or(1, |t| t.get());
+    let next_row = AtomicUsize::new(0);
+    let mut rows: Vec<(usize, Vec<Sums>)> = std::thread::scope(|s| {
+        let workers: Vec<_> = (0..threads)
+            .map(|_| {
+                s.spawn(|| {
+                    let mut done = Vec::new();
+                    loop {
+                        let y = next_row.fetch_add(1, Ordering::Relaxed);
+                        if y >= height as usize {
+                            return done;
+                        }
+                        let row = (0..width).map(|x| pixel(x, y as u32)).collect();
+                        done.push((y, row));
+                    }
+                })
+            })
+            .collect();
+        workers
+            .into_iter()
+            .flat_map(|w| {
+                w.join()
+                    .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
+            })
+            .collect()
+    });
+    rows.sort_by_key(|(y, _)| *y);
+    let (mut mean, mut std_error) = (Vec::new(), Vec::new());
+    for sums in rows.into_iter().flat_map(|(_, row)| row) {
+        let e = sums.estimate();
+        mean.push(e.mean);
+        std_error.push(e.std_error);
+    }
+    Ok((mean, std_error))
+}
+
+fn check_options(opts: &McOptions) -> anyhow::Result<()> {
+    ensure!(
+        opts.max_bounces >= 1,
+        "Monte Carlo reference: max_bounces must be at least 1"
+    );
+    ensure!(
+        opts.paths >= 2,
+        "Monte Carlo reference: at least 2 paths are needed for a standard error, got {}",
+        opts.paths
+    );
+    Ok(())
+}
+
+// ---------------------------------------------------------------------------------------
+// Random numbers: xoshiro256** (Blackman & Vigna), seeded through SplitMix64.
+
+/// One step of SplitMix64.
+fn splitmix64(state: &mut u64) -> u64 {
+    *state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    let mut z = *state;
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+struct Rng {
+    s: [u64; 4],
+}
+
+impl Rng {
+    /// Stream `stream` of `seed`: distinct streams of one seed start from distinct
+    /// SplitMix64 states (the map stream → state is injective).
+    fn new(seed: u64, stream: u64) -> Self {
+        let mut mix = seed;
+        let mut state = splitmix64(&mut mix) ^ stream.wrapping_mul(0xD1B5_4A32_D192_ED03);
+        let s = [
+            splitmix64(&mut state),
+            splitmix64(&mut state),
+            splitmix64(&mut state),
+            splitmix64(&mut state),
+        ];
+        Self { s }
+    }
+
+    fn next_u64(&mut self) -> u64 {
+        let s = &mut self.s;
+        let result = s[1].wrapping_mul(5).rotate_left(7).wrapping_mul(9);
+        let t = s[1] << 17;
+        s[2] ^= s[0];
+        s[3] ^= s[1];
+        s[1] ^= s[2];
+        s[0] ^= s[3];
+        s[2] ^= t;
+        s[3] = s[3].rotate_left(45);
+        result
+    }
+
+    /// Uniform in [0, 1), 53 random bits.
+    fn uniform(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Sampling.
+
+/// Henyey–Greenstein phase function; `cos_theta` between the travel directions before
+/// and after scattering, |g| < 1 so the base is ≥ (1 − |g|)² > 0.
+fn phase_hg(cos_theta: f64, g: f64) -> f64 {
+    let base = 1.0 + g * g - 2.0 * g * cos_theta;
+    (1.0 - g * g) / (4.0 * PI * base * base.sqrt())
+}
+
+/// Two unit vectors completing unit `n` to a right-handed orthonormal basis (Duff et
+/// al. 2017); sign(0) is taken as +1, so 1/(sign + n.z) has |sign + n.z| ≥ 1.
+fn orthonormal_basis(n: DVec3) -> (DVec3, DVec3) {
+    let sign = 1f64.copysign(n.z);
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    (
+        DVec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
+        DVec3::new(b, sign + n.y * n.y * a, -n.y),
+    )
+}
+
+/// The unit direction with cosine `cos_theta` to `axis` and azimuth 2π·u.
+fn direction_around(axis: DVec3, cos_theta: f64, u: f64) -> DVec3 {
+    let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
+    let phi = 2.0 * PI * u;
+    let (t, b) = orthonormal_basis(axis);
+    (sin_theta * phi.cos() * t + sin_theta * phi.sin() * b + cos_theta * axis).normalize()
+}
+
+/// Samples a new travel direction from the HG lobe around travel direction `d`.
+/// Inverts the CDF P(μ) = (1−g²)/(2g)·[(1+g²−2gμ)^{−1/2} − 1/(1+g)] = u (its base
+/// 1 − g + 2gu is in [1 − |g|, 1 + |g|], > 0); |g| < 1e-4 uses the isotropic limit.
+fn sample_hg(d: DVec3, g: f64, rng: &mut Rng) -> DVec3 {
+    let (u1, u2) = (rng.uniform(), rng.uniform());
+    let cos_theta = if g.abs() < 1e-4 {
+        1.0 - 2.0 * u1
+    } else {
+        let q = (1.0 - g * g) / (1.0 - g + 2.0 * g * u1);
+        ((1.0 + g * g - q * q) / (2.0 * g)).clamp(-1.0, 1.0)
+    };
+    direction_around(d, cos_theta, u2)
+}
+
+/// Samples a cosine-distributed direction around unit `n` (pdf cosθ/π).
+fn sample_cosine(n: DVec3, rng: &mut Rng) -> DVec3 {
+    let (u1, u2) = (rng.uniform(), rng.uniform());
+    direction_around(n, (1.0 - u1).sqrt(), u2)
+}
+
+// ---------------------------------------------------------------------------------------
+// Geometry, in f64.
+
+/// Rotation about X, then Y, then Z by `deg`: world = Rz·Ry·Rx·local.
+fn rotation_f64(deg: Vec3) -> DMat3 {
+    let r = deg.as_dvec3() * (PI / 180.0);
+    DMat3::from_rotation_z(r.z) * DMat3::from_rotation_y(r.y) * DMat3::from_rotation_x(r.x)
+}
+
+/// A box, world = center + R·local, local ∈ [−half, half].
+struct OrientedBox {
+    center: DVec3,
+    half: DVec3,
+    /// R (columns are the local axes in world space).
+    rotation: DMat3,
+}
+
+impl OrientedBox {
+    fn new(center: Vec3, size: Vec3, rotation_deg: Vec3) -> Self {
+        Self {
+            center: center.as_dvec3(),
+            half: 0.5 * size.as_dvec3(),
+            rotation: rotation_f64(rotation_deg),
+        }
+    }
+
+    /// The parameter range (t_in, t_out) where the line o + t·d is inside the closed box,
+    /// with the local axis of the entry face: intersection of the three slabs in the
+    /// local frame (R is a rotation, so t is the same there). A local direction
+    /// component of 0 keeps the line in that slab iff its coordinate is.
+    fn line_range(&self, o: DVec3, d: DVec3) -> Option<(f64, f64, usize)> {
+        let o_l = self.rotation.transpose() * (o - self.center);
+        let d_l = self.rotation.transpose() * d;
+        let (mut t_in, mut t_out, mut axis_in) = (f64::NEG_INFINITY, f64::INFINITY, 0);
+        for axis in 0..3 {
+            let h = self.half[axis];
+            if d_l[axis] == 0.0 {
+                if o_l[axis].abs() > h {
+                    return None;
+                }
+                continue;
+            }
+            let a = (-h - o_l[axis]) / d_l[axis];
+            let b = (h - o_l[axis]) / d_l[axis];
+            let (near, far) = (a.min(b), a.max(b));
+            if near > t_in {
+                t_in = near;
+                axis_in = axis;
+            }
+            t_out = t_out.min(far);
+        }
+        (t_in <= t_out).then_some((t_in, t_out, axis_in))
+    }
+
+    /// The part of o + t·d, t ∈ [t_min, t_max], inside the box, if longer than zero.
+    fn span(&self, o: DVec3, d: DVec3, t_min: f64, t_max: f64) -> Option<(f64, f64)> {
+        let (t_in, t_out, _) = self.line_range(o, d)?;
+        let (a, b) = (t_in.max(t_min), t_out.min(t_max));
+        (a < b).then_some((a, b))
+    }
+}
+
+enum Geometry {
+    /// A parallelogram corner + a·edge_u + b·edge_v, a, b ∈ [0, 1].
+    Quad {
+        corner: DVec3,
+        edge_u: DVec3,
+        edge_v: DVec3,
+        /// Unit normal (either side).
+        normal: DVec3,
+    },
+    Box(OrientedBox),
+    Sphere {
+        center: DVec3,
+        radius: f64,
+    },
+}
+
+struct Surface {
+    geometry: Geometry,
+    albedo: DVec3,
+}
+
+impl Surface {
+    /// The nearest intersection of o + t·d (|d| = 1) with t > 0: t and a unit normal of
+    /// either orientation.
+    fn hit(&self, o: DVec3, d: DVec3) -> Option<(f64, DVec3)> {
+        match self.geometry {
+            Geometry::Quad {
+                corner,
+                edge_u,
+                edge_v,
+                normal,
+            } => {
+                // Möller–Trumbore with the parallelogram's (a, b) ∈ [0, 1]² test.
+                let p = d.cross(edge_v);
+                let det = edge_u.dot(p);
+                if det == 0.0 {
+                    return None;
+                }
+                let s = o - corner;
+                let a = s.dot(p) / det;
+                let q = s.cross(edge_u);
+                let b = d.dot(q) / det;
+                let t = edge_v.dot(q) / det;
+                ((0.0..=1.0).contains(&a) && (0.0..=1.0).contains(&b) && t > 0.0)
+                    .then_some((t, normal))
+            }
+            Geometry::Box(ref bounds) => {
+                let (t_in, t_out, axis) = bounds.line_range(o, d)?;
+                if t_in > 0.0 {
+                    Some((t_in, bounds.rotation.col(axis)))
+                } else if t_out > 0.0 {
+                    // From inside: the exit face, whichever axis it is.
+                    let x = bounds.rotation.transpose() * (o + t_out * d - bounds.center);
+                    let ratio = x.abs() / bounds.half;
+                    let axis = if ratio.x >= ratio.y && ratio.x >= ratio.z {
+                        0
+                    } else if ratio.y >= ratio.z {
+                        1
+                    } else {
+                        2
+                    };
+                    Some((t_out, bounds.rotation.col(axis)))
+                } else {
+                    None
+                }
+            }
+            Geometry::Sphere { center, radius } => {
+                // Geometric solution: closest approach along the ray, then the half chord.
+                let to_center = center - o;
+                let t_mid = to_center.dot(d);
+                let closest_sq = (to_center - t_mid * d).length_squared();
+                let half_chord_sq = radius * radius - closest_sq;
+                if half_chord_sq < 0.0 {
+                    return None;
+                }
+                let half_chord = half_chord_sq.sqrt();
+                let t = if t_mid - half_chord > 0.0 {
+                    t_mid - half_chord
+                } else if t_mid + half_chord > 0.0 {
+                    t_mid + half_chord
+                } else {
+                    return None;
+                };
+                Some((t, (o + t * d - center) / radius))
+            }
+        }
+    }
+}
+
+struct BoxMediumF64 {
+    bounds: OrientedBox,
+    sigma_t: f64,
+    albedo: DVec3,
+    g: f64,
+}
+
+struct GoboF64 {
+    origin: DVec3,
+    u: DVec3,
+    v: DVec3,
+    /// Counter-clockwise convex polygon.
+    polygon: Vec<DVec2>,
+}
+
+impl GoboF64 {
+    /// Whether x projects inside the polygon (boundary included): left of every edge.
+    fn lets_through(&self, x: DVec3) -> bool {
+        let q = DVec2::new((x - self.origin).dot(self.u), (x - self.origin).dot(self.v));
+        let n = self.polygon.len();
+        (0..n).all(|i| {
+            let (a, b) = (self.polygon[i], self.polygon[(i + 1) % n]);
+            (b - a).perp_dot(q - a) >= 0.0
+        })
+    }
+}
+
+struct Sun {
+    /// Unit travel direction ω.
+    omega: DVec3,
+    irradiance: DVec3,
+    gobo: Option<GoboF64>,
+}
+
+/// The scene in f64, checked against what the estimator models.
+struct Tracer {
+    media: Vec<BoxMediumF64>,
+    surfaces: Vec<Surface>,
+    suns: Vec<Sun>,
+    environment: DVec3,
+}
+
+/// Running moments over paths (Welford's update, Chan et al.'s merge), so a constant
+/// estimate has a standard error of exactly 0.
+#[derive(Clone, Copy, Default)]
+struct Sums {
+    n: u64,
+    mean: DVec3,
+    /// Σ (l − mean)².
+    m2: DVec3,
+    /// Free-flight rays traced (camera ray plus one per continued scattering).
+    segments: u64,
+}
+
+impl Sums {
+    fn add(&mut self, l: DVec3, segments: u32) {
+        self.n += 1;
+        let delta = l - self.mean;
+        self.mean += delta / self.n as f64;
+        self.m2 += delta * (l - self.mean);
+        self.segments += u64::from(segments);
+    }
+
+    fn merge(&mut self, other: &Sums) {
+        if other.n == 0 {
+            return;
+        }
+        let (a, b) = (self.n as f64, other.n as f64);
+        let n = a + b;
+        let delta = other.mean - self.mean;
+        self.mean += delta * (b / n);
+        self.m2 += other.m2 + delta * delta * (a * b / n);
+        self.n += other.n;
+        self.segments += other.segments;
+    }
+
+    /// Mean and sqrt(s²/n) with the unbiased sample variance s² (n ≥ 2).
+    fn estimate(&self) -> McEstimate {
+        let n = self.n as f64;
+        let variance = (self.m2 / (n - 1.0)).max(DVec3::ZERO);
+        McEstimate {
+            mean: self.mean.to_array(),
+            std_error: (variance / n).to_array().map(f64::sqrt),
+        }
+    }
+}
+
+/// Offset that lifts a point off a surface (relative to its coordinates' size).
+fn surface_offset(x: DVec3) -> f64 {
+    1e-9 * (1.0 + x.abs().max_element())
+}
+
+impl Tracer {
+    fn new(scene: &Scene) -> anyhow::Result<Self> {
+        let source = scene.source.display();
+        let mut media = Vec::new();
+        for (i, medium) in scene.media.iter().enumerate() {
+            let Medium::Box(m) = medium else {
+                bail!(
+                    "{source}: medium {i}: grid media are not supported by the Monte Carlo \
+                     reference (homogeneous boxes only)"
+                );
+            };
+            media.push(BoxMediumF64 {
+                bounds: OrientedBox::new(m.center, m.size, m.rotation_deg),
+                sigma_t: f64::from(m.sigma_t),
+                albedo: m.albedo.as_dvec3(),
+                g: f64::from(m.g),
+            });
+        }
+
+        let surfaces = scene
+            .shapes
+            .iter()
+            .map(|shape| match *shape {
+                Shape::Quad {
+                    corner,
+                    edge_u,
+                    edge_v,
+                    albedo,
+                } => Surface {
+                    geometry: Geometry::Quad {
+                        corner: corner.as_dvec3(),
+                        edge_u: edge_u.as_dvec3(),
+                        edge_v: edge_v.as_dvec3(),
+                        normal: edge_u.as_dvec3().cross(edge_v.as_dvec3()).normalize(),
+                    },
+                    albedo: albedo.as_dvec3(),
+                },
+                Shape::Box {
+                    center,
+                    size,
+                    rotation_deg,
+                    albedo,
+                } => Surface {
+                    geometry: Geometry::Box(OrientedBox::new(center, size, rotation_deg)),
+                    albedo: albedo.as_dvec3(),
+                },
+                Shape::Sphere {
+                    center,
+                    radius,
+                    albedo,
+                } => Surface {
+                    geometry: Geometry::Sphere {
+                        center: center.as_dvec3(),
+                        radius: f64::from(radius),
+                    },
+                    albedo: albedo.as_dvec3(),
+                },
+            })
+            .collect();
+
+        let mut suns = Vec::new();
+        let mut environment = DVec3::ZERO;
+        for (i, light) in scene.lights.iter().enumerate() {
+            match light {
+                Light::Directional {
+                    direction,
+                    irradiance,
+                    gobo,
+                } => suns.push(Sun {
+                    omega: direction.as_dvec3().normalize(),
+                    irradiance: irradiance.as_dvec3(),
+                    gobo: gobo.as_ref().map(|g: &Gobo| {
+                        let (u, v) = Gobo::basis(*direction);
+                        GoboF64 {
+                            origin: g.origin.as_dvec3(),
+                            u: u.as_dvec3(),
+                            v: v.as_dvec3(),
+                            polygon: g.polygon.iter().map(|p| p.as_dvec2()).collect(),
+                        }
+                    }),
+                }),
+                Light::Environment {
+                    radiance,
+                    file: None,
+                    scale,
+                } => environment += radiance.as_dvec3() * scale.as_dvec3(),
+                Light::Environment { file: Some(f), .. } => bail!(
+                    "{source}: light {i}: environment maps ({}) are not supported by the \
+                     Monte Carlo reference (constant radiance only)",
+                    f.display()
+                ),
+                Light::Point { .. } => bail!(
+                    "{source}: light {i}: point lights are not supported by the Monte Carlo \
+                     reference"
+                ),
+                Light::Sphere { .. } => bail!(
+                    "{source}: light {i}: sphere lights are not supported by the Monte \
+                     Carlo reference"
+                ),
+            }
+        }
+        Ok(Self {
+            media,
+            surfaces,
+            suns,
+            environment,
+        })
+    }
+
+    /// The nearest shape hit of o + t·d, t > 0: (t, unit normal, albedo).
+    fn nearest_surface(&self, o: DVec3, d: DVec3) -> Option<(f64, DVec3, DVec3)> {
+        let mut best: Option<(f64, DVec3, DVec3)> = None;
+        for surface in &self.surfaces {
+            if let Some((t, n)) = surface.hit(o, d) {
+                if best.is_none_or(|(t_best, _, _)| t < t_best) {
+                    best = Some((t, n, surface.albedo));
+                }
+            }
+        }
+        best
+    }
+
+    /// Analog free flight along o + t·d up to `t_max`: the in-medium spans in order of
+    /// entry, an exponential distance with rate σt drawn in each; returns the first
+    /// collision (t, medium) that lands inside its span.
+    fn sample_collision(
+        &self,
+        o: DVec3,
+        d: DVec3,
+        t_max: f64,
+        rng: &mut Rng,
+    ) -> Option<(f64, usize)> {
+        let mut spans: Vec<(f64, f64, usize)> = self
+            .media
+            .iter()
+            .enumerate()
+            .filter_map(|(i, m)| m.bounds.span(o, d, 0.0, t_max).map(|(a, b)| (a, b, i)))
+            .collect();
+        spans.sort_by(|a, b| a.0.total_cmp(&b.0));
+        for (t0, t1, i) in spans {
+            let sigma_t = self.media[i].sigma_t;
+            if sigma_t <= 0.0 {
+                continue;
+            }
+            // Exponential with rate σt; 1 − u ∈ (0, 1], so the log is finite.
+            let t = t0 - (1.0 - rng.uniform()).ln() / sigma_t;
+            if t < t1 {
+                return Some((t, i));
+            }
+        }
+        None
+    }
+
+    /// E·V_ω(x)·T_ω(x): the irradiance of `sun` reaching x (gobo, shadows, media).
+    fn sunlight_at(&self, x: DVec3, sun: &Sun) -> DVec3 {
+        if let Some(gobo) = &sun.gobo {
+            if !gobo.lets_through(x) {
+                return DVec3::ZERO;
+            }
+        }
+        let towards = -sun.omega;
+        if self.surfaces.iter().any(|s| s.hit(x, towards).is_some()) {
+            return DVec3::ZERO;
+        }
+        let optical_depth: f64 = self
+            .media
+            .iter()
+            .filter_map(|m| {
+                let (a, b) = m.bounds.span(x, towards, 0.0, f64::INFINITY)?;
+                Some(m.sigma_t * (b - a))
+            })
+            .sum();
+        sun.irradiance * (-optical_depth).exp()
+    }
+
+    /// One path from o along unit d with at most `k_max` scatterings: its radiance
+    /// estimate and the number of free-flight rays it traced.
+    fn trace_path(&self, o: DVec3, d: DVec3, k_max: u32, rng: &mut Rng) -> (DVec3, u32) {
+        let (mut x, mut d) = (o, d);
+        let mut beta = DVec3::ONE;
+        let mut radiance = DVec3::ZERO;
+        let mut scatterings = 0;
+        let mut segments = 0;
+        loop {
+            segments += 1;
+            let surface = self.nearest_surface(x, d);
+            let t_surface = surface.map_or(f64::INFINITY, |(t, _, _)| t);
+            if let Some((t, i)) = self.sample_collision(x, d, t_surface, rng) {
+                // Medium collision: weight σs/σt, NEE with the phase of ω → −d.
+                let medium = &self.media[i];
+                let p = x + t * d;
+                beta *= medium.albedo;
+                for sun in &self.suns {
+                    let phase = phase_hg(sun.omega.dot(-d), medium.g);
+                    radiance += beta * phase * self.sunlight_at(p, sun);
+                }
+                scatterings += 1;
+                if scatterings == k_max || beta == DVec3::ZERO {
+                    break;
+                }
+                d = sample_hg(d, medium.g, rng);
+                x = p;
+            } else if let Some((t, normal, albedo)) = surface {
+                // Lambertian reflection: weight albedo, NEE with the cosine at the normal
+                // facing the incoming ray.
+                let p = x + t * d;
+                let n = if normal.dot(d) < 0.0 { normal } else { -normal };
+                let p = p + surface_offset(p) * n;
+                beta *= albedo;
+                for sun in &self.suns {
+                    let cosine = n.dot(-sun.omega).max(0.0);
+                    if cosine > 0.0 {
+                        radiance += beta / PI * cosine * self.sunlight_at(p, sun);
+                    }
+                }
+                scatterings += 1;
+                if scatterings == k_max || beta == DVec3::ZERO {
+                    break;
+                }
+                d = sample_cosine(n, rng);
+                x = p;
+            } else {
+                // Escape: the environment counts only for the camera ray.
+                if scatterings == 0 {
+                    radiance += beta * self.environment;
+                }
+                break;
+            }
+        }
+        (radiance, segments)
+    }
+
+    /// `opts.paths` paths along one camera ray, in chunks shared among threads; path i
+    /// uses stream i of the seed, and chunks are merged in order.
+    fn radiance(&self, o: DVec3, d: DVec3, opts: &McOptions) -> Sums {
+        let chunks = opts.paths.div_ceil(CHUNK_PATHS) as usize;
+        let chunk = |c: usize| -> Sums {
+            let first = c as u32 * CHUNK_PATHS;
+            let last = (first + CHUNK_PATHS).min(opts.paths);
+            let mut sums = Sums::default();
+            for path in first..last {
+                let mut rng = Rng::new(opts.seed, u64::from(path));
+                let (l, segments) = self.trace_path(o, d, opts.max_bounces, &mut rng);
+                sums.add(l, segments);
+            }
+            sums
+        };
+        let threads = std::thread::available_parallelism()
+            .map_or(1, |t| t.get())
+            .min(chunks);
+        let next = AtomicUsize::new(0);
+        let mut done: Vec<(usize, Sums)> = std::thread::scope(|s| {
+            let workers: Vec<_> = (0..threads)
+                .map(|_| {
+                    s.spawn(|| {
+                        let mut done = Vec::new();
+                        loop {
+                            let c = next.fetch_add(1, Ordering::Relaxed);
+                            if c >= chunks {
+                                return done;
+                            }
+                            done.push((c, chunk(c)));
+                        }
+                    })
+                })
+                .collect();
+            workers
+                .into_iter()
+                .flat_map(|w| {
+                    w.join()
+                        .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
+                })
+                .collect()
+        });
+        done.sort_by_key(|(c, _)| *c);
+        let mut total = Sums::default();
+        for (_, sums) in &done {
+            total.merge(sums);
+        }
+        total
+    }
+}
+
+/// Camera rays of frame 0 in f64, with `CameraFrame::ray_direction`'s convention.
+struct CameraRays {
+    position: DVec3,
+    forward: DVec3,
+    right: DVec3,
+    up: DVec3,
+    tan_x: f64,
+    tan_y: f64,
+    width: f64,
+    height: f64,
+}
+
+impl CameraRays {
+    fn new(scene: &Scene) -> Self {
+        let (position, look_at) = scene.camera.pose_at(0);
+        let (position, look_at) = (position.as_dvec3(), look_at.as_dvec3());
+        let forward = (look_at - position).normalize();
+        let right = forward.cross(scene.camera.up.as_dvec3()).normalize();
+        let up = right.cross(forward);
+        let (width, height) = (
+            f64::from(scene.render.width),
+            f64::from(scene.render.height),
+        );
+        let tan_x = (f64::from(scene.camera.horizontal_fov_deg).to_radians() * 0.5).tan();
+        Self {
+            position,
+            forward,
+            right,
+            up,
+            tan_x,
+            tan_y: tan_x * height / width,
+            width,
+            height,
+        }
+    }
+
+    /// Unit direction through image-plane point (px, py) in pixels, (0, 0) the top left.
+    fn direction(&self, px: f64, py: f64) -> DVec3 {
+        let sx = (2.0 * px / self.width - 1.0) * self.tan_x;
+        let sy = (1.0 - 2.0 * py / self.height) * self.tan_y;
+        (self.forward + sx * self.right + sy * self.up).normalize()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::PathBuf;
+
+    use glam::Vec2;
+    use nimbus_scene::{BoxMedium, Camera, GridMedium, GridSource, Integrator, RenderSettings};
+
+    use super::*;
+    use crate::reference::{self, ReferenceOptions};
+
+    const QUADRATURE: ReferenceOptions = ReferenceOptions {
+        rel_tol: 1e-9,
+        footprint_samples: 1,
+    };
+
+    fn medium(center: Vec3, size: Vec3, rotation_deg: Vec3, sigma_t: f32, g: f32) -> BoxMedium {
+        BoxMedium {
+            center,
+            size,
+            rotation_deg,
+            sigma_t,
+            albedo: Vec3::new(0.9, 0.5, 0.25),
+            g,
+        }
+    }
+
+    fn scene(media: Vec<BoxMedium>, shapes: Vec<Shape>, lights: Vec<Light>) -> Scene {
+        Scene {
+            source: PathBuf::from("<test>"),
+            render: RenderSettings {
+                width: 6,
+                height: 4,
+                ..RenderSettings::default()
+            },
+            camera: Camera {
+                position: Vec3::new(0.0, 0.0, 5.0),
+                look_at: Vec3::ZERO,
+                up: Vec3::Y,
+                horizontal_fov_deg: 40.0,
+                keyframes: Vec::new(),
+            },
+            lights,
+            media: media.into_iter().map(Medium::Box).collect(),
+            shapes,
+            integrator: Integrator::default(),
+        }
+    }
+
+    fn sun(direction: Vec3, irradiance: Vec3) -> Light {
+        Light::Directional {
+            direction: direction.normalize(),
+            irradiance,
+            gobo: None,
+        }
+    }
+
+    fn environment(radiance: Vec3) -> Light {
+        Light::Environment {
+            radiance,
+            file: None,
+            scale: Vec3::ONE,
+        }
+    }
+
+    /// |mc − expected| ≤ k·SE + 1e-12·|expected| per channel (the slack covers rays
+    /// whose estimate is deterministic, SE = 0).
+    fn assert_within(mc: &McEstimate, expected: [f64; 3], k: f64, what: &str) {
+        for (c, e) in expected.into_iter().enumerate() {
+            let (m, se) = (mc.mean[c], mc.std_error[c]);
+            assert!(
+                (m - e).abs() <= k * se + 1e-12 * e.abs(),
+                "{what}, channel {c}: MC {m:e} ± {se:e}, expected {e:e} ({:.2} SE)",
+                (m - e) / se
+            );
+        }
+    }
+
+    #[test]
+    fn rng_is_uniform_and_streams_differ() {
+        let mut rng = Rng::new(7, 0);
+        let n = 100_000;
+        let (mut sum, mut sum_sq) = (0.0, 0.0);
+        for _ in 0..n {
+            let u = rng.uniform();
+            assert!((0.0..1.0).contains(&u));
+            sum += u;
+            sum_sq += u * u;
+        }
+        let n = f64::from(n);
+        // Mean 1/2 (SE 0.29/√n), second moment 1/3 (SE 0.30/√n).
+        assert!((sum / n - 0.5).abs() < 5.0 * 0.29 / n.sqrt());
+        assert!((sum_sq / n - 1.0 / 3.0).abs() < 5.0 * 0.30 / n.sqrt());
+        let firsts: Vec<u64> = (0..4)
+            .flat_map(|stream| {
+                [
+                    Rng::new(7, stream).next_u64(),
+                    Rng::new(8, stream).next_u64(),
+                ]
+            })
+            .collect();
+        for (i, a) in firsts.iter().enumerate() {
+            assert!(!firsts[i + 1..].contains(a), "streams repeat");
+        }
+    }
+
+    #[test]
+    fn phase_sampling_matches_the_hg_moments() {
+        // HG's Legendre moments are g^l: E[μ] = g and E[μ²] = (1 + 2g²)/3; the cosine
+        // lobe has E[cosθ] = 2/3.
+        let n = 100_000;
+        let axis = DVec3::new(0.3, -0.8, 0.52).normalize();
+        let mut rng = Rng::new(1, 2);
+        for g in [-0.7, 0.0, 0.3, 0.9] {
+            let (mut m1, mut m2) = (0.0, 0.0);
+            for _ in 0..n {
+                let w = sample_hg(axis, g, &mut rng);
+                assert!((w.length() - 1.0).abs() < 1e-12);
+                let mu = w.dot(axis);
+                m1 += mu;
+                m2 += mu * mu;
+            }
+            let n = f64::from(n);
+            assert!(
+                (m1 / n - g).abs() < 5.0 / n.sqrt(),
+                "g = {g}: E[μ] = {}",
+                m1 / n
+            );
+            let expected = (1.0 + 2.0 * g * g) / 3.0;
+            assert!((m2 / n - expected).abs() < 5.0 / n.sqrt(), "g = {g}");
+        }
+        let mean_cos: f64 = (0..n)
+            .map(|_| sample_cosine(-axis, &mut rng).dot(-axis))
+            .sum::<f64>()
+            / f64::from(n);
+        assert!((mean_cos - 2.0 / 3.0).abs() < 5.0 * 0.24 / f64::from(n).sqrt());
+    }
+
+    #[test]
+    fn geometry_matches_the_scene_conventions() {
+        for deg in [
+            Vec3::ZERO,
+            Vec3::new(10.0, 20.0, 30.0),
+            Vec3::new(-170.0, 95.0, 33.0),
+        ] {
+            let expected = nimbus_scene::rotation_xyz_deg(deg).as_dmat3();
+            assert!(rotation_f64(deg).abs_diff_eq(expected, 1e-6));
+        }
+        let s = scene(Vec::new(), Vec::new(), Vec::new());
+        let (camera, frame) = (CameraRays::new(&s), s.camera.frame_at(0));
+        for (px, py) in [(0.0, 0.0), (2.5, 1.25), (6.0, 4.0)] {
+            let expected = frame.ray_direction(px as f32, py as f32, 6, 4).as_dvec3();
+            assert!(camera.direction(px, py).abs_diff_eq(expected, 1e-6));
+        }
+    }
+
+    /// A rotated box in front of the camera, lit obliquely, in front of an environment.
+    fn lit_box(shapes: Vec<Shape>, gobo: Option<Gobo>) -> Scene {
+        let m = medium(
+            Vec3::new(0.1, -0.2, 0.0),
+            Vec3::new(2.0, 1.5, 1.0),
+            Vec3::new(20.0, 35.0, -10.0),
+            0.8,
+            0.4,
+        );
+        let light = Light::Directional {
+            direction: Vec3::new(0.3, -1.0, 0.4).normalize(),
+            irradiance: Vec3::new(2.0, 1.5, 1.0),
+            gobo,
+        };
+        let env = environment(Vec3::new(0.1, 0.2, 0.3));
+        scene(vec![m], shapes, vec![light, env])
+    }
+
+    #[test]
+    fn single_scattering_agrees_with_the_quadrature_reference() {
+        let omega = Vec3::new(0.3, -1.0, 0.4).normalize();
+        // A sphere up the beam from the box shadows part of it (and is lit itself).
+        let sphere = Shape::Sphere {
+            center: Vec3::new(0.3, 0.0, 0.0) - 2.5 * omega,
+            radius: 0.45,
+            albedo: Vec3::new(0.6, 0.4, 0.2),
+        };
+        // A triangle gobo through the box centre (vertical-ish beam: u ≈ x).
+        let gobo = Gobo {
+            polygon: vec![
+                Vec2::new(-0.7, -0.5),
+                Vec2::new(0.6, -0.4),
+                Vec2::new(0.0, 0.6),
+            ],
+            origin: Vec3::new(0.1, -0.2, 0.0) - 5.0 * omega,
+        };
+        let scenes = [
+            ("box", lit_box(Vec::new(), None)),
+            ("box + sphere", lit_box(vec![sphere], None)),
+            ("box + gobo", lit_box(Vec::new(), Some(gobo))),
+        ];
+        let origin = DVec3::new(0.0, 0.2, 5.0);
+        let targets = [
+            DVec3::new(0.1, -0.2, 0.0),
+            DVec3::new(0.5, 0.1, 0.2),
+            DVec3::new(-0.4, -0.5, -0.3),
+            // The sphere's upper front, lit.
+            DVec3::new(0.3, 0.36, 0.0) - 2.5 * omega.as_dvec3(),
+            DVec3::new(4.0, 3.0, 0.0), // a miss
+        ];
+        for (i, (name, s)) in scenes.iter().enumerate() {
+            for (j, target) in targets.into_iter().enumerate() {
+                let opts = McOptions {
+                    max_bounces: 1,
+                    paths: 200_000,
+                    seed: (10 * i + j) as u64,
+                };
+                let dir = target - origin;
+                let expected = reference::radiance(s, origin, dir, &QUADRATURE).unwrap();
+                let mc = radiance_mc(s, origin, dir, &opts).unwrap();
+                assert_within(&mc, expected, 4.0, &format!("{name}, towards {target}"));
+            }
+        }
+    }
+
+    #[test]
+    fn without_albedo_higher_orders_add_nothing() {
+        // Black medium and black shapes: every path stops at its first scattering, so
+        // K = 3 draws the same numbers as K = 1 and gives the same bits.
+        let mut s = lit_box(
+            vec![Shape::Quad {
+                corner: Vec3::new(-3.0, -1.5, 3.0),
+                edge_u: Vec3::new(6.0, 0.0, 0.0),
+                edge_v: Vec3::new(0.0, 0.0, -6.0),
+                albedo: Vec3::ZERO,
+            }],
+            None,
+        );
+        let Medium::Box(m) = &mut s.media[0] else {
+            unreachable!()
+        };
+        m.albedo = Vec3::ZERO;
+        let (origin, dir) = (DVec3::new(0.0, 0.2, 5.0), DVec3::new(0.02, -0.08, -1.0));
+        let one = McOptions {
+            max_bounces: 1,
+            paths: 20_000,
+            seed: 3,
+        };
+        let three = McOptions {
+            max_bounces: 3,
+            ..one
+        };
+        let k1 = radiance_mc(&s, origin, dir, &one).unwrap();
+        let k3 = radiance_mc(&s, origin, dir, &three).unwrap();
+        assert_eq!(k1, k3);
+        // Only the environment through the box remains, and not every path sees it.
+        assert!(k1.mean[2] > 0.0 && k1.std_error[2] > 0.0);
+    }
+
+    #[test]
+    fn radiance_grows_with_the_scattering_order() {
+        // A dense, bright box over a bright floor: common random numbers make each
+        // path's K = 1 estimate a prefix of its K = 2 and K = 4 ones, so the means are
+        // ordered exactly; the increments must also exceed the noise.
+        let mut m = medium(
+            Vec3::ZERO,
+            Vec3::new(2.0, 1.0, 1.5),
+            Vec3::new(0.0, 30.0, 10.0),
+            2.5,
+            0.3,
+        );
+        m.albedo = Vec3::new(0.95, 0.8, 0.6);
+        let floor = Shape::Quad {
+            corner: Vec3::new(-4.0, -1.0, 4.0),
+            edge_u: Vec3::new(8.0, 0.0, 0.0),
+            edge_v: Vec3::new(0.0, 0.0, -8.0),
+            albedo: Vec3::splat(0.7),
+        };
+        let s = scene(
+            vec![m],
+            vec![floor],
+            vec![sun(Vec3::new(0.4, -1.0, 0.2), Vec3::splat(3.0))],
+        );
+        let (origin, dir) = (DVec3::new(0.0, 0.5, 5.0), DVec3::new(0.1, -0.15, -1.0));
+        let run = |k: u32| {
+            let opts = McOptions {
+                max_bounces: k,
+                paths: 50_000,
+                seed: 5,
+            };
+            radiance_mc(&s, origin, dir, &opts).unwrap()
+        };
+        let (k1, k2, k4) = (run(1), run(2), run(4));
+        for c in 0..3 {
+            assert!(k1.mean[c] <= k2.mean[c] && k2.mean[c] <= k4.mean[c]);
+            assert!(
+                k2.mean[c] - k1.mean[c] > 4.0 * k2.std_error[c],
+                "channel {c}"
+            );
+            assert!(
+                k4.mean[c] - k2.mean[c] > 4.0 * k4.std_error[c],
+                "channel {c}"
+            );
+        }
+    }
+
+    /// ∫_a^b f by composite 5-point Gauss–Legendre on `panels` equal pieces.
+    fn gauss_legendre(f: impl Fn(f64) -> f64, a: f64, b: f64, panels: u32) -> f64 {
+        const NODES: [f64; 5] = [
+            0.0,
+            -0.538_469_310_105_683_1,
+            0.538_469_310_105_683_1,
+            -0.906_179_845_938_664,
+            0.906_179_845_938_664,
+        ];
+        const WEIGHTS: [f64; 5] = [
+            0.568_888_888_888_888_9,
+            0.478_628_670_499_366_5,
+            0.478_628_670_499_366_5,
+            0.236_926_885_056_189_1,
+            0.236_926_885_056_189_1,
+        ];
+        let h = (b - a) / f64::from(panels);
+        (0..panels)
+            .map(|i| {
+                let mid = a + (f64::from(i) + 0.5) * h;
+                (0..5)
+                    .map(|j| WEIGHTS[j] * f(mid + 0.5 * h * NODES[j]))
+                    .sum::<f64>()
+                    * 0.5
+                    * h
+            })
+            .sum()
+    }
+
+    #[test]
+    fn double_scattering_in_a_slab_matches_a_one_dimensional_integral() {
+        // A wide slab z ∈ [0, H] seen along +z from z < 0, lit by a beam travelling +z
+        // (so everything is symmetric about the z axis). Order 1: the camera sees
+        // backscatter, L1 = σs p(−1) E (1 − e^{−2σH})/(2σ). Order 2: with the second
+        // scattering at depth z on the camera ray and the first at distance r in
+        // direction u from it, μ = u·z, the first turns ω into −u (cosine −μ), the
+        // second −u into −z (cosine μ); integrating r up to the slab face R(μ):
+        // L2 = 2π σs² E ∫_0^H e^{−2σz} ∫_{−1}^{1} p(−μ) p(μ) (1 − e^{−σR(1+μ)})/(σ(1+μ)) dμ dz,
+        // R = (H − z)/μ for μ > 0 and z/(−μ) for μ < 0.
+        let (sigma, h, g) = (1.0f64, 1.0f64, 0.3f64);
+        let mut m = medium(
+            Vec3::new(0.0, 0.0, 0.5),
+            Vec3::new(400.0, 400.0, 1.0),
+            Vec3::ZERO,
+            sigma as f32,
+            g as f32,
+        );
+        m.albedo = Vec3::new(0.95, 0.6, 0.3);
+        let albedo = m.albedo.as_dvec3();
+        let s = scene(vec![m], Vec::new(), vec![sun(Vec3::Z, Vec3::ONE)]);
+
+        let p = |mu: f64| phase_hg(mu, g);
+        let first = p(-1.0) * (1.0 - (-2.0 * sigma * h).exp()) / (2.0 * sigma);
+        // The inner integrand, with (1 − e^{−a})/(1+μ) via expm1 near μ = −1; the
+        // substitution μ = ±s² (dμ = 2s ds) resolves the edge near μ = 0 where R → ∞.
+        let inner = |z: f64, mu: f64| {
+            let r = if mu > 0.0 { (h - z) / mu } else { z / -mu };
+            p(-mu) * p(mu) * -(-sigma * r * (1.0 + mu)).exp_m1() / (sigma * (1.0 + mu))
+        };
+        let second = 2.0
+            * PI
+            * gauss_legendre(
+                |z| {
+                    let forward = gauss_legendre(|s| 2.0 * s * inner(z, s * s), 0.0, 1.0, 60);
+                    let back = gauss_legendre(|s| 2.0 * s * inner(z, -s * s), 0.0, 1.0, 60);
+                    (-2.0 * sigma * z).exp() * (forward + back)
+                },
+                0.0,
+                h,
+                60,
+            );
+        let expected: [f64; 3] = std::array::from_fn(|c| {
+            let sigma_s = albedo[c] * sigma;
+            sigma_s * first + sigma_s * sigma_s * second
+        });
+
+        let opts = McOptions {
+            max_bounces: 2,
+            paths: 200_000,
+            seed: 9,
+        };
+        let mc = radiance_mc(&s, DVec3::new(0.0, 0.0, -1.0), DVec3::Z, &opts).unwrap();
+        assert_within(&mc, expected, 4.0, "slab, K = 2");
+        // The second order is a sizeable part of the answer, so the test can see it.
+        assert!(second * albedo[0] > 0.3 * first, "{second} vs {first}");
+    }
+
+    #[test]
+    fn render_agrees_with_the_quadrature_render() {
+        // A wide slab fills the whole view, so every pixel is smooth; the quadrature's
+        // 6×6 midpoint footprint and the MC's jittered 2×2 strata estimate the same mean.
+        let m = medium(
+            Vec3::ZERO,
+            Vec3::new(20.0, 20.0, 1.5),
+            Vec3::new(5.0, -10.0, 0.0),
+            1.2,
+            0.5,
+        );
+        let s = scene(
+            vec![m],
+            Vec::new(),
+            vec![sun(Vec3::new(0.2, -0.5, -1.0), Vec3::new(1.0, 2.0, 3.0))],
+        );
+        let opts = McOptions {
+            max_bounces: 1,
+            paths: 2_000,
+            seed: 21,
+        };
+        let (mean, std_error) = render_mc(&s, &opts, 2).unwrap();
+        assert_eq!((mean.len(), std_error.len()), (24, 24));
+        let ref_opts = ReferenceOptions {
+            rel_tol: 1e-8,
+            footprint_samples: 6,
+        };
+        let expected = reference::render(&s, &ref_opts).unwrap();
+        for (i, e) in expected.into_iter().enumerate() {
+            let mc = McEstimate {
+                mean: mean[i],
+                std_error: std_error[i],
+            };
+            assert_within(&mc, e, 4.5, &format!("pixel {i}"));
+        }
+        // Same seed, same image; footprint 0 is the pixel centre.
+        assert_eq!(render_mc(&s, &opts, 2).unwrap().0, mean);
+        let (centre, centre_se) = render_mc(&s, &opts, 0).unwrap();
+        let ref_centre = ReferenceOptions {
+            rel_tol: 1e-8,
+            footprint_samples: 1,
+        };
+        for (i, e) in reference::render(&s, &ref_centre)
+            .unwrap()
+            .into_iter()
+            .enumerate()
+        {
+            let mc = McEstimate {
+                mean: centre[i],
+                std_error: centre_se[i],
+            };
+            assert_within(&mc, e, 4.5, &format!("pixel centre {i}"));
+        }
+    }
+
+    #[test]
+    fn unsupported_scenes_and_options_are_errors() {
+        let opts = McOptions {
+            max_bounces: 2,
+            paths: 16,
+            seed: 0,
+        };
+        let ray = |s: &Scene, opts: &McOptions| {
+            radiance_mc(s, DVec3::ZERO, DVec3::X, opts)
+                .map(|_| ())
+                .map_err(|e| format!("{e:#}"))
+        };
+        let point = Light::Point {
+            position: Vec3::ZERO,
+            intensity: Vec3::ONE,
+        };
+        let sphere = Light::Sphere {
+            center: Vec3::ZERO,
+            radius: 1.0,
+            radiance: Vec3::ONE,
+        };
+        let env_map = Light::Environment {
+            radiance: Vec3::ONE,
+            file: Some(PathBuf::from("sky.exr")),
+            scale: Vec3::ONE,
+        };
+        for (light, words) in [
+            (point, "point lights"),
+            (sphere, "sphere lights"),
+            (env_map, "environment maps"),
+        ] {
+            let message = ray(&scene(Vec::new(), Vec::new(), vec![light]), &opts).unwrap_err();
+            assert!(message.contains(words), "{message}");
+        }
+
+        let mut s = scene(Vec::new(), Vec::new(), Vec::new());
+        s.media.push(Medium::Grid(GridMedium {
+            bounds_min: Vec3::splat(-1.0),
+            bounds_max: Vec3::ONE,
+            density: GridSource::ProceduralCloud {
+                dims: [4, 4, 4],
+                noise_seed: 1,
+            },
+            density_scale: 1.0,
+            albedo: Vec3::ONE,
+            g: 0.0,
+            emission: None,
+            emission_scale: Vec3::ONE,
+            velocity: None,
+            frames: Vec::new(),
+        }));
+        assert!(ray(&s, &opts).unwrap_err().contains("grid media"));
+
+        let s = scene(Vec::new(), Vec::new(), Vec::new());
+        assert!(ray(&s, &opts).is_ok());
+        let zero_k = McOptions {
+            max_bounces: 0,
+            ..opts
+        };
+        assert!(ray(&s, &zero_k).is_err());
+        let one_path = McOptions { paths: 1, ..opts };
+        assert!(ray(&s, &one_path).is_err());
+        assert!(radiance_mc(&s, DVec3::ZERO, DVec3::ZERO, &opts).is_err());
+        // 16 paths do not fill 3×3 strata evenly.
+        assert!(render_mc(&s, &opts, 3).is_err());
+        assert!(render_mc(&s, &opts, 4).is_ok());
+    }
+
+    /// Cost of the estimator: `cargo test --release --lib reference_mc -- --ignored
+    /// --nocapture`.
+    #[test]
+    #[ignore]
+    fn time_per_million_segments() {
+        let mut m = medium(
+            Vec3::ZERO,
+            Vec3::new(2.0, 1.0, 1.5),
+            Vec3::new(0.0, 30.0, 10.0),
+            2.5,
+            0.3,
+        );
+        m.albedo = Vec3::splat(0.95);
+        let floor = Shape::Quad {
+            corner: Vec3::new(-4.0, -1.0, 4.0),
+            edge_u: Vec3::new(8.0, 0.0, 0.0),
+            edge_v: Vec3::new(0.0, 0.0, -8.0),
+            albedo: Vec3::splat(0.7),
+        };
+        let ball = Shape::Sphere {
+            center: Vec3::new(1.5, 1.5, 0.0),
+            radius: 0.4,
+            albedo: Vec3::splat(0.5),
+        };
+        let s = scene(
+            vec![m],
+            vec![floor, ball],
+            vec![sun(Vec3::new(0.4, -1.0, 0.2), Vec3::splat(3.0))],
+        );
+        let tracer = Tracer::new(&s).unwrap();
+        let opts = McOptions {
+            max_bounces: 8,
+            paths: 400_000,
+            seed: 1,
+        };
+        let (origin, dir) = (DVec3::new(0.0, 0.5, 5.0), DVec3::new(0.1, -0.15, -1.0));
+        let start = std::time::Instant::now();
+        let sums = tracer.radiance(origin, dir.normalize(), &opts);
+        let seconds = start.elapsed().as_secs_f64();
+        let threads = std::thread::available_parallelism().map_or(1, |t| t.get());
+        println!(
+            "{} paths, {} segments ({:.2} per path) in {seconds:.3} s on {threads} threads: \
+             {:.3} s per million segments",
+            sums.n,
+            sums.segments,
+            sums.segments as f64 / sums.n as f64,
+            seconds / (sums.segments as f64 * 1e-6)
+        );
+    }
+}
