@@ -13,6 +13,7 @@ pub mod profile;
 pub mod reference;
 pub mod reference_mc;
 pub mod renderer;
+pub mod study;
 
 use std::path::{Path, PathBuf};
 

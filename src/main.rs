@@ -5,7 +5,7 @@ use std::process::ExitCode;
 
 use anyhow::{bail, Context as _, Result};
 use clap::{Args, Parser, Subcommand};
-use nimbus::{load_scene, output, plan, profile, renderer};
+use nimbus::{load_scene, output, plan, profile, renderer, study};
 use nimbus_gpu::{enumerate_devices, Context, ContextDesc};
 
 #[derive(Parser)]
@@ -27,6 +27,9 @@ enum Command {
     Profile(ProfileArgs),
     /// List the Vulkan devices (pick one with NIMBUS_DEVICE=<substring of its name>).
     Devices,
+    /// Measure error against a converged reference versus GPU milliseconds over a
+    /// grid of settings; writes study.csv, study.md and study.png.
+    Study(StudyArgs),
 }
 
 /// Overrides of the scene's `[render]` table and renderer knobs.
@@ -86,6 +89,48 @@ struct ProfileArgs {
     overrides: Overrides,
 }
 
+#[derive(Args)]
+struct StudyArgs {
+    /// Scene file (TOML).
+    scene: PathBuf,
+    /// KEY=V1,V2,... (repeatable; the configurations are the cartesian product). Keys:
+    /// box_estimator, spp, box_samples, frames, seed, max_bounces, volume.
+    #[arg(long, value_name = "KEY=V1,V2,...")]
+    vary: Vec<String>,
+    /// Frames per configuration (unless frames is varied).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
+    frames: u32,
+    /// Frames of the reference render.
+    #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
+    reference_frames: u32,
+    /// Samples per pixel per frame of the reference render.
+    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    reference_spp: u32,
+    /// Box estimator of the reference (default: the scene's own).
+    #[arg(long, value_name = "NAME")]
+    reference_estimator: Option<String>,
+    /// Samples along each camera ray of the reference.
+    #[arg(long, default_value_t = 64, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    reference_box_samples: u32,
+    /// KEY=VALUE of the series the others are compared with at equal GPU time
+    /// (default box_estimator=rm when box_estimator is varied).
+    #[arg(long, value_name = "KEY=VALUE")]
+    baseline: Option<String>,
+    /// Reference cache (default $XDG_CACHE_HOME/nimbus/references or
+    /// ~/.cache/nimbus/references).
+    #[arg(long)]
+    cache_dir: Option<PathBuf>,
+    /// Output directory (default study-<scene stem>).
+    #[arg(long)]
+    out_dir: Option<PathBuf>,
+    /// Image width for the reference and every configuration (default: the scene's).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16384))]
+    width: Option<u32>,
+    /// Image height for the reference and every configuration (default: the scene's).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16384))]
+    height: Option<u32>,
+}
+
 fn main() -> ExitCode {
     match run(Cli::parse()) {
         Ok(()) => ExitCode::SUCCESS,
@@ -101,7 +146,29 @@ fn run(cli: Cli) -> Result<()> {
         Command::Render(args) => render(args),
         Command::Profile(args) => profile_cmd(args),
         Command::Devices => devices(),
+        Command::Study(args) => study_cmd(args),
     }
+}
+
+fn study_cmd(args: StudyArgs) -> Result<()> {
+    let study = study::Study::new(&study::StudyOptions {
+        scene: args.scene,
+        vary: args.vary,
+        frames: args.frames,
+        reference_frames: args.reference_frames,
+        reference_spp: args.reference_spp,
+        reference_estimator: args.reference_estimator,
+        reference_box_samples: args.reference_box_samples,
+        baseline: args.baseline,
+        cache_dir: args.cache_dir,
+        out_dir: args.out_dir,
+        width: args.width,
+        height: args.height,
+    })?;
+    let ctx = Context::new(&ContextDesc::from_env())?;
+    eprintln!("device: {}", ctx.info().name);
+    study.run(&ctx)?;
+    report_validation(&ctx)
 }
 
 fn apply(scene: &mut nimbus_scene::Scene, o: &Overrides) {
