@@ -14,8 +14,8 @@
 //   RM      ray marching: equidistant jittered samples.
 //   MCDS    Monte Carlo with distance sampling along the camera ray only.
 // Each sample picks one directional light in proportion to its analytic unoccluded
-// radiance along this segment (Sec. 4, multiple lights). Gobos limit the analytic
-// integration to the part of the segment inside the gobo's prism.
+// radiance along this segment (Sec. 4, multiple lights). A gobo offsets and limits the
+// integration to the part of the segment inside its prism, for every estimator.
 //
 // With SC_MAX_BOUNCES = K > 1 the camera ray continues as a path: a free-flight
 // collision (or a Lambertian surface) starts the next segment, whose single-scattered
@@ -229,13 +229,16 @@ float light_visibility(vec3 x, vec3 omega, uint skip) {
     return exp(-optical_depth_except(x, -omega, 0.0, FAR, skip));
 }
 
-// The trapezoid pieces of light l along o + t d in box medium bm over [t_enter, t_b],
-// clamped to the light's gobo interval.
-BoxPieces light_pieces(BoxMedium bm, Light l, vec3 o, vec3 d, vec3 o_local, vec3 d_local, float t_enter, float t_b) {
+// The part of [t_enter, t_b] light l can reach (its gobo interval), empty as a
+// zero-length interval at t_enter.
+vec2 light_interval(Light l, vec3 o, vec3 d, float t_enter, float t_b) {
     vec2 iv = gobo_interval(l, o, d, t_enter, t_b);
-    if (iv.y <= iv.x) {
-        iv = vec2(t_enter, t_enter);
-    }
+    return iv.y > iv.x ? iv : vec2(t_enter, t_enter);
+}
+
+// The trapezoid pieces of light l along o + t d in box medium bm over the interval iv
+// (camera transmittance from t_enter).
+BoxPieces light_pieces(BoxMedium bm, Light l, vec3 o_local, vec3 d_local, float t_enter, vec2 iv) {
     vec3 omega_local = to_local_dir(bm, l.direction_type.xyz);
     return box_pieces(o_local, d_local, omega_local, bm.half_size_g.xyz, bm.center_sigma_t.w, t_enter, iv.x, iv.y);
 }
@@ -274,11 +277,13 @@ vec3 single_scatter_box(uint m, vec3 o, vec3 d, float t_enter, float t_b, inout 
     uint light_count = min(u_frame.counts.z, MAX_LIGHTS);
     vec3 U[MAX_LIGHTS];
     float w[MAX_LIGHTS];
+    vec2 interval[MAX_LIGHTS];
     vec3 U_total = vec3(0.0);
     float w_sum = 0.0;
     for (uint l = 0u; l < light_count; ++l) {
         Light light = lights[l];
-        BoxPieces p = light_pieces(bm, light, o, d, o_local, d_local, t_enter, t_b);
+        interval[l] = light_interval(light, o, d, t_enter, t_b);
+        BoxPieces p = light_pieces(bm, light, o_local, d_local, t_enter, interval[l]);
         float phase = hg_phase(dot(light.direction_type.xyz, -d), g);
         U[l] = bm.sigma_s.rgb * phase * light.irradiance.rgb * p.total;
         w[l] = U[l].r + U[l].g + U[l].b;
@@ -290,7 +295,6 @@ vec3 single_scatter_box(uint m, vec3 o, vec3 d, float t_enter, float t_b, inout 
     }
 
     uint n = max(u_frame.counts.w, 1u);
-    float span = t_b - t_enter;
     vec3 sum = vec3(0.0);
     vec3 num = vec3(0.0);
     vec3 den = vec3(0.0);
@@ -307,7 +311,7 @@ vec3 single_scatter_box(uint m, vec3 o, vec3 d, float t_enter, float t_b, inout 
         if (SC_ESTIMATOR == ESTIMATOR_MCWVDS) {
             // Whole-volume distance sampling: f / pdf = U_l, only visibility remains.
             if (l != cached) {
-                pieces = light_pieces(bm, light, o, d, o_local, d_local, t_enter, t_b);
+                pieces = light_pieces(bm, light, o_local, d_local, t_enter, interval[l]);
                 cached = l;
             }
             float pdf;
@@ -319,25 +323,29 @@ vec3 single_scatter_box(uint m, vec3 o, vec3 d, float t_enter, float t_b, inout 
             continue;
         }
 
-        // Draw t by equidistant strata (RM, REES) or by distance sampling (MCDS, REDS).
+        // Draw t within the light's interval (the gobo offsets and limits the
+        // integration) by equidistant strata (RM, REES) or by distance sampling (MCDS,
+        // REDS). A selected light has U > 0, so its interval is not empty.
+        float t_start = interval[l].x;
+        float span = interval[l].y - interval[l].x;
         float t;
         float pdf;
         if (SC_ESTIMATOR == ESTIMATOR_RM || SC_ESTIMATOR == ESTIMATOR_REES) {
-            t = t_enter + r * span;
-            // Domain: span > 0 (the caller integrates non-empty segments only).
+            t = t_start + r * span;
+            // Domain: span > 0 for a selected light.
             pdf = 1.0 / span;
         } else {
             // Truncated exponential on [0, span]: pdf = sigma_t e^{-sigma_t s} / (1 - e^{-sigma_t span}).
             float x = sigma_t * span;
             if (x < 1e-6) {
-                t = t_enter + r * span;
+                t = t_start + r * span;
                 pdf = 1.0 / span;
             } else {
                 float norm = x * one_minus_exp_over_x(x); // 1 - e^{-x}, in (0, 1]
                 // Domain: 1 - r norm in [e^{-x}, 1], > 0 unless e^{-x} underflows and r -> 1.
                 float s = -log(max(1.0 - r * norm, 1e-37)) / sigma_t;
                 s = min(s, span);
-                t = t_enter + s;
+                t = t_start + s;
                 pdf = sigma_t * exp(-sigma_t * s) / norm;
             }
         }
