@@ -280,10 +280,17 @@ vec3 single_scatter_box(uint m, vec3 o, vec3 d, float t_enter, float t_b, inout 
     vec2 interval[MAX_LIGHTS];
     vec3 U_total = vec3(0.0);
     float w_sum = 0.0;
+    // MCWVDS keeps the pieces of the light it last sampled; start with the first.
+    uint cached = NO_INDEX;
+    BoxPieces pieces;
     for (uint l = 0u; l < light_count; ++l) {
         Light light = lights[l];
         interval[l] = light_interval(light, o, d, t_enter, t_b);
         BoxPieces p = light_pieces(bm, light, o_local, d_local, t_enter, interval[l]);
+        if (l == 0u) {
+            pieces = p;
+            cached = 0u;
+        }
         float phase = hg_phase(dot(light.direction_type.xyz, -d), g);
         U[l] = bm.sigma_s.rgb * phase * light.irradiance.rgb * p.total;
         w[l] = U[l].r + U[l].g + U[l].b;
@@ -298,8 +305,6 @@ vec3 single_scatter_box(uint m, vec3 o, vec3 d, float t_enter, float t_b, inout 
     vec3 sum = vec3(0.0);
     vec3 num = vec3(0.0);
     vec3 den = vec3(0.0);
-    uint cached = NO_INDEX;
-    BoxPieces pieces;
     for (uint k = 0u; k < n; ++k) {
         float prob;
         uint l = select_light(rng_next(rng), w, light_count, w_sum, prob);
@@ -314,12 +319,9 @@ vec3 single_scatter_box(uint m, vec3 o, vec3 d, float t_enter, float t_b, inout 
                 pieces = light_pieces(bm, light, o_local, d_local, t_enter, interval[l]);
                 cached = l;
             }
-            float pdf;
-            float t = sample_wvds(pieces, r, pdf);
-            if (pdf > 0.0) {
-                // Domain: prob > 0 for a chosen light.
-                sum += U[l] / prob * light_visibility(o + t * d, omega, m);
-            }
+            // Domain: U[l] > 0 for a chosen light, so its pieces have total > 0; prob > 0.
+            float t = sample_wvds_distance(pieces, r);
+            sum += U[l] / prob * light_visibility(o + t * d, omega, m);
             continue;
         }
 

@@ -267,16 +267,12 @@ float box_piece_pdf(BoxPieces p, uint k, float v) {
     return (p.integral[k] / p.total) * density;
 }
 
-// Whole-volume distance sampling: t in [t_a, t_b] with pdf = integrand / total; u in [0,1).
-// Returns t_a with pdf 0 when total == 0 (callers must then count no contribution).
-float sample_wvds(BoxPieces p, float u, out float pdf) {
-    pdf = 0.0;
-    if (!(p.total > 0.0)) {
-        return p.t_start[0];
-    }
+// Choose piece k (Eq. 9) and the fraction v in [0, 1] along it (Eq. 10 and the
+// inverted truncated exponential) for u in [0, 1). Requires total > 0.
+void box_sample_piece(BoxPieces p, float u, out uint k, out float v) {
     // Select piece k with probability integral[k] / total (Eq. 9).
     float target = clamp(u, 0.0, BOX_ONE_MINUS_EPSILON) * p.total;
-    uint k = 0u;
+    k = 0u;
     float below = 0.0;
     float cum = 0.0;
     for (uint i = 0u; i < p.count; ++i) {
@@ -294,10 +290,31 @@ float sample_wvds(BoxPieces p, float u, out float pdf) {
     float r = clamp((target - below) / p.integral[k], 0.0, BOX_ONE_MINUS_EPSILON);
     // Invert the piece's truncated exponential from its low-depth end.
     float x = abs(p.slope[k]) * p.len[k];
-    float v = (p.slope[k] >= 0.0)
+    v = (p.slope[k] >= 0.0)
         ? box_sample_truncated_exp(x, r)
         : 1.0 - box_sample_truncated_exp(x, min(1.0 - r, BOX_ONE_MINUS_EPSILON));
+}
+
+// Whole-volume distance sampling: t in [t_a, t_b] with pdf = integrand / total; u in [0,1).
+// Returns t_a with pdf 0 when total == 0 (callers must then count no contribution).
+float sample_wvds(BoxPieces p, float u, out float pdf) {
+    pdf = 0.0;
+    if (!(p.total > 0.0)) {
+        return p.t_start[0];
+    }
+    uint k;
+    float v;
+    box_sample_piece(p, u, k, v);
     pdf = box_piece_pdf(p, k, v);
+    return p.t_start[k] + v * p.len[k];
+}
+
+// Whole-volume distance sampling without the pdf, for estimators that know f / pdf in
+// closed form (MCWVDS: f / pdf = total times the constant factors). Requires total > 0.
+float sample_wvds_distance(BoxPieces p, float u) {
+    uint k;
+    float v;
+    box_sample_piece(p, u, k, v);
     return p.t_start[k] + v * p.len[k];
 }
 
