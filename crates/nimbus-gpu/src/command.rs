@@ -293,47 +293,17 @@ impl Context {
                 src.name
             );
         }
-        let staging = self.create_buffer(
-            &BufferDesc::gpu_to_host(size, vk::BufferUsageFlags::empty()),
-            &format!("staging readback for '{}'", src.name),
-        )?;
-        let result = self
-            .submit_one_shot(&format!("readback '{}'", src.name), |cmd| {
-                memory_barrier(
-                    self,
-                    cmd,
-                    STAGES_BEFORE,
-                    WRITES_BEFORE,
-                    vk::PipelineStageFlags::TRANSFER,
-                    vk::AccessFlags::TRANSFER_READ,
-                );
-                let region = vk::BufferCopy {
-                    src_offset: offset,
-                    dst_offset: 0,
-                    size,
-                };
-                unsafe {
-                    self.device()
-                        .cmd_copy_buffer(cmd, src.raw, staging.raw, &[region])
-                };
-                memory_barrier(
-                    self,
-                    cmd,
-                    vk::PipelineStageFlags::TRANSFER,
-                    vk::AccessFlags::TRANSFER_WRITE,
-                    vk::PipelineStageFlags::HOST,
-                    vk::AccessFlags::HOST_READ,
-                );
-                Ok(())
-            })
-            .and_then(|()| {
-                staging
-                    .mapped_slice()
-                    .map(<[u8]>::to_vec)
-                    .with_context(|| format!("staging buffer for '{}' is not mapped", src.name))
-            });
-        self.destroy_buffer(staging);
-        result
+        self.readback_staged(&src.name, size, |cmd, staging| {
+            let region = vk::BufferCopy {
+                src_offset: offset,
+                dst_offset: 0,
+                size,
+            };
+            unsafe {
+                self.device()
+                    .cmd_copy_buffer(cmd, src.raw, staging, &[region])
+            };
+        })
     }
 
     /// Fills the whole of `dst` with the 32-bit `value`, ordered like an upload.
@@ -468,12 +438,34 @@ impl Context {
                 src.name
             );
         }
+        self.readback_staged(&src.name, size, |cmd, staging| {
+            let region = whole_image_copy(src);
+            unsafe {
+                self.device().cmd_copy_image_to_buffer(
+                    cmd,
+                    src.raw,
+                    vk::ImageLayout::GENERAL,
+                    staging,
+                    &[region],
+                )
+            };
+        })
+    }
+
+    /// Submits `copy` (which records a copy of `size` bytes into the staging buffer)
+    /// between the readback barriers of the module docs and returns the staged bytes.
+    fn readback_staged(
+        &self,
+        src_name: &str,
+        size: u64,
+        copy: impl FnOnce(vk::CommandBuffer, vk::Buffer),
+    ) -> Result<Vec<u8>> {
         let staging = self.create_buffer(
             &BufferDesc::gpu_to_host(size, vk::BufferUsageFlags::empty()),
-            &format!("staging readback for '{}'", src.name),
+            &format!("staging readback for '{src_name}'"),
         )?;
         let result = self
-            .submit_one_shot(&format!("readback '{}'", src.name), |cmd| {
+            .submit_one_shot(&format!("readback '{src_name}'"), |cmd| {
                 memory_barrier(
                     self,
                     cmd,
@@ -482,16 +474,7 @@ impl Context {
                     vk::PipelineStageFlags::TRANSFER,
                     vk::AccessFlags::TRANSFER_READ,
                 );
-                let region = whole_image_copy(src);
-                unsafe {
-                    self.device().cmd_copy_image_to_buffer(
-                        cmd,
-                        src.raw,
-                        vk::ImageLayout::GENERAL,
-                        staging.raw,
-                        &[region],
-                    )
-                };
+                copy(cmd, staging.raw);
                 memory_barrier(
                     self,
                     cmd,
@@ -506,7 +489,7 @@ impl Context {
                 staging
                     .mapped_slice()
                     .map(<[u8]>::to_vec)
-                    .with_context(|| format!("staging buffer for '{}' is not mapped", src.name))
+                    .with_context(|| format!("staging buffer for '{src_name}' is not mapped"))
             });
         self.destroy_buffer(staging);
         result
