@@ -253,3 +253,55 @@ impl RenderPlan {
         out
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use super::*;
+
+    fn scene(extra: &str) -> Scene {
+        let text = format!(
+            "[camera]\nposition = [0, 0, 30]\nlook_at = [0, 0, 0]\n{extra}\n[integrator]\nbox_estimator = \"rees\"\n"
+        );
+        nimbus_scene::parse_str(&text, Path::new("plan.toml")).expect("parses")
+    }
+
+    #[test]
+    fn too_many_lights_or_media_are_errors_naming_the_table() {
+        let lights = "[[light]]\ntype = \"directional\"\ndirection = [0, -1, 0]\nirradiance = 1\n"
+            .repeat(17);
+        let err = build(&scene(&lights), None).unwrap_err().to_string();
+        assert!(
+            err.contains("plan.toml") && err.contains("[[light]]") && err.contains("at most 16"),
+            "{err}"
+        );
+
+        let media: String = (0..17)
+            .map(|i| format!("[[medium]]\ntype = \"box\"\ncenter = [{}, 0, 0]\nsize = [1, 1, 1]\nsigma_t = 1\n", 2 * i))
+            .collect();
+        let err = build(&scene(&media), None).unwrap_err().to_string();
+        assert!(
+            err.contains("plan.toml") && err.contains("[[medium]]") && err.contains("at most 16"),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn features_follow_the_scene() {
+        let plain = build(&scene(""), None).unwrap();
+        let f = plain.crepuscular.as_ref().unwrap().features;
+        assert!(!f.has_media && !f.has_shapes && !f.has_gobos && !f.has_env && f.pixel_jitter);
+
+        let gobo = scene(
+            "[[light]]\ntype = \"directional\"\ndirection = [0, -1, 0]\nirradiance = 1\ngobo = [[0, 0], [1, 0], [0, 1]]\n\
+             [[medium]]\ntype = \"box\"\ncenter = [0, 0, 0]\nsize = [1, 1, 1]\nsigma_t = 1\n",
+        );
+        let plan = build(&gobo, Some(7)).unwrap();
+        let p = plan.crepuscular.as_ref().unwrap();
+        assert!(p.features.has_gobos && p.features.has_media);
+        assert_eq!(p.samples_along_ray, 7);
+        assert_eq!(p.estimator, BoxEstimator::Rees);
+        assert!(plan.explain(&gobo).contains("[on ]   SC_HAS_GOBOS"));
+    }
+}
