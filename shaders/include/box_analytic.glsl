@@ -270,27 +270,35 @@ float box_piece_pdf(BoxPieces p, uint k, float v) {
 // Choose piece k (Eq. 9) and the fraction v in [0, 1] along it (Eq. 10 and the
 // inverted truncated exponential) for u in [0, 1). Requires total > 0.
 void box_sample_piece(BoxPieces p, float u, out uint k, out float v) {
-    // Select piece k with probability integral[k] / total (Eq. 9).
+    // Select piece k with probability integral[k] / total (Eq. 9). The loop has a fixed
+    // trip count and the piece's values are picked with selects, so the piece table can
+    // stay in registers (dynamic indexing sends local arrays to memory on some devices).
     float target = clamp(u, 0.0, BOX_ONE_MINUS_EPSILON) * p.total;
     k = 0u;
     float below = 0.0;
     float cum = 0.0;
-    for (uint i = 0u; i < p.count; ++i) {
-        if (p.integral[i] > 0.0) {
+    bool found = false;
+    float integral_k = p.integral[0];
+    float slope_k = p.slope[0];
+    float len_k = p.len[0];
+    for (uint i = 0u; i < BOX_MAX_PIECES; ++i) {
+        bool positive = i < p.count && p.integral[i] > 0.0 && !found;
+        if (positive) {
             k = i;
             below = cum;
+            integral_k = p.integral[i];
+            slope_k = p.slope[i];
+            len_k = p.len[i];
         }
-        cum += p.integral[i];
-        if (p.integral[i] > 0.0 && target < cum) {
-            break;
-        }
+        cum += i < p.count ? p.integral[i] : 0.0;
+        found = found || (positive && target < cum);
     }
-    // Rescale the random number into the piece (Eq. 10). Domain: integral[k] > 0, since
+    // Rescale the random number into the piece (Eq. 10). Domain: integral_k > 0, since
     // total > 0 makes some piece positive and k is the last positive one reached.
-    float r = clamp((target - below) / p.integral[k], 0.0, BOX_ONE_MINUS_EPSILON);
+    float r = clamp((target - below) / integral_k, 0.0, BOX_ONE_MINUS_EPSILON);
     // Invert the piece's truncated exponential from its low-depth end.
-    float x = abs(p.slope[k]) * p.len[k];
-    v = (p.slope[k] >= 0.0)
+    float x = abs(slope_k) * len_k;
+    v = (slope_k >= 0.0)
         ? box_sample_truncated_exp(x, r)
         : 1.0 - box_sample_truncated_exp(x, min(1.0 - r, BOX_ONE_MINUS_EPSILON));
 }
@@ -315,7 +323,10 @@ float sample_wvds_distance(BoxPieces p, float u) {
     uint k;
     float v;
     box_sample_piece(p, u, k, v);
-    return p.t_start[k] + v * p.len[k];
+    // Pick the piece's start and length with selects (see box_sample_piece).
+    float start = k == 0u ? p.t_start[0] : (k == 1u ? p.t_start[1] : p.t_start[2]);
+    float len = k == 0u ? p.len[0] : (k == 1u ? p.len[1] : p.len[2]);
+    return start + v * len;
 }
 
 // pdf of sample_wvds at t (0 outside [t_a, t_b] or when total == 0).
