@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::gpu::{context, render_checked, scene};
+use common::gpu::{context, render_checked, scene, se_of_mean};
 use common::{compare_with_golden, Tolerance};
 use nimbus::output::ImageRgb;
 use nimbus::reference::{self, ReferenceOptions};
@@ -17,21 +17,6 @@ fn mean_rel_diff(a: &ImageRgb, b: &ImageRgb) -> f64 {
     let (ma, mb) = (a.mean(), b.mean());
     (0..3)
         .map(|c| (ma[c] - mb[c]).abs() / mb[c].abs().max(1e-30))
-        .fold(0.0, f64::max)
-}
-
-/// Standard error of an image's mean (largest channel), pixels independent.
-fn se_of_mean(se: &ImageRgb) -> f64 {
-    let n = se.data.len() as f64;
-    (0..3)
-        .map(|c| {
-            se.data
-                .iter()
-                .map(|s| f64::from(s[c]).powi(2))
-                .sum::<f64>()
-                .sqrt()
-                / n
-        })
         .fold(0.0, f64::max)
 }
 

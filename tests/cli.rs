@@ -2,29 +2,12 @@
 //! bad input. Runs the real binary with validation layers on (NIMBUS_VALIDATION=1),
 //! under which any validation error makes the command fail.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-fn nimbus(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_nimbus"))
-        .args(args)
-        .env("NIMBUS_VALIDATION", "1")
-        .output()
-        .expect("run nimbus")
-}
+use common::cli::{nimbus, text};
 
-fn text(bytes: &[u8]) -> String {
-    String::from_utf8_lossy(bytes).into_owned()
-}
-
-/// A fresh directory for one test's files.
-fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
-        .join("cli")
-        .join(name);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("scratch dir");
-    dir
+fn scratch(name: &str) -> std::path::PathBuf {
+    common::cli::scratch("cli", name)
 }
 
 #[test]

@@ -382,17 +382,7 @@ box_estimator = "rm"
             scene.integrator.box_estimator = estimator;
             let gpu = render_scene(&ctx, &scene, Some(32));
             let g_mean = gpu.image.mean()[0];
-            // Standard error of the image mean from the per-pixel standard errors
-            // (pixels are independent).
-            let n = gpu.std_error.data.len() as f64;
-            let se_mean = gpu
-                .std_error
-                .data
-                .iter()
-                .map(|se| f64::from(se[0]).powi(2))
-                .sum::<f64>()
-                .sqrt()
-                / n;
+            let se_mean = common::gpu::se_of_mean(&gpu.std_error);
             let e = estimator.name();
             println!("{name} / {e}: gpu {g_mean:.6e} ± {se_mean:.2e}, reference {r_mean:.6e}");
             assert!(

@@ -1,8 +1,11 @@
 //! `nimbus study` end to end: the real binary on a tiny box scene with validation layers
 //! on (NIMBUS_VALIDATION=1), its files, the reference cache, and clear errors.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
+
+use std::path::Path;
+
+use common::cli::{nimbus, text};
 
 /// A 16x16 unoccluded box under one directional light, rendered by ray marching.
 const TINY_BOX: &str = r#"
@@ -37,26 +40,8 @@ box_estimator = "rm"
 box_samples = 8
 "#;
 
-fn nimbus(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_nimbus"))
-        .args(args)
-        .env("NIMBUS_VALIDATION", "1")
-        .output()
-        .expect("run nimbus")
-}
-
-fn text(bytes: &[u8]) -> String {
-    String::from_utf8_lossy(bytes).into_owned()
-}
-
-/// A fresh directory for one test's files.
-fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
-        .join("study")
-        .join(name);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("scratch dir");
-    dir
+fn scratch(name: &str) -> std::path::PathBuf {
+    common::cli::scratch("study", name)
 }
 
 /// The CSV as (header, rows).

@@ -41,3 +41,19 @@ pub fn render_checked(ctx: &Context, scene: &Scene, box_samples: Option<u32>) ->
     assert!(result.image.first_non_finite().is_none());
     result
 }
+
+/// Standard error of an image's mean (largest channel) from per-pixel standard errors,
+/// pixels independent.
+pub fn se_of_mean(se: &nimbus::output::ImageRgb) -> f64 {
+    let n = se.data.len() as f64;
+    (0..3)
+        .map(|c| {
+            se.data
+                .iter()
+                .map(|s| f64::from(s[c]).powi(2))
+                .sum::<f64>()
+                .sqrt()
+                / n
+        })
+        .fold(0.0, f64::max)
+}

@@ -22,6 +22,7 @@
 
 #![allow(dead_code)]
 
+pub mod cli;
 pub mod gpu;
 
 use std::path::{Path, PathBuf};
