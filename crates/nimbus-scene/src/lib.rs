@@ -69,23 +69,53 @@
 //! | restir `spatial_rounds` | 0..=16 |
 //! | restir `mip_candidates`, `mip_indirect`, `mip_reuse` | 0..=16 |
 //! | grid `procedural` | `"cloud"` (not allowed for `velocity`) |
+//!
+//! # Voxel grids
+//! Grid contents are read by [`load_grid`] (not by [`load`]) into a [`VoxelGrid`]
+//! (x fastest, then y, then z, channels interleaved). It refuses grids over
+//! [`MAX_GRID_VALUES`] (2^31 voxels·channels, 8 GiB of f32) before allocating, and
+//! rejects NaN / infinite values anywhere and negative density or emission, naming
+//! the file, the voxel (i, j, k) and the value. `procedural = "cloud"` grids come from
+//! [`procedural_cloud`], bit-identical for a `(dims, noise_seed)` on every platform.
+//!
+//! Derived structures, all in voxel-index space (voxel centres at i + 0.5):
+//! - [`VoxelGrid::sample_trilinear`]: trilinear between centres, clamped to the
+//!   outermost centre within half a voxel of a face.
+//! - [`VoxelGrid::mip_chain`]: halving (rounding up) by averaging 2×2×2 children, down
+//!   to 1×1×1.
+//! - [`VoxelGrid::conservative_piecewise_constant`]: nearest density, zero voxels
+//!   replaced by the average of their 26 neighbours (Volumetric ReSTIR sec. 4.1), so
+//!   σ* > 0 wherever the trilinear σ > 0 anywhere in the voxel.
+//! - [`VoxelGrid::super_voxels`]: per 8³ block, min / max bounding the trilinear
+//!   density over the block (one-voxel apron) and its exact mean.
 
+mod envmap;
 mod fields;
 mod files;
 mod geometry;
 mod parse;
+mod procedural;
 mod types;
+mod volume;
 
 use std::path::Path;
 
 use anyhow::{anyhow, Result};
 
+pub use envmap::{
+    direction_to_uv, luminance, uv_to_direction, EnvMap, EnvSampler, MAX_ENVMAP_HEIGHT,
+    MAX_ENVMAP_WIDTH,
+};
 pub use files::{
     check_grid_dims, read_vol_header, VolHeader, MAX_GRID_DIM, MAX_GRID_VOXELS, VOL_HEADER_BYTES,
 };
 pub use geometry::MAX_GOBO_POINTS;
 pub use parse::{MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_LENGTH_M, MAX_SIGMA_T};
+pub use procedural::procedural_cloud;
 pub use types::*;
+pub use volume::{
+    check_grid_memory, load_grid, SuperVoxels, VoxelGrid, MAX_GRID_VALUES, SUPER_VOXEL_FACTOR,
+};
 
 /// Reads and validates the scene file at `path`.
 pub fn load(path: &Path) -> Result<Scene> {
