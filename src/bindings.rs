@@ -9,6 +9,9 @@ pub const BOX_MEDIA: u32 = 4;
 pub const SHAPES: u32 = 5;
 pub const LIGHTS: u32 = 6;
 pub const GOBO_PLANES: u32 = 7;
+pub const BASELINE_UNIFORMS: u32 = 8;
+pub const GRID_DENSITY: u32 = 9;
+pub const SUPER_VOXELS: u32 = 10;
 
 /// Index of the non-finite sample counter in the stats buffer.
 pub const STAT_NON_FINITE: usize = 0;
@@ -16,7 +19,7 @@ pub const STAT_NON_FINITE: usize = 0;
 pub const STAT_COUNT: usize = 4;
 
 /// Every binding with its GLSL name, for the layout test.
-pub const ALL: [(&str, u32); 8] = [
+pub const ALL: [(&str, u32); 11] = [
     ("BINDING_FRAME_UNIFORMS", FRAME_UNIFORMS),
     ("BINDING_ACCUM", ACCUM),
     ("BINDING_ACCUM_SQ", ACCUM_SQ),
@@ -25,4 +28,7 @@ pub const ALL: [(&str, u32); 8] = [
     ("BINDING_SHAPES", SHAPES),
     ("BINDING_LIGHTS", LIGHTS),
     ("BINDING_GOBO_PLANES", GOBO_PLANES),
+    ("BINDING_BASELINE_UNIFORMS", BASELINE_UNIFORMS),
+    ("BINDING_GRID_DENSITY", GRID_DENSITY),
+    ("BINDING_SUPER_VOXELS", SUPER_VOXELS),
 ];

@@ -170,24 +170,45 @@ impl GpuScene {
         camera: &CameraFrame,
         samples_along_ray: u32,
     ) -> FrameUniforms {
-        let r = &scene.render;
-        let tan_y = camera.tan_half_fov_x * r.height as f32 / r.width as f32;
-        FrameUniforms {
-            cam_position: v4(camera.position, camera.tan_half_fov_x),
-            cam_forward: v4(camera.forward, tan_y),
-            cam_right: v4(camera.right, 0.0),
-            cam_up: v4(camera.up, 0.0),
-            env_radiance: v4(self.env_radiance, 0.0),
-            image: [r.width, r.height, r.spp, (r.seed ^ (r.seed >> 32)) as u32],
-            counts: [
+        frame_uniforms(
+            scene,
+            camera,
+            self.env_radiance,
+            [
                 self.media.len() as u32,
                 self.shapes.len() as u32,
                 self.lights.len() as u32,
                 samples_along_ray,
             ],
-            reserved: [0.0; 4],
-        }
+        )
     }
+}
+
+/// The per-frame uniforms: camera frame `camera`, environment radiance `env` and the
+/// record counts of the pass.
+pub fn frame_uniforms(
+    scene: &Scene,
+    camera: &CameraFrame,
+    env: Vec3,
+    counts: [u32; 4],
+) -> FrameUniforms {
+    let r = &scene.render;
+    let tan_y = camera.tan_half_fov_x * r.height as f32 / r.width as f32;
+    FrameUniforms {
+        cam_position: v4(camera.position, camera.tan_half_fov_x),
+        cam_forward: v4(camera.forward, tan_y),
+        cam_right: v4(camera.right, 0.0),
+        cam_up: v4(camera.up, 0.0),
+        env_radiance: v4(env, 0.0),
+        image: [r.width, r.height, r.spp, (r.seed ^ (r.seed >> 32)) as u32],
+        counts,
+        reserved: [0.0; 4],
+    }
+}
+
+/// The shape records of a scene.
+pub fn shape_records(scene: &Scene) -> Vec<ShapeGpu> {
+    scene.shapes.iter().map(shape_record).collect()
 }
 
 /// The GPU record of one shape.
@@ -258,5 +279,158 @@ pub fn non_empty<T: Pod + Zeroable>(records: &[T]) -> Vec<T> {
         vec![T::zeroed()]
     } else {
         records.to_vec()
+    }
+}
+
+/// `GridParams` in grid_types.glsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+pub struct GridParamsGpu {
+    pub bounds_min: [f32; 4],
+    pub bounds_max: [f32; 4],
+    pub dims: [u32; 4],
+    pub super_dims: [u32; 4],
+}
+
+/// `BaselineUniforms` in baseline/pathtrace.comp (std140).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+pub struct BaselineUniformsGpu {
+    pub grid: GridParamsGpu,
+    /// rgb single-scattering albedo, w HG g.
+    pub albedo_g: [f32; 4],
+    /// Probability that next-event estimation picks the environment, in x.
+    pub env_select: [f32; 4],
+}
+
+pub const LIGHT_POINT: u32 = 1;
+pub const LIGHT_SPHERE: u32 = 2;
+
+/// A grid medium ready for upload: the density texels (unscaled), the super-voxel
+/// bounds of sigma_t, and the uniforms.
+pub struct GpuGrid {
+    pub density: nimbus_scene::VoxelGrid,
+    pub super_voxels: Vec<[f32; 4]>,
+    pub uniforms: BaselineUniformsGpu,
+    /// Analytic lights (directional, point, sphere), each with its selection CDF in
+    /// `gobo_v.w`, and the constant environment radiance.
+    pub lights: Vec<LightGpu>,
+    pub env_radiance: Vec3,
+}
+
+/// Luminance of a linear RGB colour.
+fn luminance(c: Vec3) -> f32 {
+    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
+}
+
+impl GpuGrid {
+    /// Load the scene's grid medium and build what the baseline path tracer reads.
+    /// Lights are selected in proportion to the power they bring to the medium's
+    /// bounding sphere (radius R): directional E·πR², point 4π·I, sphere 4π²r²·L,
+    /// environment 4π²R²·L (luminance of each).
+    pub fn build(scene: &Scene) -> Result<GpuGrid> {
+        let Some((index, grid)) = scene.media.iter().enumerate().find_map(|(i, m)| match m {
+            Medium::Grid(g) => Some((i, g)),
+            Medium::Box(_) => None,
+        }) else {
+            bail!("internal: the baseline pass was given no grid medium");
+        };
+        let what = format!(
+            "{}: [[medium]] #{} > density",
+            scene.source.display(),
+            index + 1
+        );
+        let density = nimbus_scene::load_grid(&grid.density, 1, &what)?;
+        let factor = nimbus_scene::SUPER_VOXEL_FACTOR;
+        let sv = density.super_voxels(factor);
+        let scale = grid.density_scale;
+        let super_voxels: Vec<[f32; 4]> = (0..sv.min.len())
+            .map(|i| [sv.min[i] * scale, sv.max[i] * scale, sv.avg[i] * scale, 0.0])
+            .collect();
+        let max_sigma = super_voxels.iter().fold(0.0f32, |m, s| m.max(s[1]));
+        let uniforms = BaselineUniformsGpu {
+            grid: GridParamsGpu {
+                bounds_min: v4(grid.bounds_min, scale),
+                bounds_max: v4(grid.bounds_max, max_sigma),
+                dims: [density.dims[0], density.dims[1], density.dims[2], factor],
+                super_dims: [sv.dims[0], sv.dims[1], sv.dims[2], 0],
+            },
+            albedo_g: v4(grid.albedo, grid.g),
+            env_select: [0.0; 4],
+        };
+
+        let radius = 0.5 * (grid.bounds_max - grid.bounds_min).length();
+        let pi = std::f32::consts::PI;
+        let mut lights = Vec::new();
+        let mut weights = Vec::new();
+        let mut env_radiance = Vec3::ZERO;
+        for light in &scene.lights {
+            let (p0, kind, power_rgb, radius_l, weight) = match light {
+                Light::Directional {
+                    direction,
+                    irradiance,
+                    ..
+                } => (
+                    *direction,
+                    LIGHT_DIRECTIONAL,
+                    *irradiance,
+                    0.0,
+                    luminance(*irradiance) * pi * radius * radius,
+                ),
+                Light::Point {
+                    position,
+                    intensity,
+                } => (
+                    *position,
+                    LIGHT_POINT,
+                    *intensity,
+                    0.0,
+                    luminance(*intensity) * 4.0 * pi,
+                ),
+                Light::Sphere {
+                    center,
+                    radius: r,
+                    radiance,
+                } => (
+                    *center,
+                    LIGHT_SPHERE,
+                    *radiance,
+                    *r,
+                    luminance(*radiance) * 4.0 * pi * pi * r * r,
+                ),
+                Light::Environment {
+                    radiance, scale, ..
+                } => {
+                    env_radiance += *radiance * *scale;
+                    continue;
+                }
+            };
+            lights.push(LightGpu {
+                direction_type: v4(p0, kind as f32),
+                irradiance: v4(power_rgb, radius_l),
+                gobo_origin: [0.0; 4],
+                gobo_u: [0.0; 4],
+                gobo_v: [0.0; 4],
+            });
+            weights.push(weight.max(0.0));
+        }
+        let env_weight = luminance(env_radiance) * 4.0 * pi * pi * radius * radius;
+        let total: f32 = weights.iter().sum::<f32>() + env_weight;
+        let mut uniforms = uniforms;
+        if total > 0.0 {
+            uniforms.env_select[0] = env_weight / total;
+            let mut cdf = 0.0;
+            for (light, w) in lights.iter_mut().zip(&weights) {
+                cdf += w / total;
+                light.gobo_v[3] = cdf;
+            }
+        }
+        Ok(GpuGrid {
+            density,
+            super_voxels,
+            uniforms,
+            lights,
+            env_radiance,
+        })
     }
 }

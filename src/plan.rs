@@ -19,6 +19,7 @@ pub const MAX_DIRECTIONAL_LIGHTS: usize = 16;
 #[derive(Clone, Debug, PartialEq)]
 pub struct RenderPlan {
     pub crepuscular: Option<CrepuscularPlan>,
+    pub baseline: Option<BaselinePlan>,
     /// Every pass the renderer knows, with whether it runs and why.
     pub decisions: Vec<Decision>,
 }
@@ -31,6 +32,140 @@ pub struct CrepuscularPlan {
     /// K: scattering orders 1..=K are summed (1 = single scattering).
     pub max_bounces: u32,
     pub features: CrepuscularFeatures,
+}
+
+/// Settings of the baseline path tracer for grid media (decomposition tracking and
+/// residual ratio tracking on super-voxels).
+#[derive(Clone, Debug, PartialEq)]
+pub struct BaselinePlan {
+    /// K: scattering orders 1..=K.
+    pub max_bounces: u32,
+    pub has_shapes: bool,
+    pub has_env: bool,
+    pub pixel_jitter: bool,
+}
+
+/// Most lights the baseline path tracer takes (`MAX_LIGHTS` in pathtrace.comp).
+pub const MAX_BASELINE_LIGHTS: usize = 16;
+
+/// The plan for scenes with grid media.
+fn build_volume(scene: &Scene) -> Result<RenderPlan> {
+    let file = scene.source.display();
+    let integrator = &scene.integrator;
+    if integrator.volume == nimbus_scene::VolumeIntegrator::Restir {
+        bail!(
+            "{file}: [integrator] field `volume` = \"restir\" (the default for grid media): \
+             Volumetric ReSTIR is not supported yet; set volume = \"baseline\""
+        );
+    }
+    let grids: Vec<_> = scene
+        .media
+        .iter()
+        .enumerate()
+        .filter_map(|(i, m)| match m {
+            Medium::Grid(g) => Some((i, g)),
+            Medium::Box(_) => None,
+        })
+        .collect();
+    if grids.len() > 1 {
+        bail!(
+            "{file}: [[medium]] #{}: the baseline path tracer takes one grid medium, this scene has {}",
+            grids[1].0 + 1,
+            grids.len()
+        );
+    }
+    if scene.media.len() > 1 {
+        bail!(
+            "{file}: [[medium]]: box media next to a grid medium are not supported yet by the baseline path tracer"
+        );
+    }
+    let (index, grid) = grids[0];
+    let unsupported = if grid.emission.is_some() {
+        Some("emission")
+    } else if grid.velocity.is_some() || !grid.frames.is_empty() {
+        Some("animated density (velocity / [[medium.frame]])")
+    } else {
+        None
+    };
+    if let Some(what) = unsupported {
+        bail!(
+            "{file}: [[medium]] #{} (type = \"grid\"): {what} is not supported yet by the baseline path tracer",
+            index + 1
+        );
+    }
+    for (i, light) in scene.lights.iter().enumerate() {
+        let kind = match light {
+            Light::Directional { gobo: Some(_), .. } => "a directional light with a gobo",
+            Light::Environment { file: Some(_), .. } => "an environment map `file`",
+            _ => continue,
+        };
+        bail!(
+            "{file}: [[light]] #{}: {kind} is not supported yet by the baseline path tracer",
+            i + 1
+        );
+    }
+    let lights = scene
+        .lights
+        .iter()
+        .filter(|l| !matches!(l, Light::Environment { .. }))
+        .count();
+    if lights > MAX_BASELINE_LIGHTS {
+        bail!(
+            "{file}: [[light]]: {lights} lights, the baseline path tracer takes at most {MAX_BASELINE_LIGHTS}"
+        );
+    }
+    let has_env = scene
+        .lights
+        .iter()
+        .any(|l| matches!(l, Light::Environment { .. }));
+    let baseline = BaselinePlan {
+        max_bounces: integrator.max_bounces,
+        has_shapes: !scene.shapes.is_empty(),
+        has_env,
+        pixel_jitter: scene.render.pixel_jitter,
+    };
+    let decisions = vec![
+        Decision {
+            name: "pass baseline path tracer",
+            enabled: true,
+            reason: format!(
+                "grid medium #{}: decomposition tracking + residual ratio tracking on {}x super-voxels, \
+                 K = {}, {lights} analytic light(s)",
+                index + 1,
+                nimbus_scene::SUPER_VOXEL_FACTOR,
+                integrator.max_bounces
+            ),
+        },
+        Decision {
+            name: "  SC_HAS_SHAPES",
+            enabled: baseline.has_shapes,
+            reason: format!("{} shape(s)", scene.shapes.len()),
+        },
+        Decision {
+            name: "  SC_HAS_ENV",
+            enabled: has_env,
+            reason: if has_env {
+                "constant environment: seen by camera rays, light by next-event estimation".into()
+            } else {
+                "no environment".into()
+            },
+        },
+        Decision {
+            name: "pass crepuscular",
+            enabled: false,
+            reason: "no box media".into(),
+        },
+        Decision {
+            name: "pass restir (initial, temporal, spatial, shade)",
+            enabled: false,
+            reason: "[integrator] volume = \"baseline\"".into(),
+        },
+    ];
+    Ok(RenderPlan {
+        crepuscular: None,
+        baseline: Some(baseline),
+        decisions,
+    })
 }
 
 /// The pass's specialization constants.
@@ -67,16 +202,12 @@ pub fn estimator_id(estimator: BoxEstimator) -> u32 {
 pub fn build(scene: &Scene, samples_along_ray: Option<u32>) -> Result<RenderPlan> {
     let file = scene.source.display();
 
-    // Reject what no pass renders yet, naming where it is.
-    for (i, medium) in scene.media.iter().enumerate() {
-        if let Medium::Grid(_) = medium {
-            bail!(
-                "{file}: [[medium]] #{} (type = \"grid\"): heterogeneous grid media are not supported yet \
-                 (they arrive with the Volumetric ReSTIR and baseline integrators)",
-                i + 1
-            );
-        }
+    // Grid media go to the volume integrators.
+    if scene.media.iter().any(|m| matches!(m, Medium::Grid(_))) {
+        return build_volume(scene);
     }
+
+    // Reject what the crepuscular pass does not render, naming where it is.
     for (i, light) in scene.lights.iter().enumerate() {
         let kind = match light {
             Light::Directional { .. } => continue,
@@ -221,6 +352,7 @@ pub fn build(scene: &Scene, samples_along_ray: Option<u32>) -> Result<RenderPlan
     });
 
     Ok(RenderPlan {
+        baseline: None,
         crepuscular: Some(CrepuscularPlan {
             estimator,
             samples_along_ray,

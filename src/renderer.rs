@@ -12,10 +12,75 @@ use nimbus_gpu::{vk, Buffer, BufferDesc, Context, Profiler, ScopeResult};
 use nimbus_scene::Scene;
 
 use crate::bindings;
-use crate::gpu_scene::{GpuScene, PassPush};
+use crate::gpu_scene::{self, FrameUniforms, GpuGrid, GpuScene, PassPush};
 use crate::output::ImageRgb;
+use crate::passes::baseline::BaselinePass;
 use crate::passes::crepuscular::{CrepuscularPass, Targets};
 use crate::plan::RenderPlan;
+
+/// The pass a plan runs, with what it needs per frame.
+enum Pass {
+    Crepuscular(CrepuscularPass, GpuScene, u32),
+    Baseline(BaselinePass, [u32; 4], glam::Vec3),
+}
+
+impl Pass {
+    /// The scope name in profiles.
+    fn label(&self) -> &'static str {
+        match self {
+            Pass::Crepuscular(..) => "crepuscular",
+            Pass::Baseline(..) => "baseline",
+        }
+    }
+
+    fn uniforms(&self, scene: &Scene, camera: &nimbus_scene::CameraFrame) -> FrameUniforms {
+        match self {
+            Pass::Crepuscular(_, gpu_scene, samples) => {
+                gpu_scene.frame_uniforms(scene, camera, *samples)
+            }
+            Pass::Baseline(_, counts, env) => {
+                gpu_scene::frame_uniforms(scene, camera, *env, *counts)
+            }
+        }
+    }
+
+    fn record(
+        &self,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        uniforms: &FrameUniforms,
+        push: &PassPush,
+    ) -> Result<()> {
+        match self {
+            Pass::Crepuscular(pass, ..) => pass.record(ctx, cmd, uniforms, push),
+            Pass::Baseline(pass, ..) => pass.record(ctx, cmd, uniforms, push),
+        }
+    }
+
+    fn destroy(self, ctx: &Context) {
+        match self {
+            Pass::Crepuscular(pass, ..) => pass.destroy(ctx),
+            Pass::Baseline(pass, ..) => pass.destroy(ctx),
+        }
+    }
+}
+
+/// Create the pass of `plan`.
+fn create_pass(ctx: &Context, scene: &Scene, plan: &RenderPlan, targets: &Targets) -> Result<Pass> {
+    if let Some(p) = &plan.crepuscular {
+        let gpu_scene = GpuScene::build(scene)?;
+        let pass = CrepuscularPass::new(ctx, p, &gpu_scene, targets)?;
+        return Ok(Pass::Crepuscular(pass, gpu_scene, p.samples_along_ray));
+    }
+    let Some(p) = &plan.baseline else {
+        bail!("internal: the render plan has no pass to run");
+    };
+    let grid = GpuGrid::build(scene)?;
+    let shapes = gpu_scene::shape_records(scene);
+    let pass = BaselinePass::new(ctx, p, &grid, &shapes, targets)?;
+    let counts = [0, shapes.len() as u32, grid.lights.len() as u32, 0];
+    Ok(Pass::Baseline(pass, counts, grid.env_radiance))
+}
 
 /// How to run a render.
 #[derive(Clone, Debug, Default)]
@@ -65,10 +130,6 @@ pub fn render(
             max_range >> 20
         );
     }
-    let Some(crepuscular_plan) = &plan.crepuscular else {
-        bail!("internal: the render plan has no pass to run");
-    };
-    let gpu_scene = GpuScene::build(scene)?;
 
     // Create the render targets; `Resources` frees them whatever happens next.
     let mut res = Resources::default();
@@ -96,8 +157,8 @@ pub fn render(
             accum_sq: &b[accum_sq],
             stats: &b[stats],
         };
-        let pass = CrepuscularPass::new(ctx, crepuscular_plan, &gpu_scene, &targets)?;
-        let run = run_frames(ctx, scene, plan, &gpu_scene, &pass, &targets, opts);
+        let pass = create_pass(ctx, scene, plan, &targets)?;
+        let run = run_frames(ctx, scene, &pass, &targets, opts);
         pass.destroy(ctx);
         let (frame_timings, frames) = run?;
         read_result(ctx, scene, &targets, frames, frame_timings, start)
@@ -110,14 +171,11 @@ pub fn render(
 fn run_frames(
     ctx: &Context,
     scene: &Scene,
-    plan: &RenderPlan,
-    gpu_scene: &GpuScene,
-    pass: &CrepuscularPass,
+    pass: &Pass,
     targets: &Targets,
     opts: &RenderOptions,
 ) -> Result<(Vec<Vec<ScopeResult>>, u32)> {
     let r = &scene.render;
-    let samples_along_ray = plan.crepuscular.as_ref().map_or(1, |p| p.samples_along_ray);
     let mut profiler = if ctx.info().timestamp_valid_bits > 0 {
         Some(Profiler::new(ctx, 4, "frame")?)
     } else {
@@ -138,7 +196,7 @@ fn run_frames(
         }
         let frame = i.saturating_sub(opts.warmup_frames);
         let camera = scene.camera.frame_at(frame);
-        let uniforms = gpu_scene.frame_uniforms(scene, &camera, samples_along_ray);
+        let uniforms = pass.uniforms(scene, &camera);
         if last_camera != Some(camera) || i == 0 {
             if let Err(e) = ctx.upload_buffer(targets.uniforms, 0, bytemuck::bytes_of(&uniforms)) {
                 outcome = Err(e);
@@ -161,7 +219,7 @@ fn run_frames(
             if let Some(p) = profiler.as_mut() {
                 p.begin_frame(cmd);
                 p.begin_scope(ctx, cmd, "frame")?;
-                p.begin_scope(ctx, cmd, "crepuscular")?;
+                p.begin_scope(ctx, cmd, pass.label())?;
             }
             pass.record(ctx, cmd, &uniforms, &push)?;
             if let Some(p) = profiler.as_mut() {

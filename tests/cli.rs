@@ -119,7 +119,7 @@ fn bad_scenes_give_clear_errors() {
         (
             "grid.toml",
             "[camera]\nposition = [0, 0, 3]\nlook_at = [0, 0, 0]\n[[medium]]\ntype = \"grid\"\nbounds_min = [-1, -1, -1]\nbounds_max = [1, 1, 1]\ndensity = { procedural = \"cloud\", dims = [8, 8, 8] }\n",
-            &["grid.toml", "[[medium]] #1", "not supported yet"][..],
+            &["grid.toml", "[integrator]", "volume", "not supported yet"][..],
         ),
         (
             "point.toml",

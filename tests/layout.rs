@@ -6,7 +6,9 @@ use std::collections::HashMap;
 use std::mem::size_of;
 
 use nimbus::bindings;
-use nimbus::gpu_scene::{BoxMediumGpu, FrameUniforms, LightGpu, PassPush, ShapeGpu};
+use nimbus::gpu_scene::{
+    BaselineUniformsGpu, BoxMediumGpu, FrameUniforms, GridParamsGpu, LightGpu, PassPush, ShapeGpu,
+};
 
 const ROOT: &str = env!("CARGO_MANIFEST_DIR");
 
@@ -96,4 +98,9 @@ fn record_sizes_match_the_glsl_structs() {
     // Lavapipe (and the Vulkan minimum) allow 128 bytes of push constants.
     assert!(size_of::<PassPush>() <= 128);
     assert_eq!(size_of::<FrameUniforms>() % 16, 0);
+
+    let grid = struct_sizes(&read("shaders/include/grid_types.glsl"));
+    assert_eq!(grid["GridParams"], size_of::<GridParamsGpu>());
+    // BaselineUniforms in baseline/pathtrace.comp: GridParams then two vec4.
+    assert_eq!(size_of::<BaselineUniformsGpu>(), grid["GridParams"] + 32);
 }

@@ -113,37 +113,6 @@ float optical_depth(vec3 o, vec3 d, float t_min, float t_max) {
     return optical_depth_except(o, d, t_min, t_max, NO_INDEX);
 }
 
-// Nearest shape hit along o + t d in (t_min, t_max): distance (FAR if none) and index.
-float nearest_shape(vec3 o, vec3 d, float t_min, float t_max, out uint index) {
-    float t_hit = t_max;
-    index = 0xffffffffu;
-    if (SC_HAS_SHAPES) {
-        uint count = u_frame.counts.y;
-        for (uint s = 0u; s < count; ++s) {
-            float t = intersect_shape(shapes[s], o, d, t_min, t_hit);
-            if (t < t_hit) {
-                t_hit = t;
-                index = s;
-            }
-        }
-    }
-    return index == 0xffffffffu ? FAR : t_hit;
-}
-
-// Whether any shape blocks o + t d for t in (t_min, FAR).
-bool occluded(vec3 o, vec3 d, float t_min) {
-    if (!SC_HAS_SHAPES) {
-        return false;
-    }
-    uint count = u_frame.counts.y;
-    for (uint s = 0u; s < count; ++s) {
-        if (intersect_shape(shapes[s], o, d, t_min, FAR) < FAR) {
-            return true;
-        }
-    }
-    return false;
-}
-
 // Whether x lies inside light l's gobo prism (always true without a gobo).
 bool inside_gobo(Light l, vec3 x) {
     if (!SC_HAS_GOBOS) {

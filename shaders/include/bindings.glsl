@@ -11,6 +11,9 @@
 #define BINDING_SHAPES 5
 #define BINDING_LIGHTS 6
 #define BINDING_GOBO_PLANES 7
+#define BINDING_BASELINE_UNIFORMS 8
+#define BINDING_GRID_DENSITY 9
+#define BINDING_SUPER_VOXELS 10
 
 // Indices into the stats buffer (uint counters).
 #define STAT_NON_FINITE 0

@@ -1,5 +1,6 @@
 // Opaque shapes: nearest hit with normal, and occlusion queries. Needs the `shapes`
-// buffer and `u_frame` to be declared by the including pass.
+// buffer, `u_frame` (counts.y = number of shapes) and the bool constant SC_HAS_SHAPES
+// to be declared by the including pass.
 #ifndef NIMBUS_SHAPES_GLSL
 #define NIMBUS_SHAPES_GLSL
 
@@ -52,6 +53,42 @@ vec3 shape_normal(Shape s, vec3 x, vec3 d) {
     }
     n = normalize(n);
     return dot(n, d) > 0.0 ? -n : n;
+}
+
+// Nearest shape hit along o + t d in (t_min, t_max): distance (FAR if none) and index.
+float nearest_shape(vec3 o, vec3 d, float t_min, float t_max, out uint index) {
+    float t_hit = t_max;
+    index = 0xffffffffu;
+    if (SC_HAS_SHAPES) {
+        uint count = u_frame.counts.y;
+        for (uint s = 0u; s < count; ++s) {
+            float t = intersect_shape(shapes[s], o, d, t_min, t_hit);
+            if (t < t_hit) {
+                t_hit = t;
+                index = s;
+            }
+        }
+    }
+    return index == 0xffffffffu ? FAR : t_hit;
+}
+
+// Whether any shape blocks o + t d for t in (t_min, t_max).
+bool occluded_before(vec3 o, vec3 d, float t_min, float t_max) {
+    if (!SC_HAS_SHAPES) {
+        return false;
+    }
+    uint count = u_frame.counts.y;
+    for (uint s = 0u; s < count; ++s) {
+        if (intersect_shape(shapes[s], o, d, t_min, t_max) < FAR) {
+            return true;
+        }
+    }
+    return false;
+}
+
+// Whether any shape blocks o + t d for t in (t_min, FAR).
+bool occluded(vec3 o, vec3 d, float t_min) {
+    return occluded_before(o, d, t_min, FAR);
 }
 
 #endif

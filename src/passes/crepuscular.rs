@@ -45,7 +45,11 @@ pub fn specialization(plan: &CrepuscularPlan) -> [(u32, SpecValue); 7] {
     ]
 }
 
-fn upload_records<T: bytemuck::Pod>(ctx: &Context, records: &[T], name: &str) -> Result<Buffer> {
+pub fn upload_records<T: bytemuck::Pod>(
+    ctx: &Context,
+    records: &[T],
+    name: &str,
+) -> Result<Buffer> {
     let bytes: &[u8] = bytemuck::cast_slice(records);
     let buffer = ctx.create_buffer(
         &BufferDesc::gpu_only(bytes.len() as u64, vk::BufferUsageFlags::STORAGE_BUFFER),

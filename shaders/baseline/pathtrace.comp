@@ -1,0 +1,317 @@
+#version 460
+// The equal-time baseline of Volumetric ReSTIR (Sec. 6): a path tracer for a grid
+// medium with decomposition tracking (Kutz et al. 2017) for free flights and residual
+// ratio tracking (Novak et al. 2014) for next-event transmittance, both on 8x
+// super-voxels holding min/max/avg of sigma_t (grid.glsl).
+//
+// One invocation per pixel, `spp` paths per pixel per frame. A path scatters at most
+// SC_MAX_BOUNCES = K times (real collisions in the medium or Lambertian reflections);
+// at every scattering vertex one light is chosen in proportion to its power and
+// connected by a shadow ray (next-event estimation), so every light reaches the
+// camera through NEE only: escaping rays and rays hitting an emitting sphere add
+// radiance only on the camera segment. Russian roulette by throughput from the 4th
+// segment on.
+
+#extension GL_GOOGLE_include_directive : require
+
+#include "bindings.glsl"
+#include "constants.glsl"
+#include "scene.glsl"
+#include "rng.glsl"
+#include "phase.glsl"
+#include "sampling.glsl"
+#include "geometry.glsl"
+#include "grid_types.glsl"
+
+layout(local_size_x = 8, local_size_y = 8) in;
+
+layout(constant_id = 0) const bool SC_HAS_SHAPES = true;
+layout(constant_id = 2) const bool SC_HAS_ENV = true;
+layout(constant_id = 5) const uint SC_MAX_BOUNCES = 1u;
+layout(constant_id = 6) const bool SC_PIXEL_JITTER = true;
+
+#define LIGHT_POINT 1u
+#define LIGHT_SPHERE 2u
+#define NO_INDEX 0xffffffffu
+
+struct BaselineUniforms {
+    GridParams grid;
+    vec4 albedo_g;    // rgb albedo, w HG g
+    vec4 env_select;  // x: probability that NEE picks the environment
+};
+
+layout(std140, set = 0, binding = BINDING_FRAME_UNIFORMS) uniform FrameBlock {
+    FrameUniforms u_frame;
+};
+layout(push_constant) uniform PushBlock {
+    PassPush u_push;
+};
+layout(std430, set = 0, binding = BINDING_ACCUM) buffer AccumBlock {
+    vec4 accum[];
+};
+layout(std430, set = 0, binding = BINDING_ACCUM_SQ) buffer AccumSqBlock {
+    vec4 accum_sq[];
+};
+layout(std430, set = 0, binding = BINDING_STATS) buffer StatsBlock {
+    uint stats[];
+};
+layout(std430, set = 0, binding = BINDING_SHAPES) readonly buffer ShapesBlock {
+    Shape shapes[];
+};
+// Analytic lights: direction_type = (direction or position or centre, type),
+// irradiance = (E or I or L, sphere radius), gobo_v.w = selection CDF.
+layout(std430, set = 0, binding = BINDING_LIGHTS) readonly buffer LightsBlock {
+    Light lights[];
+};
+layout(std140, set = 0, binding = BINDING_BASELINE_UNIFORMS) uniform BaselineBlock {
+    BaselineUniforms u_base;
+};
+layout(set = 0, binding = BINDING_GRID_DENSITY) uniform sampler3D u_density;
+layout(std430, set = 0, binding = BINDING_SUPER_VOXELS) readonly buffer SuperVoxelBlock {
+    vec4 super_voxels[];
+};
+
+#define u_grid u_base.grid
+#include "grid.glsl"
+#include "shapes.glsl"
+
+// Nearest emitting sphere along o + t d in (t_min, t_max): distance (FAR if none).
+float nearest_sphere_light(vec3 o, vec3 d, float t_min, float t_max, out uint index) {
+    index = NO_INDEX;
+    float t_hit = t_max;
+    uint count = u_frame.counts.z;
+    for (uint l = 0u; l < count; ++l) {
+        Light light = lights[l];
+        if (uint(light.direction_type.w) != LIGHT_SPHERE) {
+            continue;
+        }
+        float t = intersect_sphere(light.direction_type.xyz, light.irradiance.w, o, d, t_min, t_hit);
+        if (t < t_hit) {
+            t_hit = t;
+            index = l;
+        }
+    }
+    return index == NO_INDEX ? FAR : t_hit;
+}
+
+// Transmittance from x along unit w over [0, dist) through the grid, 0 if a shape or
+// another emitting sphere blocks it first.
+float shadow_transmittance(vec3 x, vec3 w, float dist, float t_min, uint target, inout uint rng) {
+    if (occluded_before(x, w, t_min, dist)) {
+        return 0.0;
+    }
+    uint blocker;
+    float t_light = nearest_sphere_light(x, w, t_min, dist, blocker);
+    if (t_light < FAR && blocker != target) {
+        return 0.0;
+    }
+    vec2 span = grid_span(x, w);
+    float t0 = max(span.x, 0.0);
+    float t1 = min(span.y, dist);
+    if (t1 <= t0) {
+        return 1.0;
+    }
+    return grid_residual_ratio_tracking(x, w, t0, t1, rng);
+}
+
+// Sample a light for next-event estimation at x: the direction wi towards it, the
+// distance along wi, and the arriving radiance divided by the (selection x direction)
+// pdf. Zero when the sample carries nothing.
+vec3 sample_light(vec3 x, inout uint rng, out vec3 wi, out float dist, out uint target) {
+    float u = rng_next(rng);
+    vec2 u2 = vec2(rng_next(rng), rng_next(rng));
+    wi = vec3(0.0, 1.0, 0.0);
+    dist = FAR;
+    target = NO_INDEX;
+    float p_env = u_base.env_select.x;
+    if (SC_HAS_ENV && u >= 1.0 - p_env) {
+        // Constant environment: uniform direction, pdf 1 / (4 pi).
+        float z = 1.0 - 2.0 * u2.x;
+        float r = sqrt(max(0.0, 1.0 - z * z));
+        float phi = 2.0 * PI * u2.y;
+        wi = vec3(r * cos(phi), z, r * sin(phi));
+        // Domain: p_env > 0 when this branch is taken (u < 1).
+        return u_frame.env_radiance.rgb * (4.0 * PI / p_env);
+    }
+    uint count = u_frame.counts.z;
+    uint chosen = NO_INDEX;
+    float cdf_before = 0.0;
+    for (uint l = 0u; l < count; ++l) {
+        float cdf = lights[l].gobo_v.w;
+        if (u < cdf) {
+            chosen = l;
+            break;
+        }
+        cdf_before = cdf;
+    }
+    if (chosen == NO_INDEX) {
+        return vec3(0.0);
+    }
+    Light light = lights[chosen];
+    float p_select = light.gobo_v.w - cdf_before;
+    if (!(p_select > 0.0)) {
+        return vec3(0.0);
+    }
+    uint type = uint(light.direction_type.w);
+    target = chosen;
+    if (type == LIGHT_DIRECTIONAL) {
+        wi = -light.direction_type.xyz;
+        return light.irradiance.rgb / p_select;
+    }
+    vec3 to_light = light.direction_type.xyz - x;
+    float d2 = dot(to_light, to_light);
+    if (type == LIGHT_POINT) {
+        // Domain: a point light off the shading point (d2 > 0).
+        if (!(d2 > 0.0)) {
+            return vec3(0.0);
+        }
+        dist = sqrt(d2);
+        wi = to_light / dist;
+        return light.irradiance.rgb / (d2 * p_select);
+    }
+    // Emitting sphere: uniform in the cone it subtends, pdf 1 / (2 pi (1 - cos_max)).
+    float radius = light.irradiance.w;
+    if (d2 <= radius * radius) {
+        return vec3(0.0);
+    }
+    float d_center = sqrt(d2);
+    vec3 axis = to_light / d_center;
+    float sin2_max = radius * radius / d2;
+    float cos_max = sqrt(max(0.0, 1.0 - sin2_max));
+    // 1 - cos_max computed without cancellation: sin2 / (1 + cos).
+    float one_minus_cos_max = sin2_max / (1.0 + cos_max);
+    float cos_theta = 1.0 - u2.x * one_minus_cos_max;
+    float sin_theta = sqrt(max(0.0, 1.0 - cos_theta * cos_theta));
+    float phi = 2.0 * PI * u2.y;
+    vec3 t;
+    vec3 b;
+    orthonormal_basis(axis, t, b);
+    wi = normalize(sin_theta * cos(phi) * t + sin_theta * sin(phi) * b + cos_theta * axis);
+    float t_hit = intersect_sphere(light.direction_type.xyz, radius, x, wi, 0.0, FAR);
+    if (t_hit >= FAR) {
+        return vec3(0.0);
+    }
+    dist = t_hit;
+    // Domain: one_minus_cos_max > 0 since radius > 0, and p_select > 0.
+    return light.irradiance.rgb * (2.0 * PI * one_minus_cos_max / p_select);
+}
+
+// Radiance arriving at o from direction -d.
+vec3 radiance(vec3 o, vec3 d, inout uint rng) {
+    vec3 L = vec3(0.0);
+    vec3 beta = vec3(1.0);
+    vec3 albedo_medium = u_base.albedo_g.rgb;
+    float g = u_base.albedo_g.w;
+    for (uint bounce = 0u; bounce < SC_MAX_BOUNCES; ++bounce) {
+        uint shape_index;
+        float t_surface = nearest_shape(o, d, 0.0, FAR, shape_index);
+        uint light_index;
+        float t_light = nearest_sphere_light(o, d, 0.0, t_surface, light_index);
+        float t_end = min(t_surface, t_light);
+
+        // Sample a real collision in the medium before the segment's end.
+        vec2 span = grid_span(o, d);
+        float t0 = max(span.x, 0.0);
+        float t1 = min(span.y, t_end);
+        float t_collision = t1 > t0 ? grid_sample_collision(o, d, t0, t1, rng) : FAR;
+
+        if (t_collision < FAR) {
+            // Scatter in the medium: next-event estimation, then continue by HG.
+            vec3 x = o + t_collision * d;
+            vec3 wi;
+            float dist;
+            uint target;
+            vec3 Li = sample_light(x, rng, wi, dist, target);
+            if (any(greaterThan(Li, vec3(0.0)))) {
+                float T = shadow_transmittance(x, wi, dist, 0.0, target, rng);
+                L += beta * albedo_medium * hg_phase(dot(wi, d), g) * Li * T;
+            }
+            if (bounce + 1u >= SC_MAX_BOUNCES) {
+                break;
+            }
+            beta *= albedo_medium;
+            o = x;
+            d = sample_hg(d, g, vec2(rng_next(rng), rng_next(rng)));
+        } else if (t_light < t_surface) {
+            // An emitting sphere: seen directly only by the camera segment.
+            if (bounce == 0u) {
+                L += beta * lights[light_index].irradiance.rgb;
+            }
+            break;
+        } else if (t_surface < FAR) {
+            // A Lambertian surface: next-event estimation, then continue by cosine sampling.
+            Shape s = shapes[shape_index];
+            vec3 albedo = s.albedo_type.rgb;
+            if (!any(greaterThan(albedo, vec3(0.0)))) {
+                break;
+            }
+            vec3 x = o + t_surface * d;
+            vec3 n = shape_normal(s, x, d);
+            float eps = 1e-4 * (1.0 + max(max(abs(x.x), abs(x.y)), abs(x.z)));
+            vec3 x_off = x + eps * n;
+            vec3 wi;
+            float dist;
+            uint target;
+            vec3 Li = sample_light(x_off, rng, wi, dist, target);
+            float cos_i = dot(n, wi);
+            if (cos_i > 0.0 && any(greaterThan(Li, vec3(0.0)))) {
+                float T = shadow_transmittance(x_off, wi, dist, 0.0, target, rng);
+                L += beta * albedo * INV_PI * cos_i * Li * T;
+            }
+            if (bounce + 1u >= SC_MAX_BOUNCES) {
+                break;
+            }
+            beta *= albedo;
+            o = x_off;
+            d = sample_cosine_hemisphere(n, vec2(rng_next(rng), rng_next(rng)));
+        } else {
+            // Escaped: the environment, seen directly by the camera segment only.
+            if (SC_HAS_ENV && bounce == 0u) {
+                L += beta * u_frame.env_radiance.rgb;
+            }
+            break;
+        }
+        // Russian roulette from the fourth segment on, by the path's throughput.
+        if (bounce >= 3u) {
+            float survive = clamp(max(beta.r, max(beta.g, beta.b)), 0.05, 1.0);
+            if (rng_next(rng) >= survive) {
+                break;
+            }
+            // Domain: survive >= 0.05.
+            beta /= survive;
+        }
+    }
+    return L;
+}
+
+void main() {
+    uvec2 pixel = gl_GlobalInvocationID.xy;
+    uint width = u_frame.image.x;
+    uint height = u_frame.image.y;
+    if (pixel.x >= width || pixel.y >= height) {
+        return;
+    }
+    uint spp = u_frame.image.z;
+    vec3 sum = vec3(0.0);
+    uint kept = 0u;
+    for (uint s = 0u; s < spp; ++s) {
+        uint rng = rng_init(pixel, u_push.frame, u_push.sample_base + s, u_frame.image.w);
+        vec2 jitter = SC_PIXEL_JITTER ? vec2(rng_next(rng), rng_next(rng)) : vec2(0.5);
+        vec2 px = vec2(pixel) + jitter;
+        float sx = (2.0 * px.x / float(width) - 1.0) * u_frame.cam_position.w;
+        float sy = (1.0 - 2.0 * px.y / float(height)) * u_frame.cam_forward.w;
+        vec3 d = normalize(u_frame.cam_forward.xyz + sx * u_frame.cam_right.xyz + sy * u_frame.cam_up.xyz);
+        vec3 L = radiance(u_frame.cam_position.xyz, d, rng);
+        // Count non-finite samples instead of writing them.
+        if (any(isnan(L)) || any(isinf(L))) {
+            atomicAdd(stats[STAT_NON_FINITE], 1u);
+        } else {
+            sum += L;
+            kept += 1u;
+        }
+    }
+    uint index = pixel.y * width + pixel.x;
+    vec3 estimate = kept > 0u ? sum / float(kept) : vec3(0.0);
+    accum[index] += vec4(estimate, 1.0);
+    accum_sq[index] += vec4(estimate * estimate, 0.0);
+}

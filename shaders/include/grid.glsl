@@ -1,0 +1,394 @@
+// Heterogeneous grid media: trilinear density lookup, closed-form transmittance by regular
+// tracking, and the baseline's unbiased estimators (Volumetric ReSTIR secs. 2.1 and 5.1):
+// ratio tracking with the global majorant, residual ratio tracking [Novák et al. 2014]
+// and decomposition tracking [Kutz et al. 2017] on super-voxels.
+//
+// The includer declares, before including this file:
+//   layout(...) uniform sampler3D u_density;   // R32_SFLOAT density (unscaled), texelFetch only
+//   layout(std430, ...) readonly buffer ... { vec4 super_voxels[]; };  // (min, max, avg, 0) of sigma_t
+//   GridParams u_grid;  (or a #define making `u_grid` name one; GridParams is in grid_types.glsl)
+//
+// Index space (SCENE_FORMAT.md): a world point x maps to p = (x - bounds_min) / size * dims;
+// voxel (i, j, k) is the cell [i, i+1] x [j, j+1] x [k, k+1] with its centre at (i, j, k) + 0.5.
+// The density is trilinear between centres, and each coordinate clamps to [0.5, n - 0.5],
+// so within half a voxel of a face it is constant along that axis.
+//
+// The closed form walks the "dual" cells of q = p - 0.5 per axis: cell -1 = [-0.5, 0] (the
+// clamped border), cell m = [m, m + 1] for 0 <= m < n - 1 (between centres m and m + 1),
+// cell n - 1 = [n - 1, n - 0.5] (the other border). In each dual cell the density is one
+// trilinear polynomial of the (possibly clamped, hence constant) coordinates, so along a
+// ray it is a polynomial of degree <= 3 in t, which 2-point Gauss-Legendre integrates
+// exactly.
+#ifndef NIMBUS_GRID_GLSL
+#define NIMBUS_GRID_GLSL
+
+#include "constants.glsl"
+#include "rng.glsl"
+#include "grid_types.glsl"
+
+// Guard on loop trip counts of the estimators: far beyond any expected count
+// (sigma_max * length), it only stops a runaway loop from hanging the device.
+#define GRID_MAX_STEPS 1048576
+// Below this |direction component| (in voxels per metre) a ray counts as parallel to
+// that axis's planes.
+#define GRID_PARALLEL_EPS 1e-30
+
+// (t_in, t_out) of the closed bounds box along o + t d; t_in > t_out on a miss. A slab
+// test against bounds_min / bounds_max themselves (not centre +- half size), so a ray
+// lying in a face plane is inside exactly when its coordinate is within the bounds.
+vec2 grid_span(vec3 o, vec3 d) {
+    vec3 b_min = u_grid.bounds_min.xyz;
+    vec3 b_max = u_grid.bounds_max.xyz;
+    float t_in = -FAR;
+    float t_out = FAR;
+    for (int a = 0; a < 3; ++a) {
+        if (abs(d[a]) < 1e-30) {
+            if (o[a] < b_min[a] || o[a] > b_max[a]) {
+                return vec2(FAR, -FAR);
+            }
+            continue;
+        }
+        // Domain: |d[a]| >= 1e-30.
+        float inv_d = 1.0 / d[a];
+        float t_a = (b_min[a] - o[a]) * inv_d;
+        float t_b = (b_max[a] - o[a]) * inv_d;
+        t_in = max(t_in, min(t_a, t_b));
+        t_out = min(t_out, max(t_a, t_b));
+    }
+    return vec2(t_in, t_out);
+}
+
+// World -> index space per unit length: dims / size. Domain: size > 0 (scenes are
+// validated to non-empty boxes).
+vec3 grid_index_scale() {
+    return vec3(u_grid.dims.xyz) / (u_grid.bounds_max.xyz - u_grid.bounds_min.xyz);
+}
+
+// Unscaled density of voxel (i, j, k), indices already inside the grid.
+float grid_voxel(ivec3 v) {
+    return texelFetch(u_density, v, 0).r;
+}
+
+// Trilinear blend of the 8 corner values c[z][y][x] (packed x fastest) with fractions f.
+float grid_trilinear(float c[8], vec3 f) {
+    float x00 = mix(c[0], c[1], f.x);
+    float x10 = mix(c[2], c[3], f.x);
+    float x01 = mix(c[4], c[5], f.x);
+    float x11 = mix(c[6], c[7], f.x);
+    return mix(mix(x00, x10, f.y), mix(x01, x11, f.y), f.z);
+}
+
+// The 8 voxel values of dual cell `cell` (per axis in [-1, n - 1]): lower corner
+// clamp(cell, 0, n - 1), upper corner clamp(cell + 1, 0, n - 1) (equal in border cells).
+void grid_cell_corners(ivec3 cell, out float c[8]) {
+    ivec3 n_minus_1 = ivec3(u_grid.dims.xyz) - 1;
+    ivec3 lo = clamp(cell, ivec3(0), n_minus_1);
+    ivec3 hi = clamp(cell + 1, ivec3(0), n_minus_1);
+    c[0] = grid_voxel(ivec3(lo.x, lo.y, lo.z));
+    c[1] = grid_voxel(ivec3(hi.x, lo.y, lo.z));
+    c[2] = grid_voxel(ivec3(lo.x, hi.y, lo.z));
+    c[3] = grid_voxel(ivec3(hi.x, hi.y, lo.z));
+    c[4] = grid_voxel(ivec3(lo.x, lo.y, hi.z));
+    c[5] = grid_voxel(ivec3(hi.x, lo.y, hi.z));
+    c[6] = grid_voxel(ivec3(lo.x, hi.y, hi.z));
+    c[7] = grid_voxel(ivec3(hi.x, hi.y, hi.z));
+}
+
+// sigma_t at index-space point p (clamped per SCENE_FORMAT.md; any p is accepted).
+float grid_sigma_index(vec3 p) {
+    vec3 n = vec3(u_grid.dims.xyz);
+    // Shifted so centres sit at integers, clamped to the outermost centres.
+    vec3 q = clamp(p - 0.5, vec3(0.0), n - 1.0);
+    ivec3 cell = min(ivec3(floor(q)), ivec3(u_grid.dims.xyz) - 1);
+    float c[8];
+    grid_cell_corners(cell, c);
+    return u_grid.bounds_min.w * grid_trilinear(c, clamp(q - vec3(cell), 0.0, 1.0));
+}
+
+// sigma_t = density_scale * trilinear density at world x; 0 outside the closed bounds.
+float grid_sigma_t(vec3 x) {
+    if (any(lessThan(x, u_grid.bounds_min.xyz)) || any(greaterThan(x, u_grid.bounds_max.xyz))) {
+        return 0.0;
+    }
+    return grid_sigma_index((x - u_grid.bounds_min.xyz) * grid_index_scale());
+}
+
+// Parameter s >= s_now at which an axis-aligned DDA leaves its current cell along one
+// axis: the ray coordinate is x(s) = x0 + dx s; the cell's lower / upper boundaries are
+// `lower` / `upper`, and a boundary that is the grid's end (has_* false) is never crossed
+// (the caller's span length stops the walk there). FAR when parallel.
+float grid_next_crossing(float x0, float dx, float lower, float upper, bool has_lower,
+                         bool has_upper, float s_now) {
+    if (dx > GRID_PARALLEL_EPS && has_upper) {
+        // Domain: dx > 0.
+        return max(s_now, (upper - x0) / dx);
+    }
+    if (dx < -GRID_PARALLEL_EPS && has_lower) {
+        // Domain: dx < 0.
+        return max(s_now, (lower - x0) / dx);
+    }
+    return FAR;
+}
+
+// Crossing of dual cell `c` (q space, cells -1 .. n-1) along one axis.
+float grid_dual_crossing(float q0, float dq, int c, int n, float s_now) {
+    return grid_next_crossing(q0, dq, float(c), float(c + 1), c >= 0, c + 1 <= n - 1, s_now);
+}
+
+// The integral of sigma_t along o + t d over [t0, t1] (d unit): regular tracking through
+// the dual cells, each span integrated exactly (cubic in t; 2-point Gauss-Legendre).
+float grid_optical_depth(vec3 o, vec3 d, float t0, float t1) {
+    // Clip to the bounds (sigma_t = 0 outside); empty, reversed or missed intervals give 0.
+    vec2 span = grid_span(o, d);
+    float t_a = max(t0, span.x);
+    float t_b = min(t1, span.y);
+    if (!(t_a < t_b)) {
+        return 0.0;
+    }
+    float len = t_b - t_a;
+    ivec3 n = ivec3(u_grid.dims.xyz);
+    vec3 scale = grid_index_scale();
+    // q(s) = q0 + dq s, s = t - t_a in [0, len]: dual-cell coordinates from the entry
+    // point, so precision does not depend on the distance of o.
+    vec3 q0 = (o + t_a * d - u_grid.bounds_min.xyz) * scale - 0.5;
+    vec3 dq = d * scale;
+    ivec3 cell;
+    ivec3 step_dir;
+    vec3 s_next;
+    for (int a = 0; a < 3; ++a) {
+        float fl = floor(q0[a]);
+        int c = int(fl);
+        // On a boundary while moving down, start in the cell below (saves an empty span).
+        if (dq[a] < -GRID_PARALLEL_EPS && q0[a] == fl) {
+            c -= 1;
+        }
+        cell[a] = clamp(c, -1, n[a] - 1);
+        step_dir[a] = dq[a] > 0.0 ? 1 : -1;
+        s_next[a] = grid_dual_crossing(q0[a], dq[a], cell[a], n[a], 0.0);
+    }
+    // Gauss-Legendre 2-point nodes at mid +- half / sqrt(3), weights = half.
+    const float GL_NODE = 0.57735026918962576451;
+    float tau = 0.0;
+    float s = 0.0;
+    int max_iter = n.x + n.y + n.z + 8;
+    for (int it = 0; it < max_iter; ++it) {
+        int a = s_next.x <= s_next.y ? (s_next.x <= s_next.z ? 0 : 2) : (s_next.y <= s_next.z ? 1 : 2);
+        float s_end = min(s_next[a], len);
+        // Integrate sigma_t over [s, s_end] inside this dual cell.
+        if (s_end > s) {
+            float c[8];
+            grid_cell_corners(cell, c);
+            float half_len = 0.5 * (s_end - s);
+            float mid = s + half_len;
+            vec3 f_lo = clamp(q0 + dq * (mid - GL_NODE * half_len) - vec3(cell), 0.0, 1.0);
+            vec3 f_hi = clamp(q0 + dq * (mid + GL_NODE * half_len) - vec3(cell), 0.0, 1.0);
+            tau += half_len * (grid_trilinear(c, f_lo) + grid_trilinear(c, f_hi));
+        }
+        if (s_next[a] >= len) {
+            break;
+        }
+        s = s_end;
+        cell[a] += step_dir[a];
+        if (cell[a] < -1 || cell[a] > n[a] - 1) {
+            break;
+        }
+        s_next[a] = grid_dual_crossing(q0[a], dq[a], cell[a], n[a], s);
+    }
+    return u_grid.bounds_min.w * tau;
+}
+
+// exp(-optical depth). Domain: tau >= 0, so T in (0, 1].
+float grid_transmittance(vec3 o, vec3 d, float t0, float t1) {
+    return exp(-grid_optical_depth(o, d, t0, t1));
+}
+
+// Unbiased T estimate by ratio tracking [Novák et al. 2014] with the global majorant
+// bounds_max.w: T = prod over tentative collisions of (1 - sigma_t / sigma_maj).
+float grid_ratio_tracking(vec3 o, vec3 d, float t0, float t1, inout uint rng) {
+    vec2 span = grid_span(o, d);
+    float t_a = max(t0, span.x);
+    float t_b = min(t1, span.y);
+    float sigma_maj = u_grid.bounds_max.w;
+    if (!(t_a < t_b) || !(sigma_maj > 0.0)) {
+        return 1.0;
+    }
+    vec3 scale = grid_index_scale();
+    vec3 p0 = (o + t_a * d - u_grid.bounds_min.xyz) * scale;
+    vec3 dp = d * scale;
+    float len = t_b - t_a;
+    float T = 1.0;
+    float s = 0.0;
+    for (int it = 0; it < GRID_MAX_STEPS; ++it) {
+        // Exponential step with rate sigma_maj. Domain: 1 - u in (0, 1], sigma_maj > 0.
+        s -= log(1.0 - rng_next(rng)) / sigma_maj;
+        if (s >= len || T == 0.0) {
+            break;
+        }
+        // Domain: sigma_maj > 0.
+        T *= 1.0 - grid_sigma_index(p0 + dp * s) / sigma_maj;
+    }
+    return T;
+}
+
+// ---------------------------------------------------------------------------------------
+// Super-voxel DDA: super-voxel (I, J, K) covers index-space [I f, min((I+1) f, n)] per axis.
+
+struct GridSuperDda {
+    vec3 p0;        // index-space point at s = 0 (t = t_a)
+    vec3 dp;        // index-space direction per unit t
+    ivec3 cell;     // current super-voxel
+    ivec3 step_dir; // +-1 per axis
+    vec3 s_next;    // s at which each axis leaves the current super-voxel
+    float s;        // start of the current span
+    float len;      // t_b - t_a
+    float t_a;      // t at s = 0
+};
+
+// Crossing of super-voxel `c` along one axis (f voxels each, last one ends at n).
+float grid_super_crossing(float p0, float dp, int c, int f, int count, float s_now) {
+    return grid_next_crossing(p0, dp, float(c * f), float((c + 1) * f), c >= 1, c + 1 <= count - 1, s_now);
+}
+
+// Starts the walk over [t0, t1] clipped to the bounds; false if that is empty.
+bool grid_super_begin(vec3 o, vec3 d, float t0, float t1, out GridSuperDda it) {
+    vec2 span = grid_span(o, d);
+    it.t_a = max(t0, span.x);
+    it.len = min(t1, span.y) - it.t_a;
+    it.s = 0.0;
+    // Empty, reversed or missed interval (also NaN): nothing to walk.
+    if (!(it.len > 0.0)) {
+        it.len = 0.0;
+        return false;
+    }
+    vec3 scale = grid_index_scale();
+    it.p0 = (o + it.t_a * d - u_grid.bounds_min.xyz) * scale;
+    it.dp = d * scale;
+    int f = max(int(u_grid.dims.w), 1);
+    ivec3 count = ivec3(u_grid.super_dims.xyz);
+    for (int a = 0; a < 3; ++a) {
+        // Domain: f >= 1.
+        float fl = floor(it.p0[a] / float(f));
+        int c = int(fl);
+        if (it.dp[a] < -GRID_PARALLEL_EPS && it.p0[a] == fl * float(f)) {
+            c -= 1;
+        }
+        it.cell[a] = clamp(c, 0, count[a] - 1);
+        it.step_dir[a] = it.dp[a] > 0.0 ? 1 : -1;
+        it.s_next[a] = grid_super_crossing(it.p0[a], it.dp[a], it.cell[a], f, count[a], 0.0);
+    }
+    return true;
+}
+
+// The current span [s0, s1) and its super-voxel's (min, max, avg, 0) of sigma_t; advances
+// to the next super-voxel. Returns false when the walk is over (nothing returned).
+bool grid_super_next(inout GridSuperDda it, out float s0, out float s1, out vec4 bounds) {
+    if (!(it.s < it.len)) {
+        return false;
+    }
+    ivec3 count = ivec3(u_grid.super_dims.xyz);
+    int a = it.s_next.x <= it.s_next.y ? (it.s_next.x <= it.s_next.z ? 0 : 2)
+                                       : (it.s_next.y <= it.s_next.z ? 1 : 2);
+    s0 = it.s;
+    s1 = min(it.s_next[a], it.len);
+    bounds = super_voxels[(it.cell.z * count.y + it.cell.y) * count.x + it.cell.x];
+    // Advance: the walk ends at the span's end or when leaving the grid.
+    it.s = s1;
+    if (it.s_next[a] >= it.len) {
+        it.s = it.len;
+    } else {
+        it.cell[a] += it.step_dir[a];
+        if (it.cell[a] < 0 || it.cell[a] > count[a] - 1) {
+            it.s = it.len;
+        } else {
+            int f = max(int(u_grid.dims.w), 1);
+            it.s_next[a] = grid_super_crossing(it.p0[a], it.dp[a], it.cell[a], f, count[a], it.s);
+        }
+    }
+    return true;
+}
+
+// Unbiased T estimate by residual ratio tracking [Novák et al. 2014] per super-voxel:
+// control sigma_c = min, residual majorant sigma_r = max - min,
+// T = prod over spans of exp(-sigma_c len) prod_i (1 - (sigma_t(x_i) - sigma_c) / sigma_r).
+float grid_residual_ratio_tracking(vec3 o, vec3 d, float t0, float t1, inout uint rng) {
+    GridSuperDda it;
+    if (!grid_super_begin(o, d, t0, t1, it)) {
+        return 1.0;
+    }
+    float T = 1.0;
+    float s0;
+    float s1;
+    vec4 bounds;
+    int steps = 0;
+    while (grid_super_next(it, s0, s1, bounds) && T > 0.0 && steps < GRID_MAX_STEPS) {
+        // Empty super-voxel: sigma_t = 0 throughout.
+        if (!(bounds.y > 0.0) || !(s1 > s0)) {
+            continue;
+        }
+        float sigma_c = bounds.x;
+        float sigma_r = bounds.y - bounds.x;
+        // Control part analytically. Domain: sigma_c (s1 - s0) >= 0.
+        T *= exp(-sigma_c * (s1 - s0));
+        if (!(sigma_r > 0.0)) {
+            continue;
+        }
+        // Residual part by ratio tracking with majorant sigma_r.
+        float s = s0;
+        for (; steps < GRID_MAX_STEPS; ++steps) {
+            // Domain: 1 - u in (0, 1], sigma_r > 0.
+            s -= log(1.0 - rng_next(rng)) / sigma_r;
+            if (s >= s1 || T == 0.0) {
+                break;
+            }
+            // Domain: sigma_r > 0.
+            T *= 1.0 - (grid_sigma_index(it.p0 + it.dp * s) - sigma_c) / sigma_r;
+        }
+    }
+    return T;
+}
+
+// Decomposition tracking [Kutz et al. 2017] per super-voxel: the collision with the
+// homogeneous control sigma_c = min is sampled in closed form, the residual
+// sigma_t - sigma_c by delta tracking with majorant max - min; the first of the two is the
+// real collision. Returns its t in [t0, t1), or FAR if the ray passes (probability T).
+float grid_sample_collision(vec3 o, vec3 d, float t0, float t1, inout uint rng) {
+    GridSuperDda it;
+    if (!grid_super_begin(o, d, t0, t1, it)) {
+        return FAR;
+    }
+    float s0;
+    float s1;
+    vec4 bounds;
+    int steps = 0;
+    while (grid_super_next(it, s0, s1, bounds) && steps < GRID_MAX_STEPS) {
+        // Empty super-voxel: no collision possible.
+        if (!(bounds.y > 0.0) || !(s1 > s0)) {
+            continue;
+        }
+        float sigma_c = bounds.x;
+        float sigma_r = bounds.y - bounds.x;
+        // Control collision. Domain: 1 - u in (0, 1], sigma_c > 0.
+        float s_control = sigma_c > 0.0 ? s0 - log(1.0 - rng_next(rng)) / sigma_c : FAR;
+        float s_limit = min(s_control, s1);
+        // Residual collisions before it, by delta tracking.
+        if (sigma_r > 0.0) {
+            float s = s0;
+            for (; steps < GRID_MAX_STEPS; ++steps) {
+                // Domain: 1 - u in (0, 1], sigma_r > 0.
+                s -= log(1.0 - rng_next(rng)) / sigma_r;
+                if (s >= s_limit) {
+                    break;
+                }
+                if (rng_next(rng) * sigma_r < grid_sigma_index(it.p0 + it.dp * s) - sigma_c) {
+                    return it.t_a + s;
+                }
+            }
+        }
+        if (s_control < s1) {
+            return it.t_a + s_control;
+        }
+    }
+    return FAR;
+}
+
+#endif

@@ -1,0 +1,215 @@
+//! The baseline path tracer for grid media (`shaders/baseline/pathtrace.comp`): the
+//! equal-time reference of Volumetric ReSTIR, with decomposition tracking and residual
+//! ratio tracking on 8x super-voxels.
+
+use anyhow::Result;
+use nimbus_gpu::{
+    vk, BindingDesc, Buffer, BufferDesc, ComputePipeline, ComputePipelineDesc, Context,
+    DescriptorSet, DescriptorWrite, Image, ImageDesc, SamplerDesc, SpecValue,
+};
+
+use crate::bindings;
+use crate::gpu_scene::{non_empty, FrameUniforms, GpuGrid, PassPush, ShapeGpu};
+use crate::passes::crepuscular::{spirv_words, upload_records, Targets, GROUP_SIZE};
+use crate::plan::BaselinePlan;
+use crate::shaders;
+
+/// The pipeline, the grid's density texture and the buffers the pass reads.
+pub struct BaselinePass {
+    pipeline: ComputePipeline,
+    set: DescriptorSet,
+    buffers: Vec<Buffer>,
+    density: Image,
+    sampler: vk::Sampler,
+}
+
+/// The specialization constants of `pathtrace.comp` for a plan.
+pub fn specialization(plan: &BaselinePlan) -> [(u32, SpecValue); 4] {
+    [
+        (0, SpecValue::Bool(plan.has_shapes)),
+        (2, SpecValue::Bool(plan.has_env)),
+        (5, SpecValue::U32(plan.max_bounces)),
+        (6, SpecValue::Bool(plan.pixel_jitter)),
+    ]
+}
+
+/// GPU objects made so far, freed together if creation fails half-way.
+#[derive(Default)]
+struct Partial {
+    buffers: Vec<Buffer>,
+    density: Option<Image>,
+    sampler: Option<vk::Sampler>,
+}
+
+impl Partial {
+    fn destroy(self, ctx: &Context) {
+        for b in self.buffers {
+            ctx.destroy_buffer(b);
+        }
+        if let Some(image) = self.density {
+            ctx.destroy_image(image);
+        }
+        if let Some(sampler) = self.sampler {
+            ctx.destroy_sampler(sampler);
+        }
+    }
+}
+
+impl BaselinePass {
+    pub fn new(
+        ctx: &Context,
+        plan: &BaselinePlan,
+        grid: &GpuGrid,
+        shapes: &[ShapeGpu],
+        targets: &Targets,
+    ) -> Result<Self> {
+        let spirv = spirv_words(shaders::BASELINE_PATHTRACE)?;
+        let layout = [
+            BindingDesc::uniform_buffer(bindings::FRAME_UNIFORMS),
+            BindingDesc::storage_buffer(bindings::ACCUM),
+            BindingDesc::storage_buffer(bindings::ACCUM_SQ),
+            BindingDesc::storage_buffer(bindings::STATS),
+            BindingDesc::storage_buffer(bindings::SHAPES),
+            BindingDesc::storage_buffer(bindings::LIGHTS),
+            BindingDesc::uniform_buffer(bindings::BASELINE_UNIFORMS),
+            BindingDesc::sampled_image(bindings::GRID_DENSITY),
+            BindingDesc::storage_buffer(bindings::SUPER_VOXELS),
+        ];
+        let spec = specialization(plan);
+        let pipeline = ctx.create_compute_pipeline(
+            &ComputePipelineDesc {
+                spirv: &spirv,
+                entry: "main",
+                bindings: &layout,
+                push_constant_size: std::mem::size_of::<PassPush>() as u32,
+                specialization: &spec,
+            },
+            "baseline path tracer",
+        )?;
+
+        let mut partial = Partial::default();
+        let result = (|| -> Result<DescriptorSet> {
+            partial
+                .buffers
+                .push(upload_records(ctx, &non_empty(shapes), "shapes")?);
+            partial
+                .buffers
+                .push(upload_records(ctx, &non_empty(&grid.lights), "lights")?);
+            partial
+                .buffers
+                .push(upload_records(ctx, &grid.super_voxels, "super-voxels")?);
+            let uniforms = ctx.create_buffer(
+                &BufferDesc::gpu_only(
+                    std::mem::size_of_val(&grid.uniforms) as u64,
+                    vk::BufferUsageFlags::UNIFORM_BUFFER,
+                ),
+                "baseline uniforms",
+            )?;
+            let uploaded = ctx.upload_buffer(&uniforms, 0, bytemuck::bytes_of(&grid.uniforms));
+            partial.buffers.push(uniforms);
+            uploaded?;
+
+            let [nx, ny, nz] = grid.density.dims;
+            let image = ctx.create_image(
+                &ImageDesc::sampled_3d(nx, ny, nz, vk::Format::R32_SFLOAT),
+                "grid density",
+            )?;
+            let uploaded = ctx.upload_image(&image, bytemuck::cast_slice(&grid.density.data));
+            partial.density = Some(image);
+            uploaded?;
+            partial.sampler = Some(ctx.create_sampler(&SamplerDesc::nearest(), "grid density")?);
+
+            let b = &partial.buffers;
+            ctx.create_descriptor_set(
+                &pipeline,
+                &[
+                    DescriptorWrite::UniformBuffer {
+                        binding: bindings::FRAME_UNIFORMS,
+                        buffer: targets.uniforms,
+                    },
+                    DescriptorWrite::StorageBuffer {
+                        binding: bindings::ACCUM,
+                        buffer: targets.accum,
+                    },
+                    DescriptorWrite::StorageBuffer {
+                        binding: bindings::ACCUM_SQ,
+                        buffer: targets.accum_sq,
+                    },
+                    DescriptorWrite::StorageBuffer {
+                        binding: bindings::STATS,
+                        buffer: targets.stats,
+                    },
+                    DescriptorWrite::StorageBuffer {
+                        binding: bindings::SHAPES,
+                        buffer: &b[0],
+                    },
+                    DescriptorWrite::StorageBuffer {
+                        binding: bindings::LIGHTS,
+                        buffer: &b[1],
+                    },
+                    DescriptorWrite::StorageBuffer {
+                        binding: bindings::SUPER_VOXELS,
+                        buffer: &b[2],
+                    },
+                    DescriptorWrite::UniformBuffer {
+                        binding: bindings::BASELINE_UNIFORMS,
+                        buffer: &b[3],
+                    },
+                    DescriptorWrite::SampledImage {
+                        binding: bindings::GRID_DENSITY,
+                        image: partial
+                            .density
+                            .as_ref()
+                            .expect("density image was just created"),
+                        sampler: partial.sampler.expect("sampler was just created"),
+                    },
+                ],
+                "baseline set",
+            )
+        })();
+        match result {
+            Ok(set) => Ok(Self {
+                pipeline,
+                set,
+                buffers: partial.buffers,
+                density: partial
+                    .density
+                    .expect("density image exists when the set does"),
+                sampler: partial.sampler.expect("sampler exists when the set does"),
+            }),
+            Err(e) => {
+                partial.destroy(ctx);
+                ctx.destroy_compute_pipeline(pipeline);
+                Err(e)
+            }
+        }
+    }
+
+    /// Record one dispatch over the image.
+    pub fn record(
+        &self,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        uniforms: &FrameUniforms,
+        push: &PassPush,
+    ) -> Result<()> {
+        let groups = [
+            uniforms.image[0].div_ceil(GROUP_SIZE[0]),
+            uniforms.image[1].div_ceil(GROUP_SIZE[1]),
+            1,
+        ];
+        self.pipeline
+            .dispatch(ctx, cmd, &self.set, bytemuck::bytes_of(push), groups)
+    }
+
+    pub fn destroy(self, ctx: &Context) {
+        ctx.destroy_descriptor_set(self.set);
+        Partial {
+            buffers: self.buffers,
+            density: Some(self.density),
+            sampler: Some(self.sampler),
+        }
+        .destroy(ctx);
+        ctx.destroy_compute_pipeline(self.pipeline);
+    }
+}
