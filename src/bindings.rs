@@ -12,6 +12,9 @@ pub const GOBO_PLANES: u32 = 7;
 pub const BASELINE_UNIFORMS: u32 = 8;
 pub const GRID_DENSITY: u32 = 9;
 pub const SUPER_VOXELS: u32 = 10;
+pub const GRID_EMISSION: u32 = 11;
+pub const ENV_TEXELS: u32 = 12;
+pub const ENV_CDF: u32 = 13;
 
 /// Index of the non-finite sample counter in the stats buffer.
 pub const STAT_NON_FINITE: usize = 0;
@@ -19,7 +22,7 @@ pub const STAT_NON_FINITE: usize = 0;
 pub const STAT_COUNT: usize = 4;
 
 /// Every binding with its GLSL name, for the layout test.
-pub const ALL: [(&str, u32); 11] = [
+pub const ALL: [(&str, u32); 14] = [
     ("BINDING_FRAME_UNIFORMS", FRAME_UNIFORMS),
     ("BINDING_ACCUM", ACCUM),
     ("BINDING_ACCUM_SQ", ACCUM_SQ),
@@ -31,4 +34,7 @@ pub const ALL: [(&str, u32); 11] = [
     ("BINDING_BASELINE_UNIFORMS", BASELINE_UNIFORMS),
     ("BINDING_GRID_DENSITY", GRID_DENSITY),
     ("BINDING_SUPER_VOXELS", SUPER_VOXELS),
+    ("BINDING_GRID_EMISSION", GRID_EMISSION),
+    ("BINDING_ENV_TEXELS", ENV_TEXELS),
+    ("BINDING_ENV_CDF", ENV_CDF),
 ];

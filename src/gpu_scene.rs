@@ -301,6 +301,10 @@ pub struct BaselineUniformsGpu {
     pub albedo_g: [f32; 4],
     /// Probability that next-event estimation picks the environment, in x.
     pub env_select: [f32; 4],
+    /// rgb emission_scale (Le = scale · trilinear emission grid), w unused.
+    pub emission_scale: [f32; 4],
+    /// Emission grid dims xyz (its own resolution), w unused.
+    pub emission_dims: [u32; 4],
 }
 
 pub const LIGHT_POINT: u32 = 1;
@@ -310,6 +314,8 @@ pub const LIGHT_SPHERE: u32 = 2;
 /// bounds of sigma_t, and the uniforms.
 pub struct GpuGrid {
     pub density: nimbus_scene::VoxelGrid,
+    /// The emission grid (unscaled), if the medium emits.
+    pub emission: Option<nimbus_scene::VoxelGrid>,
     pub super_voxels: Vec<[f32; 4]>,
     pub uniforms: BaselineUniformsGpu,
     /// Analytic lights (directional, point, sphere), each with its selection CDF in
@@ -341,6 +347,17 @@ impl GpuGrid {
             index + 1
         );
         let density = nimbus_scene::load_grid(&grid.density, 1, &what)?;
+        let emission = match &grid.emission {
+            Some(source) => {
+                let what = format!(
+                    "{}: [[medium]] #{} > emission",
+                    scene.source.display(),
+                    index + 1
+                );
+                Some(nimbus_scene::load_grid(source, 1, &what)?)
+            }
+            None => None,
+        };
         let factor = nimbus_scene::SUPER_VOXEL_FACTOR;
         let sv = density.super_voxels(factor);
         let scale = grid.density_scale;
@@ -357,6 +374,10 @@ impl GpuGrid {
             },
             albedo_g: v4(grid.albedo, grid.g),
             env_select: [0.0; 4],
+            emission_scale: v4(grid.emission_scale, 0.0),
+            emission_dims: emission
+                .as_ref()
+                .map_or([1, 1, 1, 0], |e| [e.dims[0], e.dims[1], e.dims[2], 0]),
         };
 
         let radius = 0.5 * (grid.bounds_max - grid.bounds_min).length();
@@ -427,6 +448,7 @@ impl GpuGrid {
         }
         Ok(GpuGrid {
             density,
+            emission,
             super_voxels,
             uniforms,
             lights,

@@ -40,6 +40,7 @@ pub struct CrepuscularPlan {
 pub struct BaselinePlan {
     /// K: scattering orders 1..=K.
     pub max_bounces: u32,
+    pub has_emission: bool,
     pub has_shapes: bool,
     pub has_env: bool,
     pub pixel_jitter: bool,
@@ -80,9 +81,7 @@ fn build_volume(scene: &Scene) -> Result<RenderPlan> {
         );
     }
     let (index, grid) = grids[0];
-    let unsupported = if grid.emission.is_some() {
-        Some("emission")
-    } else if grid.velocity.is_some() || !grid.frames.is_empty() {
+    let unsupported = if grid.velocity.is_some() || !grid.frames.is_empty() {
         Some("animated density (velocity / [[medium.frame]])")
     } else {
         None
@@ -120,6 +119,7 @@ fn build_volume(scene: &Scene) -> Result<RenderPlan> {
         .any(|l| matches!(l, Light::Environment { .. }));
     let baseline = BaselinePlan {
         max_bounces: integrator.max_bounces,
+        has_emission: grid.emission.is_some(),
         has_shapes: !scene.shapes.is_empty(),
         has_env,
         pixel_jitter: scene.render.pixel_jitter,
@@ -140,6 +140,15 @@ fn build_volume(scene: &Scene) -> Result<RenderPlan> {
             name: "  SC_HAS_SHAPES",
             enabled: baseline.has_shapes,
             reason: format!("{} shape(s)", scene.shapes.len()),
+        },
+        Decision {
+            name: "  SC_HAS_EMISSION",
+            enabled: baseline.has_emission,
+            reason: if baseline.has_emission {
+                "the grid emits: absorbed emission added at every real collision".into()
+            } else {
+                "nothing emits: emission lookups compiled out".into()
+            },
         },
         Decision {
             name: "  SC_HAS_ENV",

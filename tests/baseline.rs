@@ -170,3 +170,45 @@ fn baseline_matches_the_cpu_delta_tracking_oracle() {
         );
     }
 }
+
+/// An emitting, absorbing cloud (the absorbed-emission convention: sigma_a Le) with a
+/// sun, K = 1 and K = 3: the baseline matches the CPU oracle (same criteria as above).
+#[test]
+fn emission_matches_the_cpu_oracle() {
+    use nimbus::reference_grid::{render_grid_mc, GridOptions};
+    let ctx = context();
+    let lights =
+        "[[light]]\ntype = \"directional\"\ndirection = [0.5, -0.7, -0.4]\nirradiance = 1.0";
+    for bounces in [1u32, 3] {
+        let mut text = cloud_scene("[0.3, 0.5, 2.4]", 0.6, 0.3, bounces, 16.0, lights, (16, 12));
+        text = text.replace(
+            "albedo = 0.6",
+            "albedo = 0.6\nemission = { procedural = \"cloud\", dims = [16, 10, 16], noise_seed = 9 }\nemission_scale = [4.0, 2.0, 0.5]",
+        );
+        let scene = scene(&text, "emission.toml");
+        let gpu = render_checked(&ctx, &scene, None);
+        let (cpu_mean, cpu_se) = render_grid_mc(
+            &scene,
+            &GridOptions {
+                max_bounces: bounces,
+                paths: 1024,
+                seed: 8,
+            },
+            4,
+        )
+        .expect("cpu oracle");
+        let cpu = nimbus::output::ImageRgb::from_rgb_f64(16, 12, &cpu_mean).unwrap();
+        let cpu_se = nimbus::output::ImageRgb::from_rgb_f64(16, 12, &cpu_se).unwrap();
+        let se = (se_of_mean(&gpu.std_error).powi(2) + se_of_mean(&cpu_se).powi(2)).sqrt();
+        let (gm, cm) = (gpu.image.mean(), cpu.mean());
+        println!("emission K={bounces}: gpu {gm:?} cpu {cm:?} (SE {se:.2e})");
+        for c in 0..3 {
+            assert!(
+                (gm[c] - cm[c]).abs() <= 0.01 * cm[c] + 4.0 * se,
+                "K={bounces} channel {c}: gpu {} vs cpu {}",
+                gm[c],
+                cm[c]
+            );
+        }
+    }
+}

@@ -101,6 +101,6 @@ fn record_sizes_match_the_glsl_structs() {
 
     let grid = struct_sizes(&read("shaders/include/grid_types.glsl"));
     assert_eq!(grid["GridParams"], size_of::<GridParamsGpu>());
-    // BaselineUniforms in baseline/pathtrace.comp: GridParams then two vec4.
-    assert_eq!(size_of::<BaselineUniformsGpu>(), grid["GridParams"] + 32);
+    // BaselineUniforms in baseline/pathtrace.comp: GridParams then four 16-byte vectors.
+    assert_eq!(size_of::<BaselineUniformsGpu>(), grid["GridParams"] + 64);
 }

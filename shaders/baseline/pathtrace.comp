@@ -29,6 +29,7 @@ layout(constant_id = 0) const bool SC_HAS_SHAPES = true;
 layout(constant_id = 2) const bool SC_HAS_ENV = true;
 layout(constant_id = 5) const uint SC_MAX_BOUNCES = 1u;
 layout(constant_id = 6) const bool SC_PIXEL_JITTER = true;
+layout(constant_id = 7) const bool SC_HAS_EMISSION = false;
 
 #define LIGHT_POINT 1u
 #define LIGHT_SPHERE 2u
@@ -38,6 +39,8 @@ struct BaselineUniforms {
     GridParams grid;
     vec4 albedo_g;    // rgb albedo, w HG g
     vec4 env_select;  // x: probability that NEE picks the environment
+    vec4 emission_scale;   // rgb
+    uvec4 emission_dims;   // xyz: the emission grid's own resolution
 };
 
 layout(std140, set = 0, binding = BINDING_FRAME_UNIFORMS) uniform FrameBlock {
@@ -67,6 +70,7 @@ layout(std140, set = 0, binding = BINDING_BASELINE_UNIFORMS) uniform BaselineBlo
     BaselineUniforms u_base;
 };
 layout(set = 0, binding = BINDING_GRID_DENSITY) uniform sampler3D u_density;
+layout(set = 0, binding = BINDING_GRID_EMISSION) uniform sampler3D u_emission;
 layout(std430, set = 0, binding = BINDING_SUPER_VOXELS) readonly buffer SuperVoxelBlock {
     vec4 super_voxels[];
 };
@@ -74,6 +78,32 @@ layout(std430, set = 0, binding = BINDING_SUPER_VOXELS) readonly buffer SuperVox
 #define u_grid u_base.grid
 #include "grid.glsl"
 #include "shapes.glsl"
+
+// Emitted radiance Le at world x: emission_scale times the emission grid, trilinear
+// between cell centres and clamped within half a voxel of a face (as the density).
+vec3 grid_emission(vec3 x) {
+    vec3 size = u_grid.bounds_max.xyz - u_grid.bounds_min.xyz;
+    vec3 n = vec3(u_base.emission_dims.xyz);
+    // Domain: size > 0 (validated bounds).
+    vec3 p = clamp((x - u_grid.bounds_min.xyz) / size * n, vec3(0.5), n - 0.5) - 0.5;
+    ivec3 i0 = ivec3(floor(p));
+    ivec3 hi = ivec3(u_base.emission_dims.xyz) - 1;
+    ivec3 i1 = min(i0 + 1, hi);
+    vec3 f = p - vec3(i0);
+    float c000 = texelFetch(u_emission, ivec3(i0.x, i0.y, i0.z), 0).r;
+    float c100 = texelFetch(u_emission, ivec3(i1.x, i0.y, i0.z), 0).r;
+    float c010 = texelFetch(u_emission, ivec3(i0.x, i1.y, i0.z), 0).r;
+    float c110 = texelFetch(u_emission, ivec3(i1.x, i1.y, i0.z), 0).r;
+    float c001 = texelFetch(u_emission, ivec3(i0.x, i0.y, i1.z), 0).r;
+    float c101 = texelFetch(u_emission, ivec3(i1.x, i0.y, i1.z), 0).r;
+    float c011 = texelFetch(u_emission, ivec3(i0.x, i1.y, i1.z), 0).r;
+    float c111 = texelFetch(u_emission, ivec3(i1.x, i1.y, i1.z), 0).r;
+    float c00 = mix(c000, c100, f.x);
+    float c10 = mix(c010, c110, f.x);
+    float c01 = mix(c001, c101, f.x);
+    float c11 = mix(c011, c111, f.x);
+    return u_base.emission_scale.rgb * mix(mix(c00, c10, f.y), mix(c01, c11, f.y), f.z);
+}
 
 // Nearest emitting sphere along o + t d in (t_min, t_max): distance (FAR if none).
 float nearest_sphere_light(vec3 o, vec3 d, float t_min, float t_max, out uint index) {
@@ -216,8 +246,12 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
         float t_collision = t1 > t0 ? grid_sample_collision(o, d, t0, t1, rng) : FAR;
 
         if (t_collision < FAR) {
-            // Scatter in the medium: next-event estimation, then continue by HG.
+            // A real collision: absorbed emission (sigma_a Le over sigma_t), next-event
+            // estimation, then continue by HG.
             vec3 x = o + t_collision * d;
+            if (SC_HAS_EMISSION) {
+                L += beta * (1.0 - albedo_medium) * grid_emission(x);
+            }
             vec3 wi;
             float dist;
             uint target;

@@ -14,6 +14,9 @@
 #define BINDING_BASELINE_UNIFORMS 8
 #define BINDING_GRID_DENSITY 9
 #define BINDING_SUPER_VOXELS 10
+#define BINDING_GRID_EMISSION 11
+#define BINDING_ENV_TEXELS 12
+#define BINDING_ENV_CDF 13
 
 // Indices into the stats buffer (uint counters).
 #define STAT_NON_FINITE 0

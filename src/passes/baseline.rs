@@ -20,16 +20,18 @@ pub struct BaselinePass {
     set: DescriptorSet,
     buffers: Vec<Buffer>,
     density: Image,
+    emission: Option<Image>,
     sampler: vk::Sampler,
 }
 
 /// The specialization constants of `pathtrace.comp` for a plan.
-pub fn specialization(plan: &BaselinePlan) -> [(u32, SpecValue); 4] {
+pub fn specialization(plan: &BaselinePlan) -> [(u32, SpecValue); 5] {
     [
         (0, SpecValue::Bool(plan.has_shapes)),
         (2, SpecValue::Bool(plan.has_env)),
         (5, SpecValue::U32(plan.max_bounces)),
         (6, SpecValue::Bool(plan.pixel_jitter)),
+        (7, SpecValue::Bool(plan.has_emission)),
     ]
 }
 
@@ -38,6 +40,7 @@ pub fn specialization(plan: &BaselinePlan) -> [(u32, SpecValue); 4] {
 struct Partial {
     buffers: Vec<Buffer>,
     density: Option<Image>,
+    emission: Option<Image>,
     sampler: Option<vk::Sampler>,
 }
 
@@ -46,7 +49,7 @@ impl Partial {
         for b in self.buffers {
             ctx.destroy_buffer(b);
         }
-        if let Some(image) = self.density {
+        for image in [self.density, self.emission].into_iter().flatten() {
             ctx.destroy_image(image);
         }
         if let Some(sampler) = self.sampler {
@@ -74,6 +77,7 @@ impl BaselinePass {
             BindingDesc::uniform_buffer(bindings::BASELINE_UNIFORMS),
             BindingDesc::sampled_image(bindings::GRID_DENSITY),
             BindingDesc::storage_buffer(bindings::SUPER_VOXELS),
+            BindingDesc::sampled_image(bindings::GRID_EMISSION),
         ];
         let spec = specialization(plan);
         let pipeline = ctx.create_compute_pipeline(
@@ -117,7 +121,24 @@ impl BaselinePass {
             let uploaded = ctx.upload_image(&image, bytemuck::cast_slice(&grid.density.data));
             partial.density = Some(image);
             uploaded?;
+            if let Some(emission) = &grid.emission {
+                let [ex, ey, ez] = emission.dims;
+                let image = ctx.create_image(
+                    &ImageDesc::sampled_3d(ex, ey, ez, vk::Format::R32_SFLOAT),
+                    "grid emission",
+                )?;
+                let uploaded = ctx.upload_image(&image, bytemuck::cast_slice(&emission.data));
+                partial.emission = Some(image);
+                uploaded?;
+            }
             partial.sampler = Some(ctx.create_sampler(&SamplerDesc::nearest(), "grid density")?);
+            let density = partial
+                .density
+                .as_ref()
+                .expect("density image was just created");
+            let sampler = partial.sampler.expect("sampler was just created");
+            // Without emission the (compiled-out) emission binding sees the density.
+            let emission = partial.emission.as_ref().unwrap_or(density);
 
             let b = &partial.buffers;
             ctx.create_descriptor_set(
@@ -157,11 +178,13 @@ impl BaselinePass {
                     },
                     DescriptorWrite::SampledImage {
                         binding: bindings::GRID_DENSITY,
-                        image: partial
-                            .density
-                            .as_ref()
-                            .expect("density image was just created"),
-                        sampler: partial.sampler.expect("sampler was just created"),
+                        image: density,
+                        sampler,
+                    },
+                    DescriptorWrite::SampledImage {
+                        binding: bindings::GRID_EMISSION,
+                        image: emission,
+                        sampler,
                     },
                 ],
                 "baseline set",
@@ -175,6 +198,7 @@ impl BaselinePass {
                 density: partial
                     .density
                     .expect("density image exists when the set does"),
+                emission: partial.emission,
                 sampler: partial.sampler.expect("sampler exists when the set does"),
             }),
             Err(e) => {
@@ -207,6 +231,7 @@ impl BaselinePass {
         Partial {
             buffers: self.buffers,
             density: Some(self.density),
+            emission: self.emission,
             sampler: Some(self.sampler),
         }
         .destroy(ctx);
