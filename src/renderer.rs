@@ -21,7 +21,7 @@ use crate::plan::RenderPlan;
 /// The pass a plan runs, with what it needs per frame.
 enum Pass {
     Crepuscular(CrepuscularPass, GpuScene, u32),
-    Baseline(BaselinePass, [u32; 4], glam::Vec3),
+    Baseline(Box<BaselinePass>, [u32; 4], glam::Vec3),
 }
 
 impl Pass {
@@ -60,7 +60,7 @@ impl Pass {
     fn destroy(self, ctx: &Context) {
         match self {
             Pass::Crepuscular(pass, ..) => pass.destroy(ctx),
-            Pass::Baseline(pass, ..) => pass.destroy(ctx),
+            Pass::Baseline(pass, ..) => (*pass).destroy(ctx),
         }
     }
 }
@@ -79,7 +79,7 @@ fn create_pass(ctx: &Context, scene: &Scene, plan: &RenderPlan, targets: &Target
     let shapes = gpu_scene::shape_records(scene);
     let pass = BaselinePass::new(ctx, p, &grid, &shapes, targets)?;
     let counts = [0, shapes.len() as u32, grid.lights.len() as u32, 0];
-    Ok(Pass::Baseline(pass, counts, grid.env_radiance))
+    Ok(Pass::Baseline(Box::new(pass), counts, grid.env_radiance))
 }
 
 /// How to run a render.
