@@ -20,7 +20,7 @@ use crate::plan::RenderPlan;
 
 /// The pass a plan runs, with what it needs per frame.
 enum Pass {
-    Crepuscular(CrepuscularPass, GpuScene, u32),
+    Crepuscular(Box<CrepuscularPass>, Box<GpuScene>, u32),
     Baseline(Box<BaselinePass>, [u32; 4], glam::Vec3),
 }
 
@@ -59,7 +59,7 @@ impl Pass {
 
     fn destroy(self, ctx: &Context) {
         match self {
-            Pass::Crepuscular(pass, ..) => pass.destroy(ctx),
+            Pass::Crepuscular(pass, ..) => (*pass).destroy(ctx),
             Pass::Baseline(pass, ..) => (*pass).destroy(ctx),
         }
     }
@@ -70,7 +70,11 @@ fn create_pass(ctx: &Context, scene: &Scene, plan: &RenderPlan, targets: &Target
     if let Some(p) = &plan.crepuscular {
         let gpu_scene = GpuScene::build(scene)?;
         let pass = CrepuscularPass::new(ctx, p, &gpu_scene, targets)?;
-        return Ok(Pass::Crepuscular(pass, gpu_scene, p.samples_along_ray));
+        return Ok(Pass::Crepuscular(
+            Box::new(pass),
+            Box::new(gpu_scene),
+            p.samples_along_ray,
+        ));
     }
     let Some(p) = &plan.baseline else {
         bail!("internal: the render plan has no pass to run");
