@@ -98,20 +98,10 @@ impl GpuScene {
     /// lights other than directional and constant environment are rejected by the
     /// render plan before this is called; here they are an internal error.
     pub fn build(scene: &Scene) -> Result<GpuScene> {
-        let mut media = Vec::new();
-        for medium in &scene.media {
-            let Medium::Box(b) = medium else {
-                bail!("internal: the box pass was given a grid medium");
-            };
-            let rotation = rotation_xyz_deg(b.rotation_deg);
-            let sigma_s = b.albedo * b.sigma_t;
-            media.push(BoxMediumGpu {
-                world_to_local: world_to_local_rows(rotation),
-                center_sigma_t: v4(b.center, b.sigma_t),
-                half_size_g: v4(b.size * 0.5, b.g),
-                sigma_s: v4(sigma_s, 0.0),
-            });
+        if scene.media.iter().any(|m| matches!(m, Medium::Grid(_))) {
+            bail!("internal: the box pass was given a grid medium");
         }
+        let media = box_records(scene);
 
         let shapes = scene.shapes.iter().map(shape_record).collect();
 
@@ -182,6 +172,23 @@ impl GpuScene {
             ],
         )
     }
+}
+
+/// The records of a scene's box media (grid media are skipped).
+pub fn box_records(scene: &Scene) -> Vec<BoxMediumGpu> {
+    scene
+        .media
+        .iter()
+        .filter_map(|m| match m {
+            Medium::Box(b) => Some(BoxMediumGpu {
+                world_to_local: world_to_local_rows(rotation_xyz_deg(b.rotation_deg)),
+                center_sigma_t: v4(b.center, b.sigma_t),
+                half_size_g: v4(b.size * 0.5, b.g),
+                sigma_s: v4(b.albedo * b.sigma_t, 0.0),
+            }),
+            Medium::Grid(_) => None,
+        })
+        .collect()
 }
 
 /// The per-frame uniforms: camera frame `camera`, environment radiance `env` and the

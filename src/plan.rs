@@ -40,6 +40,8 @@ pub struct CrepuscularPlan {
 pub struct BaselinePlan {
     /// K: scattering orders 1..=K.
     pub max_bounces: u32,
+    /// Homogeneous box media beside the grid.
+    pub has_boxes: bool,
     pub has_emission: bool,
     pub has_shapes: bool,
     pub has_env: bool,
@@ -75,9 +77,10 @@ fn build_volume(scene: &Scene) -> Result<RenderPlan> {
             grids.len()
         );
     }
-    if scene.media.len() > 1 {
+    let boxes = scene.media.len() - 1;
+    if boxes > MAX_BOX_MEDIA {
         bail!(
-            "{file}: [[medium]]: box media next to a grid medium are not supported yet by the baseline path tracer"
+            "{file}: [[medium]]: {boxes} box media next to the grid, the baseline path tracer takes at most {MAX_BOX_MEDIA}"
         );
     }
     let (index, grid) = grids[0];
@@ -119,6 +122,7 @@ fn build_volume(scene: &Scene) -> Result<RenderPlan> {
         .any(|l| matches!(l, Light::Environment { .. }));
     let baseline = BaselinePlan {
         max_bounces: integrator.max_bounces,
+        has_boxes: boxes > 0,
         has_emission: grid.emission.is_some(),
         has_shapes: !scene.shapes.is_empty(),
         has_env,
@@ -140,6 +144,11 @@ fn build_volume(scene: &Scene) -> Result<RenderPlan> {
             name: "  SC_HAS_SHAPES",
             enabled: baseline.has_shapes,
             reason: format!("{} shape(s)", scene.shapes.len()),
+        },
+        Decision {
+            name: "  SC_HAS_MEDIA (boxes)",
+            enabled: boxes > 0,
+            reason: format!("{boxes} homogeneous box medium(s) beside the grid"),
         },
         Decision {
             name: "  SC_HAS_EMISSION",

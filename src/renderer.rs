@@ -81,8 +81,14 @@ fn create_pass(ctx: &Context, scene: &Scene, plan: &RenderPlan, targets: &Target
     };
     let grid = GpuGrid::build(scene)?;
     let shapes = gpu_scene::shape_records(scene);
-    let pass = BaselinePass::new(ctx, p, &grid, &shapes, targets)?;
-    let counts = [0, shapes.len() as u32, grid.lights.len() as u32, 0];
+    let boxes = gpu_scene::box_records(scene);
+    let pass = BaselinePass::new(ctx, p, &grid, &boxes, &shapes, targets)?;
+    let counts = [
+        boxes.len() as u32,
+        shapes.len() as u32,
+        grid.lights.len() as u32,
+        0,
+    ];
     Ok(Pass::Baseline(Box::new(pass), counts, grid.env_radiance))
 }
 

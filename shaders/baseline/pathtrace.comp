@@ -4,6 +4,10 @@
 // ratio tracking (Novak et al. 2014) for next-event transmittance, both on 8x
 // super-voxels holding min/max/avg of sigma_t (grid.glsl).
 //
+// Homogeneous box media may sit beside the grid (SC_HAS_MEDIA): free flights take
+// the earliest of independent first collisions in each (disjoint) medium, and shadow
+// rays multiply the boxes' closed-form transmittance in.
+//
 // One invocation per pixel, `spp` paths per pixel per frame. A path scatters at most
 // SC_MAX_BOUNCES = K times (real collisions in the medium or Lambertian reflections);
 // at every scattering vertex one light is chosen in proportion to its power and
@@ -27,6 +31,8 @@ layout(local_size_x = 8, local_size_y = 8) in;
 
 layout(constant_id = 0) const bool SC_HAS_SHAPES = true;
 layout(constant_id = 2) const bool SC_HAS_ENV = true;
+// Homogeneous box media beside the grid.
+layout(constant_id = 4) const bool SC_HAS_MEDIA = false;
 layout(constant_id = 5) const uint SC_MAX_BOUNCES = 1u;
 layout(constant_id = 6) const bool SC_PIXEL_JITTER = true;
 layout(constant_id = 7) const bool SC_HAS_EMISSION = false;
@@ -69,6 +75,9 @@ layout(std430, set = 0, binding = BINDING_LIGHTS) readonly buffer LightsBlock {
 layout(std140, set = 0, binding = BINDING_BASELINE_UNIFORMS) uniform BaselineBlock {
     BaselineUniforms u_base;
 };
+layout(std430, set = 0, binding = BINDING_BOX_MEDIA) readonly buffer MediaBlock {
+    BoxMedium media[];
+};
 layout(set = 0, binding = BINDING_GRID_DENSITY) uniform sampler3D u_density;
 layout(set = 0, binding = BINDING_GRID_EMISSION) uniform sampler3D u_emission;
 layout(std430, set = 0, binding = BINDING_SUPER_VOXELS) readonly buffer SuperVoxelBlock {
@@ -105,6 +114,58 @@ vec3 grid_emission(vec3 x) {
     return u_base.emission_scale.rgb * mix(mix(c00, c10, f.y), mix(c01, c11, f.y), f.z);
 }
 
+// Span of o + t d inside box medium m: (t_in, t_out), t_in > t_out for a miss.
+vec2 box_span(uint m, vec3 o, vec3 d) {
+    BoxMedium bm = media[m];
+    vec3 o_local;
+    vec3 d_local;
+    to_box_frame(bm.world_to_local, bm.center_sigma_t.xyz, o, d, o_local, d_local);
+    return intersect_slabs(o_local, d_local, bm.half_size_g.xyz);
+}
+
+// Optical depth of the box media along o + t d, t in [t0, t1] (closed form).
+float box_optical_depth(vec3 o, vec3 d, float t0, float t1) {
+    float tau = 0.0;
+    if (SC_HAS_MEDIA) {
+        uint count = u_frame.counts.x;
+        for (uint m = 0u; m < count; ++m) {
+            tau += media[m].center_sigma_t.w * overlap_length(box_span(m, o, d), t0, t1);
+        }
+    }
+    return tau;
+}
+
+// The first real collision along o + t d in [0, t_end) among the grid and the boxes:
+// the media are disjoint, so the first collision is the earliest of independent first
+// collisions sampled in each. Returns FAR if none; `medium` is the box index, or
+// NO_INDEX for the grid.
+float sample_collision(vec3 o, vec3 d, float t_end, inout uint rng, out uint medium) {
+    medium = NO_INDEX;
+    vec2 span = grid_span(o, d);
+    float t0 = max(span.x, 0.0);
+    float t1 = min(span.y, t_end);
+    float t_best = t1 > t0 ? grid_sample_collision(o, d, t0, t1, rng) : FAR;
+    if (SC_HAS_MEDIA) {
+        uint count = u_frame.counts.x;
+        for (uint m = 0u; m < count; ++m) {
+            vec2 s = box_span(m, o, d);
+            float a = max(s.x, 0.0);
+            float b = min(s.y, min(t_end, t_best));
+            float sigma_t = media[m].center_sigma_t.w;
+            if (b <= a || !(sigma_t > 0.0)) {
+                continue;
+            }
+            // Domain: sigma_t > 0; 1 - u in (0, 1].
+            float t = a - log(1.0 - rng_next(rng)) / sigma_t;
+            if (t < b) {
+                t_best = t;
+                medium = m;
+            }
+        }
+    }
+    return t_best;
+}
+
 // Nearest emitting sphere along o + t d in (t_min, t_max): distance (FAR if none).
 float nearest_sphere_light(vec3 o, vec3 d, float t_min, float t_max, out uint index) {
     index = NO_INDEX;
@@ -135,13 +196,14 @@ float shadow_transmittance(vec3 x, vec3 w, float dist, float t_min, uint target,
     if (t_light < FAR && blocker != target) {
         return 0.0;
     }
+    float T_boxes = exp(-box_optical_depth(x, w, 0.0, dist));
     vec2 span = grid_span(x, w);
     float t0 = max(span.x, 0.0);
     float t1 = min(span.y, dist);
     if (t1 <= t0) {
-        return 1.0;
+        return T_boxes;
     }
-    return grid_residual_ratio_tracking(x, w, t0, t1, rng);
+    return T_boxes * grid_residual_ratio_tracking(x, w, t0, t1, rng);
 }
 
 // Sample a light for next-event estimation at x: the direction wi towards it, the
@@ -230,8 +292,7 @@ vec3 sample_light(vec3 x, inout uint rng, out vec3 wi, out float dist, out uint 
 vec3 radiance(vec3 o, vec3 d, inout uint rng) {
     vec3 L = vec3(0.0);
     vec3 beta = vec3(1.0);
-    vec3 albedo_medium = u_base.albedo_g.rgb;
-    float g = u_base.albedo_g.w;
+
     for (uint bounce = 0u; bounce < SC_MAX_BOUNCES; ++bounce) {
         uint shape_index;
         float t_surface = nearest_shape(o, d, 0.0, FAR, shape_index);
@@ -239,17 +300,23 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
         float t_light = nearest_sphere_light(o, d, 0.0, t_surface, light_index);
         float t_end = min(t_surface, t_light);
 
-        // Sample a real collision in the medium before the segment's end.
-        vec2 span = grid_span(o, d);
-        float t0 = max(span.x, 0.0);
-        float t1 = min(span.y, t_end);
-        float t_collision = t1 > t0 ? grid_sample_collision(o, d, t0, t1, rng) : FAR;
+        // Sample a real collision in the media before the segment's end.
+        uint medium;
+        float t_collision = sample_collision(o, d, t_end, rng, medium);
 
         if (t_collision < FAR) {
+            vec3 albedo_medium = u_base.albedo_g.rgb;
+            float g = u_base.albedo_g.w;
+            if (medium != NO_INDEX) {
+                BoxMedium bm = media[medium];
+                // Domain: a collision happened, so sigma_t > 0.
+                albedo_medium = bm.sigma_s.rgb / bm.center_sigma_t.w;
+                g = bm.half_size_g.w;
+            }
             // A real collision: absorbed emission (sigma_a Le over sigma_t), next-event
             // estimation, then continue by HG.
             vec3 x = o + t_collision * d;
-            if (SC_HAS_EMISSION) {
+            if (SC_HAS_EMISSION && medium == NO_INDEX) {
                 L += beta * (1.0 - albedo_medium) * grid_emission(x);
             }
             vec3 wi;

@@ -9,7 +9,7 @@ use nimbus_gpu::{
 };
 
 use crate::bindings;
-use crate::gpu_scene::{non_empty, FrameUniforms, GpuGrid, PassPush, ShapeGpu};
+use crate::gpu_scene::{non_empty, BoxMediumGpu, FrameUniforms, GpuGrid, PassPush, ShapeGpu};
 use crate::passes::crepuscular::{spirv_words, upload_records, Targets, GROUP_SIZE};
 use crate::plan::BaselinePlan;
 use crate::shaders;
@@ -25,8 +25,9 @@ pub struct BaselinePass {
 }
 
 /// The specialization constants of `pathtrace.comp` for a plan.
-pub fn specialization(plan: &BaselinePlan) -> [(u32, SpecValue); 5] {
+pub fn specialization(plan: &BaselinePlan) -> [(u32, SpecValue); 6] {
     [
+        (4, SpecValue::Bool(plan.has_boxes)),
         (0, SpecValue::Bool(plan.has_shapes)),
         (2, SpecValue::Bool(plan.has_env)),
         (5, SpecValue::U32(plan.max_bounces)),
@@ -63,6 +64,7 @@ impl BaselinePass {
         ctx: &Context,
         plan: &BaselinePlan,
         grid: &GpuGrid,
+        boxes: &[BoxMediumGpu],
         shapes: &[ShapeGpu],
         targets: &Targets,
     ) -> Result<Self> {
@@ -78,6 +80,7 @@ impl BaselinePass {
             BindingDesc::sampled_image(bindings::GRID_DENSITY),
             BindingDesc::storage_buffer(bindings::SUPER_VOXELS),
             BindingDesc::sampled_image(bindings::GRID_EMISSION),
+            BindingDesc::storage_buffer(bindings::BOX_MEDIA),
         ];
         let spec = specialization(plan);
         let pipeline = ctx.create_compute_pipeline(
@@ -102,6 +105,9 @@ impl BaselinePass {
             partial
                 .buffers
                 .push(upload_records(ctx, &grid.super_voxels, "super-voxels")?);
+            partial
+                .buffers
+                .push(upload_records(ctx, &non_empty(boxes), "box media")?);
             let uniforms = ctx.create_buffer(
                 &BufferDesc::gpu_only(
                     std::mem::size_of_val(&grid.uniforms) as u64,
@@ -174,6 +180,10 @@ impl BaselinePass {
                     },
                     DescriptorWrite::UniformBuffer {
                         binding: bindings::BASELINE_UNIFORMS,
+                        buffer: &b[4],
+                    },
+                    DescriptorWrite::StorageBuffer {
+                        binding: bindings::BOX_MEDIA,
                         buffer: &b[3],
                     },
                     DescriptorWrite::SampledImage {
