@@ -11,9 +11,11 @@
 //!   31 degrees of freedom below 61.10. The mean cosine must equal g within 4 standard
 //!   errors.
 //! - `hg_phase` integrates to 1 over the sphere: 2π × trapezoid quadrature over μ ∈ [−1, 1]
-//!   of GPU values at 19 493 distinct f32 nodes graded geometrically towards both μ = ±1 (down to
-//!   1 − |μ| = 1e-9, below f32 resolution there), |∫ − 1| < 1e-4. The same quadrature of
-//!   the f64 formula at the same nodes shows the quadrature error (asserted < 1e-6).
+//!   of GPU values at 19 493 distinct f32 nodes graded geometrically towards both μ = ±1
+//!   (down to 1 − |μ| = 1e-9, below f32 resolution there), |∫ − 1| < 1e-5 (the f32 phase function reaches 6e-7 at |g| = 0.99 since its
+//!   denominator is a sum of non-negative terms). The same
+//!   quadrature of the f64 formula at the same nodes shows the quadrature error (asserted
+//!   < 1e-6).
 //! - `sample_cosine_hemisphere(n, u)` stays in the hemisphere (dot(n, ω) >= 0), μ = dot(n, ω)
 //!   follows the pdf 2μ of p(ω) = cos θ / π (64 bins uniform in its CDF μ², χ² as above),
 //!   and its azimuth is uniform, for 5 normals including −Z.
@@ -69,7 +71,7 @@ const Z: f64 = 4.0;
 /// Allowed | |ω| − 1 |.
 const UNIT_TOL: f64 = 1e-5;
 /// Allowed |∫ p dω − 1| for the GPU's hg_phase.
-const INTEGRAL_TOL: f64 = 1e-4;
+const INTEGRAL_TOL: f64 = 1e-5;
 /// Allowed quadrature error, measured on the f64 formula.
 const QUADRATURE_TOL: f64 = 1e-6;
 
