@@ -312,6 +312,8 @@ pub struct BaselineUniformsGpu {
     pub emission_scale: [f32; 4],
     /// Emission grid dims xyz (its own resolution), w unused.
     pub emission_dims: [u32; 4],
+    /// Environment map width and height in xy (1 x 1 without a map).
+    pub env_size: [u32; 4],
 }
 
 pub const LIGHT_POINT: u32 = 1;
@@ -329,6 +331,9 @@ pub struct GpuGrid {
     /// `gobo_v.w`, and the constant environment radiance.
     pub lights: Vec<LightGpu>,
     pub env_radiance: Vec3,
+    /// The environment map's texels (rgb, w unused) and its sampling tables (marginal
+    /// CDF then conditional rows), if the environment has a `file`.
+    pub env_map: Option<(Vec<[f32; 4]>, Vec<f32>)>,
 }
 
 /// Luminance of a linear RGB colour.
@@ -385,6 +390,7 @@ impl GpuGrid {
             emission_dims: emission
                 .as_ref()
                 .map_or([1, 1, 1, 0], |e| [e.dims[0], e.dims[1], e.dims[2], 0]),
+            env_size: [1, 1, 0, 0],
         };
 
         let radius = 0.5 * (grid.bounds_max - grid.bounds_min).length();
@@ -392,7 +398,31 @@ impl GpuGrid {
         let mut lights = Vec::new();
         let mut weights = Vec::new();
         let mut env_radiance = Vec3::ZERO;
+        let mut env_map = None;
+        let mut env_map_luminance = 0.0;
         for light in &scene.lights {
+            if let Light::Environment {
+                radiance,
+                scale,
+                file: Some(file),
+            } = light
+            {
+                let map = nimbus_scene::EnvMap::load_exr(file, *radiance * *scale)?;
+                let sampler = nimbus_scene::EnvSampler::new(&map);
+                // Mean radiance luminance over the sphere: integral() is the mean of
+                // luminance x sin(theta) over the texel grid, which covers 2 pi^2 in
+                // (phi, theta); the sphere is 4 pi.
+                env_map_luminance = sampler.integral() * 2.0 * std::f64::consts::PI.powi(2)
+                    / (4.0 * std::f64::consts::PI);
+                let (marginal, conditional) = sampler.to_gpu_tables();
+                let texels = map.texels.iter().map(|t| [t[0], t[1], t[2], 0.0]).collect();
+                env_map = Some((
+                    texels,
+                    [marginal, conditional].concat(),
+                    [map.width, map.height],
+                ));
+                continue;
+            }
             let (p0, kind, power_rgb, radius_l, weight) = match light {
                 Light::Directional {
                     direction,
@@ -442,9 +472,19 @@ impl GpuGrid {
             });
             weights.push(weight.max(0.0));
         }
-        let env_weight = luminance(env_radiance) * 4.0 * pi * pi * radius * radius;
+        let env_luminance = if env_map.is_some() {
+            env_map_luminance as f32
+        } else {
+            luminance(env_radiance)
+        };
+        let env_weight = env_luminance * 4.0 * pi * pi * radius * radius;
         let total: f32 = weights.iter().sum::<f32>() + env_weight;
         let mut uniforms = uniforms;
+        if let Some((_, _, [w, h])) = &env_map {
+            uniforms.env_size = [*w, *h, 0, 0];
+        } else {
+            uniforms.env_size = [1, 1, 0, 0];
+        }
         if total > 0.0 {
             uniforms.env_select[0] = env_weight / total;
             let mut cdf = 0.0;
@@ -460,6 +500,7 @@ impl GpuGrid {
             uniforms,
             lights,
             env_radiance,
+            env_map: env_map.map(|(texels, tables, _)| (texels, tables)),
         })
     }
 }

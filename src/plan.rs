@@ -45,6 +45,7 @@ pub struct BaselinePlan {
     pub has_emission: bool,
     pub has_shapes: bool,
     pub has_env: bool,
+    pub has_env_map: bool,
     pub pixel_jitter: bool,
 }
 
@@ -95,10 +96,24 @@ fn build_volume(scene: &Scene) -> Result<RenderPlan> {
             index + 1
         );
     }
+    let envs = scene
+        .lights
+        .iter()
+        .filter(|l| matches!(l, Light::Environment { .. }))
+        .count();
+    let env_map = scene
+        .lights
+        .iter()
+        .position(|l| matches!(l, Light::Environment { file: Some(_), .. }));
+    if let (Some(i), true) = (env_map, envs > 1) {
+        bail!(
+            "{file}: [[light]] #{}: an environment map cannot be combined with another environment light",
+            i + 1
+        );
+    }
     for (i, light) in scene.lights.iter().enumerate() {
         let kind = match light {
             Light::Directional { gobo: Some(_), .. } => "a directional light with a gobo",
-            Light::Environment { file: Some(_), .. } => "an environment map `file`",
             _ => continue,
         };
         bail!(
@@ -126,6 +141,7 @@ fn build_volume(scene: &Scene) -> Result<RenderPlan> {
         has_emission: grid.emission.is_some(),
         has_shapes: !scene.shapes.is_empty(),
         has_env,
+        has_env_map: env_map.is_some(),
         pixel_jitter: scene.render.pixel_jitter,
     };
     let decisions = vec![
@@ -162,7 +178,11 @@ fn build_volume(scene: &Scene) -> Result<RenderPlan> {
         Decision {
             name: "  SC_HAS_ENV",
             enabled: has_env,
-            reason: if has_env {
+            reason: if env_map.is_some() {
+                "environment map: seen by camera rays, importance-sampled in next-event estimation \
+                 (SC_HAS_ENV_MAP)"
+                    .into()
+            } else if has_env {
                 "constant environment: seen by camera rays, light by next-event estimation".into()
             } else {
                 "no environment".into()

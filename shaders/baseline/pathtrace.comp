@@ -36,6 +36,8 @@ layout(constant_id = 4) const bool SC_HAS_MEDIA = false;
 layout(constant_id = 5) const uint SC_MAX_BOUNCES = 1u;
 layout(constant_id = 6) const bool SC_PIXEL_JITTER = true;
 layout(constant_id = 7) const bool SC_HAS_EMISSION = false;
+// The environment is an importance-sampled map (else a constant radiance).
+layout(constant_id = 8) const bool SC_HAS_ENV_MAP = false;
 
 #define LIGHT_POINT 1u
 #define LIGHT_SPHERE 2u
@@ -47,6 +49,7 @@ struct BaselineUniforms {
     vec4 env_select;  // x: probability that NEE picks the environment
     vec4 emission_scale;   // rgb
     uvec4 emission_dims;   // xyz: the emission grid's own resolution
+    uvec4 env_size;        // xy: environment map width and height
 };
 
 layout(std140, set = 0, binding = BINDING_FRAME_UNIFORMS) uniform FrameBlock {
@@ -84,8 +87,17 @@ layout(std430, set = 0, binding = BINDING_SUPER_VOXELS) readonly buffer SuperVox
     vec4 super_voxels[];
 };
 
+layout(std430, set = 0, binding = BINDING_ENV_TEXELS) readonly buffer EnvTexelBlock {
+    vec4 env_texels[];
+};
+layout(std430, set = 0, binding = BINDING_ENV_CDF) readonly buffer EnvCdfBlock {
+    float env_cdf[];
+};
+
 #define u_grid u_base.grid
+#define ENV_SIZE u_base.env_size.xy
 #include "grid.glsl"
+#include "envmap.glsl"
 #include "shapes.glsl"
 
 // Emitted radiance Le at world x: emission_scale times the emission grid, trilinear
@@ -216,6 +228,13 @@ vec3 sample_light(vec3 x, inout uint rng, out vec3 wi, out float dist, out uint 
     dist = FAR;
     target = NO_INDEX;
     float p_env = u_base.env_select.x;
+    if (SC_HAS_ENV && SC_HAS_ENV_MAP && u >= 1.0 - p_env) {
+        // Environment map: importance sampled by luminance x sin(theta).
+        float pdf;
+        vec3 Le = env_sample(u2, wi, pdf);
+        // Domain: pdf > 0 for a usable sample, p_env > 0 in this branch.
+        return pdf > 0.0 ? Le / (pdf * p_env) : vec3(0.0);
+    }
     if (SC_HAS_ENV && u >= 1.0 - p_env) {
         // Constant environment: uniform direction, pdf 1 / (4 pi).
         float z = 1.0 - 2.0 * u2.x;
@@ -368,7 +387,7 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
         } else {
             // Escaped: the environment, seen directly by the camera segment only.
             if (SC_HAS_ENV && bounce == 0u) {
-                L += beta * u_frame.env_radiance.rgb;
+                L += beta * (SC_HAS_ENV_MAP ? env_lookup(d) : u_frame.env_radiance.rgb);
             }
             break;
         }

@@ -25,8 +25,9 @@ pub struct BaselinePass {
 }
 
 /// The specialization constants of `pathtrace.comp` for a plan.
-pub fn specialization(plan: &BaselinePlan) -> [(u32, SpecValue); 6] {
+pub fn specialization(plan: &BaselinePlan) -> [(u32, SpecValue); 7] {
     [
+        (8, SpecValue::Bool(plan.has_env_map)),
         (4, SpecValue::Bool(plan.has_boxes)),
         (0, SpecValue::Bool(plan.has_shapes)),
         (2, SpecValue::Bool(plan.has_env)),
@@ -81,6 +82,8 @@ impl BaselinePass {
             BindingDesc::storage_buffer(bindings::SUPER_VOXELS),
             BindingDesc::sampled_image(bindings::GRID_EMISSION),
             BindingDesc::storage_buffer(bindings::BOX_MEDIA),
+            BindingDesc::storage_buffer(bindings::ENV_TEXELS),
+            BindingDesc::storage_buffer(bindings::ENV_CDF),
         ];
         let spec = specialization(plan);
         let pipeline = ctx.create_compute_pipeline(
@@ -108,6 +111,17 @@ impl BaselinePass {
             partial
                 .buffers
                 .push(upload_records(ctx, &non_empty(boxes), "box media")?);
+            // Without a map the (compiled-out) environment bindings get one zero record.
+            let (texels, tables) = grid
+                .env_map
+                .clone()
+                .unwrap_or_else(|| (vec![[0.0; 4]], vec![0.0]));
+            partial
+                .buffers
+                .push(upload_records(ctx, &texels, "environment texels")?);
+            partial
+                .buffers
+                .push(upload_records(ctx, &tables, "environment tables")?);
             let uniforms = ctx.create_buffer(
                 &BufferDesc::gpu_only(
                     std::mem::size_of_val(&grid.uniforms) as u64,
@@ -180,11 +194,19 @@ impl BaselinePass {
                     },
                     DescriptorWrite::UniformBuffer {
                         binding: bindings::BASELINE_UNIFORMS,
-                        buffer: &b[4],
+                        buffer: &b[6],
                     },
                     DescriptorWrite::StorageBuffer {
                         binding: bindings::BOX_MEDIA,
                         buffer: &b[3],
+                    },
+                    DescriptorWrite::StorageBuffer {
+                        binding: bindings::ENV_TEXELS,
+                        buffer: &b[4],
+                    },
+                    DescriptorWrite::StorageBuffer {
+                        binding: bindings::ENV_CDF,
+                        buffer: &b[5],
                     },
                     DescriptorWrite::SampledImage {
                         binding: bindings::GRID_DENSITY,
