@@ -101,6 +101,6 @@ fn record_sizes_match_the_glsl_structs() {
 
     let grid = struct_sizes(&read("shaders/include/grid_types.glsl"));
     assert_eq!(grid["GridParams"], size_of::<GridParamsGpu>());
-    // BaselineUniforms in baseline/pathtrace.comp: GridParams then four 16-byte vectors.
-    assert_eq!(size_of::<BaselineUniformsGpu>(), grid["GridParams"] + 64);
+    // BaselineUniforms in baseline/pathtrace.comp: GridParams then five 16-byte vectors.
+    assert_eq!(size_of::<BaselineUniformsGpu>(), grid["GridParams"] + 80);
 }
