@@ -96,6 +96,7 @@ mod geometry;
 mod parse;
 mod procedural;
 mod types;
+mod vol_write;
 mod volume;
 
 use std::path::Path;
@@ -113,6 +114,7 @@ pub use geometry::MAX_GOBO_POINTS;
 pub use parse::{MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_LENGTH_M, MAX_SIGMA_T};
 pub use procedural::procedural_cloud;
 pub use types::*;
+pub use vol_write::write_vol;
 pub use volume::{
     check_grid_memory, load_grid, SuperVoxels, VoxelGrid, MAX_GRID_VALUES, SUPER_VOXEL_FACTOR,
 };
