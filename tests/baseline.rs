@@ -48,6 +48,67 @@ max_bounces = {bounces}
     )
 }
 
+/// Render `scene` on the GPU and with the CPU oracle (`reference_grid`: delta tracking
+/// and ratio tracking with one global majorant, f64; 1024 paths per pixel over 4x4
+/// footprint strata) and check that every channel's image mean agrees within 1% plus 4
+/// combined standard errors, and that at most 2% of the pixel channels differ by more
+/// than 4.5 combined standard errors.
+fn check_against_oracle(
+    ctx: &nimbus_gpu::Context,
+    scene: &nimbus_scene::Scene,
+    seed: u64,
+    label: &str,
+) {
+    use nimbus::output::ImageRgb;
+    use nimbus::reference_grid::{render_grid_mc, GridOptions};
+    let (w, h) = (scene.render.width, scene.render.height);
+    let gpu = render_checked(ctx, scene, None);
+    let (cpu_mean, cpu_se) = render_grid_mc(
+        scene,
+        &GridOptions {
+            max_bounces: scene.integrator.max_bounces,
+            paths: 1024,
+            seed,
+        },
+        4,
+    )
+    .expect("cpu oracle");
+    let cpu = ImageRgb::from_rgb_f64(w, h, &cpu_mean).unwrap();
+    let cpu_se = ImageRgb::from_rgb_f64(w, h, &cpu_se).unwrap();
+    let se = (se_of_mean(&gpu.std_error).powi(2) + se_of_mean(&cpu_se).powi(2)).sqrt();
+    let (gm, cm) = (gpu.image.mean(), cpu.mean());
+    println!("{label}: gpu {gm:?} cpu {cm:?} (SE {se:.2e})");
+    for c in 0..3 {
+        assert!(
+            (gm[c] - cm[c]).abs() <= 0.01 * cm[c] + 4.0 * se,
+            "{label} channel {c}: gpu {} vs cpu {}",
+            gm[c],
+            cm[c]
+        );
+    }
+    let mut beyond = 0;
+    for ((a, b), (sa, sb)) in gpu
+        .image
+        .data
+        .iter()
+        .zip(&cpu.data)
+        .zip(gpu.std_error.data.iter().zip(&cpu_se.data))
+    {
+        for c in 0..3 {
+            let s = (f64::from(sa[c]).powi(2) + f64::from(sb[c]).powi(2)).sqrt();
+            if f64::from((a[c] - b[c]).abs()) > 4.5 * s + 1e-6 {
+                beyond += 1;
+            }
+        }
+    }
+    let channels = 3 * gpu.image.data.len();
+    println!("  {beyond} of {channels} channels beyond 4.5 SE");
+    assert!(
+        beyond * 50 <= channels,
+        "{label}: {beyond} channels beyond 4.5 SE"
+    );
+}
+
 /// A non-absorbing cloud (albedo 1) under a constant environment of radiance 1 with
 /// K = 256 renders radiance 1 everywhere, from outside and from inside the cloud: the
 /// image mean is within 1% of 1 and no pixel strays beyond 5 standard errors + 2%.
@@ -116,57 +177,17 @@ fn golden_cloud_baseline() {
 /// and at most 2% of the pixel channels beyond 4.5 combined standard errors.
 #[test]
 fn baseline_matches_the_cpu_delta_tracking_oracle() {
-    use nimbus::reference_grid::{render_grid_mc, GridOptions};
     let ctx = context();
     let lights = "[[light]]\ntype = \"directional\"\ndirection = [0.5, -0.7, -0.4]\nirradiance = [3.0, 2.7, 2.4]\n\
                   [[light]]\ntype = \"point\"\nposition = [1.4, 0.9, 0.6]\nintensity = 2.0\n\
                   [[light]]\ntype = \"environment\"\nradiance = [0.2, 0.3, 0.45]";
     for (bounces, g) in [(1u32, 0.0f32), (3, 0.0), (1, 0.8), (3, 0.8)] {
         let text = cloud_scene("[0.3, 0.5, 2.4]", 0.9, g, bounces, 16.0, lights, (16, 12));
-        let scene = scene(&text, "oracle.toml");
-        let gpu = render_checked(&ctx, &scene, None);
-        let (cpu_mean, cpu_se) = render_grid_mc(
-            &scene,
-            &GridOptions {
-                max_bounces: bounces,
-                paths: 1024,
-                seed: 5,
-            },
-            4,
-        )
-        .expect("cpu oracle");
-        let cpu = nimbus::output::ImageRgb::from_rgb_f64(16, 12, &cpu_mean).unwrap();
-        let cpu_se = nimbus::output::ImageRgb::from_rgb_f64(16, 12, &cpu_se).unwrap();
-        let se = (se_of_mean(&gpu.std_error).powi(2) + se_of_mean(&cpu_se).powi(2)).sqrt();
-        let (gm, cm) = (gpu.image.mean(), cpu.mean());
-        println!("K={bounces} g={g}: gpu {gm:?} cpu {cm:?} (SE {se:.2e})");
-        for c in 0..3 {
-            assert!(
-                (gm[c] - cm[c]).abs() <= 0.01 * cm[c] + 4.0 * se,
-                "K={bounces} g={g} channel {c}: gpu {} vs cpu {}",
-                gm[c],
-                cm[c]
-            );
-        }
-        let mut beyond = 0;
-        for ((a, b), (sa, sb)) in gpu
-            .image
-            .data
-            .iter()
-            .zip(&cpu.data)
-            .zip(gpu.std_error.data.iter().zip(&cpu_se.data))
-        {
-            for c in 0..3 {
-                let s = (f64::from(sa[c]).powi(2) + f64::from(sb[c]).powi(2)).sqrt();
-                if f64::from((a[c] - b[c]).abs()) > 4.5 * s + 1e-6 {
-                    beyond += 1;
-                }
-            }
-        }
-        println!("  {beyond} of {} channels beyond 4.5 SE", 3 * 16 * 12);
-        assert!(
-            beyond * 50 <= 3 * 16 * 12,
-            "K={bounces} g={g}: {beyond} channels beyond 4.5 SE"
+        check_against_oracle(
+            &ctx,
+            &scene(&text, "oracle.toml"),
+            5,
+            &format!("K={bounces} g={g}"),
         );
     }
 }
@@ -175,41 +196,20 @@ fn baseline_matches_the_cpu_delta_tracking_oracle() {
 /// sun, K = 1 and K = 3: the baseline matches the CPU oracle (same criteria as above).
 #[test]
 fn emission_matches_the_cpu_oracle() {
-    use nimbus::reference_grid::{render_grid_mc, GridOptions};
     let ctx = context();
     let lights =
         "[[light]]\ntype = \"directional\"\ndirection = [0.5, -0.7, -0.4]\nirradiance = 1.0";
     for bounces in [1u32, 3] {
-        let mut text = cloud_scene("[0.3, 0.5, 2.4]", 0.6, 0.3, bounces, 16.0, lights, (16, 12));
-        text = text.replace(
+        let text = cloud_scene("[0.3, 0.5, 2.4]", 0.6, 0.3, bounces, 16.0, lights, (16, 12)).replace(
             "albedo = 0.6",
             "albedo = 0.6\nemission = { procedural = \"cloud\", dims = [16, 10, 16], noise_seed = 9 }\nemission_scale = [4.0, 2.0, 0.5]",
         );
-        let scene = scene(&text, "emission.toml");
-        let gpu = render_checked(&ctx, &scene, None);
-        let (cpu_mean, cpu_se) = render_grid_mc(
-            &scene,
-            &GridOptions {
-                max_bounces: bounces,
-                paths: 1024,
-                seed: 8,
-            },
-            4,
-        )
-        .expect("cpu oracle");
-        let cpu = nimbus::output::ImageRgb::from_rgb_f64(16, 12, &cpu_mean).unwrap();
-        let cpu_se = nimbus::output::ImageRgb::from_rgb_f64(16, 12, &cpu_se).unwrap();
-        let se = (se_of_mean(&gpu.std_error).powi(2) + se_of_mean(&cpu_se).powi(2)).sqrt();
-        let (gm, cm) = (gpu.image.mean(), cpu.mean());
-        println!("emission K={bounces}: gpu {gm:?} cpu {cm:?} (SE {se:.2e})");
-        for c in 0..3 {
-            assert!(
-                (gm[c] - cm[c]).abs() <= 0.01 * cm[c] + 4.0 * se,
-                "K={bounces} channel {c}: gpu {} vs cpu {}",
-                gm[c],
-                cm[c]
-            );
-        }
+        check_against_oracle(
+            &ctx,
+            &scene(&text, "emission.toml"),
+            8,
+            &format!("emission K={bounces}"),
+        );
     }
 }
 
@@ -217,7 +217,6 @@ fn emission_matches_the_cpu_oracle() {
 /// mixed free flights and shadow rays match the CPU oracle.
 #[test]
 fn box_beside_grid_matches_the_cpu_oracle() {
-    use nimbus::reference_grid::{render_grid_mc, GridOptions};
     let ctx = context();
     let lights =
         "[[light]]\ntype = \"directional\"\ndirection = [0.3, -0.8, -0.4]\nirradiance = 2.0\n\
@@ -227,31 +226,12 @@ fn box_beside_grid_matches_the_cpu_oracle() {
         text.push_str(
             "[[medium]]\ntype = \"box\"\ncenter = [0.0, -1.2, 0.0]\nsize = [3.0, 0.5, 3.0]\nsigma_t = 1.5\nalbedo = 0.8\n",
         );
-        let scene = scene(&text, "box-grid.toml");
-        let gpu = render_checked(&ctx, &scene, None);
-        let (cpu_mean, cpu_se) = render_grid_mc(
-            &scene,
-            &GridOptions {
-                max_bounces: bounces,
-                paths: 1024,
-                seed: 4,
-            },
+        check_against_oracle(
+            &ctx,
+            &scene(&text, "box-grid.toml"),
             4,
-        )
-        .expect("cpu oracle");
-        let cpu = nimbus::output::ImageRgb::from_rgb_f64(16, 12, &cpu_mean).unwrap();
-        let cpu_se = nimbus::output::ImageRgb::from_rgb_f64(16, 12, &cpu_se).unwrap();
-        let se = (se_of_mean(&gpu.std_error).powi(2) + se_of_mean(&cpu_se).powi(2)).sqrt();
-        let (gm, cm) = (gpu.image.mean(), cpu.mean());
-        println!("box+grid K={bounces}: gpu {gm:?} cpu {cm:?} (SE {se:.2e})");
-        for c in 0..3 {
-            assert!(
-                (gm[c] - cm[c]).abs() <= 0.01 * cm[c] + 4.0 * se,
-                "K={bounces} channel {c}: gpu {} vs cpu {}",
-                gm[c],
-                cm[c]
-            );
-        }
+            &format!("box+grid K={bounces}"),
+        );
     }
 }
 
@@ -260,7 +240,6 @@ fn box_beside_grid_matches_the_cpu_oracle() {
 /// matches the CPU oracle at K = 1 and 3.
 #[test]
 fn environment_map_matches_the_cpu_oracle() {
-    use nimbus::reference_grid::{render_grid_mc, GridOptions};
     let dir = common::cli::scratch("baseline", "envmap");
     let (w, h) = (32u32, 16u32);
     let mut sky = nimbus::output::ImageRgb::new(w, h);
@@ -293,30 +272,11 @@ fn environment_map_matches_the_cpu_oracle() {
             &lights,
             (16, 12),
         );
-        let scene = scene(&text, "envmap.toml");
-        let gpu = render_checked(&ctx, &scene, None);
-        let (cpu_mean, cpu_se) = render_grid_mc(
-            &scene,
-            &GridOptions {
-                max_bounces: bounces,
-                paths: 1024,
-                seed: 6,
-            },
-            4,
-        )
-        .expect("cpu oracle");
-        let cpu = nimbus::output::ImageRgb::from_rgb_f64(16, 12, &cpu_mean).unwrap();
-        let cpu_se = nimbus::output::ImageRgb::from_rgb_f64(16, 12, &cpu_se).unwrap();
-        let se = (se_of_mean(&gpu.std_error).powi(2) + se_of_mean(&cpu_se).powi(2)).sqrt();
-        let (gm, cm) = (gpu.image.mean(), cpu.mean());
-        println!("env map K={bounces}: gpu {gm:?} cpu {cm:?} (SE {se:.2e})");
-        for c in 0..3 {
-            assert!(
-                (gm[c] - cm[c]).abs() <= 0.01 * cm[c] + 4.0 * se,
-                "K={bounces} channel {c}: gpu {} vs cpu {}",
-                gm[c],
-                cm[c]
-            );
-        }
+        check_against_oracle(
+            &ctx,
+            &scene(&text, "envmap.toml"),
+            6,
+            &format!("env map K={bounces}"),
+        );
     }
 }
