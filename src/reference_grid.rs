@@ -6,8 +6,9 @@
 //! single global majorant per grid (the largest σt anywhere in it), and shadow-ray
 //! transmittance is estimated by **ratio tracking** with the same global majorant — no
 //! super-voxels, no decomposition tracking, no closed-form or quadrature transmittance.
-//! Geometry, random numbers and sampling are its own small f64 routines (the same
-//! conventions as [`crate::reference_mc`], whose public [`McEstimate`] it returns).
+//! Geometry, random numbers and sampling are small f64 routines shared only with
+//! [`crate::reference_mc`] (in `reference_common`), whose public
+//! [`McEstimate`] it returns.
 //!
 //! # Model
 //!
@@ -73,14 +74,16 @@
 //! count.
 
 use std::f64::consts::PI;
-use std::sync::atomic::{AtomicUsize, Ordering};
 
 use anyhow::{bail, ensure, Context};
-use glam::{DMat3, DVec2, DVec3, Vec3};
-use nimbus_scene::{
-    load_grid, EnvMap, EnvSampler, Gobo, GridMedium, Light, Medium, Scene, Shape, VoxelGrid,
-};
+use glam::{DMat3, DVec3};
+use nimbus_scene::{load_grid, EnvMap, EnvSampler, GridMedium, Light, Medium, Scene, VoxelGrid};
 
+use crate::reference_common::{
+    check_render, direction_around, hit_sphere, phase_hg, radiance_paths, render_paths,
+    sample_cosine, sample_hg, sample_sphere, surface_offset, GoboF64, Moments, OrientedBox, Rng,
+    Surface,
+};
 use crate::reference_mc::{McEstimate, McImage};
 
 /// Settings of a grid Monte Carlo reference run.
@@ -127,82 +130,17 @@ pub fn render_grid_mc(
     footprint: u32,
 ) -> anyhow::Result<McImage> {
     check_options(opts)?;
-    let strata = footprint.checked_mul(footprint).filter(|&s| s > 0);
-    if let Some(strata) = strata {
-        ensure!(
-            opts.paths.is_multiple_of(strata),
-            "grid Monte Carlo reference: paths per pixel ({}) must be a multiple of \
-             footprint² = {strata}",
-            opts.paths
-        );
-    }
-    ensure!(
-        scene.camera.keyframes.is_empty() || scene.render.frames <= 1,
-        "{}: animated cameras are not supported by the grid Monte Carlo reference (it \
-         renders frame 0 only)",
-        scene.source.display()
-    );
+    check_render(scene, opts.paths, footprint, "grid Monte Carlo reference")?;
     let tracer = Tracer::new(scene)?;
-    let camera = CameraRays::new(scene);
-    let (width, height) = (scene.render.width, scene.render.height);
-
-    let pixel = |x: u32, y: u32| -> Sums {
-        let pixel_index = u64::from(y) * u64::from(width) + u64::from(x);
-        let mut sums = Sums::default();
-        for path in 0..opts.paths {
-            let mut rng = Rng::new(opts.seed, (pixel_index << 32) | u64::from(path));
-            let (px, py) = match strata {
-                None => (f64::from(x) + 0.5, f64::from(y) + 0.5),
-                Some(strata) => {
-                    let s = path % strata;
-                    let (sx, sy) = (s % footprint, s / footprint);
-                    let f = f64::from(footprint);
-                    (
-                        f64::from(x) + (f64::from(sx) + rng.uniform()) / f,
-                        f64::from(y) + (f64::from(sy) + rng.uniform()) / f,
-                    )
-                }
-            };
-            let d = camera.direction(px, py);
-            sums.add(tracer.trace_path(camera.position, d, opts.max_bounces, &mut rng));
-        }
-        sums
-    };
-
-    let threads = std::thread::available_parallelism().map_or(1, |t| t.get());
-    let next_row = AtomicUsize::new(0);
-    let mut rows: Vec<(usize, Vec<Sums>)> = std::thread::scope(|s| {
-        let workers: Vec<_> = (0..threads)
-            .map(|_| {
-                s.spawn(|| {
-                    let mut done = Vec::new();
-                    loop {
-                        let y = next_row.fetch_add(1, Ordering::Relaxed);
-                        if y >= height as usize {
-                            return done;
-                        }
-                        let row = (0..width).map(|x| pixel(x, y as u32)).collect();
-                        done.push((y, row));
-                    }
-                })
-            })
-            .collect();
-        workers
-            .into_iter()
-            .flat_map(|w| {
-                w.join()
-                    .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
-            })
-            .collect()
-    });
-    rows.sort_by_key(|(y, _)| *y);
-    let (mut mean, mut std_error) = (Vec::new(), Vec::new());
-    for sums in rows.into_iter().flat_map(|(_, row)| row) {
-        let e = sums.estimate();
-        mean.push(e.mean);
-        std_error.push(e.std_error);
-    }
-    Ok((mean, std_error))
+    Ok(render_paths(
+        scene,
+        opts.paths,
+        opts.seed,
+        footprint,
+        |sums: &mut Moments, o, d, rng| {
+            sums.add(tracer.trace_path(o, d, opts.max_bounces, rng));
+        },
+    ))
 }
 
 fn check_options(opts: &GridOptions) -> anyhow::Result<()> {
@@ -218,250 +156,6 @@ fn check_options(opts: &GridOptions) -> anyhow::Result<()> {
         opts.paths
     );
     Ok(())
-}
-
-// ---------------------------------------------------------------------------------------
-// Random numbers: xoshiro256** (Blackman & Vigna), seeded through SplitMix64.
-
-fn splitmix64(state: &mut u64) -> u64 {
-    *state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    let mut z = *state;
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
-
-struct Rng {
-    s: [u64; 4],
-}
-
-impl Rng {
-    fn new(seed: u64, stream: u64) -> Self {
-        let mut mix = seed;
-        let mut state = splitmix64(&mut mix) ^ stream.wrapping_mul(0xD1B5_4A32_D192_ED03);
-        let s = [
-            splitmix64(&mut state),
-            splitmix64(&mut state),
-            splitmix64(&mut state),
-            splitmix64(&mut state),
-        ];
-        Self { s }
-    }
-
-    fn next_u64(&mut self) -> u64 {
-        let s = &mut self.s;
-        let result = s[1].wrapping_mul(5).rotate_left(7).wrapping_mul(9);
-        let t = s[1] << 17;
-        s[2] ^= s[0];
-        s[3] ^= s[1];
-        s[1] ^= s[2];
-        s[0] ^= s[3];
-        s[2] ^= t;
-        s[3] = s[3].rotate_left(45);
-        result
-    }
-
-    /// Uniform in [0, 1), 53 random bits.
-    fn uniform(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
-    }
-
-    /// Exponential with rate `rate` > 0 (1 − u ∈ (0, 1], so the log is finite).
-    fn exponential(&mut self, rate: f64) -> f64 {
-        -(1.0 - self.uniform()).ln() / rate
-    }
-}
-
-// ---------------------------------------------------------------------------------------
-// Sampling.
-
-fn phase_hg(cos_theta: f64, g: f64) -> f64 {
-    let base = 1.0 + g * g - 2.0 * g * cos_theta;
-    (1.0 - g * g) / (4.0 * PI * base * base.sqrt())
-}
-
-fn orthonormal_basis(n: DVec3) -> (DVec3, DVec3) {
-    let sign = 1f64.copysign(n.z);
-    let a = -1.0 / (sign + n.z);
-    let b = n.x * n.y * a;
-    (
-        DVec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
-        DVec3::new(b, sign + n.y * n.y * a, -n.y),
-    )
-}
-
-fn direction_around(axis: DVec3, cos_theta: f64, u: f64) -> DVec3 {
-    let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
-    let phi = 2.0 * PI * u;
-    let (t, b) = orthonormal_basis(axis);
-    (sin_theta * phi.cos() * t + sin_theta * phi.sin() * b + cos_theta * axis).normalize()
-}
-
-/// A new travel direction from the HG lobe around travel direction `d` (CDF inverse).
-fn sample_hg(d: DVec3, g: f64, rng: &mut Rng) -> DVec3 {
-    let (u1, u2) = (rng.uniform(), rng.uniform());
-    let cos_theta = if g.abs() < 1e-4 {
-        1.0 - 2.0 * u1
-    } else {
-        let q = (1.0 - g * g) / (1.0 - g + 2.0 * g * u1);
-        ((1.0 + g * g - q * q) / (2.0 * g)).clamp(-1.0, 1.0)
-    };
-    direction_around(d, cos_theta, u2)
-}
-
-fn sample_cosine(n: DVec3, rng: &mut Rng) -> DVec3 {
-    let (u1, u2) = (rng.uniform(), rng.uniform());
-    direction_around(n, (1.0 - u1).sqrt(), u2)
-}
-
-/// Uniform on the unit sphere (pdf 1/(4π)).
-fn sample_sphere(rng: &mut Rng) -> DVec3 {
-    let (u1, u2) = (rng.uniform(), rng.uniform());
-    direction_around(DVec3::Z, 1.0 - 2.0 * u1, u2)
-}
-
-// ---------------------------------------------------------------------------------------
-// Geometry, in f64.
-
-fn rotation_f64(deg: Vec3) -> DMat3 {
-    let r = deg.as_dvec3() * (PI / 180.0);
-    DMat3::from_rotation_z(r.z) * DMat3::from_rotation_y(r.y) * DMat3::from_rotation_x(r.x)
-}
-
-/// A box, world = center + R·local, local ∈ [−half, half].
-struct OrientedBox {
-    center: DVec3,
-    half: DVec3,
-    rotation: DMat3,
-}
-
-impl OrientedBox {
-    fn new(center: DVec3, half: DVec3, rotation: DMat3) -> Self {
-        Self {
-            center,
-            half,
-            rotation,
-        }
-    }
-
-    /// (t_in, t_out, entry axis) of the line o + t·d inside the closed box.
-    fn line_range(&self, o: DVec3, d: DVec3) -> Option<(f64, f64, usize)> {
-        let o_l = self.rotation.transpose() * (o - self.center);
-        let d_l = self.rotation.transpose() * d;
-        let (mut t_in, mut t_out, mut axis_in) = (f64::NEG_INFINITY, f64::INFINITY, 0);
-        for axis in 0..3 {
-            let h = self.half[axis];
-            if d_l[axis] == 0.0 {
-                if o_l[axis].abs() > h {
-                    return None;
-                }
-                continue;
-            }
-            let a = (-h - o_l[axis]) / d_l[axis];
-            let b = (h - o_l[axis]) / d_l[axis];
-            let (near, far) = (a.min(b), a.max(b));
-            if near > t_in {
-                t_in = near;
-                axis_in = axis;
-            }
-            t_out = t_out.min(far);
-        }
-        (t_in <= t_out).then_some((t_in, t_out, axis_in))
-    }
-
-    fn span(&self, o: DVec3, d: DVec3, t_min: f64, t_max: f64) -> Option<(f64, f64)> {
-        let (t_in, t_out, _) = self.line_range(o, d)?;
-        let (a, b) = (t_in.max(t_min), t_out.min(t_max));
-        (a < b).then_some((a, b))
-    }
-}
-
-/// Nearest t > 0 where o + t·d (|d| = 1) meets the sphere's surface.
-fn hit_sphere(center: DVec3, radius: f64, o: DVec3, d: DVec3) -> Option<f64> {
-    let to_center = center - o;
-    let t_mid = to_center.dot(d);
-    let closest_sq = (to_center - t_mid * d).length_squared();
-    let half_chord_sq = radius * radius - closest_sq;
-    if half_chord_sq < 0.0 {
-        return None;
-    }
-    let half_chord = half_chord_sq.sqrt();
-    if t_mid - half_chord > 0.0 {
-        Some(t_mid - half_chord)
-    } else if t_mid + half_chord > 0.0 {
-        Some(t_mid + half_chord)
-    } else {
-        None
-    }
-}
-
-enum Geometry {
-    Quad {
-        corner: DVec3,
-        edge_u: DVec3,
-        edge_v: DVec3,
-        normal: DVec3,
-    },
-    Box(OrientedBox),
-    Sphere {
-        center: DVec3,
-        radius: f64,
-    },
-}
-
-struct Surface {
-    geometry: Geometry,
-    albedo: DVec3,
-}
-
-impl Surface {
-    /// The nearest t > 0 and a unit normal (either orientation).
-    fn hit(&self, o: DVec3, d: DVec3) -> Option<(f64, DVec3)> {
-        match self.geometry {
-            Geometry::Quad {
-                corner,
-                edge_u,
-                edge_v,
-                normal,
-            } => {
-                let p = d.cross(edge_v);
-                let det = edge_u.dot(p);
-                if det == 0.0 {
-                    return None;
-                }
-                let s = o - corner;
-                let a = s.dot(p) / det;
-                let q = s.cross(edge_u);
-                let b = d.dot(q) / det;
-                let t = edge_v.dot(q) / det;
-                ((0.0..=1.0).contains(&a) && (0.0..=1.0).contains(&b) && t > 0.0)
-                    .then_some((t, normal))
-            }
-            Geometry::Box(ref bounds) => {
-                let (t_in, t_out, axis) = bounds.line_range(o, d)?;
-                if t_in > 0.0 {
-                    Some((t_in, bounds.rotation.col(axis)))
-                } else if t_out > 0.0 {
-                    let x = bounds.rotation.transpose() * (o + t_out * d - bounds.center);
-                    let ratio = x.abs() / bounds.half;
-                    let axis = if ratio.x >= ratio.y && ratio.x >= ratio.z {
-                        0
-                    } else if ratio.y >= ratio.z {
-                        1
-                    } else {
-                        2
-                    };
-                    Some((t_out, bounds.rotation.col(axis)))
-                } else {
-                    None
-                }
-            }
-            Geometry::Sphere { center, radius } => {
-                let t = hit_sphere(center, radius, o, d)?;
-                Some((t, (o + t * d - center) / radius))
-            }
-        }
-    }
 }
 
 /// A grid medium in f64 with its grids loaded.
@@ -579,24 +273,6 @@ impl MediumF64 {
     }
 }
 
-struct GoboF64 {
-    origin: DVec3,
-    u: DVec3,
-    v: DVec3,
-    polygon: Vec<DVec2>,
-}
-
-impl GoboF64 {
-    fn lets_through(&self, x: DVec3) -> bool {
-        let q = DVec2::new((x - self.origin).dot(self.u), (x - self.origin).dot(self.v));
-        let n = self.polygon.len();
-        (0..n).all(|i| {
-            let (a, b) = (self.polygon[i], self.polygon[(i + 1) % n]);
-            (b - a).perp_dot(q - a) >= 0.0
-        })
-    }
-}
-
 enum Environment {
     Constant(DVec3),
     Map { map: EnvMap, sampler: EnvSampler },
@@ -646,47 +322,6 @@ struct Tracer {
     media: Vec<MediumF64>,
     surfaces: Vec<Surface>,
     lights: Vec<LightF64>,
-}
-
-#[derive(Clone, Copy, Default)]
-struct Sums {
-    n: u64,
-    mean: DVec3,
-    m2: DVec3,
-}
-
-impl Sums {
-    fn add(&mut self, l: DVec3) {
-        self.n += 1;
-        let delta = l - self.mean;
-        self.mean += delta / self.n as f64;
-        self.m2 += delta * (l - self.mean);
-    }
-
-    fn merge(&mut self, other: &Sums) {
-        if other.n == 0 {
-            return;
-        }
-        let (a, b) = (self.n as f64, other.n as f64);
-        let n = a + b;
-        let delta = other.mean - self.mean;
-        self.mean += delta * (b / n);
-        self.m2 += other.m2 + delta * delta * (a * b / n);
-        self.n += other.n;
-    }
-
-    fn estimate(&self) -> McEstimate {
-        let n = self.n as f64;
-        let variance = (self.m2 / (n - 1.0)).max(DVec3::ZERO);
-        McEstimate {
-            mean: self.mean.to_array(),
-            std_error: (variance / n).to_array().map(f64::sqrt),
-        }
-    }
-}
-
-fn surface_offset(x: DVec3) -> f64 {
-    1e-9 * (1.0 + x.abs().max_element())
 }
 
 /// The density source of a grid medium at frame 0.
@@ -751,11 +386,7 @@ impl Tracer {
             media.push(match (medium, loaded) {
                 (Medium::Box(m), _) => MediumF64 {
                     kind: MediumKind::Homogeneous {
-                        bounds: OrientedBox::new(
-                            m.center.as_dvec3(),
-                            0.5 * m.size.as_dvec3(),
-                            rotation_f64(m.rotation_deg),
-                        ),
+                        bounds: OrientedBox::from_scene(m.center, m.size, m.rotation_deg),
                         sigma_t: f64::from(m.sigma_t),
                     },
                     albedo: m.albedo.as_dvec3(),
@@ -795,50 +426,7 @@ impl Tracer {
             });
         }
 
-        let surfaces = scene
-            .shapes
-            .iter()
-            .map(|shape| match *shape {
-                Shape::Quad {
-                    corner,
-                    edge_u,
-                    edge_v,
-                    albedo,
-                } => Surface {
-                    geometry: Geometry::Quad {
-                        corner: corner.as_dvec3(),
-                        edge_u: edge_u.as_dvec3(),
-                        edge_v: edge_v.as_dvec3(),
-                        normal: edge_u.as_dvec3().cross(edge_v.as_dvec3()).normalize(),
-                    },
-                    albedo: albedo.as_dvec3(),
-                },
-                Shape::Box {
-                    center,
-                    size,
-                    rotation_deg,
-                    albedo,
-                } => Surface {
-                    geometry: Geometry::Box(OrientedBox::new(
-                        center.as_dvec3(),
-                        0.5 * size.as_dvec3(),
-                        rotation_f64(rotation_deg),
-                    )),
-                    albedo: albedo.as_dvec3(),
-                },
-                Shape::Sphere {
-                    center,
-                    radius,
-                    albedo,
-                } => Surface {
-                    geometry: Geometry::Sphere {
-                        center: center.as_dvec3(),
-                        radius: f64::from(radius),
-                    },
-                    albedo: albedo.as_dvec3(),
-                },
-            })
-            .collect();
+        let surfaces = scene.shapes.iter().map(Surface::from_shape).collect();
 
         let mut lights = Vec::new();
         for (i, light) in scene.lights.iter().enumerate() {
@@ -850,15 +438,7 @@ impl Tracer {
                 } => LightF64::Directional {
                     omega: direction.as_dvec3().normalize(),
                     irradiance: irradiance.as_dvec3(),
-                    gobo: gobo.as_ref().map(|g: &Gobo| {
-                        let (u, v) = Gobo::basis(*direction);
-                        GoboF64 {
-                            origin: g.origin.as_dvec3(),
-                            u: u.as_dvec3(),
-                            v: v.as_dvec3(),
-                            polygon: g.polygon.iter().map(|p| p.as_dvec2()).collect(),
-                        }
-                    }),
+                    gobo: gobo.as_ref().map(|g| GoboF64::new(*direction, g)),
                 },
                 Light::Point {
                     position,
@@ -1168,51 +748,15 @@ impl Tracer {
 
     /// `opts.paths` paths along one ray, in chunks shared among threads; path i uses
     /// stream i of the seed; chunks are merged in order.
-    fn radiance(&self, o: DVec3, d: DVec3, opts: &GridOptions) -> Sums {
-        let chunks = opts.paths.div_ceil(CHUNK_PATHS) as usize;
-        let chunk = |c: usize| -> Sums {
-            let first = c as u32 * CHUNK_PATHS;
-            let last = (first + CHUNK_PATHS).min(opts.paths);
-            let mut sums = Sums::default();
-            for path in first..last {
-                let mut rng = Rng::new(opts.seed, u64::from(path));
-                sums.add(self.trace_path(o, d, opts.max_bounces, &mut rng));
-            }
-            sums
-        };
-        let threads = std::thread::available_parallelism()
-            .map_or(1, |t| t.get())
-            .min(chunks);
-        let next = AtomicUsize::new(0);
-        let mut done: Vec<(usize, Sums)> = std::thread::scope(|s| {
-            let workers: Vec<_> = (0..threads)
-                .map(|_| {
-                    s.spawn(|| {
-                        let mut done = Vec::new();
-                        loop {
-                            let c = next.fetch_add(1, Ordering::Relaxed);
-                            if c >= chunks {
-                                return done;
-                            }
-                            done.push((c, chunk(c)));
-                        }
-                    })
-                })
-                .collect();
-            workers
-                .into_iter()
-                .flat_map(|w| {
-                    w.join()
-                        .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
-                })
-                .collect()
-        });
-        done.sort_by_key(|(c, _)| *c);
-        let mut total = Sums::default();
-        for (_, sums) in &done {
-            total.merge(sums);
-        }
-        total
+    fn radiance(&self, o: DVec3, d: DVec3, opts: &GridOptions) -> Moments {
+        radiance_paths(
+            opts.paths,
+            opts.seed,
+            CHUNK_PATHS,
+            |sums: &mut Moments, rng| {
+                sums.add(self.trace_path(o, d, opts.max_bounces, rng));
+            },
+        )
     }
 }
 
@@ -1223,54 +767,12 @@ enum Hit {
     Emitter(DVec3),
 }
 
-/// Camera rays of frame 0 in f64, `CameraFrame::ray_direction`'s convention.
-struct CameraRays {
-    position: DVec3,
-    forward: DVec3,
-    right: DVec3,
-    up: DVec3,
-    tan_x: f64,
-    tan_y: f64,
-    width: f64,
-    height: f64,
-}
-
-impl CameraRays {
-    fn new(scene: &Scene) -> Self {
-        let (position, look_at) = scene.camera.pose_at(0);
-        let (position, look_at) = (position.as_dvec3(), look_at.as_dvec3());
-        let forward = (look_at - position).normalize();
-        let right = forward.cross(scene.camera.up.as_dvec3()).normalize();
-        let up = right.cross(forward);
-        let (width, height) = (
-            f64::from(scene.render.width),
-            f64::from(scene.render.height),
-        );
-        let tan_x = (f64::from(scene.camera.horizontal_fov_deg).to_radians() * 0.5).tan();
-        Self {
-            position,
-            forward,
-            right,
-            up,
-            tan_x,
-            tan_y: tan_x * height / width,
-            width,
-            height,
-        }
-    }
-
-    fn direction(&self, px: f64, py: f64) -> DVec3 {
-        let sx = (2.0 * px / self.width - 1.0) * self.tan_x;
-        let sy = (1.0 - 2.0 * py / self.height) * self.tan_y;
-        (self.forward + sx * self.right + sy * self.up).normalize()
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use std::path::PathBuf;
 
-    use nimbus_scene::{BoxMedium, Camera, GridSource, Integrator, RenderSettings};
+    use glam::Vec3;
+    use nimbus_scene::{BoxMedium, Camera, GridSource, Integrator, RenderSettings, Shape};
 
     use super::*;
     use crate::reference_mc::{radiance_mc, McOptions};

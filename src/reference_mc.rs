@@ -6,7 +6,8 @@
 //! algorithm with the GPU passes (no distance sampling over the whole volume, no ratio
 //! estimators, no majorants) and none of its geometry code with either: it is the
 //! plainest analog path tracer that estimates the model below, with its own small f64
-//! ray–box, ray–quad and ray–sphere tests and its own random number generator.
+//! ray–box, ray–quad and ray–sphere tests and its own random number generator (in
+//! `reference_common`, shared only with the grid oracle).
 //!
 //! # Model
 //!
@@ -58,11 +59,15 @@
 //! random numbers: each path's K = 1 estimate is a prefix of its K = 4 estimate.
 
 use std::f64::consts::PI;
-use std::sync::atomic::{AtomicUsize, Ordering};
 
 use anyhow::{bail, ensure};
-use glam::{DMat3, DVec2, DVec3, Vec3};
-use nimbus_scene::{Gobo, Light, Medium, Scene, Shape};
+use glam::DVec3;
+use nimbus_scene::{Light, Medium, Scene};
+
+use crate::reference_common::{
+    check_render, phase_hg, radiance_paths, render_paths, sample_cosine, sample_hg, surface_offset,
+    GoboF64, Moments, OrientedBox, PathSums, Rng, Surface,
+};
 
 /// Settings of a Monte Carlo reference run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -119,85 +124,18 @@ pub fn radiance_mc(
 /// the thread count.
 pub fn render_mc(scene: &Scene, opts: &McOptions, footprint: u32) -> anyhow::Result<McImage> {
     check_options(opts)?;
-    let strata = footprint.checked_mul(footprint).filter(|&s| s > 0);
-    if let Some(strata) = strata {
-        ensure!(
-            opts.paths.is_multiple_of(strata),
-            "Monte Carlo reference: paths per pixel ({}) must be a multiple of \
-             footprint² = {strata}",
-            opts.paths
-        );
-    }
-    ensure!(
-        scene.camera.keyframes.is_empty() || scene.render.frames <= 1,
-        "{}: animated cameras are not supported by the Monte Carlo reference (it renders \
-         frame 0 only)",
-        scene.source.display()
-    );
+    check_render(scene, opts.paths, footprint, "Monte Carlo reference")?;
     let tracer = Tracer::new(scene)?;
-    let camera = CameraRays::new(scene);
-    let (width, height) = (scene.render.width, scene.render.height);
-
-    // One pixel: paths through jittered strata of its footprint, one stream per path.
-    let pixel = |x: u32, y: u32| -> Sums {
-        let pixel_index = u64::from(y) * u64::from(width) + u64::from(x);
-        let mut sums = Sums::default();
-        for path in 0..opts.paths {
-            let mut rng = Rng::new(opts.seed, (pixel_index << 32) | u64::from(path));
-            let (px, py) = match strata {
-                None => (f64::from(x) + 0.5, f64::from(y) + 0.5),
-                Some(strata) => {
-                    let s = path % strata;
-                    let (sx, sy) = (s % footprint, s / footprint);
-                    let f = f64::from(footprint);
-                    (
-                        f64::from(x) + (f64::from(sx) + rng.uniform()) / f,
-                        f64::from(y) + (f64::from(sy) + rng.uniform()) / f,
-                    )
-                }
-            };
-            let d = camera.direction(px, py);
-            let (l, segments) = tracer.trace_path(camera.position, d, opts.max_bounces, &mut rng);
+    Ok(render_paths(
+        scene,
+        opts.paths,
+        opts.seed,
+        footprint,
+        |sums: &mut Sums, o, d, rng| {
+            let (l, segments) = tracer.trace_path(o, d, opts.max_bounces, rng);
             sums.add(l, segments);
-        }
-        sums
-    };
-
-    // Hand rows to worker threads from a shared counter.
-    let threads = std::thread::available_parallelism().map_or(1, |t| t.get());
-    let next_row = AtomicUsize::new(0);
-    let mut rows: Vec<(usize, Vec<Sums>)> = std::thread::scope(|s| {
-        let workers: Vec<_> = (0..threads)
-            .map(|_| {
-                s.spawn(|| {
-                    let mut done = Vec::new();
-                    loop {
-                        let y = next_row.fetch_add(1, Ordering::Relaxed);
-                        if y >= height as usize {
-                            return done;
-                        }
-                        let row = (0..width).map(|x| pixel(x, y as u32)).collect();
-                        done.push((y, row));
-                    }
-                })
-            })
-            .collect();
-        workers
-            .into_iter()
-            .flat_map(|w| {
-                w.join()
-                    .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
-            })
-            .collect()
-    });
-    rows.sort_by_key(|(y, _)| *y);
-    let (mut mean, mut std_error) = (Vec::new(), Vec::new());
-    for sums in rows.into_iter().flat_map(|(_, row)| row) {
-        let e = sums.estimate();
-        mean.push(e.mean);
-        std_error.push(e.std_error);
-    }
-    Ok((mean, std_error))
+        },
+    ))
 }
 
 fn check_options(opts: &McOptions) -> anyhow::Result<()> {
@@ -213,282 +151,11 @@ fn check_options(opts: &McOptions) -> anyhow::Result<()> {
     Ok(())
 }
 
-// ---------------------------------------------------------------------------------------
-// Random numbers: xoshiro256** (Blackman & Vigna), seeded through SplitMix64.
-
-/// One step of SplitMix64.
-fn splitmix64(state: &mut u64) -> u64 {
-    *state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    let mut z = *state;
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
-
-struct Rng {
-    s: [u64; 4],
-}
-
-impl Rng {
-    /// Stream `stream` of `seed`: distinct streams of one seed start from distinct
-    /// SplitMix64 states (the map stream → state is injective).
-    fn new(seed: u64, stream: u64) -> Self {
-        let mut mix = seed;
-        let mut state = splitmix64(&mut mix) ^ stream.wrapping_mul(0xD1B5_4A32_D192_ED03);
-        let s = [
-            splitmix64(&mut state),
-            splitmix64(&mut state),
-            splitmix64(&mut state),
-            splitmix64(&mut state),
-        ];
-        Self { s }
-    }
-
-    fn next_u64(&mut self) -> u64 {
-        let s = &mut self.s;
-        let result = s[1].wrapping_mul(5).rotate_left(7).wrapping_mul(9);
-        let t = s[1] << 17;
-        s[2] ^= s[0];
-        s[3] ^= s[1];
-        s[1] ^= s[2];
-        s[0] ^= s[3];
-        s[2] ^= t;
-        s[3] = s[3].rotate_left(45);
-        result
-    }
-
-    /// Uniform in [0, 1), 53 random bits.
-    fn uniform(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
-    }
-}
-
-// ---------------------------------------------------------------------------------------
-// Sampling.
-
-/// Henyey–Greenstein phase function; `cos_theta` between the travel directions before
-/// and after scattering, |g| < 1 so the base is ≥ (1 − |g|)² > 0.
-fn phase_hg(cos_theta: f64, g: f64) -> f64 {
-    let base = 1.0 + g * g - 2.0 * g * cos_theta;
-    (1.0 - g * g) / (4.0 * PI * base * base.sqrt())
-}
-
-/// Two unit vectors completing unit `n` to a right-handed orthonormal basis (Duff et
-/// al. 2017); sign(0) is taken as +1, so 1/(sign + n.z) has |sign + n.z| ≥ 1.
-fn orthonormal_basis(n: DVec3) -> (DVec3, DVec3) {
-    let sign = 1f64.copysign(n.z);
-    let a = -1.0 / (sign + n.z);
-    let b = n.x * n.y * a;
-    (
-        DVec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
-        DVec3::new(b, sign + n.y * n.y * a, -n.y),
-    )
-}
-
-/// The unit direction with cosine `cos_theta` to `axis` and azimuth 2π·u.
-fn direction_around(axis: DVec3, cos_theta: f64, u: f64) -> DVec3 {
-    let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
-    let phi = 2.0 * PI * u;
-    let (t, b) = orthonormal_basis(axis);
-    (sin_theta * phi.cos() * t + sin_theta * phi.sin() * b + cos_theta * axis).normalize()
-}
-
-/// Samples a new travel direction from the HG lobe around travel direction `d`.
-/// Inverts the CDF P(μ) = (1−g²)/(2g)·[(1+g²−2gμ)^{−1/2} − 1/(1+g)] = u (its base
-/// 1 − g + 2gu is in [1 − |g|, 1 + |g|], > 0); |g| < 1e-4 uses the isotropic limit.
-fn sample_hg(d: DVec3, g: f64, rng: &mut Rng) -> DVec3 {
-    let (u1, u2) = (rng.uniform(), rng.uniform());
-    let cos_theta = if g.abs() < 1e-4 {
-        1.0 - 2.0 * u1
-    } else {
-        let q = (1.0 - g * g) / (1.0 - g + 2.0 * g * u1);
-        ((1.0 + g * g - q * q) / (2.0 * g)).clamp(-1.0, 1.0)
-    };
-    direction_around(d, cos_theta, u2)
-}
-
-/// Samples a cosine-distributed direction around unit `n` (pdf cosθ/π).
-fn sample_cosine(n: DVec3, rng: &mut Rng) -> DVec3 {
-    let (u1, u2) = (rng.uniform(), rng.uniform());
-    direction_around(n, (1.0 - u1).sqrt(), u2)
-}
-
-// ---------------------------------------------------------------------------------------
-// Geometry, in f64.
-
-/// Rotation about X, then Y, then Z by `deg`: world = Rz·Ry·Rx·local.
-fn rotation_f64(deg: Vec3) -> DMat3 {
-    let r = deg.as_dvec3() * (PI / 180.0);
-    DMat3::from_rotation_z(r.z) * DMat3::from_rotation_y(r.y) * DMat3::from_rotation_x(r.x)
-}
-
-/// A box, world = center + R·local, local ∈ [−half, half].
-struct OrientedBox {
-    center: DVec3,
-    half: DVec3,
-    /// R (columns are the local axes in world space).
-    rotation: DMat3,
-}
-
-impl OrientedBox {
-    fn new(center: Vec3, size: Vec3, rotation_deg: Vec3) -> Self {
-        Self {
-            center: center.as_dvec3(),
-            half: 0.5 * size.as_dvec3(),
-            rotation: rotation_f64(rotation_deg),
-        }
-    }
-
-    /// The parameter range (t_in, t_out) where the line o + t·d is inside the closed box,
-    /// with the local axis of the entry face: intersection of the three slabs in the
-    /// local frame (R is a rotation, so t is the same there). A local direction
-    /// component of 0 keeps the line in that slab iff its coordinate is.
-    fn line_range(&self, o: DVec3, d: DVec3) -> Option<(f64, f64, usize)> {
-        let o_l = self.rotation.transpose() * (o - self.center);
-        let d_l = self.rotation.transpose() * d;
-        let (mut t_in, mut t_out, mut axis_in) = (f64::NEG_INFINITY, f64::INFINITY, 0);
-        for axis in 0..3 {
-            let h = self.half[axis];
-            if d_l[axis] == 0.0 {
-                if o_l[axis].abs() > h {
-                    return None;
-                }
-                continue;
-            }
-            let a = (-h - o_l[axis]) / d_l[axis];
-            let b = (h - o_l[axis]) / d_l[axis];
-            let (near, far) = (a.min(b), a.max(b));
-            if near > t_in {
-                t_in = near;
-                axis_in = axis;
-            }
-            t_out = t_out.min(far);
-        }
-        (t_in <= t_out).then_some((t_in, t_out, axis_in))
-    }
-
-    /// The part of o + t·d, t ∈ [t_min, t_max], inside the box, if longer than zero.
-    fn span(&self, o: DVec3, d: DVec3, t_min: f64, t_max: f64) -> Option<(f64, f64)> {
-        let (t_in, t_out, _) = self.line_range(o, d)?;
-        let (a, b) = (t_in.max(t_min), t_out.min(t_max));
-        (a < b).then_some((a, b))
-    }
-}
-
-enum Geometry {
-    /// A parallelogram corner + a·edge_u + b·edge_v, a, b ∈ [0, 1].
-    Quad {
-        corner: DVec3,
-        edge_u: DVec3,
-        edge_v: DVec3,
-        /// Unit normal (either side).
-        normal: DVec3,
-    },
-    Box(OrientedBox),
-    Sphere {
-        center: DVec3,
-        radius: f64,
-    },
-}
-
-struct Surface {
-    geometry: Geometry,
-    albedo: DVec3,
-}
-
-impl Surface {
-    /// The nearest intersection of o + t·d (|d| = 1) with t > 0: t and a unit normal of
-    /// either orientation.
-    fn hit(&self, o: DVec3, d: DVec3) -> Option<(f64, DVec3)> {
-        match self.geometry {
-            Geometry::Quad {
-                corner,
-                edge_u,
-                edge_v,
-                normal,
-            } => {
-                // Möller–Trumbore with the parallelogram's (a, b) ∈ [0, 1]² test.
-                let p = d.cross(edge_v);
-                let det = edge_u.dot(p);
-                if det == 0.0 {
-                    return None;
-                }
-                let s = o - corner;
-                let a = s.dot(p) / det;
-                let q = s.cross(edge_u);
-                let b = d.dot(q) / det;
-                let t = edge_v.dot(q) / det;
-                ((0.0..=1.0).contains(&a) && (0.0..=1.0).contains(&b) && t > 0.0)
-                    .then_some((t, normal))
-            }
-            Geometry::Box(ref bounds) => {
-                let (t_in, t_out, axis) = bounds.line_range(o, d)?;
-                if t_in > 0.0 {
-                    Some((t_in, bounds.rotation.col(axis)))
-                } else if t_out > 0.0 {
-                    // From inside: the exit face, whichever axis it is.
-                    let x = bounds.rotation.transpose() * (o + t_out * d - bounds.center);
-                    let ratio = x.abs() / bounds.half;
-                    let axis = if ratio.x >= ratio.y && ratio.x >= ratio.z {
-                        0
-                    } else if ratio.y >= ratio.z {
-                        1
-                    } else {
-                        2
-                    };
-                    Some((t_out, bounds.rotation.col(axis)))
-                } else {
-                    None
-                }
-            }
-            Geometry::Sphere { center, radius } => {
-                // Geometric solution: closest approach along the ray, then the half chord.
-                let to_center = center - o;
-                let t_mid = to_center.dot(d);
-                let closest_sq = (to_center - t_mid * d).length_squared();
-                let half_chord_sq = radius * radius - closest_sq;
-                if half_chord_sq < 0.0 {
-                    return None;
-                }
-                let half_chord = half_chord_sq.sqrt();
-                let t = if t_mid - half_chord > 0.0 {
-                    t_mid - half_chord
-                } else if t_mid + half_chord > 0.0 {
-                    t_mid + half_chord
-                } else {
-                    return None;
-                };
-                Some((t, (o + t * d - center) / radius))
-            }
-        }
-    }
-}
-
 struct BoxMediumF64 {
     bounds: OrientedBox,
     sigma_t: f64,
     albedo: DVec3,
     g: f64,
-}
-
-struct GoboF64 {
-    origin: DVec3,
-    u: DVec3,
-    v: DVec3,
-    /// Counter-clockwise convex polygon.
-    polygon: Vec<DVec2>,
-}
-
-impl GoboF64 {
-    /// Whether x projects inside the polygon (boundary included): left of every edge.
-    fn lets_through(&self, x: DVec3) -> bool {
-        let q = DVec2::new((x - self.origin).dot(self.u), (x - self.origin).dot(self.v));
-        let n = self.polygon.len();
-        (0..n).all(|i| {
-            let (a, b) = (self.polygon[i], self.polygon[(i + 1) % n]);
-            (b - a).perp_dot(q - a) >= 0.0
-        })
-    }
 }
 
 struct Sun {
@@ -506,54 +173,33 @@ struct Tracer {
     environment: DVec3,
 }
 
-/// Running moments over paths (Welford's update, Chan et al.'s merge), so a constant
-/// estimate has a standard error of exactly 0.
+/// Running moments over paths, with the number of free-flight rays traced (camera ray
+/// plus one per continued scattering).
 #[derive(Clone, Copy, Default)]
 struct Sums {
-    n: u64,
-    mean: DVec3,
-    /// Σ (l − mean)².
-    m2: DVec3,
-    /// Free-flight rays traced (camera ray plus one per continued scattering).
+    moments: Moments,
     segments: u64,
 }
 
 impl Sums {
     fn add(&mut self, l: DVec3, segments: u32) {
-        self.n += 1;
-        let delta = l - self.mean;
-        self.mean += delta / self.n as f64;
-        self.m2 += delta * (l - self.mean);
+        self.moments.add(l);
         self.segments += u64::from(segments);
-    }
-
-    fn merge(&mut self, other: &Sums) {
-        if other.n == 0 {
-            return;
-        }
-        let (a, b) = (self.n as f64, other.n as f64);
-        let n = a + b;
-        let delta = other.mean - self.mean;
-        self.mean += delta * (b / n);
-        self.m2 += other.m2 + delta * delta * (a * b / n);
-        self.n += other.n;
-        self.segments += other.segments;
-    }
-
-    /// Mean and sqrt(s²/n) with the unbiased sample variance s² (n ≥ 2).
-    fn estimate(&self) -> McEstimate {
-        let n = self.n as f64;
-        let variance = (self.m2 / (n - 1.0)).max(DVec3::ZERO);
-        McEstimate {
-            mean: self.mean.to_array(),
-            std_error: (variance / n).to_array().map(f64::sqrt),
-        }
     }
 }
 
-/// Offset that lifts a point off a surface (relative to its coordinates' size).
-fn surface_offset(x: DVec3) -> f64 {
-    1e-9 * (1.0 + x.abs().max_element())
+impl PathSums for Sums {
+    fn merge(&mut self, other: &Sums) {
+        if other.moments.n == 0 {
+            return;
+        }
+        self.moments.merge(&other.moments);
+        self.segments += other.segments;
+    }
+
+    fn estimate(&self) -> McEstimate {
+        self.moments.estimate()
+    }
 }
 
 impl Tracer {
@@ -568,53 +214,14 @@ impl Tracer {
                 );
             };
             media.push(BoxMediumF64 {
-                bounds: OrientedBox::new(m.center, m.size, m.rotation_deg),
+                bounds: OrientedBox::from_scene(m.center, m.size, m.rotation_deg),
                 sigma_t: f64::from(m.sigma_t),
                 albedo: m.albedo.as_dvec3(),
                 g: f64::from(m.g),
             });
         }
 
-        let surfaces = scene
-            .shapes
-            .iter()
-            .map(|shape| match *shape {
-                Shape::Quad {
-                    corner,
-                    edge_u,
-                    edge_v,
-                    albedo,
-                } => Surface {
-                    geometry: Geometry::Quad {
-                        corner: corner.as_dvec3(),
-                        edge_u: edge_u.as_dvec3(),
-                        edge_v: edge_v.as_dvec3(),
-                        normal: edge_u.as_dvec3().cross(edge_v.as_dvec3()).normalize(),
-                    },
-                    albedo: albedo.as_dvec3(),
-                },
-                Shape::Box {
-                    center,
-                    size,
-                    rotation_deg,
-                    albedo,
-                } => Surface {
-                    geometry: Geometry::Box(OrientedBox::new(center, size, rotation_deg)),
-                    albedo: albedo.as_dvec3(),
-                },
-                Shape::Sphere {
-                    center,
-                    radius,
-                    albedo,
-                } => Surface {
-                    geometry: Geometry::Sphere {
-                        center: center.as_dvec3(),
-                        radius: f64::from(radius),
-                    },
-                    albedo: albedo.as_dvec3(),
-                },
-            })
-            .collect();
+        let surfaces = scene.shapes.iter().map(Surface::from_shape).collect();
 
         let mut suns = Vec::new();
         let mut environment = DVec3::ZERO;
@@ -627,15 +234,7 @@ impl Tracer {
                 } => suns.push(Sun {
                     omega: direction.as_dvec3().normalize(),
                     irradiance: irradiance.as_dvec3(),
-                    gobo: gobo.as_ref().map(|g: &Gobo| {
-                        let (u, v) = Gobo::basis(*direction);
-                        GoboF64 {
-                            origin: g.origin.as_dvec3(),
-                            u: u.as_dvec3(),
-                            v: v.as_dvec3(),
-                            polygon: g.polygon.iter().map(|p| p.as_dvec2()).collect(),
-                        }
-                    }),
+                    gobo: gobo.as_ref().map(|g| GoboF64::new(*direction, g)),
                 }),
                 Light::Environment {
                     radiance,
@@ -791,107 +390,31 @@ impl Tracer {
     /// `opts.paths` paths along one camera ray, in chunks shared among threads; path i
     /// uses stream i of the seed, and chunks are merged in order.
     fn radiance(&self, o: DVec3, d: DVec3, opts: &McOptions) -> Sums {
-        let chunks = opts.paths.div_ceil(CHUNK_PATHS) as usize;
-        let chunk = |c: usize| -> Sums {
-            let first = c as u32 * CHUNK_PATHS;
-            let last = (first + CHUNK_PATHS).min(opts.paths);
-            let mut sums = Sums::default();
-            for path in first..last {
-                let mut rng = Rng::new(opts.seed, u64::from(path));
-                let (l, segments) = self.trace_path(o, d, opts.max_bounces, &mut rng);
+        radiance_paths(
+            opts.paths,
+            opts.seed,
+            CHUNK_PATHS,
+            |sums: &mut Sums, rng| {
+                let (l, segments) = self.trace_path(o, d, opts.max_bounces, rng);
                 sums.add(l, segments);
-            }
-            sums
-        };
-        let threads = std::thread::available_parallelism()
-            .map_or(1, |t| t.get())
-            .min(chunks);
-        let next = AtomicUsize::new(0);
-        let mut done: Vec<(usize, Sums)> = std::thread::scope(|s| {
-            let workers: Vec<_> = (0..threads)
-                .map(|_| {
-                    s.spawn(|| {
-                        let mut done = Vec::new();
-                        loop {
-                            let c = next.fetch_add(1, Ordering::Relaxed);
-                            if c >= chunks {
-                                return done;
-                            }
-                            done.push((c, chunk(c)));
-                        }
-                    })
-                })
-                .collect();
-            workers
-                .into_iter()
-                .flat_map(|w| {
-                    w.join()
-                        .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
-                })
-                .collect()
-        });
-        done.sort_by_key(|(c, _)| *c);
-        let mut total = Sums::default();
-        for (_, sums) in &done {
-            total.merge(sums);
-        }
-        total
+            },
+        )
     }
 }
 
 /// Camera rays of frame 0 in f64, with `CameraFrame::ray_direction`'s convention.
-struct CameraRays {
-    position: DVec3,
-    forward: DVec3,
-    right: DVec3,
-    up: DVec3,
-    tan_x: f64,
-    tan_y: f64,
-    width: f64,
-    height: f64,
-}
-
-impl CameraRays {
-    fn new(scene: &Scene) -> Self {
-        let (position, look_at) = scene.camera.pose_at(0);
-        let (position, look_at) = (position.as_dvec3(), look_at.as_dvec3());
-        let forward = (look_at - position).normalize();
-        let right = forward.cross(scene.camera.up.as_dvec3()).normalize();
-        let up = right.cross(forward);
-        let (width, height) = (
-            f64::from(scene.render.width),
-            f64::from(scene.render.height),
-        );
-        let tan_x = (f64::from(scene.camera.horizontal_fov_deg).to_radians() * 0.5).tan();
-        Self {
-            position,
-            forward,
-            right,
-            up,
-            tan_x,
-            tan_y: tan_x * height / width,
-            width,
-            height,
-        }
-    }
-
-    /// Unit direction through image-plane point (px, py) in pixels, (0, 0) the top left.
-    fn direction(&self, px: f64, py: f64) -> DVec3 {
-        let sx = (2.0 * px / self.width - 1.0) * self.tan_x;
-        let sy = (1.0 - 2.0 * py / self.height) * self.tan_y;
-        (self.forward + sx * self.right + sy * self.up).normalize()
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use std::path::PathBuf;
 
-    use glam::Vec2;
-    use nimbus_scene::{BoxMedium, Camera, GridMedium, GridSource, Integrator, RenderSettings};
+    use glam::{Vec2, Vec3};
+    use nimbus_scene::{
+        BoxMedium, Camera, Gobo, GridMedium, GridSource, Integrator, RenderSettings, Shape,
+    };
 
     use super::*;
     use crate::reference::{self, ReferenceOptions};
+    use crate::reference_common::{rotation_f64, CameraRays};
 
     const QUADRATURE: ReferenceOptions = ReferenceOptions {
         rel_tol: 1e-9,
@@ -1437,9 +960,9 @@ mod tests {
         println!(
             "{} paths, {} segments ({:.2} per path) in {seconds:.3} s on {threads} threads: \
              {:.3} s per million segments",
-            sums.n,
+            sums.moments.n,
             sums.segments,
-            sums.segments as f64 / sums.n as f64,
+            sums.segments as f64 / sums.moments.n as f64,
             seconds / (sums.segments as f64 * 1e-6)
         );
     }
