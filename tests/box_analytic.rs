@@ -30,9 +30,12 @@
 //! how many configurations κ loosens beyond 1e-4, the largest error there as a fraction
 //! of κ, and the largest error everywhere else.
 
+mod common;
+
 use std::f64::consts::FRAC_1_SQRT_2;
 
 use bytemuck::{Pod, Zeroable};
+use common::rng::Pcg32;
 use glam::{DVec3, Vec3};
 use nimbus::reference::unoccluded_single_scatter;
 use nimbus_gpu::{
@@ -535,81 +538,6 @@ impl Case {
 /// |gpu − reference| relative to the reference, absolute below [`T_BOX_ABS_FLOOR`].
 fn t_box_error(gpu: f64, reference: f64) -> f64 {
     (gpu - reference).abs() / reference.max(T_BOX_ABS_FLOOR)
-}
-
-/// A small PCG32 (O'Neill): deterministic, seeded, good enough for test inputs.
-struct Pcg32 {
-    state: u64,
-    inc: u64,
-}
-
-impl Pcg32 {
-    fn new(seed: u64) -> Self {
-        let mut rng = Self {
-            state: 0,
-            inc: (seed << 1) | 1,
-        };
-        rng.next_u32();
-        rng.state = rng.state.wrapping_add(0x853c_49e6_748f_ea9b ^ seed);
-        rng.next_u32();
-        rng
-    }
-
-    fn next_u32(&mut self) -> u32 {
-        let old = self.state;
-        self.state = old
-            .wrapping_mul(6_364_136_223_846_793_005)
-            .wrapping_add(self.inc);
-        let xorshifted = (((old >> 18) ^ old) >> 27) as u32;
-        xorshifted.rotate_right((old >> 59) as u32)
-    }
-
-    /// Uniform in [0, 1) with 53 random bits.
-    fn uniform(&mut self) -> f64 {
-        let hi = u64::from(self.next_u32()) << 21;
-        let lo = u64::from(self.next_u32()) >> 11;
-        ((hi | lo) as f64) / (1u64 << 53) as f64
-    }
-
-    /// Uniform f32 in [0, 1) with 24 random bits, like the renderer's rng_next.
-    fn uniform_f32(&mut self) -> f32 {
-        (self.next_u32() >> 8) as f32 / 16_777_216.0
-    }
-
-    fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.uniform()
-    }
-
-    /// 10^U(lo_exp, hi_exp).
-    fn log_uniform(&mut self, lo_exp: f64, hi_exp: f64) -> f64 {
-        10f64.powf(self.range(lo_exp, hi_exp))
-    }
-
-    /// A uniform unit vector; sometimes with one or two components zeroed (axis-aligned
-    /// and face-parallel directions).
-    fn direction(&mut self) -> DVec3 {
-        loop {
-            let mut v = DVec3::new(
-                self.range(-1.0, 1.0),
-                self.range(-1.0, 1.0),
-                self.range(-1.0, 1.0),
-            );
-            let roll = self.uniform();
-            if roll < 0.05 {
-                let keep = (self.next_u32() % 3) as usize;
-                let mut axis = DVec3::ZERO;
-                axis[keep] = v[keep];
-                v = axis;
-            } else if roll < 0.15 {
-                let zero = (self.next_u32() % 3) as usize;
-                v[zero] = 0.0;
-            }
-            let len = v.length();
-            if len > 1e-3 && len <= 1.0 {
-                return v / len;
-            }
-        }
-    }
 }
 
 /// A random configuration: box half extents log-uniform over 1e-3..1e4 m with aspect

@@ -20,9 +20,12 @@
 //! The map's texel probabilities are all >= ~1e-3 relative to their CDF's range, so f32
 //! rounding of the tables (~6e-8 absolute) changes no pdf by more than ~1e-4 relative.
 
+mod common;
+
 use std::f64::consts::PI;
 
 use bytemuck::{Pod, Zeroable};
+use common::rng::Pcg32;
 use glam::DVec3;
 use nimbus_gpu::{
     vk, BindingDesc, Buffer, BufferDesc, ComputePipeline, ComputePipelineDesc, Context,
@@ -274,47 +277,6 @@ impl Drop for Gpu {
     }
 }
 
-/// PCG32 (O'Neill), for reproducible test data.
-struct Pcg32 {
-    state: u64,
-    inc: u64,
-}
-
-impl Pcg32 {
-    fn new(seed: u64) -> Self {
-        let mut rng = Self {
-            state: 0,
-            inc: (seed << 1) | 1,
-        };
-        rng.next_u32();
-        rng.state = rng.state.wrapping_add(0x853c_49e6_748f_ea9b ^ seed);
-        rng.next_u32();
-        rng
-    }
-
-    fn next_u32(&mut self) -> u32 {
-        let old = self.state;
-        self.state = old
-            .wrapping_mul(6_364_136_223_846_793_005)
-            .wrapping_add(self.inc);
-        let xorshifted = (((old >> 18) ^ old) >> 27) as u32;
-        xorshifted.rotate_right((old >> 59) as u32)
-    }
-
-    /// Uniform f32 in [0, 1) (24 bits).
-    fn uniform_f32(&mut self) -> f32 {
-        (self.next_u32() >> 8) as f32 / 16_777_216.0
-    }
-
-    /// A uniform unit vector, rounded to f32.
-    fn unit_vector(&mut self) -> [f32; 3] {
-        let z = 2.0 * f64::from(self.next_u32()) / 4_294_967_296.0 - 1.0;
-        let phi = 2.0 * PI * f64::from(self.next_u32()) / 4_294_967_296.0;
-        let r = (1.0 - z * z).max(0.0).sqrt();
-        [(r * phi.cos()) as f32, (r * phi.sin()) as f32, z as f32]
-    }
-}
-
 fn dvec(v: [f32; 3]) -> DVec3 {
     DVec3::new(v[0].into(), v[1].into(), v[2].into())
 }
@@ -338,7 +300,7 @@ fn relative_error(got: f64, want: f64) -> f64 {
 /// Directions for the pdf and lookup checks: random, poles (both signed zeros), near
 /// poles, the sun's centre, the seam, axis directions, a zero, a tiny and a huge vector.
 fn test_directions(rng: &mut Pcg32) -> Vec<[f32; 3]> {
-    let mut dirs: Vec<[f32; 3]> = (0..4096).map(|_| rng.unit_vector()).collect();
+    let mut dirs: Vec<[f32; 3]> = (0..4096).map(|_| rng.unit_vector_f32()).collect();
     let sun = uv_to_direction(
         (f64::from(SUN.0) + 0.5) / f64::from(W),
         (f64::from(SUN.1) + 0.5) / f64::from(H),

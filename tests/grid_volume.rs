@@ -19,7 +19,10 @@
 //!   degenerate rays (zero-length and reversed intervals, misses, rays in face planes,
 //!   along voxel edges, parallel to voxel planes).
 
+mod common;
+
 use bytemuck::{Pod, Zeroable};
+use common::rng::Pcg32;
 use nimbus_gpu::{
     vk, BindingDesc, Buffer, BufferDesc, ComputePipeline, ComputePipelineDesc, Context,
     ContextDesc, DescriptorWrite, Image, ImageDesc, SamplerDesc,
@@ -436,54 +439,6 @@ impl Drop for Gpu {
 // ---------------------------------------------------------------------------------------
 // Random media and rays.
 
-/// PCG32 (O'Neill), for reproducible test data.
-struct Pcg32 {
-    state: u64,
-    inc: u64,
-}
-
-impl Pcg32 {
-    fn new(seed: u64) -> Self {
-        let mut rng = Self {
-            state: 0,
-            inc: (seed << 1) | 1,
-        };
-        rng.next_u32();
-        rng.state = rng.state.wrapping_add(0x853c_49e6_748f_ea9b ^ seed);
-        rng.next_u32();
-        rng
-    }
-
-    fn next_u32(&mut self) -> u32 {
-        let old = self.state;
-        self.state = old
-            .wrapping_mul(6_364_136_223_846_793_005)
-            .wrapping_add(self.inc);
-        let xorshifted = (((old >> 18) ^ old) >> 27) as u32;
-        xorshifted.rotate_right((old >> 59) as u32)
-    }
-
-    /// Uniform in [0, 1).
-    fn uniform(&mut self) -> f64 {
-        f64::from(self.next_u32()) / 4_294_967_296.0
-    }
-
-    fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.uniform()
-    }
-
-    fn below(&mut self, n: u32) -> u32 {
-        self.next_u32() % n
-    }
-
-    fn unit_vector(&mut self) -> [f64; 3] {
-        let z = self.range(-1.0, 1.0);
-        let phi = self.range(0.0, std::f64::consts::TAU);
-        let r = (1.0 - z * z).max(0.0).sqrt();
-        [r * phi.cos(), r * phi.sin(), z]
-    }
-}
-
 /// A random grid: uniform values with ~30 % zeros, and an all-zero corner block of
 /// 8×8×8 voxels (an empty super-voxel).
 fn random_grid(dims: [u32; 3], rng: &mut Pcg32) -> VoxelGrid {
@@ -499,11 +454,11 @@ fn random_grid_above(dims: [u32; 3], floor: f64, rng: &mut Pcg32) -> VoxelGrid {
             for i in 0..dims[0] {
                 let empty_block = i < 8 && j < 8 && k < 8 && dims.iter().all(|&n| n > 9);
                 let v = if floor > 0.0 {
-                    (floor + (1.0 - floor) * rng.uniform()) as f32
-                } else if empty_block || rng.uniform() < 0.3 {
+                    (floor + (1.0 - floor) * rng.uniform32()) as f32
+                } else if empty_block || rng.uniform32() < 0.3 {
                     0.0
                 } else {
-                    rng.uniform() as f32
+                    rng.uniform32() as f32
                 };
                 data.push(v);
             }
@@ -568,30 +523,30 @@ fn random_rays(m: &Medium, count: usize, rng: &mut Pcg32) -> Vec<Ray> {
     let lo = m.bounds_min.map(f64::from);
     let size = m.size();
     let diag = (size[0] * size[0] + size[1] * size[1] + size[2] * size[2]).sqrt();
-    let inside = |rng: &mut Pcg32| [0, 1, 2].map(|a| lo[a] + rng.uniform() * size[a]);
+    let inside = |rng: &mut Pcg32| [0, 1, 2].map(|a| lo[a] + rng.uniform32() * size[a]);
     let mut rays = Vec::with_capacity(count);
     while rays.len() < count {
         let ray = match rays.len() % 8 {
             // Inside start, random interval (sometimes starting behind the origin).
             0 => {
-                let t0 = if rng.uniform() < 0.3 {
-                    rng.range(-diag, 0.0)
+                let t0 = if rng.uniform32() < 0.3 {
+                    rng.range32(-diag, 0.0)
                 } else {
                     0.0
                 };
                 Ray {
                     o: to_f32(inside(rng)),
-                    d: unit_f32(rng.unit_vector()),
+                    d: unit_f32(rng.unit_vector_f64()),
                     t0: t0 as f32,
-                    t1: (t0 + rng.range(0.0, 1.5 * diag)) as f32,
+                    t1: (t0 + rng.range32(0.0, 1.5 * diag)) as f32,
                     kind: "inside",
                 }
             }
             // Outside start aimed at a point inside, to infinity.
             1 | 2 => {
                 let target = inside(rng);
-                let dir = rng.unit_vector();
-                let o = [0, 1, 2].map(|a| target[a] - dir[a] * rng.range(0.5, 1.5) * diag);
+                let dir = rng.unit_vector_f64();
+                let o = [0, 1, 2].map(|a| target[a] - dir[a] * rng.range32(0.5, 1.5) * diag);
                 Ray {
                     o: to_f32(o),
                     d: unit_f32(dir),
@@ -612,8 +567,8 @@ fn random_rays(m: &Medium, count: usize, rng: &mut Pcg32) -> Vec<Ray> {
                     }
                 }
                 let mut d = [0.0; 3];
-                d[axis] = if rng.uniform() < 0.5 { 1.0 } else { -1.0 };
-                if rng.uniform() < 0.5 {
+                d[axis] = if rng.uniform32() < 0.5 { 1.0 } else { -1.0 };
+                if rng.uniform32() < 0.5 {
                     // Start outside, looking in.
                     o[axis] = if d[axis] > 0.0 {
                         lo[axis] - 0.3 * size[axis]
@@ -633,12 +588,12 @@ fn random_rays(m: &Medium, count: usize, rng: &mut Pcg32) -> Vec<Ray> {
             5 => {
                 let axis = rng.below(3) as usize;
                 let mut o = inside(rng);
-                o[axis] = if rng.uniform() < 0.5 {
+                o[axis] = if rng.uniform32() < 0.5 {
                     lo[axis]
                 } else {
                     f64::from(m.bounds_max[axis])
                 };
-                let mut dir = rng.unit_vector();
+                let mut dir = rng.unit_vector_f64();
                 dir[axis] = 0.0;
                 Ray {
                     o: to_f32(o),
@@ -650,7 +605,7 @@ fn random_rays(m: &Medium, count: usize, rng: &mut Pcg32) -> Vec<Ray> {
             }
             // Parallel to one axis's planes, random otherwise.
             6 => {
-                let mut dir = rng.unit_vector();
+                let mut dir = rng.unit_vector_f64();
                 dir[rng.below(3) as usize] = 0.0;
                 Ray {
                     o: to_f32(inside(rng)),
@@ -663,7 +618,7 @@ fn random_rays(m: &Medium, count: usize, rng: &mut Pcg32) -> Vec<Ray> {
             // Degenerate intervals and misses.
             _ => {
                 let o = to_f32(inside(rng));
-                let d = unit_f32(rng.unit_vector());
+                let d = unit_f32(rng.unit_vector_f64());
                 match rng.below(3) {
                     0 => Ray {
                         o,
@@ -683,7 +638,7 @@ fn random_rays(m: &Medium, count: usize, rng: &mut Pcg32) -> Vec<Ray> {
                         // Beside the box, parallel to its nearest face.
                         let mut o = o;
                         o[0] = (f64::from(m.bounds_max[0]) + 0.1 * size[0]) as f32;
-                        let mut d = rng.unit_vector();
+                        let mut d = rng.unit_vector_f64();
                         d[0] = 0.0;
                         Ray {
                             o,
@@ -786,19 +741,19 @@ fn sigma_t_equals_voxel_values_at_centres_and_zero_outside() {
         let size = medium.size();
         for _ in 0..256 {
             let mut x =
-                [0, 1, 2].map(|a| f64::from(medium.bounds_min[a]) + rng.uniform() * size[a]);
+                [0, 1, 2].map(|a| f64::from(medium.bounds_min[a]) + rng.uniform32() * size[a]);
             let axis = rng.below(3) as usize;
-            x[axis] = if rng.uniform() < 0.5 {
-                f64::from(medium.bounds_min[axis]) - rng.range(1e-3, 2.0) * size[axis]
+            x[axis] = if rng.uniform32() < 0.5 {
+                f64::from(medium.bounds_min[axis]) - rng.range32(1e-3, 2.0) * size[axis]
             } else {
-                f64::from(medium.bounds_max[axis]) + rng.range(1e-3, 2.0) * size[axis]
+                f64::from(medium.bounds_max[axis]) + rng.range32(1e-3, 2.0) * size[axis]
             };
             points.push(x);
             expected.push(0.0);
         }
         // Random points inside against sample_trilinear (border half-voxels included).
         for _ in 0..1024 {
-            let x = [0, 1, 2].map(|a| f64::from(medium.bounds_min[a]) + rng.uniform() * size[a]);
+            let x = [0, 1, 2].map(|a| f64::from(medium.bounds_min[a]) + rng.uniform32() * size[a]);
             let x = x.map(|c| f64::from(c as f32));
             points.push(x);
             expected.push(medium.sigma_t(x));

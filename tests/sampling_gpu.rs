@@ -49,6 +49,7 @@
 mod common;
 
 use bytemuck::{Pod, Zeroable};
+use common::rng::Pcg32;
 use nimbus_gpu::{
     vk, BindingDesc, Buffer, BufferDesc, ComputePipeline, ComputePipelineDesc, Context,
     DescriptorWrite,
@@ -215,52 +216,6 @@ impl Drop for Gpu {
 // ---------------------------------------------------------------------------------------
 // Random numbers and vectors.
 
-/// PCG32 (O'Neill), for reproducible test data.
-struct Pcg32 {
-    state: u64,
-    inc: u64,
-}
-
-impl Pcg32 {
-    fn new(seed: u64) -> Self {
-        let mut rng = Self {
-            state: 0,
-            inc: (seed << 1) | 1,
-        };
-        rng.next_u32();
-        rng.state = rng.state.wrapping_add(0x853c_49e6_748f_ea9b ^ seed);
-        rng.next_u32();
-        rng
-    }
-
-    fn next_u32(&mut self) -> u32 {
-        let old = self.state;
-        self.state = old
-            .wrapping_mul(6_364_136_223_846_793_005)
-            .wrapping_add(self.inc);
-        let xorshifted = (((old >> 18) ^ old) >> 27) as u32;
-        xorshifted.rotate_right((old >> 59) as u32)
-    }
-
-    /// Uniform on the 2^24 f32 values k 2^-24 in [0, 1).
-    fn uniform_f32(&mut self) -> f32 {
-        (self.next_u32() >> 8) as f32 * (1.0 / 16_777_216.0)
-    }
-
-    fn uniforms(&mut self, n: usize) -> Vec<[f32; 2]> {
-        (0..n)
-            .map(|_| [self.uniform_f32(), self.uniform_f32()])
-            .collect()
-    }
-
-    fn unit_vector(&mut self) -> [f32; 3] {
-        let z = 2.0 * f64::from(self.uniform_f32()) - 1.0;
-        let phi = 2.0 * std::f64::consts::PI * f64::from(self.uniform_f32());
-        let r = (1.0 - z * z).max(0.0).sqrt();
-        unit_f32([r * phi.cos(), r * phi.sin(), z])
-    }
-}
-
 type V3 = [f64; 3];
 
 fn dot(a: V3, b: V3) -> f64 {
@@ -298,7 +253,7 @@ fn axes(rng: &mut Pcg32) -> Vec<(&'static str, [f32; 3])> {
         ("+Z", [0.0, 0.0, 1.0]),
         ("-Z", [0.0, 0.0, -1.0]),
         ("z≈-1", unit_f32([1e-3, -2e-3, -1.0])),
-        ("random", rng.unit_vector()),
+        ("random", rng.unit_vector_f32_renormalized()),
     ]
 }
 
