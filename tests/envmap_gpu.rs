@@ -29,7 +29,7 @@ use common::rng::Pcg32;
 use glam::DVec3;
 use nimbus_gpu::{
     vk, BindingDesc, Buffer, BufferDesc, ComputePipeline, ComputePipelineDesc, Context,
-    ContextDesc, DescriptorWrite,
+    DescriptorWrite,
 };
 use nimbus_scene::{direction_to_uv, uv_to_direction, EnvMap, EnvSampler};
 
@@ -121,17 +121,8 @@ struct Gpu {
 
 impl Gpu {
     fn new(map: &EnvMap, sampler: &EnvSampler) -> Self {
-        let ctx = Context::new(&ContextDesc {
-            validation: true,
-            device_filter: std::env::var("NIMBUS_DEVICE").ok(),
-            app_name: "nimbus-envmap-gpu-tests".into(),
-        })
-        .expect("a Vulkan device (install mesa-vulkan-drivers for lavapipe)");
-        println!("adapter: {}", ctx.info().name);
-        let spirv: Vec<u32> = nimbus::shaders::TESTS_ENVMAP_SAMPLING
-            .chunks_exact(4)
-            .map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
-            .collect();
+        let ctx = common::gpu::context();
+        let spirv = common::gpu::spirv(nimbus::shaders::TESTS_ENVMAP_SAMPLING);
         let bindings = [0, 1, 2, 3, 4].map(BindingDesc::storage_buffer);
         let pipeline = ctx
             .create_compute_pipeline(
@@ -255,13 +246,7 @@ impl Gpu {
 
     /// Fails on any validation error so far.
     fn finish(self) {
-        let errors = self.ctx.validation_errors();
-        assert!(
-            errors.is_empty(),
-            "{} validation error(s):\n{}",
-            errors.len(),
-            errors.join("\n")
-        );
+        common::gpu::assert_no_validation_errors(&self.ctx);
     }
 }
 

@@ -25,7 +25,7 @@ use bytemuck::{Pod, Zeroable};
 use common::rng::Pcg32;
 use nimbus_gpu::{
     vk, BindingDesc, Buffer, BufferDesc, ComputePipeline, ComputePipelineDesc, Context,
-    ContextDesc, DescriptorWrite, Image, ImageDesc, SamplerDesc,
+    DescriptorWrite, Image, ImageDesc, SamplerDesc,
 };
 use nimbus_scene::{procedural_cloud, VoxelGrid, SUPER_VOXEL_FACTOR};
 
@@ -272,17 +272,8 @@ struct GpuMedium {
 
 impl Gpu {
     fn new() -> Self {
-        let ctx = Context::new(&ContextDesc {
-            validation: true,
-            device_filter: std::env::var("NIMBUS_DEVICE").ok(),
-            app_name: "nimbus-grid-volume-tests".into(),
-        })
-        .expect("a Vulkan device (install mesa-vulkan-drivers for lavapipe)");
-        println!("adapter: {}", ctx.info().name);
-        let spirv: Vec<u32> = nimbus::shaders::TESTS_GRID_VOLUME
-            .chunks_exact(4)
-            .map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
-            .collect();
+        let ctx = common::gpu::context();
+        let spirv = common::gpu::spirv(nimbus::shaders::TESTS_GRID_VOLUME);
         let bindings = [
             BindingDesc::sampled_image(0),
             BindingDesc::storage_buffer(1),
@@ -417,13 +408,7 @@ impl Gpu {
 
     /// Fails on any validation error so far.
     fn finish(self) {
-        let errors = self.ctx.validation_errors();
-        assert!(
-            errors.is_empty(),
-            "{} validation error(s):\n{}",
-            errors.len(),
-            errors.join("\n")
-        );
+        common::gpu::assert_no_validation_errors(&self.ctx);
     }
 }
 

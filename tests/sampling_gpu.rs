@@ -106,10 +106,7 @@ struct Gpu {
 impl Gpu {
     fn new() -> Self {
         let ctx = common::gpu::context();
-        let spirv: Vec<u32> = nimbus::shaders::TESTS_SAMPLING
-            .chunks_exact(4)
-            .map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
-            .collect();
+        let spirv = common::gpu::spirv(nimbus::shaders::TESTS_SAMPLING);
         let bindings = [
             BindingDesc::storage_buffer(0),
             BindingDesc::storage_buffer(1),
@@ -195,13 +192,7 @@ impl Gpu {
 
     /// Fails on any validation error so far.
     fn finish(self) {
-        let errors = self.ctx.validation_errors();
-        assert!(
-            errors.is_empty(),
-            "{} validation error(s):\n{}",
-            errors.len(),
-            errors.join("\n")
-        );
+        common::gpu::assert_no_validation_errors(&self.ctx);
     }
 }
 

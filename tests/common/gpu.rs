@@ -31,12 +31,7 @@ pub fn scene(text: &str, name: &str) -> Scene {
 pub fn render_checked(ctx: &Context, scene: &Scene, box_samples: Option<u32>) -> RenderResult {
     let plan = plan::build(scene, box_samples).expect("plan");
     let result = render(ctx, scene, &plan, &RenderOptions::default()).expect("render");
-    let errors = ctx.validation_errors();
-    assert!(
-        errors.is_empty(),
-        "validation errors:\n{}",
-        errors.join("\n")
-    );
+    assert_no_validation_errors(ctx);
     assert_eq!(result.non_finite_samples, 0, "non-finite samples");
     assert!(result.image.first_non_finite().is_none());
     result
@@ -56,4 +51,20 @@ pub fn se_of_mean(se: &nimbus::output::ImageRgb) -> f64 {
                 / n
         })
         .fold(0.0, f64::max)
+}
+
+/// Fail with every validation error the context has collected so far.
+pub fn assert_no_validation_errors(ctx: &Context) {
+    let errors = ctx.validation_errors();
+    assert!(
+        errors.is_empty(),
+        "{} validation error(s):\n{}",
+        errors.len(),
+        errors.join("\n")
+    );
+}
+
+/// Embedded SPIR-V of a test shader as words.
+pub fn spirv(bytes: &[u8]) -> Vec<u32> {
+    nimbus::passes::crepuscular::spirv_words(bytes).expect("embedded SPIR-V is whole words")
 }
