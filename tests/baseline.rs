@@ -5,7 +5,7 @@
 mod common;
 
 use common::gpu::{context, render_checked, scene, se_of_mean};
-use common::{compare_with_golden, Tolerance};
+use common::{compare_with_golden, SAME_DEVICE};
 
 /// A procedural cloud; `{albedo}`, `{g}`, `{bounces}`, `{scale}`, `{lights}` and the
 /// camera position are filled in per test.
@@ -142,9 +142,7 @@ fn furnace_non_absorbing_cloud_under_constant_environment() {
     }
 }
 
-/// The default-style cloud at a small size against its golden. Same seed, same
-/// device: the image matches up to floating-point reassociation between Mesa builds;
-/// the limits are far below what a changed sample sequence costs at this noise level.
+/// The cloud scene at a small size against its golden (limits: `SAME_DEVICE`).
 #[test]
 fn golden_cloud_baseline() {
     let ctx = context();
@@ -159,15 +157,7 @@ fn golden_cloud_baseline() {
     scene.render.frames = 2;
     scene.render.spp = 2;
     let result = render_checked(&ctx, &scene, None);
-    compare_with_golden(
-        "cloud-baseline-64x48",
-        &result.image,
-        Tolerance {
-            max_mean_flip: 0.005,
-            max_rel_mse: 1e-4,
-        },
-    )
-    .unwrap();
+    compare_with_golden("cloud-baseline-64x48", &result.image, SAME_DEVICE).unwrap();
 }
 
 /// The baseline (decomposition tracking + residual ratio tracking on super-voxels)

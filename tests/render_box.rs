@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{compare_with_golden, Tolerance};
+use common::{compare_with_golden, SAME_DEVICE};
 use nimbus::output::ImageRgb;
 use nimbus::reference::{self, ReferenceOptions};
 use nimbus::renderer::RenderResult;
@@ -98,10 +98,7 @@ fn rm_converges_to_the_f64_reference_on_an_unoccluded_box() {
     );
 }
 
-/// The default scene at a small size. Same seed, same device: the image should match
-/// its golden up to floating-point reassociation between Mesa builds, so the limits
-/// sit far below what a one-pixel shift of a shadow edge costs (mean FLIP ~0.01) but
-/// well above lavapipe's run-to-run difference (zero here).
+/// The default scene at a small size against its golden (limits: `SAME_DEVICE`).
 #[test]
 fn golden_default_window_scene() {
     let ctx = context();
@@ -111,15 +108,7 @@ fn golden_default_window_scene() {
     scene.render.frames = 2;
     scene.render.spp = 2;
     let result = render_scene(&ctx, &scene, None);
-    compare_with_golden(
-        "window-default-96x72",
-        &result.image,
-        Tolerance {
-            max_mean_flip: 0.005,
-            max_rel_mse: 1e-4,
-        },
-    )
-    .unwrap();
+    compare_with_golden("window-default-96x72", &result.image, SAME_DEVICE).unwrap();
 }
 
 /// A gobo-masked light, a second light, a sphere and a box occluder inside a rotated
@@ -186,21 +175,13 @@ albedo = 0.6
 box_estimator = "rm"
 "#;
 
-/// Golden of the gobo scene; limits as for the window scene.
+/// Golden of the gobo scene (limits: `SAME_DEVICE`).
 #[test]
 fn golden_gobo_sphere_box_inside_medium() {
     let ctx = context();
     let scene = scene(GOBO_SCENE, "gobo.toml");
     let result = render_scene(&ctx, &scene, Some(8));
-    compare_with_golden(
-        "gobo-rm-64x64",
-        &result.image,
-        Tolerance {
-            max_mean_flip: 0.005,
-            max_rel_mse: 1e-4,
-        },
-    )
-    .unwrap();
+    compare_with_golden("gobo-rm-64x64", &result.image, SAME_DEVICE).unwrap();
 }
 
 /// The gobo scene with occluders, gobo and camera inside the medium also converges to
