@@ -474,4 +474,49 @@ mod tests {
         assert_eq!(p.estimator, BoxEstimator::Rees);
         assert!(plan.explain(&gobo).contains("[on ]   SC_HAS_GOBOS"));
     }
+
+    #[test]
+    fn grid_scenes_name_what_the_baseline_does_not_take() {
+        let grid = |i: u32| {
+            format!(
+                "[[medium]]\ntype = \"grid\"\nbounds_min = [{x}, 0, 0]\nbounds_max = [{y}, 1, 1]\n\
+                 density = {{ procedural = \"cloud\", dims = [4, 4, 4] }}\n",
+                x = 2 * i,
+                y = 2 * i + 1
+            )
+        };
+        let text = |body: &str, volume: &str| {
+            format!(
+                "[camera]\nposition = [0, 0, 30]\nlook_at = [0, 0, 0]\n{body}\n[integrator]\nvolume = \"{volume}\"\n"
+            )
+        };
+        let err = |body: &str, volume: &str| {
+            let scene = nimbus_scene::parse_str(&text(body, volume), Path::new("grid.toml"))
+                .expect("parses");
+            build(&scene, None).unwrap_err().to_string()
+        };
+        let e = err(&grid(0), "restir");
+        assert!(
+            e.contains("grid.toml") && e.contains("[integrator]") && e.contains("`volume`"),
+            "{e}"
+        );
+        let e = err(&format!("{}{}", grid(0), grid(1)), "baseline");
+        assert!(
+            e.contains("[[medium]] #2") && e.contains("one grid medium"),
+            "{e}"
+        );
+        let gobo = "[[light]]\ntype = \"directional\"\ndirection = [0, -1, 0]\nirradiance = 1\ngobo = [[0, 0], [1, 0], [0, 1]]\n";
+        let e = err(&format!("{}{gobo}", grid(0)), "baseline");
+        assert!(e.contains("[[light]] #1") && e.contains("gobo"), "{e}");
+
+        let ok =
+            nimbus_scene::parse_str(&text(&grid(0), "baseline"), Path::new("grid.toml")).unwrap();
+        let plan = build(&ok, None).unwrap();
+        assert!(plan.crepuscular.is_none());
+        let b = plan.baseline.as_ref().unwrap();
+        assert!(!b.has_emission && !b.has_env && !b.has_env_map && !b.has_boxes);
+        assert!(plan
+            .explain(&ok)
+            .contains("[on ] pass baseline path tracer"));
+    }
 }
