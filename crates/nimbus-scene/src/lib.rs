@@ -29,6 +29,14 @@
 //! - `[camera]` is required, with `position` and `look_at`; when `[[camera.keyframe]]`
 //!   entries exist, `position` / `look_at` may be left out and default to the first
 //!   keyframe's. Each keyframe needs `frame`, `position` and `look_at`.
+//! - `[[light.keyframe]]` (a Nimbus addition) animates a directional light without a
+//!   gobo (`direction`, `irradiance`), a point light (`position`, `intensity`) or a
+//!   sphere light (`center`, `radiance`); each keyframe needs `frame` and may give any
+//!   of its light's two animatable fields. A field a keyframe leaves out holds the
+//!   light's static value at that keyframe. The static field may itself be left out
+//!   when the first keyframe (lowest `frame`) gives it, and defaults to that value.
+//!   [`Scene::lights_at`] interpolates linearly by frame (directions by normalized
+//!   lerp) and clamps outside the keyed range, like the camera.
 //! - Media: `albedo` 1 (no absorption), `g` 0, `rotation_deg` [0, 0, 0]; grid
 //!   `density_scale` 1, `emission_scale` 1. Shapes: `albedo` 0.
 //! - Directional light: `gobo_origin` [0, 0, 0] (an error without `gobo`).
@@ -46,6 +54,7 @@
 //! | `horizontal_fov_deg` | (0, 180) exclusive |
 //! | camera | `position` ≠ `look_at` (relative 1e-6), `up` not within ~0.006° of the view direction, also for every keyframe and every interpolated pose in `0..frames` |
 //! | keyframe / medium `frame` | u32, unique within their list (lists are sorted) |
+//! | light keyframes | not on environment lights or directional lights with a `gobo`; keyframe directions non-zero; consecutive keyframe directions (after filling in the light's static one) not nearly opposite: dot >= −0.999 |
 //! | `sigma_t`, `density_scale` | [0, 1e9] 1/m |
 //! | `albedo` (media and shapes) | each component in [0, 1] |
 //! | `g` | (−1, 1) exclusive |
@@ -77,6 +86,16 @@
 //! rejects NaN / infinite values anywhere and negative density or emission, naming
 //! the file, the voxel (i, j, k) and the value. `procedural = "cloud"` grids come from
 //! [`procedural_cloud`], bit-identical for a `(dims, noise_seed)` on every platform.
+//!
+//! # Animated grids
+//! [`GridMedium::density_index_at`] / [`GridMedium::density_at`] give the density grid
+//! in effect at a frame (the latest `[[medium.frame]]` at or before it, else the base
+//! `density`), indexing [`GridMedium::density_sources`]. The format lets frame grids
+//! and the velocity grid have dims other than the density's; the loader does not
+//! compare them. A renderer that needs them equal calls
+//! [`GridMedium::animation_dims`] (reads `.vol` headers only) and compares the grids
+//! it loads with [`check_same_dims`]. Velocity grids load with `load_grid(source, 3,
+//! what)`.
 //!
 //! Derived structures, all in voxel-index space (voxel centres at i + 0.5):
 //! - [`VoxelGrid::sample_trilinear`]: trilinear between centres, clamped to the
@@ -116,7 +135,8 @@ pub use procedural::procedural_cloud;
 pub use types::*;
 pub use vol_write::write_vol;
 pub use volume::{
-    check_grid_memory, load_grid, SuperVoxels, VoxelGrid, MAX_GRID_VALUES, SUPER_VOXEL_FACTOR,
+    check_grid_memory, check_same_dims, load_grid, SuperVoxels, VoxelGrid, MAX_GRID_VALUES,
+    SUPER_VOXEL_FACTOR,
 };
 
 /// Reads and validates the scene file at `path`.

@@ -16,6 +16,12 @@ pub struct Scene {
     pub render: RenderSettings,
     pub camera: Camera,
     pub lights: Vec<Light>,
+    /// `[[light.keyframe]]` entries, indexed like `lights`: `light_keyframes[i]` animates
+    /// `lights[i]` (sorted by `frame`, frames unique). The loader gives every light an
+    /// entry (empty when it is not animated); a light past the end of this list (all of
+    /// them when it is empty, e.g. in a scene built in code) is not animated. Use
+    /// [`Scene::lights_at`] rather than reading it directly.
+    pub light_keyframes: Vec<Vec<LightKeyframe>>,
     pub media: Vec<Medium>,
     pub shapes: Vec<Shape>,
     pub integrator: Integrator,
@@ -109,6 +115,34 @@ pub enum Light {
     Sphere {
         center: Vec3,
         radius: f32,
+        radiance: Vec3,
+    },
+}
+
+/// `[[light.keyframe]]`: a light's animatable values at `frame`. Complete: fields the
+/// keyframe leaves out hold the light's static value.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LightKeyframe {
+    pub frame: u32,
+    /// Of the same type as the light it animates.
+    pub state: LightState,
+}
+
+/// The animatable fields of a light (environment lights and directional lights with a
+/// gobo are not animatable).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LightState {
+    Directional {
+        /// Normalized.
+        direction: Vec3,
+        irradiance: Vec3,
+    },
+    Point {
+        position: Vec3,
+        intensity: Vec3,
+    },
+    Sphere {
+        center: Vec3,
         radiance: Vec3,
     },
 }
@@ -319,6 +353,216 @@ impl Gobo {
         let u = direction.cross(up_ref).normalize();
         let v = u.cross(direction);
         (u, v)
+    }
+}
+
+impl Scene {
+    /// The lights at `frame` of an animation: each light with its `[[light.keyframe]]`
+    /// values applied, linearly interpolated between keyframes by frame and clamped
+    /// outside the keyed range (the convention of [`Camera::frame_at`]); directions are
+    /// interpolated by normalized lerp. Equal to `self.lights` when no light is
+    /// animated. Same length and order as `self.lights`.
+    pub fn lights_at(&self, frame: u32) -> Vec<Light> {
+        self.lights
+            .iter()
+            .enumerate()
+            .map(|(i, light)| {
+                let keys = self.light_keyframes.get(i).map_or(&[][..], Vec::as_slice);
+                match light_state_at(keys, frame) {
+                    Some(state) => light.with_state(state),
+                    None => light.clone(),
+                }
+            })
+            .collect()
+    }
+
+    /// Whether any light has `[[light.keyframe]]` entries, i.e. whether
+    /// [`Scene::lights_at`] may differ from `self.lights` (and between frames).
+    pub fn lights_animated(&self) -> bool {
+        self.light_keyframes
+            .iter()
+            .take(self.lights.len())
+            .any(|keys| !keys.is_empty())
+    }
+}
+
+/// The state of a light animated by `keys` (sorted by frame) at `frame`: linear between
+/// keyframes, clamped outside, exactly a keyframe's state at its frame. `None` without
+/// keyframes.
+fn light_state_at(keys: &[LightKeyframe], frame: u32) -> Option<LightState> {
+    let first = keys.first()?;
+    if frame <= first.frame {
+        return Some(first.state);
+    }
+    for pair in keys.windows(2) {
+        let (a, b) = (pair[0], pair[1]);
+        if frame == b.frame {
+            return Some(b.state);
+        }
+        if frame < b.frame {
+            let s = (frame - a.frame) as f32 / (b.frame - a.frame) as f32;
+            return Some(a.state.lerp(b.state, s));
+        }
+    }
+    keys.last().map(|k| k.state)
+}
+
+impl LightState {
+    /// Interpolates from `self` (s = 0) to `other` (s = 1): positions and colours
+    /// linearly, directions by normalized lerp (keeping `self`'s direction if the two
+    /// are exactly opposite at the midpoint). Different light types give `self`.
+    pub fn lerp(self, other: Self, s: f32) -> Self {
+        match (self, other) {
+            (
+                Self::Directional {
+                    direction: d0,
+                    irradiance: e0,
+                },
+                Self::Directional {
+                    direction: d1,
+                    irradiance: e1,
+                },
+            ) => Self::Directional {
+                direction: d0.lerp(d1, s).try_normalize().unwrap_or(d0),
+                irradiance: e0.lerp(e1, s),
+            },
+            (
+                Self::Point {
+                    position: p0,
+                    intensity: i0,
+                },
+                Self::Point {
+                    position: p1,
+                    intensity: i1,
+                },
+            ) => Self::Point {
+                position: p0.lerp(p1, s),
+                intensity: i0.lerp(i1, s),
+            },
+            (
+                Self::Sphere {
+                    center: c0,
+                    radiance: l0,
+                },
+                Self::Sphere {
+                    center: c1,
+                    radiance: l1,
+                },
+            ) => Self::Sphere {
+                center: c0.lerp(c1, s),
+                radiance: l0.lerp(l1, s),
+            },
+            _ => self,
+        }
+    }
+}
+
+impl Light {
+    /// The light's animatable values; `None` for environment lights.
+    pub fn state(&self) -> Option<LightState> {
+        match self {
+            Self::Directional {
+                direction,
+                irradiance,
+                ..
+            } => Some(LightState::Directional {
+                direction: *direction,
+                irradiance: *irradiance,
+            }),
+            Self::Environment { .. } => None,
+            Self::Point {
+                position,
+                intensity,
+            } => Some(LightState::Point {
+                position: *position,
+                intensity: *intensity,
+            }),
+            Self::Sphere {
+                center, radiance, ..
+            } => Some(LightState::Sphere {
+                center: *center,
+                radiance: *radiance,
+            }),
+        }
+    }
+
+    /// A copy of this light with its animatable fields set from `state`; other fields
+    /// (a sphere's radius, a gobo) are kept. A `state` of a different light type
+    /// changes nothing.
+    pub fn with_state(&self, state: LightState) -> Light {
+        let mut light = self.clone();
+        match (&mut light, state) {
+            (
+                Self::Directional {
+                    direction,
+                    irradiance,
+                    ..
+                },
+                LightState::Directional {
+                    direction: d,
+                    irradiance: e,
+                },
+            ) => {
+                *direction = d;
+                *irradiance = e;
+            }
+            (
+                Self::Point {
+                    position,
+                    intensity,
+                },
+                LightState::Point {
+                    position: p,
+                    intensity: i,
+                },
+            ) => {
+                *position = p;
+                *intensity = i;
+            }
+            (
+                Self::Sphere {
+                    center, radiance, ..
+                },
+                LightState::Sphere {
+                    center: c,
+                    radiance: l,
+                },
+            ) => {
+                *center = c;
+                *radiance = l;
+            }
+            _ => {}
+        }
+        light
+    }
+}
+
+impl GridMedium {
+    /// Which density grid is in effect at `frame`: 0 for the base `density`, `i + 1`
+    /// for `frames[i]`, the `[[medium.frame]]` entry with the largest `frame` <= the
+    /// given frame (the base density before the first entry). Indexes
+    /// [`GridMedium::density_sources`].
+    pub fn density_index_at(&self, frame: u32) -> usize {
+        self.frames
+            .iter()
+            .enumerate()
+            .filter(|(_, f)| f.frame <= frame)
+            .max_by_key(|(_, f)| f.frame)
+            .map_or(0, |(i, _)| i + 1)
+    }
+
+    /// The density grid in effect at `frame` (see [`GridMedium::density_index_at`]).
+    pub fn density_at(&self, frame: u32) -> &GridSource {
+        match self.density_index_at(frame) {
+            0 => &self.density,
+            i => &self.frames[i - 1].density,
+        }
+    }
+
+    /// Every density grid, indexed like [`GridMedium::density_index_at`]: the base
+    /// `density`, then each `[[medium.frame]]`'s in order.
+    pub fn density_sources(&self) -> impl Iterator<Item = &GridSource> + '_ {
+        std::iter::once(&self.density).chain(self.frames.iter().map(|f| &f.density))
     }
 }
 

@@ -14,7 +14,7 @@ use anyhow::{anyhow, bail, Context, Result};
 
 use crate::files::{file_size, read_vol_header, VOL_HEADER_BYTES};
 use crate::procedural::procedural_cloud;
-use crate::types::GridSource;
+use crate::types::{GridMedium, GridSource};
 
 /// Most f32 values (voxels × channels) in one loaded grid: 2^31, i.e. 8 GiB of data.
 pub const MAX_GRID_VALUES: u64 = 1 << 31;
@@ -405,6 +405,76 @@ pub fn load_grid(source: &GridSource, channels: u32, what: &str) -> Result<Voxel
     };
     validate_values(&grid, &name, channels == 1).with_context(|| what.to_string())?;
     Ok(grid)
+}
+
+impl GridSource {
+    /// The grid's dims without reading its values: `dims` of raw and procedural grids,
+    /// the header's of `.vol` files (read and checked with [`read_vol_header`]).
+    pub fn dims(&self) -> Result<[u32; 3]> {
+        match self {
+            GridSource::Raw { dims, .. } | GridSource::ProceduralCloud { dims, .. } => Ok(*dims),
+            GridSource::MitsubaVol { file } => Ok(read_vol_header(file)?.dims),
+        }
+    }
+}
+
+/// Checks that every grid in `grids` (`(what, dims)` pairs, `what` naming the grid as
+/// in [`load_grid`]) has the dims of the first; the error names the first that
+/// differs, the first grid, and both dims.
+pub fn check_same_dims(grids: &[(&str, [u32; 3])]) -> Result<()> {
+    let Some(&(first_what, first)) = grids.first() else {
+        return Ok(());
+    };
+    for &(what, dims) in &grids[1..] {
+        if dims != first {
+            bail!(
+                "{what}: {} x {} x {} voxels differs from {first_what}'s {} x {} x {}; \
+                 these grids must have the same dims",
+                dims[0],
+                dims[1],
+                dims[2],
+                first[0],
+                first[1],
+                first[2]
+            );
+        }
+    }
+    Ok(())
+}
+
+impl GridMedium {
+    /// The dims shared by the base density, every `[[medium.frame]]` density and the
+    /// velocity grid, or an error naming the first that differs (see
+    /// [`check_same_dims`]). Reads `.vol` headers only. `what` names the medium, e.g.
+    /// `"scenes/a.toml: [[medium]] #1"`.
+    ///
+    /// The scene format lets these grids differ; a renderer that swaps frames in place
+    /// or reprojects with the velocity in the density's voxel space calls this after
+    /// [`crate::load`]. Grids read later with [`load_grid`] should be compared again
+    /// (each [`VoxelGrid`]'s `dims` with [`check_same_dims`]): files can change in
+    /// between.
+    pub fn animation_dims(&self, what: &str) -> Result<[u32; 3]> {
+        let mut grids = Vec::with_capacity(self.frames.len() + 2);
+        for (i, source) in self.density_sources().enumerate() {
+            let name = match i {
+                0 => format!("{what} > density"),
+                i => format!(
+                    "{what} > [[medium.frame]] (frame {}) > density",
+                    self.frames[i - 1].frame
+                ),
+            };
+            let dims = source.dims().with_context(|| name.clone())?;
+            grids.push((name, dims));
+        }
+        if let Some(velocity) = &self.velocity {
+            let name = format!("{what} > velocity");
+            let dims = velocity.dims().with_context(|| name.clone())?;
+            grids.push((name, dims));
+        }
+        let refs: Vec<(&str, [u32; 3])> = grids.iter().map(|(n, d)| (n.as_str(), *d)).collect();
+        check_same_dims(&refs)?;
+        Ok(grids[0].1)
+    }
 }
 
 /// Reads `count` little-endian float32 values from `path` starting at byte `offset`.
