@@ -1,9 +1,14 @@
 //! The committed volume assets load through the scene format and are what their
-//! generator (`examples/make_cloud.rs`) makes: a write_vol / load_grid round trip.
+//! generators make: the cloud is `examples/make_cloud.rs`'s (a write_vol / load_grid
+//! round trip), the plume frames are each other advected by the plume's velocity
+//! (`examples/make_plume.rs`).
 
 use std::path::Path;
 
-use nimbus_scene::{load_grid, procedural_cloud, GridSource};
+use nimbus_scene::{
+    check_same_dims, load_grid, procedural_cloud, GridSource, Light, Medium, VolumeIntegrator,
+    VoxelGrid,
+};
 
 #[test]
 fn committed_cloud_asset_is_the_procedural_cloud() {
@@ -30,4 +35,146 @@ fn write_vol_round_trips() {
     let back = load_grid(&GridSource::MitsubaVol { file: path }, 1, "small").unwrap();
     assert_eq!(back, grid);
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `assets/scenes/plume-anim.toml` loads, animates its camera, sun and density, and its
+/// grids (from `examples/make_plume.rs`) load, share their dims and follow the velocity.
+#[test]
+fn plume_animation_scene_and_its_grids_load() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let path = root.join("assets/scenes/plume-anim.toml");
+    let scene = nimbus_scene::load(&path).unwrap_or_else(|e| panic!("{e:#}"));
+    assert_eq!((scene.render.width, scene.render.height), (96, 72));
+    assert_eq!(scene.render.frames, 4);
+    assert_eq!(scene.camera.keyframes.len(), 2);
+    assert_ne!(scene.camera.frame_at(0), scene.camera.frame_at(3));
+    assert_eq!(scene.integrator.max_bounces, 2);
+    assert_eq!(scene.integrator.volume, VolumeIntegrator::Restir);
+
+    // One sun that turns a little, one constant sky.
+    assert!(scene.lights_animated());
+    assert_eq!(scene.lights.len(), 2);
+    assert!(matches!(
+        scene.lights[1],
+        Light::Environment { file: None, .. }
+    ));
+    let sun = |frame| match scene.lights_at(frame)[0] {
+        Light::Directional { direction, .. } => direction,
+        ref other => panic!("expected the sun, got {other:?}"),
+    };
+    let turn = sun(0).dot(sun(3)).clamp(-1.0, 1.0).acos().to_degrees();
+    assert!((2.0..20.0).contains(&turn), "the sun turns {turn} degrees");
+    assert!(sun(1).dot(sun(0)) > sun(3).dot(sun(0)));
+
+    // One grid medium with a density per frame and a velocity, all 32³.
+    assert_eq!(scene.media.len(), 1);
+    let Medium::Grid(medium) = &scene.media[0] else {
+        panic!("expected a grid medium");
+    };
+    assert_eq!(medium.bounds_min, glam::Vec3::splat(-0.5));
+    assert_eq!(medium.bounds_max, glam::Vec3::splat(0.5));
+    assert_eq!((medium.density_scale, medium.g), (20.0, 0.3));
+    assert_eq!(medium.albedo, glam::Vec3::splat(0.9));
+    for frame in 0..4 {
+        assert_eq!(medium.density_index_at(frame), frame as usize);
+    }
+    assert_eq!(medium.animation_dims("plume").unwrap(), [32, 32, 32]);
+
+    let densities: Vec<VoxelGrid> = medium
+        .density_sources()
+        .enumerate()
+        .map(|(i, source)| {
+            load_grid(source, 1, &format!("plume frame {i}")).unwrap_or_else(|e| panic!("{e:#}"))
+        })
+        .collect();
+    let velocity = load_grid(
+        medium.velocity.as_ref().expect("a velocity grid"),
+        3,
+        "velocity",
+    )
+    .unwrap_or_else(|e| panic!("{e:#}"));
+    assert_eq!(densities.len(), 4);
+    assert_eq!(velocity.channels, 3);
+    let mut grids: Vec<(String, [u32; 3])> = densities
+        .iter()
+        .enumerate()
+        .map(|(i, g)| (format!("frame {i}"), g.dims))
+        .collect();
+    grids.push(("velocity".into(), velocity.dims));
+    let grids: Vec<(&str, [u32; 3])> = grids.iter().map(|(n, d)| (n.as_str(), *d)).collect();
+    check_same_dims(&grids).unwrap();
+
+    let n = 32u32;
+    for (f, density) in densities.iter().enumerate() {
+        assert!(density.data.iter().all(|v| (0.0..=1.0).contains(v)));
+        let max = density.data.iter().copied().fold(0.0f32, f32::max);
+        assert!(max > 0.5, "frame {f}: max density {max}");
+        // Zero within three voxels of every face.
+        for k in 0..n {
+            for j in 0..n {
+                for i in 0..n {
+                    let near_face = [i, j, k].iter().any(|&c| c < 3 || c >= n - 3);
+                    if near_face {
+                        assert_eq!(density.get(i, j, k), 0.0, "frame {f} voxel ({i}, {j}, {k})");
+                    }
+                }
+            }
+        }
+    }
+    // Mostly upward, about 0.02 m per frame.
+    let count = velocity.voxel_count() as f32;
+    let mean: [f32; 3] =
+        std::array::from_fn(|c| velocity.data.iter().skip(c).step_by(3).sum::<f32>() / count);
+    assert!((0.015..0.025).contains(&mean[1]), "mean velocity {mean:?}");
+    assert!(
+        mean[0].abs() < 1e-3 && mean[2].abs() < 1e-3,
+        "mean velocity {mean:?}"
+    );
+
+    // Frame f + 1 is frame f advected: d_{f+1}(x) = d_f(x − v(x)), trilinear, with the
+    // velocity in metres per frame converted to voxels by the scene's bounds.
+    let scale: [f64; 3] = std::array::from_fn(|axis| {
+        f64::from(n) / (f64::from(medium.bounds_max[axis]) - f64::from(medium.bounds_min[axis]))
+    });
+    for f in 0..3 {
+        let (prev, next) = (&densities[f], &densities[f + 1]);
+        let mut worst = 0f64;
+        for k in 0..n {
+            for j in 0..n {
+                for i in 0..n {
+                    let index = [i, j, k];
+                    let p: [f64; 3] = std::array::from_fn(|axis| {
+                        let v = f64::from(velocity.get_channel(i, j, k, axis as u32));
+                        f64::from(index[axis]) + 0.5 - v * scale[axis]
+                    });
+                    let expected = prev.sample_trilinear(p);
+                    worst = worst.max((expected - f64::from(next.get(i, j, k))).abs());
+                }
+            }
+        }
+        assert!(
+            worst < 1e-6,
+            "frame {} is not frame {f} advected: off by {worst}",
+            f + 1
+        );
+    }
+    // And the plume rises: the density-weighted height grows every frame.
+    let height = |g: &VoxelGrid| {
+        let (mut sum, mut weight) = (0f64, 0f64);
+        for k in 0..n {
+            for j in 0..n {
+                for i in 0..n {
+                    let d = f64::from(g.get(i, j, k));
+                    sum += d * f64::from(j);
+                    weight += d;
+                }
+            }
+        }
+        sum / weight
+    };
+    let heights: Vec<f64> = densities.iter().map(height).collect();
+    assert!(
+        heights.windows(2).all(|w| w[1] > w[0] + 0.3),
+        "heights {heights:?}"
+    );
 }

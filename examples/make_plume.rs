@@ -1,0 +1,155 @@
+//! Writes the animated plume behind `assets/scenes/plume-anim.toml`: four density frames
+//! and the velocity field that carries each frame to the next, as Mitsuba `.vol` files:
+//!
+//! ```sh
+//! cargo run --release --example make_plume            # into assets/volumes/
+//! cargo run --release --example make_plume -- OUT_DIR
+//! ```
+//!
+//! - `plume-f0.vol` .. `plume-f3.vol`: 32³ voxels, 1 channel, density in [0, 1]: a
+//!   smooth stem rising into a rounded head, with three lobes around the vertical axis
+//!   so that the swirl shows. Exactly 0 outside a compact support that stays at least
+//!   three voxels away from every face in every frame.
+//! - `plume-velocity.vol`: 32³ voxels, 3 channels, in metres per frame (world units of
+//!   the scene's bounds [-0.5, 0.5]³): upward, 0.025 m/frame in the core falling to
+//!   0.015 outside, plus a swirl about the vertical axis through the centre (at most
+//!   0.06 rad/frame). Both parts depend on the distance to the axis only, so the field
+//!   is divergence-free.
+//!
+//! Frame f + 1 is frame f advected semi-Lagrangian by the velocity:
+//! d_{f+1}(x) = d_f(x − v(x)) at every voxel centre x, with the trilinear lookup of
+//! `VoxelGrid::sample_trilinear` (clamped at the faces) and the f32 values exactly as
+//! written, so a reader can recompute each frame from the previous file
+//! (`crates/nimbus-scene/tests/assets.rs` does).
+
+use std::path::PathBuf;
+
+use anyhow::Result;
+use glam::Vec3;
+use nimbus_scene::VoxelGrid;
+
+/// Voxels per axis.
+const N: u32 = 32;
+/// Density frames written.
+const FRAMES: usize = 4;
+/// The medium's bounds in the scene (written into the .vol headers too).
+const BOUNDS_MIN: Vec3 = Vec3::splat(-0.5);
+const BOUNDS_MAX: Vec3 = Vec3::splat(0.5);
+
+/// World position (m) of the centre of voxel `index`.
+fn voxel_centre(index: [u32; 3]) -> [f64; 3] {
+    let mut p = [0.0; 3];
+    for axis in 0..3 {
+        let lo = f64::from(BOUNDS_MIN[axis]);
+        let hi = f64::from(BOUNDS_MAX[axis]);
+        p[axis] = lo + (f64::from(index[axis]) + 0.5) / f64::from(N) * (hi - lo);
+    }
+    p
+}
+
+/// Compact smooth bump: (1 − r²)³ for r < 1, else 0.
+fn bump(r2: f64) -> f64 {
+    if r2 >= 1.0 {
+        0.0
+    } else {
+        let t = 1.0 - r2;
+        t * t * t
+    }
+}
+
+fn smoothstep(edge0: f64, edge1: f64, x: f64) -> f64 {
+    let t = ((x - edge0) / (edge1 - edge0)).clamp(0.0, 1.0);
+    t * t * (3.0 - 2.0 * t)
+}
+
+/// Density of the first frame at world position `p` (m).
+fn plume_density([x, y, z]: [f64; 3]) -> f64 {
+    let r2_xz = x * x + z * z;
+    // Head: an ellipsoid above the centre.
+    let head = bump(r2_xz / (0.24 * 0.24) + y * y / (0.15 * 0.15));
+    // Stem: widening upwards from y = -0.38 into the head, fading in at the bottom.
+    let stem = if (-0.38..0.05).contains(&y) {
+        let t = (y + 0.38) / 0.43;
+        let radius = 0.06 + 0.1 * t;
+        0.8 * bump(r2_xz / (radius * radius)) * smoothstep(-0.38, -0.3, y)
+    } else {
+        0.0
+    };
+    // Three lobes about the vertical axis, twisting with height.
+    let lobes = 0.8 + 0.2 * (3.0 * z.atan2(x) + 6.0 * y).cos();
+    ((1.0 - (1.0 - head) * (1.0 - stem)) * lobes).clamp(0.0, 1.0)
+}
+
+/// Velocity (m/frame) at world position `p`.
+fn plume_velocity([x, _, z]: [f64; 3]) -> [f64; 3] {
+    let r2 = x * x + z * z;
+    let up = 0.02 * (0.75 + 0.5 * (-r2 / 0.03).exp());
+    let swirl = 0.06 * (-r2 / 0.05).exp(); // rad/frame, counter-clockwise seen from +Y
+    [swirl * z, up, -swirl * x]
+}
+
+/// A grid of `channels` values per voxel from `f`, x fastest.
+fn grid(channels: u32, f: impl Fn([u32; 3]) -> Vec<f32>) -> VoxelGrid {
+    let mut data = Vec::with_capacity((N * N * N * channels) as usize);
+    for k in 0..N {
+        for j in 0..N {
+            for i in 0..N {
+                data.extend(f([i, j, k]));
+            }
+        }
+    }
+    VoxelGrid {
+        dims: [N; 3],
+        channels,
+        data,
+    }
+}
+
+/// One semi-Lagrangian step: each voxel takes the trilinear density of `density` at
+/// its centre minus its velocity (converted to voxel-index space).
+fn advect(density: &VoxelGrid, velocity: &VoxelGrid) -> VoxelGrid {
+    let scale: [f64; 3] = std::array::from_fn(|axis| {
+        f64::from(N) / (f64::from(BOUNDS_MAX[axis]) - f64::from(BOUNDS_MIN[axis]))
+    });
+    grid(1, |[i, j, k]| {
+        let index = [i, j, k];
+        let p: [f64; 3] = std::array::from_fn(|axis| {
+            let v = f64::from(velocity.get_channel(i, j, k, axis as u32));
+            f64::from(index[axis]) + 0.5 - v * scale[axis]
+        });
+        vec![density.sample_trilinear(p).clamp(0.0, 1.0) as f32]
+    })
+}
+
+fn main() -> Result<()> {
+    let out_dir = match std::env::args().nth(1) {
+        Some(dir) => PathBuf::from(dir),
+        None => PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("assets/volumes"),
+    };
+    std::fs::create_dir_all(&out_dir)?;
+
+    let velocity = grid(3, |index| {
+        plume_velocity(voxel_centre(index))
+            .iter()
+            .map(|&v| v as f32)
+            .collect()
+    });
+    let mut density = grid(1, |index| vec![plume_density(voxel_centre(index)) as f32]);
+    for frame in 0..FRAMES {
+        if frame > 0 {
+            density = advect(&density, &velocity);
+        }
+        let path = out_dir.join(format!("plume-f{frame}.vol"));
+        nimbus_scene::write_vol(&path, &density, BOUNDS_MIN, BOUNDS_MAX)?;
+        let nonzero = density.data.iter().filter(|&&v| v > 0.0).count();
+        let max = density.data.iter().copied().fold(0.0f32, f32::max);
+        println!(
+            "wrote {} ({N}x{N}x{N}, {nonzero} non-zero voxels, max {max:.3})",
+            path.display()
+        );
+    }
+    let path = out_dir.join("plume-velocity.vol");
+    nimbus_scene::write_vol(&path, &velocity, BOUNDS_MIN, BOUNDS_MAX)?;
+    println!("wrote {} ({N}x{N}x{N}, 3 channels)", path.display());
+    Ok(())
+}
