@@ -334,6 +334,103 @@ pub struct GpuGrid {
     /// The environment map's texels (rgb, w unused) and its sampling tables (marginal
     /// CDF then conditional rows), if the environment has a `file`.
     pub env_map: Option<(Vec<[f32; 4]>, Vec<f32>)>,
+    /// The radius of the medium's bounding sphere (light selection weights).
+    pub light_radius: f32,
+    /// Mean luminance of the environment map over the sphere, if there is one.
+    pub env_map_luminance: Option<f32>,
+}
+
+/// The analytic lights of one frame with their selection CDF (in `gobo_v.w`), the
+/// probability that next-event estimation picks the environment, and the constant
+/// environment radiance.
+pub struct LightSet {
+    pub lights: Vec<LightGpu>,
+    pub env_select: f32,
+    pub env_radiance: Vec3,
+}
+
+impl LightSet {
+    /// Lights are selected in proportion to the power they bring to the medium's
+    /// bounding sphere (radius R): directional E·πR², point 4π·I, sphere 4π²r²·L,
+    /// environment 4π²R²·L (luminance of each; `env_map_luminance` replaces the constant
+    /// radiance's when the environment has a map).
+    pub fn build(scene_lights: &[Light], radius: f32, env_map_luminance: Option<f32>) -> LightSet {
+        let pi = std::f32::consts::PI;
+        let mut lights = Vec::new();
+        let mut weights = Vec::new();
+        let mut env_radiance = Vec3::ZERO;
+        for light in scene_lights {
+            let (p0, kind, power_rgb, radius_l, weight) = match light {
+                Light::Directional {
+                    direction,
+                    irradiance,
+                    ..
+                } => (
+                    *direction,
+                    LIGHT_DIRECTIONAL,
+                    *irradiance,
+                    0.0,
+                    luminance(*irradiance) * pi * radius * radius,
+                ),
+                Light::Point {
+                    position,
+                    intensity,
+                } => (
+                    *position,
+                    LIGHT_POINT,
+                    *intensity,
+                    0.0,
+                    luminance(*intensity) * 4.0 * pi,
+                ),
+                Light::Sphere {
+                    center,
+                    radius: r,
+                    radiance,
+                } => (
+                    *center,
+                    LIGHT_SPHERE,
+                    *radiance,
+                    *r,
+                    luminance(*radiance) * 4.0 * pi * pi * r * r,
+                ),
+                Light::Environment {
+                    radiance,
+                    scale,
+                    file,
+                } => {
+                    if file.is_none() {
+                        env_radiance += *radiance * *scale;
+                    }
+                    continue;
+                }
+            };
+            lights.push(LightGpu {
+                direction_type: v4(p0, kind as f32),
+                irradiance: v4(power_rgb, radius_l),
+                gobo_origin: [0.0; 4],
+                gobo_u: [0.0; 4],
+                gobo_v: [0.0; 4],
+            });
+            weights.push(weight.max(0.0));
+        }
+        let env_luminance = env_map_luminance.unwrap_or_else(|| luminance(env_radiance));
+        let env_weight = env_luminance * 4.0 * pi * pi * radius * radius;
+        let total: f32 = weights.iter().sum::<f32>() + env_weight;
+        let mut env_select = 0.0;
+        if total > 0.0 {
+            env_select = env_weight / total;
+            let mut cdf = 0.0;
+            for (light, w) in lights.iter_mut().zip(&weights) {
+                cdf += w / total;
+                light.gobo_v[3] = cdf;
+            }
+        }
+        LightSet {
+            lights,
+            env_select,
+            env_radiance,
+        }
+    }
 }
 
 /// Luminance of a linear RGB colour.
@@ -394,12 +491,8 @@ impl GpuGrid {
         };
 
         let radius = 0.5 * (grid.bounds_max - grid.bounds_min).length();
-        let pi = std::f32::consts::PI;
-        let mut lights = Vec::new();
-        let mut weights = Vec::new();
-        let mut env_radiance = Vec3::ZERO;
         let mut env_map = None;
-        let mut env_map_luminance = 0.0;
+        let mut env_map_luminance = None;
         for light in &scene.lights {
             if let Light::Environment {
                 radiance,
@@ -412,8 +505,10 @@ impl GpuGrid {
                 // Mean radiance luminance over the sphere: integral() is the mean of
                 // luminance x sin(theta) over the texel grid, which covers 2 pi^2 in
                 // (phi, theta); the sphere is 4 pi.
-                env_map_luminance = sampler.integral() * 2.0 * std::f64::consts::PI.powi(2)
-                    / (4.0 * std::f64::consts::PI);
+                env_map_luminance = Some(
+                    (sampler.integral() * 2.0 * std::f64::consts::PI.powi(2)
+                        / (4.0 * std::f64::consts::PI)) as f32,
+                );
                 let (marginal, conditional) = sampler.to_gpu_tables();
                 let texels = map.texels.iter().map(|t| [t[0], t[1], t[2], 0.0]).collect();
                 env_map = Some((
@@ -421,86 +516,26 @@ impl GpuGrid {
                     [marginal, conditional].concat(),
                     [map.width, map.height],
                 ));
-                continue;
             }
-            let (p0, kind, power_rgb, radius_l, weight) = match light {
-                Light::Directional {
-                    direction,
-                    irradiance,
-                    ..
-                } => (
-                    *direction,
-                    LIGHT_DIRECTIONAL,
-                    *irradiance,
-                    0.0,
-                    luminance(*irradiance) * pi * radius * radius,
-                ),
-                Light::Point {
-                    position,
-                    intensity,
-                } => (
-                    *position,
-                    LIGHT_POINT,
-                    *intensity,
-                    0.0,
-                    luminance(*intensity) * 4.0 * pi,
-                ),
-                Light::Sphere {
-                    center,
-                    radius: r,
-                    radiance,
-                } => (
-                    *center,
-                    LIGHT_SPHERE,
-                    *radiance,
-                    *r,
-                    luminance(*radiance) * 4.0 * pi * pi * r * r,
-                ),
-                Light::Environment {
-                    radiance, scale, ..
-                } => {
-                    env_radiance += *radiance * *scale;
-                    continue;
-                }
-            };
-            lights.push(LightGpu {
-                direction_type: v4(p0, kind as f32),
-                irradiance: v4(power_rgb, radius_l),
-                gobo_origin: [0.0; 4],
-                gobo_u: [0.0; 4],
-                gobo_v: [0.0; 4],
-            });
-            weights.push(weight.max(0.0));
         }
-        let env_luminance = if env_map.is_some() {
-            env_map_luminance as f32
-        } else {
-            luminance(env_radiance)
-        };
-        let env_weight = env_luminance * 4.0 * pi * pi * radius * radius;
-        let total: f32 = weights.iter().sum::<f32>() + env_weight;
         let mut uniforms = uniforms;
         if let Some((_, _, [w, h])) = &env_map {
             uniforms.env_size = [*w, *h, 0, 0];
         } else {
             uniforms.env_size = [1, 1, 0, 0];
         }
-        if total > 0.0 {
-            uniforms.env_select[0] = env_weight / total;
-            let mut cdf = 0.0;
-            for (light, w) in lights.iter_mut().zip(&weights) {
-                cdf += w / total;
-                light.gobo_v[3] = cdf;
-            }
-        }
+        let set = LightSet::build(&scene.lights, radius, env_map_luminance);
+        uniforms.env_select[0] = set.env_select;
         Ok(GpuGrid {
             density,
             emission,
             super_voxels,
             uniforms,
-            lights,
-            env_radiance,
+            lights: set.lights,
+            env_radiance: set.env_radiance,
             env_map: env_map.map(|(texels, tables, _)| (texels, tables)),
+            light_radius: radius,
+            env_map_luminance,
         })
     }
 }

@@ -39,19 +39,6 @@ layout(constant_id = 7) const bool SC_HAS_EMISSION = false;
 // The environment is an importance-sampled map (else a constant radiance).
 layout(constant_id = 8) const bool SC_HAS_ENV_MAP = false;
 
-#define LIGHT_POINT 1u
-#define LIGHT_SPHERE 2u
-#define NO_INDEX 0xffffffffu
-
-struct BaselineUniforms {
-    GridParams grid;
-    vec4 albedo_g;    // rgb albedo, w HG g
-    vec4 env_select;  // x: probability that NEE picks the environment
-    vec4 emission_scale;   // rgb
-    uvec4 emission_dims;   // xyz: the emission grid's own resolution
-    uvec4 env_size;        // xy: environment map width and height
-};
-
 layout(std140, set = 0, binding = BINDING_FRAME_UNIFORMS) uniform FrameBlock {
     FrameUniforms u_frame;
 };
@@ -97,34 +84,9 @@ layout(std430, set = 0, binding = BINDING_ENV_CDF) readonly buffer EnvCdfBlock {
 #define u_grid u_base.grid
 #define ENV_SIZE u_base.env_size.xy
 #include "grid.glsl"
-#include "envmap.glsl"
+#include "grid_emission.glsl"
+#include "lights.glsl"
 #include "shapes.glsl"
-
-// Emitted radiance Le at world x: emission_scale times the emission grid, trilinear
-// between cell centres and clamped within half a voxel of a face (as the density).
-vec3 grid_emission(vec3 x) {
-    vec3 size = u_grid.bounds_max.xyz - u_grid.bounds_min.xyz;
-    vec3 n = vec3(u_base.emission_dims.xyz);
-    // Domain: size > 0 (validated bounds).
-    vec3 p = clamp((x - u_grid.bounds_min.xyz) / size * n, vec3(0.5), n - 0.5) - 0.5;
-    ivec3 i0 = ivec3(floor(p));
-    ivec3 hi = ivec3(u_base.emission_dims.xyz) - 1;
-    ivec3 i1 = min(i0 + 1, hi);
-    vec3 f = p - vec3(i0);
-    float c000 = texelFetch(u_emission, ivec3(i0.x, i0.y, i0.z), 0).r;
-    float c100 = texelFetch(u_emission, ivec3(i1.x, i0.y, i0.z), 0).r;
-    float c010 = texelFetch(u_emission, ivec3(i0.x, i1.y, i0.z), 0).r;
-    float c110 = texelFetch(u_emission, ivec3(i1.x, i1.y, i0.z), 0).r;
-    float c001 = texelFetch(u_emission, ivec3(i0.x, i0.y, i1.z), 0).r;
-    float c101 = texelFetch(u_emission, ivec3(i1.x, i0.y, i1.z), 0).r;
-    float c011 = texelFetch(u_emission, ivec3(i0.x, i1.y, i1.z), 0).r;
-    float c111 = texelFetch(u_emission, ivec3(i1.x, i1.y, i1.z), 0).r;
-    float c00 = mix(c000, c100, f.x);
-    float c10 = mix(c010, c110, f.x);
-    float c01 = mix(c001, c101, f.x);
-    float c11 = mix(c011, c111, f.x);
-    return u_base.emission_scale.rgb * mix(mix(c00, c10, f.y), mix(c01, c11, f.y), f.z);
-}
 
 // Span of o + t d inside box medium m: (t_in, t_out), t_in > t_out for a miss.
 vec2 box_span(uint m, vec3 o, vec3 d) {
@@ -178,25 +140,6 @@ float sample_collision(vec3 o, vec3 d, float t_end, inout uint rng, out uint med
     return t_best;
 }
 
-// Nearest emitting sphere along o + t d in (t_min, t_max): distance (FAR if none).
-float nearest_sphere_light(vec3 o, vec3 d, float t_min, float t_max, out uint index) {
-    index = NO_INDEX;
-    float t_hit = t_max;
-    uint count = u_frame.counts.z;
-    for (uint l = 0u; l < count; ++l) {
-        Light light = lights[l];
-        if (uint(light.direction_type.w) != LIGHT_SPHERE) {
-            continue;
-        }
-        float t = intersect_sphere(light.direction_type.xyz, light.irradiance.w, o, d, t_min, t_hit);
-        if (t < t_hit) {
-            t_hit = t;
-            index = l;
-        }
-    }
-    return index == NO_INDEX ? FAR : t_hit;
-}
-
 // Transmittance from x along unit w over [0, dist) through the grid, 0 if a shape or
 // another emitting sphere blocks it first.
 float shadow_transmittance(vec3 x, vec3 w, float dist, float t_min, uint target, inout uint rng) {
@@ -204,7 +147,7 @@ float shadow_transmittance(vec3 x, vec3 w, float dist, float t_min, uint target,
         return 0.0;
     }
     uint blocker;
-    float t_light = nearest_sphere_light(x, w, t_min, dist, blocker);
+    float t_light = nearest_sphere_light(0u, x, w, t_min, dist, blocker);
     if (t_light < FAR && blocker != target) {
         return 0.0;
     }
@@ -224,87 +167,11 @@ float shadow_transmittance(vec3 x, vec3 w, float dist, float t_min, uint target,
 vec3 sample_light(vec3 x, inout uint rng, out vec3 wi, out float dist, out uint target) {
     float u = rng_next(rng);
     vec2 u2 = vec2(rng_next(rng), rng_next(rng));
-    wi = vec3(0.0, 1.0, 0.0);
-    dist = FAR;
-    target = NO_INDEX;
-    float p_env = u_base.env_select.x;
-    if (SC_HAS_ENV && SC_HAS_ENV_MAP && u >= 1.0 - p_env) {
-        // Environment map: importance sampled by luminance x sin(theta).
-        float pdf;
-        vec3 Le = env_sample(u2, wi, pdf);
-        // Domain: pdf > 0 for a usable sample, p_env > 0 in this branch.
-        return pdf > 0.0 ? Le / (pdf * p_env) : vec3(0.0);
-    }
-    if (SC_HAS_ENV && u >= 1.0 - p_env) {
-        // Constant environment: uniform direction, pdf 1 / (4 pi).
-        float z = 1.0 - 2.0 * u2.x;
-        float r = sqrt(max(0.0, 1.0 - z * z));
-        float phi = 2.0 * PI * u2.y;
-        wi = vec3(r * cos(phi), z, r * sin(phi));
-        // Domain: p_env > 0 when this branch is taken (u < 1).
-        return u_frame.env_radiance.rgb * (4.0 * PI / p_env);
-    }
-    uint count = u_frame.counts.z;
-    uint chosen = NO_INDEX;
-    float cdf_before = 0.0;
-    for (uint l = 0u; l < count; ++l) {
-        float cdf = lights[l].gobo_v.w;
-        if (u < cdf) {
-            chosen = l;
-            break;
-        }
-        cdf_before = cdf;
-    }
-    if (chosen == NO_INDEX) {
-        return vec3(0.0);
-    }
-    Light light = lights[chosen];
-    float p_select = light.gobo_v.w - cdf_before;
-    if (!(p_select > 0.0)) {
-        return vec3(0.0);
-    }
-    uint type = uint(light.direction_type.w);
-    target = chosen;
-    if (type == LIGHT_DIRECTIONAL) {
-        wi = -light.direction_type.xyz;
-        return light.irradiance.rgb / p_select;
-    }
-    vec3 to_light = light.direction_type.xyz - x;
-    float d2 = dot(to_light, to_light);
-    if (type == LIGHT_POINT) {
-        // Domain: a point light off the shading point (d2 > 0).
-        if (!(d2 > 0.0)) {
-            return vec3(0.0);
-        }
-        dist = sqrt(d2);
-        wi = to_light / dist;
-        return light.irradiance.rgb / (d2 * p_select);
-    }
-    // Emitting sphere: uniform in the cone it subtends, pdf 1 / (2 pi (1 - cos_max)).
-    float radius = light.irradiance.w;
-    if (d2 <= radius * radius) {
-        return vec3(0.0);
-    }
-    float d_center = sqrt(d2);
-    vec3 axis = to_light / d_center;
-    float sin2_max = radius * radius / d2;
-    float cos_max = sqrt(max(0.0, 1.0 - sin2_max));
-    // 1 - cos_max computed without cancellation: sin2 / (1 + cos).
-    float one_minus_cos_max = sin2_max / (1.0 + cos_max);
-    float cos_theta = 1.0 - u2.x * one_minus_cos_max;
-    float sin_theta = sqrt(max(0.0, 1.0 - cos_theta * cos_theta));
-    float phi = 2.0 * PI * u2.y;
-    vec3 t;
-    vec3 b;
-    orthonormal_basis(axis, t, b);
-    wi = normalize(sin_theta * cos(phi) * t + sin_theta * sin(phi) * b + cos_theta * axis);
-    float t_hit = intersect_sphere(light.direction_type.xyz, radius, x, wi, 0.0, FAR);
-    if (t_hit >= FAR) {
-        return vec3(0.0);
-    }
-    dist = t_hit;
-    // Domain: one_minus_cos_max > 0 since radius > 0, and p_select > 0.
-    return light.irradiance.rgb * (2.0 * PI * one_minus_cos_max / p_select);
+    LightSample s = light_sample(0u, x, u, u2);
+    wi = s.wi;
+    dist = s.dist;
+    target = s.index == LIGHT_ENV ? NO_INDEX : s.index;
+    return s.L_over_pdf;
 }
 
 // Radiance arriving at o from direction -d.
@@ -316,7 +183,7 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
         uint shape_index;
         float t_surface = nearest_shape(o, d, 0.0, FAR, shape_index);
         uint light_index;
-        float t_light = nearest_sphere_light(o, d, 0.0, t_surface, light_index);
+        float t_light = nearest_sphere_light(0u, o, d, 0.0, t_surface, light_index);
         float t_end = min(t_surface, t_light);
 
         // Sample a real collision in the media before the segment's end.

@@ -231,30 +231,37 @@ float grid_ratio_tracking(vec3 o, vec3 d, float t0, float t1, inout uint rng) {
 }
 
 // ---------------------------------------------------------------------------------------
-// Super-voxel DDA: super-voxel (I, J, K) covers index-space [I f, min((I+1) f, n)] per axis.
+// Block DDA: block (I, J, K) of edge f voxels covers index-space [I f, min((I+1) f, n)] per
+// axis (`count` = ceil(n / f) blocks per axis, the last one possibly narrower). Super-voxels
+// (f = dims.w, 8) and the coarse piecewise-constant levels of ReSTIR (f = 2^mip) use it.
 
 struct GridSuperDda {
     vec3 p0;        // index-space point at s = 0 (t = t_a)
     vec3 dp;        // index-space direction per unit t
-    ivec3 cell;     // current super-voxel
+    ivec3 cell;     // current block
     ivec3 step_dir; // +-1 per axis
-    vec3 s_next;    // s at which each axis leaves the current super-voxel
+    vec3 s_next;    // s at which each axis leaves the current block
     float s;        // start of the current span
     float len;      // t_b - t_a
     float t_a;      // t at s = 0
+    int f;          // block edge in voxels (>= 1)
+    ivec3 count;    // blocks per axis
 };
 
-// Crossing of super-voxel `c` along one axis (f voxels each, last one ends at n).
+// Crossing of block `c` along one axis (f voxels each, last one ends at n).
 float grid_super_crossing(float p0, float dp, int c, int f, int count, float s_now) {
     return grid_next_crossing(p0, dp, float(c * f), float((c + 1) * f), c >= 1, c + 1 <= count - 1, s_now);
 }
 
-// Starts the walk over [t0, t1] clipped to the bounds; false if that is empty.
-bool grid_super_begin(vec3 o, vec3 d, float t0, float t1, out GridSuperDda it) {
+// Starts a walk over blocks of edge f (count per axis) along [t0, t1] clipped to the
+// bounds; false if that is empty.
+bool grid_blocks_begin(vec3 o, vec3 d, float t0, float t1, int f, ivec3 count, out GridSuperDda it) {
     vec2 span = grid_span(o, d);
     it.t_a = max(t0, span.x);
     it.len = min(t1, span.y) - it.t_a;
     it.s = 0.0;
+    it.f = max(f, 1);
+    it.count = count;
     // Empty, reversed or missed interval (also NaN): nothing to walk.
     if (!(it.len > 0.0)) {
         it.len = 0.0;
@@ -263,47 +270,58 @@ bool grid_super_begin(vec3 o, vec3 d, float t0, float t1, out GridSuperDda it) {
     vec3 scale = grid_index_scale();
     it.p0 = (o + it.t_a * d - u_grid.bounds_min.xyz) * scale;
     it.dp = d * scale;
-    int f = max(int(u_grid.dims.w), 1);
-    ivec3 count = ivec3(u_grid.super_dims.xyz);
     for (int a = 0; a < 3; ++a) {
         // Domain: f >= 1.
-        float fl = floor(it.p0[a] / float(f));
+        float fl = floor(it.p0[a] / float(it.f));
         int c = int(fl);
-        if (it.dp[a] < -GRID_PARALLEL_EPS && it.p0[a] == fl * float(f)) {
+        if (it.dp[a] < -GRID_PARALLEL_EPS && it.p0[a] == fl * float(it.f)) {
             c -= 1;
         }
         it.cell[a] = clamp(c, 0, count[a] - 1);
         it.step_dir[a] = it.dp[a] > 0.0 ? 1 : -1;
-        it.s_next[a] = grid_super_crossing(it.p0[a], it.dp[a], it.cell[a], f, count[a], 0.0);
+        it.s_next[a] = grid_super_crossing(it.p0[a], it.dp[a], it.cell[a], it.f, count[a], 0.0);
     }
     return true;
 }
 
-// The current span [s0, s1) and its super-voxel's (min, max, avg, 0) of sigma_t; advances
-// to the next super-voxel. Returns false when the walk is over (nothing returned).
-bool grid_super_next(inout GridSuperDda it, out float s0, out float s1, out vec4 bounds) {
+// The current span [s0, s1) and its block's linear index (x fastest); advances to the
+// next block. Returns false when the walk is over (nothing returned).
+bool grid_blocks_next(inout GridSuperDda it, out float s0, out float s1, out uint index) {
     if (!(it.s < it.len)) {
         return false;
     }
-    ivec3 count = ivec3(u_grid.super_dims.xyz);
     int a = it.s_next.x <= it.s_next.y ? (it.s_next.x <= it.s_next.z ? 0 : 2)
                                        : (it.s_next.y <= it.s_next.z ? 1 : 2);
     s0 = it.s;
     s1 = min(it.s_next[a], it.len);
-    bounds = super_voxels[(it.cell.z * count.y + it.cell.y) * count.x + it.cell.x];
+    index = uint((it.cell.z * it.count.y + it.cell.y) * it.count.x + it.cell.x);
     // Advance: the walk ends at the span's end or when leaving the grid.
     it.s = s1;
     if (it.s_next[a] >= it.len) {
         it.s = it.len;
     } else {
         it.cell[a] += it.step_dir[a];
-        if (it.cell[a] < 0 || it.cell[a] > count[a] - 1) {
+        if (it.cell[a] < 0 || it.cell[a] > it.count[a] - 1) {
             it.s = it.len;
         } else {
-            int f = max(int(u_grid.dims.w), 1);
-            it.s_next[a] = grid_super_crossing(it.p0[a], it.dp[a], it.cell[a], f, count[a], it.s);
+            it.s_next[a] = grid_super_crossing(it.p0[a], it.dp[a], it.cell[a], it.f, it.count[a], it.s);
         }
     }
+    return true;
+}
+
+// Super-voxel walk (f = dims.w) over [t0, t1]; false if empty.
+bool grid_super_begin(vec3 o, vec3 d, float t0, float t1, out GridSuperDda it) {
+    return grid_blocks_begin(o, d, t0, t1, int(u_grid.dims.w), ivec3(u_grid.super_dims.xyz), it);
+}
+
+// The current span and its super-voxel's (min, max, avg, 0) of sigma_t; advances.
+bool grid_super_next(inout GridSuperDda it, out float s0, out float s1, out vec4 bounds) {
+    uint index;
+    if (!grid_blocks_next(it, s0, s1, index)) {
+        return false;
+    }
+    bounds = super_voxels[index];
     return true;
 }
 

@@ -11,4 +11,16 @@ struct GridParams {
     uvec4 super_dims;  // super-voxel grid dims xyz (ceil(dims / factor)), w unused
 };
 
+// The grid medium and what lights it, read by the baseline path tracer and the ReSTIR
+// passes (std140 uniform at BINDING_BASELINE_UNIFORMS, named `u_base` by includers).
+// Mirrored by BaselineUniformsGpu in src/gpu_scene.rs. 144 bytes.
+struct BaselineUniforms {
+    GridParams grid;
+    vec4 albedo_g;         // rgb albedo, w HG g
+    vec4 env_select;       // x: probability that NEE picks the environment
+    vec4 emission_scale;   // rgb
+    uvec4 emission_dims;   // xyz: the emission grid's own resolution
+    uvec4 env_size;        // xy: environment map width and height
+};
+
 #endif

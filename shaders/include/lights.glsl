@@ -1,0 +1,252 @@
+// Analytic lights and the environment for grid-medium passes (baseline and ReSTIR):
+// light selection for next-event estimation, re-evaluation of a stored light vertex
+// from another shading point, and what a ray sees when it ends on a light.
+//
+// The includer declares, before including this file:
+//   Light lights[]            (std430; direction_type.w = type, irradiance.w = sphere radius,
+//                              gobo_v.w = selection CDF over the analytic lights)
+//   BaselineUniforms u_base   (env_select.x = probability that NEE picks the environment)
+//   FrameUniforms u_frame     (counts.z = analytic lights per set, env_radiance)
+//   bool constants SC_HAS_ENV, SC_HAS_ENV_MAP, and envmap.glsl's buffers (included here).
+//
+// A light set is `counts.z` records starting at `base`: ReSTIR keeps the current frame's
+// set at 0 and the previous frame's right after it, for animated lights.
+//
+// Measures: a directional light and a point light are deltas (their "radiance" is E and
+// I / d^2, their pdf a selection probability); the environment is sampled in solid angle;
+// a sphere light in AREA measure, so a stored point on it can be re-evaluated from any
+// shading point: L_area = L cos_l / d^2 and pdf_area = pdf_solid_angle cos_l / d^2.
+#ifndef NIMBUS_LIGHTS_GLSL
+#define NIMBUS_LIGHTS_GLSL
+
+#include "constants.glsl"
+#include "geometry.glsl"
+#include "sampling.glsl"
+#include "scene.glsl"
+#include "envmap.glsl"
+
+#define LIGHT_POINT 1u
+#define LIGHT_SPHERE 2u
+// The light index of the environment in a stored path.
+#define LIGHT_ENV 0xffu
+#define NO_INDEX 0xffffffffu
+
+// One next-event sample.
+struct LightSample {
+    vec3 L;           // arriving radiance in the light's measure (see above)
+    vec3 L_over_pdf;  // L / pdf, formed without the cancelling factors
+    vec3 wi;          // unit direction towards the light
+    vec3 point;       // the sampled point (sphere lights), else x + dist wi
+    float dist;       // distance to the light vertex, FAR for directional / environment
+    float pdf;        // selection x measure pdf; 0 for an unusable sample
+    uint index;       // light index in its set, LIGHT_ENV, or NO_INDEX for none
+};
+
+LightSample light_sample_none() {
+    LightSample s;
+    s.L = vec3(0.0);
+    s.L_over_pdf = vec3(0.0);
+    s.wi = vec3(0.0, 1.0, 0.0);
+    s.point = vec3(0.0);
+    s.dist = FAR;
+    s.pdf = 0.0;
+    s.index = NO_INDEX;
+    return s;
+}
+
+// Constant environment radiance or the map's texel along d.
+vec3 env_radiance_along(vec3 d) {
+    if (!SC_HAS_ENV) {
+        return vec3(0.0);
+    }
+    return SC_HAS_ENV_MAP ? env_lookup(d) : u_frame.env_radiance.rgb;
+}
+
+// Nearest emitting sphere of the set at `base` along o + t d in (t_min, t_max): its
+// distance (FAR if none) and index.
+float nearest_sphere_light(uint base, vec3 o, vec3 d, float t_min, float t_max, out uint index) {
+    index = NO_INDEX;
+    float t_hit = t_max;
+    uint count = u_frame.counts.z;
+    for (uint l = 0u; l < count; ++l) {
+        Light light = lights[base + l];
+        if (uint(light.direction_type.w) != LIGHT_SPHERE) {
+            continue;
+        }
+        float t = intersect_sphere(light.direction_type.xyz, light.irradiance.w, o, d, t_min, t_hit);
+        if (t < t_hit) {
+            t_hit = t;
+            index = l;
+        }
+    }
+    return index == NO_INDEX ? FAR : t_hit;
+}
+
+// Pick a light for next-event estimation at x: the environment with probability
+// env_select.x, else an analytic light by the power CDF. u in [0, 1), u2 in [0, 1)^2.
+LightSample light_sample(uint base, vec3 x, float u, vec2 u2) {
+    LightSample s = light_sample_none();
+    float p_env = u_base.env_select.x;
+    if (SC_HAS_ENV && u >= 1.0 - p_env) {
+        s.index = LIGHT_ENV;
+        if (SC_HAS_ENV_MAP) {
+            // Importance sampled by luminance x sin(theta).
+            float pdf_sa;
+            s.L = env_sample(u2, s.wi, pdf_sa);
+            s.pdf = p_env * pdf_sa;
+        } else {
+            // Uniform direction, pdf 1 / (4 pi).
+            float z = 1.0 - 2.0 * u2.x;
+            float r = sqrt(max(0.0, 1.0 - z * z));
+            float phi = 2.0 * PI * u2.y;
+            s.wi = vec3(r * cos(phi), z, r * sin(phi));
+            s.L = u_frame.env_radiance.rgb;
+            s.pdf = p_env * INV_4PI;
+        }
+        // Domain: pdf > 0 for a usable sample (0 at the map's poles or black texels).
+        s.L_over_pdf = s.pdf > 0.0 ? s.L / s.pdf : vec3(0.0);
+        s.point = x + s.wi;
+        return s;
+    }
+    uint count = u_frame.counts.z;
+    uint chosen = NO_INDEX;
+    float cdf_before = 0.0;
+    for (uint l = 0u; l < count; ++l) {
+        float cdf = lights[base + l].gobo_v.w;
+        if (u < cdf) {
+            chosen = l;
+            break;
+        }
+        cdf_before = cdf;
+    }
+    if (chosen == NO_INDEX) {
+        return s;
+    }
+    Light light = lights[base + chosen];
+    float p_select = light.gobo_v.w - cdf_before;
+    if (!(p_select > 0.0)) {
+        return s;
+    }
+    uint type = uint(light.direction_type.w);
+    s.index = chosen;
+    if (type == LIGHT_DIRECTIONAL) {
+        s.wi = -light.direction_type.xyz;
+        s.L = light.irradiance.rgb;
+        s.pdf = p_select;
+        // Domain: p_select > 0.
+        s.L_over_pdf = s.L / p_select;
+        s.point = x + s.wi;
+        return s;
+    }
+    vec3 to_light = light.direction_type.xyz - x;
+    float d2 = dot(to_light, to_light);
+    if (type == LIGHT_POINT) {
+        // Domain: a point light off the shading point (d2 > 0).
+        if (!(d2 > 0.0)) {
+            return light_sample_none();
+        }
+        s.dist = sqrt(d2);
+        s.wi = to_light / s.dist;
+        s.point = light.direction_type.xyz;
+        s.L = light.irradiance.rgb / d2;
+        s.pdf = p_select;
+        s.L_over_pdf = s.L / p_select;
+        return s;
+    }
+    // Emitting sphere: uniform in the cone it subtends, pdf_sa = 1 / (2 pi (1 - cos_max)).
+    float radius = light.irradiance.w;
+    if (d2 <= radius * radius) {
+        return light_sample_none();
+    }
+    float d_center = sqrt(d2);
+    vec3 axis = to_light / d_center;
+    float sin2_max = radius * radius / d2;
+    float cos_max = sqrt(max(0.0, 1.0 - sin2_max));
+    // 1 - cos_max without cancellation: sin2 / (1 + cos).
+    float one_minus_cos_max = sin2_max / (1.0 + cos_max);
+    float cos_theta = 1.0 - u2.x * one_minus_cos_max;
+    float sin_theta = sqrt(max(0.0, 1.0 - cos_theta * cos_theta));
+    float phi = 2.0 * PI * u2.y;
+    vec3 t;
+    vec3 b;
+    orthonormal_basis(axis, t, b);
+    s.wi = normalize(sin_theta * cos(phi) * t + sin_theta * sin(phi) * b + cos_theta * axis);
+    float t_hit = intersect_sphere(light.direction_type.xyz, radius, x, s.wi, 0.0, FAR);
+    if (t_hit >= FAR) {
+        return light_sample_none();
+    }
+    s.dist = t_hit;
+    s.point = x + t_hit * s.wi;
+    // cos at the light: the outward normal against the arriving direction.
+    float cos_l = max(0.0, dot(normalize(s.point - light.direction_type.xyz), -s.wi));
+    // Domain: t_hit > 0 (x outside the sphere).
+    float g = cos_l / (t_hit * t_hit);
+    s.L = light.irradiance.rgb * g;
+    // Domain: one_minus_cos_max > 0 since radius > 0.
+    s.pdf = p_select * g / (2.0 * PI * one_minus_cos_max);
+    // L / pdf with the geometry factor cancelled (finite even at grazing cos_l = 0).
+    s.L_over_pdf = light.irradiance.rgb * (2.0 * PI * one_minus_cos_max / p_select);
+    return s;
+}
+
+// Re-evaluate a stored light vertex from shading point x: the light `index` of the set at
+// `base` (or LIGHT_ENV), with `dir` the stored direction (directional lights ignore it,
+// the environment uses it) and `point` the stored point (sphere lights). Returns the
+// arriving radiance in the light's measure and sets wi / dist; zero when the vertex cannot
+// be reached from x (the back of a sphere, a point light at x).
+vec3 light_eval(uint base, uint index, vec3 dir, vec3 point, vec3 x, out vec3 wi, out float dist) {
+    wi = dir;
+    dist = FAR;
+    if (index == LIGHT_ENV) {
+        return env_radiance_along(dir);
+    }
+    if (index >= u_frame.counts.z) {
+        return vec3(0.0);
+    }
+    Light light = lights[base + index];
+    uint type = uint(light.direction_type.w);
+    if (type == LIGHT_DIRECTIONAL) {
+        wi = -light.direction_type.xyz;
+        return light.irradiance.rgb;
+    }
+    vec3 target = type == LIGHT_POINT ? light.direction_type.xyz : point;
+    vec3 to_light = target - x;
+    float d2 = dot(to_light, to_light);
+    // Domain: a vertex off the shading point.
+    if (!(d2 > 0.0)) {
+        return vec3(0.0);
+    }
+    dist = sqrt(d2);
+    wi = to_light / dist;
+    if (type == LIGHT_POINT) {
+        return light.irradiance.rgb / d2;
+    }
+    // A point on a sphere is seen from x only from its outer side.
+    float cos_l = dot(normalize(point - light.direction_type.xyz), -wi);
+    if (!(cos_l > 0.0)) {
+        return vec3(0.0);
+    }
+    return light.irradiance.rgb * (cos_l / d2);
+}
+
+// True if an emitting sphere blocks the segment from x along wi before `dist` (the light
+// vertex itself lies at dist; a sphere hit within the last 1e-4 of it is the vertex).
+bool light_blocked(uint base, vec3 x, vec3 wi, float dist) {
+    uint blocker;
+    float t_max = dist >= FAR ? FAR : dist * (1.0 - 1e-4);
+    return nearest_sphere_light(base, x, wi, 1e-6, t_max, blocker) < FAR;
+}
+
+// What a ray from o along d sees at its end beyond the media: the nearest emitting sphere
+// within t_max (its radiance) or the environment. `t_end` is where the ray ends (FAR
+// when it escapes).
+vec3 light_seen(uint base, vec3 o, vec3 d, out float t_end) {
+    uint index;
+    t_end = nearest_sphere_light(base, o, d, 0.0, FAR, index);
+    if (index != NO_INDEX) {
+        return lights[base + index].irradiance.rgb;
+    }
+    return env_radiance_along(d);
+}
+
+#endif
