@@ -15,6 +15,15 @@ pub const SUPER_VOXELS: u32 = 10;
 pub const GRID_EMISSION: u32 = 11;
 pub const ENV_TEXELS: u32 = 12;
 pub const ENV_CDF: u32 = 13;
+pub const RESTIR_UNIFORMS: u32 = 14;
+pub const RESERVOIRS: u32 = 15;
+pub const PC_GRID: u32 = 16;
+pub const MARCH_REUSE: u32 = 17;
+pub const MARCH_REUSE_PREV: u32 = 18;
+pub const MARCH_NEE: u32 = 19;
+pub const GRID_DENSITY_PREV: u32 = 20;
+pub const VELOCITY: u32 = 21;
+pub const PREV_FRAME_UNIFORMS: u32 = 22;
 
 /// Index of the non-finite sample counter in the stats buffer.
 pub const STAT_NON_FINITE: usize = 0;
@@ -22,7 +31,7 @@ pub const STAT_NON_FINITE: usize = 0;
 pub const STAT_COUNT: usize = 4;
 
 /// Every binding with its GLSL name, for the layout test.
-pub const ALL: [(&str, u32); 14] = [
+pub const ALL: [(&str, u32); 23] = [
     ("BINDING_FRAME_UNIFORMS", FRAME_UNIFORMS),
     ("BINDING_ACCUM", ACCUM),
     ("BINDING_ACCUM_SQ", ACCUM_SQ),
@@ -37,4 +46,13 @@ pub const ALL: [(&str, u32); 14] = [
     ("BINDING_GRID_EMISSION", GRID_EMISSION),
     ("BINDING_ENV_TEXELS", ENV_TEXELS),
     ("BINDING_ENV_CDF", ENV_CDF),
+    ("BINDING_RESTIR_UNIFORMS", RESTIR_UNIFORMS),
+    ("BINDING_RESERVOIRS", RESERVOIRS),
+    ("BINDING_PC_GRID", PC_GRID),
+    ("BINDING_MARCH_REUSE", MARCH_REUSE),
+    ("BINDING_MARCH_REUSE_PREV", MARCH_REUSE_PREV),
+    ("BINDING_MARCH_NEE", MARCH_NEE),
+    ("BINDING_GRID_DENSITY_PREV", GRID_DENSITY_PREV),
+    ("BINDING_VELOCITY", VELOCITY),
+    ("BINDING_PREV_FRAME_UNIFORMS", PREV_FRAME_UNIFORMS),
 ];

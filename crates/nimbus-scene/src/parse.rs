@@ -120,6 +120,7 @@ const RESTIR_KEYS: &[&str] = &[
     "mip_candidates",
     "mip_indirect",
     "mip_reuse",
+    "final_transmittance",
 ];
 
 /// Parses and validates the scene in `text`; `file` names it in errors and anchors
@@ -931,5 +932,10 @@ fn parse_restir(source: &Source, table: &toml::Table) -> Result<RestirSettings> 
         mip_candidates: f.u32_in("mip_candidates", Some(d.mip_candidates), 0..=16)?,
         mip_indirect: f.u32_in("mip_indirect", Some(d.mip_indirect), 0..=16)?,
         mip_reuse: f.u32_in("mip_reuse", Some(d.mip_reuse), 0..=16)?,
+        final_ratio_tracking: f.choice(
+            "final_transmittance",
+            Some(d.final_ratio_tracking),
+            &[("analytic", false), ("ratio", true)],
+        )?,
     })
 }

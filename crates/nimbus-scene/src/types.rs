@@ -312,6 +312,9 @@ pub struct RestirSettings {
     pub mip_candidates: u32,
     pub mip_indirect: u32,
     pub mip_reuse: u32,
+    /// Final shading by ratio tracking (`final_transmittance = "ratio"`) instead of the
+    /// closed-form trilinear transmittance (`"analytic"`, the default).
+    pub final_ratio_tracking: bool,
 }
 
 impl Default for RestirSettings {
@@ -327,6 +330,7 @@ impl Default for RestirSettings {
             mip_candidates: 1,
             mip_indirect: 2,
             mip_reuse: 1,
+            final_ratio_tracking: false,
         }
     }
 }

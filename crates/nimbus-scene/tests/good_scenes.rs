@@ -215,6 +215,7 @@ reuse = "vertex"
 mip_candidates = 2
 mip_indirect = 3
 mip_reuse = 0
+final_transmittance = "ratio"
 "#;
     let scene_path = dir.write("scene.toml", text.as_bytes());
     let scene = load(&scene_path).unwrap_or_else(|e| panic!("{e:#}"));
@@ -399,6 +400,7 @@ mip_reuse = 0
                 mip_candidates: 2,
                 mip_indirect: 3,
                 mip_reuse: 0,
+                final_ratio_tracking: true,
             },
         }
     );

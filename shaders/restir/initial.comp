@@ -1,0 +1,148 @@
+#version 460
+// Volumetric ReSTIR pass 1, initial candidates (Algorithm 3): M random walks per pixel by
+// regular tracking through the conservative piecewise-constant grid (mip_candidates for
+// the camera segment, mip_indirect after), each vertex spawning a scattering candidate
+// (NEE, transmittance ray marched on mip_indirect) and, where the medium emits, an
+// emission candidate; a camera ray that leaves the media spawns the "direct" candidate
+// (what it sees). One reservoir per pixel by streaming RIS.
+//
+// Per candidate the target p_hat is F with T* on the walked segments and T~ on the NEE
+// segment, so the T* in p_hat and in the walk's pdf p cancel in w = p_hat / p (eq. 24-25);
+// both are carried as RGB products: Fhat (target so far) and beta = Fhat / p.
+// Writes slot u_push.dst.
+
+#extension GL_GOOGLE_include_directive : require
+#include "restir.glsl"
+
+// The walk's vertices so far (z_i, omega_i), copied into the reservoir when one of its
+// candidates is selected.
+float walk_z[SC_MAX_BOUNCES + 1u];
+uint walk_omega[SC_MAX_BOUNCES + 1u];
+
+// Stream candidate (w, p_hat) for the path of the first `kp` walk vertices.
+void update(uint at, inout Reservoir r, inout uint rng, float w, float p_hat, uint kp, uint info_bits,
+            vec3 light_point, uint light_dir) {
+    // A candidate whose weight or target is not a positive finite number is a null sample.
+    if (!(w > 0.0) || isinf(w) || !(p_hat > 0.0) || isinf(p_hat)) {
+        return;
+    }
+    // Vertex reuse measures x_2 by volume: p_hat and F both carry G = 1 / z_2^2 (p too,
+    // so w is unchanged).
+    if (SC_REUSE_VERTEX && kp >= 2u) {
+        // Domain: z_2 > 0 (a collision strictly after x_1).
+        p_hat /= walk_z[1] * walk_z[1];
+    }
+    r.w_sum += w;
+    // Domain: r.w_sum >= w > 0.
+    if (rng_next(rng) * r.w_sum < w) {
+        r.p_hat = p_hat;
+        r.info = kp | INFO_VALID | info_bits;
+        r.light_point = light_point;
+        r.light_dir = light_dir;
+        for (uint i = 1u; i <= kp; ++i) {
+            res_store_vertex(at, i, walk_z[i - 1u], walk_omega[i - 1u]);
+        }
+    }
+}
+
+void main() {
+    uvec2 pixel = gl_GlobalInvocationID.xy;
+    if (pixel.x >= u_frame.image.x || pixel.y >= u_frame.image.y) {
+        return;
+    }
+    uint at = res_at(u_push.dst, pixel);
+    uint rng = rng_init(pixel, u_push.frame, 0u, u_frame.image.w);
+    CameraRay cam = camera_ray(pixel, SET_CURRENT);
+    vec3 albedo = u_base.albedo_g.rgb;
+    float g = u_base.albedo_g.w;
+    uint candidates = u_restir.settings.x;
+
+    Reservoir r = res_empty();
+    for (uint m = 0u; m < candidates; ++m) {
+        vec3 x = cam.o;
+        vec3 w = cam.d;
+        vec3 Fhat = vec3(1.0);
+        vec3 beta = vec3(1.0);
+        for (uint i = 1u; i <= SC_MAX_BOUNCES; ++i) {
+            // Where the segment ends without a collision: an emitting sphere or far away.
+            uint sphere;
+            float t_end = nearest_sphere_light(0u, x, w, 1e-6, FAR, sphere);
+            // Regular tracking: optical depth -ln(1 - u) through sigma_t*.
+            // Domain: 1 - u in (0, 1].
+            float tau_target = -log(1.0 - rng_next(rng));
+            float sigma_star;
+            float tau;
+            float z = pc_track(i == 1u ? LEVEL_PRIMARY : LEVEL_INDIRECT, x, w, t_end, tau_target, sigma_star, tau);
+            if (z >= FAR) {
+                // Left the media with probability T* = exp(-tau): the direct candidate of
+                // the camera segment (p = T*, p_hat = L T*, so w = L); later segments
+                // reach lights through NEE only.
+                if (i == 1u) {
+                    float t_seen;
+                    vec3 L = light_seen(0u, x, w, t_seen);
+                    // Domain: tau >= 0, so exp(-tau) in (0, 1].
+                    float T_star = exp(-tau);
+                    update(at, r, rng, luminance(L), luminance(L * T_star), 0u, sphere == NO_INDEX ? (LIGHT_ENV << 8u) : (sphere << 8u), vec3(0.0), 0u);
+                }
+                break;
+            }
+            x += z * w;
+            walk_z[i - 1u] = z;
+            float sigma_t = sigma_t_in(u_density, x);
+            if (!(sigma_t > 0.0)) {
+                break;
+            }
+            // p *= sigma_t* T*, Fhat *= T*. Domain: sigma_star > 0 at a collision.
+            Fhat *= exp(-tau);
+            beta /= sigma_star;
+
+            if (SC_HAS_EMISSION) {
+                // Emission candidate: sigma_a Le at x_i (eq. 25, emission case).
+                vec3 emitted = (vec3(1.0) - albedo) * sigma_t * grid_emission(x);
+                update(at, r, rng, luminance(beta * emitted), luminance(Fhat * emitted), i, INFO_EMISSION, vec3(0.0), 0u);
+            }
+
+            // Scattering candidate by next-event estimation.
+            vec3 sigma_s = albedo * sigma_t;
+            float u_light = rng_next(rng);
+            vec2 u2 = vec2(rng_next(rng), rng_next(rng));
+            LightSample ls = light_sample(0u, x, u_light, u2);
+            if (ls.pdf > 0.0 && !light_blocked(0u, x, ls.wi, ls.dist)) {
+                float rho = hg_phase(dot(w, ls.wi), g);
+                float T_nee = nee_transmittance(x, ls.wi, ls.dist);
+                vec3 Fs = Fhat * sigma_s * rho * ls.L * T_nee;
+                vec3 bs = beta * sigma_s * rho * ls.L_over_pdf * T_nee;
+                update(at, r, rng, luminance(bs), luminance(Fs), i, ls.index << 8u, ls.point, oct_encode(ls.wi));
+            }
+            if (i == SC_MAX_BOUNCES) {
+                break;
+            }
+            // Next direction by the phase function, stored quantized (the walk continues
+            // along the stored direction, so the path is exactly what was evaluated).
+            vec3 w_sampled = sample_hg(w, g, vec2(rng_next(rng), rng_next(rng)));
+            uint omega = oct_encode(w_sampled);
+            vec3 w_next = oct_decode(omega);
+            float rho_sampled = hg_phase(dot(w, w_sampled), g);
+            float rho_next = hg_phase(dot(w, w_next), g);
+            walk_omega[i - 1u] = omega;
+            Fhat *= sigma_s * rho_next;
+            // p *= rho(w_sampled). Domain: rho_sampled > 0 (HG is positive for |g| < 1).
+            beta *= sigma_s * (rho_next / rho_sampled);
+            w = w_next;
+            // Russian roulette after the third bounce, by beta = Fhat / p.
+            if (i >= 3u) {
+                float survive = clamp(max(beta.r, max(beta.g, beta.b)), 0.05, 1.0);
+                if (rng_next(rng) >= survive) {
+                    break;
+                }
+                // p *= survive. Domain: survive >= 0.05.
+                beta /= survive;
+            }
+        }
+    }
+    r.M = float(candidates);
+    if (!res_valid(r)) {
+        r.w_sum = 0.0;
+    }
+    res_store_header(at, r);
+}

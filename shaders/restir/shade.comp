@@ -1,0 +1,34 @@
+#version 460
+// Volumetric ReSTIR pass 4, final shading (Algorithm 6): the selected path's integrand F
+// with unbiased transmittance (the closed form through the trilinear grid, or ratio
+// tracking with SC_FINAL_RATIO_TRACKING), weighted f / p_hat * w_sum / M. Non-finite
+// values are counted and dropped, never written. Reads slot u_push.src.
+
+#extension GL_GOOGLE_include_directive : require
+#include "restir.glsl"
+
+void main() {
+    uvec2 pixel = gl_GlobalInvocationID.xy;
+    if (pixel.x >= u_frame.image.x || pixel.y >= u_frame.image.y) {
+        return;
+    }
+    uint at = res_at(u_push.src, pixel);
+    uint rng = rng_init(pixel, u_push.frame, 3u, u_frame.image.w);
+    CameraRay cam = camera_ray(pixel, SET_CURRENT);
+    Reservoir r = res_load(at);
+    vec3 L = vec3(0.0);
+    // An empty reservoir (no candidate with a positive target) estimates 0.
+    if (res_valid(r) && r.p_hat > 0.0 && r.M > 0.0 && r.w_sum > 0.0) {
+        vec3 f = path_value(at, r, cam, cam, MODE_FINAL, rng);
+        // Domain: p_hat > 0 and M > 0 (checked).
+        L = f * (r.w_sum / (r.p_hat * r.M));
+    }
+    uint index = pixel.y * u_frame.image.x + pixel.x;
+    if (any(isnan(L)) || any(isinf(L))) {
+        atomicAdd(stats[STAT_NON_FINITE], 1u);
+        L = vec3(0.0);
+        // The frame still counts (an estimate of 0 keeps the mean's weights uniform).
+    }
+    accum[index] += vec4(L, 1.0);
+    accum_sq[index] += vec4(L * L, 0.0);
+}

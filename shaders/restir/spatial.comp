@@ -1,0 +1,51 @@
+#version 460
+// Volumetric ReSTIR pass 3, spatial reuse (sec. 4.3, Algorithm 5): the pixel's reservoir
+// is combined with `spatial_neighbors` reservoirs within `spatial_radius_px`, picked by a
+// low-discrepancy sequence (golden-ratio radii and plastic-number angles, randomly rotated
+// per pixel, frame and round), with Talbot MIS over every pair of (sample, pixel): the
+// target functions are re-evaluated with T~ ray marched on mip_reuse (Algorithm 4), and
+// paths move between pixels by direction reuse (or vertex reuse, SC_REUSE_VERTEX).
+// One round: reads slot u_push.src, writes slot u_push.dst (u_push.aux = round).
+
+#extension GL_GOOGLE_include_directive : require
+#include "restir.glsl"
+
+void main() {
+    uvec2 pixel = gl_GlobalInvocationID.xy;
+    if (pixel.x >= u_frame.image.x || pixel.y >= u_frame.image.y) {
+        return;
+    }
+    uint rng = rng_init(pixel, u_push.frame, 2u + u_push.aux, u_frame.image.w);
+    CameraRay cam = camera_ray(pixel, SET_CURRENT);
+
+    Candidate c[MAX_CANDIDATES];
+    c[0].at = res_at(u_push.src, pixel);
+    c[0].r = res_load(c[0].at);
+    c[0].ray = cam;
+    uint n = 1u;
+    uint neighbors = min(u_restir.settings.z, uint(MAX_CANDIDATES - 1));
+    float radius = u_restir.spatial.x;
+    // Random rotation of the sequence for this pixel, frame and round.
+    float r0 = rng_next(rng);
+    float a0 = rng_next(rng);
+    for (uint j = 0u; j < neighbors; ++j) {
+        // Radius by sqrt for uniform area density; angle by the plastic-number sequence.
+        float rho = radius * sqrt(fract(r0 + float(j) * 0.6180339887));
+        float phi = 2.0 * PI * fract(a0 + float(j) * 0.7548776662);
+        ivec2 q = ivec2(pixel) + ivec2(round(rho * vec2(cos(phi), sin(phi))));
+        if (q == ivec2(pixel) || q.x < 0 || q.y < 0 || q.x >= int(u_frame.image.x) ||
+            q.y >= int(u_frame.image.y)) {
+            continue;
+        }
+        c[n].at = res_at(u_push.src, uvec2(q));
+        c[n].r = res_load(c[n].at);
+        c[n].ray = camera_ray(uvec2(q), SET_CURRENT);
+        ++n;
+    }
+    Reservoir s;
+    uint chosen = combine_candidates(c, n, rng, s);
+    uint dst = res_at(u_push.dst, pixel);
+    uint src_at = chosen < n ? c[chosen].at : c[0].at;
+    CameraRay owner = chosen < n ? c[chosen].ray : cam;
+    store_combined(dst, s, src_at, owner, cam);
+}

@@ -1,0 +1,93 @@
+#version 460
+// Volumetric ReSTIR pass 2, temporal reuse (sec. 4.4, Algorithm 5): the pixel's initial
+// reservoir is combined with the previous frame's final reservoir of the pixel where the
+// first vertex x_1 of its selected path was one frame ago: x_1 moved back through the
+// medium's velocity field and projected by the previous camera. Where x_1 is not in the
+// medium (the path is empty or ends on a light seen directly), velocity resampling
+// (sec. 5.2) draws a point along the camera ray by regular tracking restricted to the
+// medium instead. The previous reservoir's M is clamped to Q M (temporal limit).
+//
+// Reads and writes slot u_push.src (= dst, in place: each pixel touches only its own
+// entry there) and reads the previous frame's slot u_push.aux.
+
+#extension GL_GOOGLE_include_directive : require
+#include "restir.glsl"
+
+// Velocity (m per frame) at world x, linearly filtered.
+vec3 velocity_at(vec3 x) {
+    vec3 uvw = (x - u_grid.bounds_min.xyz) / (u_grid.bounds_max.xyz - u_grid.bounds_min.xyz);
+    return textureLod(u_velocity, uvw, 0.0).xyz;
+}
+
+void main() {
+    uvec2 pixel = gl_GlobalInvocationID.xy;
+    if (pixel.x >= u_frame.image.x || pixel.y >= u_frame.image.y) {
+        return;
+    }
+    uint at = res_at(u_push.src, pixel);
+    uint rng = rng_init(pixel, u_push.frame, 1u, u_frame.image.w);
+    CameraRay cam = camera_ray(pixel, SET_CURRENT);
+    Reservoir cur = res_load(at);
+
+    // The motion vector's particle: x_1 of the selected path, else velocity resampling.
+    vec3 x1 = vec3(0.0);
+    bool in_medium = false;
+    if (res_valid(cur) && res_vertices(cur) >= 1u) {
+        x1 = cam.o + res_z(at, 1u) * cam.d;
+        in_medium = true;
+    } else {
+        uint sphere;
+        float t_end = nearest_sphere_light(0u, cam.o, cam.d, 1e-6, FAR, sphere);
+        float sigma_star;
+        float tau_total;
+        pc_track(LEVEL_PRIMARY, cam.o, cam.d, t_end, FAR, sigma_star, tau_total);
+        if (tau_total > 0.0) {
+            // A collision conditioned to happen: tau uniform in probability over
+            // [0, tau_total). Domain: 1 - u (1 - e^-tau) in (e^-tau, 1].
+            float u = rng_next(rng);
+            float tau_target = -log(1.0 - u * (1.0 - exp(-tau_total)));
+            float tau;
+            float z = pc_track(LEVEL_PRIMARY, cam.o, cam.d, t_end, min(tau_target, tau_total), sigma_star, tau);
+            if (z < FAR) {
+                x1 = cam.o + z * cam.d;
+                in_medium = true;
+            }
+        }
+    }
+    vec3 x_prev;
+    vec2 px;
+    bool on_screen;
+    if (in_medium) {
+        x_prev = SC_HAS_VELOCITY ? x1 - velocity_at(x1) : x1;
+        on_screen = camera_project(u_prev_frame, x_prev, px);
+    } else {
+        // Nothing in the medium along the ray: follow the background (a far point).
+        on_screen = camera_project(u_prev_frame, u_prev_frame.cam_position.xyz + cam.d * 1e6, px);
+    }
+    if (!on_screen || px.x < 0.0 || px.y < 0.0 || px.x >= float(u_frame.image.x) ||
+        px.y >= float(u_frame.image.y)) {
+        // No temporal neighbour: the reservoir stays as it is.
+        return;
+    }
+    uvec2 q_prev = uvec2(px);
+
+    Candidate c[MAX_CANDIDATES];
+    c[0].at = at;
+    c[0].r = cur;
+    c[0].ray = cam;
+    c[1].at = res_at(u_push.aux, q_prev);
+    c[1].r = res_load(c[1].at);
+    c[1].ray = camera_ray(q_prev, SET_PREVIOUS);
+    // Temporal limit: M_prev <= Q M, scaling w_sum alike so W_prev is unchanged.
+    float m_cap = float(u_restir.settings.y) * float(u_restir.settings.x);
+    if (c[1].r.M > m_cap) {
+        // Domain: M > m_cap > 0.
+        c[1].r.w_sum *= m_cap / c[1].r.M;
+        c[1].r.M = m_cap;
+    }
+    Reservoir s;
+    uint chosen = combine_candidates(c, 2u, rng, s);
+    uint src_at = chosen < 2u ? c[chosen].at : at;
+    CameraRay owner = chosen < 2u ? c[chosen].ray : cam;
+    store_combined(at, s, src_at, owner, cam);
+}
