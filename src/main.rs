@@ -65,6 +65,17 @@ struct RenderArgs {
     /// Exposure multiplier applied before tonemapping a .png.
     #[arg(long, default_value_t = 1.0)]
     exposure: f32,
+    /// Also write every frame's own image into this directory (frame_0000.exr, ...;
+    /// .png with --sequence-format png).
+    #[arg(long)]
+    sequence: Option<PathBuf>,
+    /// Image format of --sequence frames: exr or png.
+    #[arg(long, default_value = "exr", value_parser = ["exr", "png"])]
+    sequence_format: String,
+    /// Frames rendered before the measured ones and not counted (fills ReSTIR's
+    /// temporal history).
+    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u32).range(0..=1_000_000))]
+    warmup: u32,
     #[command(flatten)]
     overrides: Overrides,
 }
@@ -129,6 +140,15 @@ struct StudyArgs {
     /// Image height for the reference and every configuration (default: the scene's).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16384))]
     height: Option<u32>,
+    /// Frames rendered before each configuration's measured frames (fills ReSTIR's
+    /// temporal history; at least 1).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(0..=100_000))]
+    warmup: u32,
+    /// Report the mean of each measured frame's own error, at the GPU time of one frame
+    /// (steady-state single-frame error, as the Volumetric ReSTIR paper measures), instead
+    /// of the error of the mean over the frames.
+    #[arg(long)]
+    per_frame: bool,
 }
 
 fn main() -> ExitCode {
@@ -164,6 +184,8 @@ fn study_cmd(args: StudyArgs) -> Result<()> {
         out_dir: args.out_dir,
         width: args.width,
         height: args.height,
+        warmup: args.warmup,
+        per_frame: args.per_frame,
     })?;
     let ctx = Context::new(&ContextDesc::from_env())?;
     eprintln!("device: {}", ctx.info().name);
@@ -192,6 +214,11 @@ fn render(args: RenderArgs) -> Result<()> {
         bail!("--out FILE is required to render (or pass --explain to print the plan)");
     };
     check_output_path(&out)?;
+    if let Some(dir) = &args.sequence {
+        std::fs::create_dir_all(dir).with_context(|| {
+            format!("--sequence {}: cannot create the directory", dir.display())
+        })?;
+    }
     let ctx = Context::new(&ContextDesc::from_env())?;
     eprintln!("device: {}", ctx.info().name);
     let result = renderer::render(
@@ -200,7 +227,11 @@ fn render(args: RenderArgs) -> Result<()> {
         &plan,
         &renderer::RenderOptions {
             progress: true,
-            warmup_frames: 0,
+            warmup_frames: args.warmup,
+            sequence: args.sequence.clone(),
+            sequence_ext: args.sequence_format.clone(),
+            sequence_exposure: args.exposure,
+            keep_frames: false,
         },
     )?;
     output::write_image(&out, &result.image, args.exposure)?;
@@ -242,6 +273,7 @@ fn profile_cmd(args: ProfileArgs) -> Result<()> {
         &renderer::RenderOptions {
             progress: true,
             warmup_frames: args.warmup,
+            ..Default::default()
         },
     )?;
     if result.frame_timings.is_empty() {

@@ -20,6 +20,7 @@ pub const MAX_DIRECTIONAL_LIGHTS: usize = 16;
 pub struct RenderPlan {
     pub crepuscular: Option<CrepuscularPlan>,
     pub baseline: Option<BaselinePlan>,
+    pub restir: Option<RestirPlan>,
     /// Every pass the renderer knows, with whether it runs and why.
     pub decisions: Vec<Decision>,
 }
@@ -49,6 +50,42 @@ pub struct BaselinePlan {
     pub pixel_jitter: bool,
 }
 
+/// Settings of the Volumetric ReSTIR passes (initial, temporal, spatial, shade).
+#[derive(Clone, Debug, PartialEq)]
+pub struct RestirPlan {
+    /// K: scattering events per path, 1..=MAX_RESTIR_BOUNCES.
+    pub max_bounces: u32,
+    pub has_emission: bool,
+    pub has_env: bool,
+    pub has_env_map: bool,
+    pub pixel_jitter: bool,
+    /// The medium has a velocity grid for temporal reprojection.
+    pub has_velocity: bool,
+    /// The density changes over the frames ([[medium.frame]]).
+    pub animated_density: bool,
+    /// M: random walks per pixel per frame.
+    pub candidates: u32,
+    /// Temporal reuse runs (from the second frame on).
+    pub temporal: bool,
+    /// Q: the previous frame's M is clamped to Q·M.
+    pub temporal_limit: u32,
+    pub spatial_neighbors: u32,
+    pub spatial_radius_px: f32,
+    pub spatial_rounds: u32,
+    /// Vertex reuse instead of direction reuse.
+    pub vertex_reuse: bool,
+    /// Final shading by ratio tracking instead of the closed-form transmittance.
+    pub final_ratio_tracking: bool,
+    pub mip_candidates: u32,
+    pub mip_indirect: u32,
+    pub mip_reuse: u32,
+}
+
+/// Most scattering events per path ReSTIR stores (reservoirs hold K vertices).
+pub const MAX_RESTIR_BOUNCES: u32 = 16;
+/// Most spatial neighbours (Talbot MIS costs (N + 1)² target evaluations per pixel).
+pub const MAX_SPATIAL_NEIGHBORS: u32 = 16;
+
 /// Most lights the baseline path tracer takes (`MAX_LIGHTS` in pathtrace.comp).
 pub const MAX_BASELINE_LIGHTS: usize = 16;
 
@@ -56,12 +93,12 @@ pub const MAX_BASELINE_LIGHTS: usize = 16;
 fn build_volume(scene: &Scene) -> Result<RenderPlan> {
     let file = scene.source.display();
     let integrator = &scene.integrator;
-    if integrator.volume == nimbus_scene::VolumeIntegrator::Restir {
-        bail!(
-            "{file}: [integrator] field `volume` = \"restir\" (the default for grid media): \
-             Volumetric ReSTIR is not supported yet; set volume = \"baseline\""
-        );
-    }
+    let restir = integrator.volume == nimbus_scene::VolumeIntegrator::Restir;
+    let integrator_name = if restir {
+        "Volumetric ReSTIR"
+    } else {
+        "the baseline path tracer"
+    };
     let grids: Vec<_> = scene
         .media
         .iter()
@@ -73,7 +110,7 @@ fn build_volume(scene: &Scene) -> Result<RenderPlan> {
         .collect();
     if grids.len() > 1 {
         bail!(
-            "{file}: [[medium]] #{}: the baseline path tracer takes one grid medium, this scene has {}",
+            "{file}: [[medium]] #{}: {integrator_name} takes one grid medium, this scene has {}",
             grids[1].0 + 1,
             grids.len()
         );
@@ -85,16 +122,37 @@ fn build_volume(scene: &Scene) -> Result<RenderPlan> {
         );
     }
     let (index, grid) = grids[0];
-    let unsupported = if grid.velocity.is_some() || !grid.frames.is_empty() {
-        Some("animated density (velocity / [[medium.frame]])")
-    } else {
-        None
-    };
-    if let Some(what) = unsupported {
+    let animated = grid.velocity.is_some() || !grid.frames.is_empty();
+    if animated && !restir {
         bail!(
-            "{file}: [[medium]] #{} (type = \"grid\"): {what} is not supported yet by the baseline path tracer",
+            "{file}: [[medium]] #{} (type = \"grid\"): animated density (velocity / [[medium.frame]]) is not supported yet by the baseline path tracer; use volume = \"restir\"",
             index + 1
         );
+    }
+    if restir {
+        if let Some(i) = scene.media.iter().position(|m| matches!(m, Medium::Box(_))) {
+            bail!(
+                "{file}: [[medium]] #{} (type = \"box\"): Volumetric ReSTIR renders one grid medium alone; box media beside it need volume = \"baseline\"",
+                i + 1
+            );
+        }
+        if !scene.shapes.is_empty() {
+            bail!(
+                "{file}: [[shape]] #1: Volumetric ReSTIR does not render surfaces yet; use [integrator] volume = \"baseline\""
+            );
+        }
+        if integrator.max_bounces > MAX_RESTIR_BOUNCES {
+            bail!(
+                "{file}: [integrator] field `max_bounces` = {}: Volumetric ReSTIR stores paths of at most {MAX_RESTIR_BOUNCES} scattering events",
+                integrator.max_bounces
+            );
+        }
+        if integrator.restir.spatial_neighbors > MAX_SPATIAL_NEIGHBORS {
+            bail!(
+                "{file}: [integrator.restir] field `spatial_neighbors` = {}: at most {MAX_SPATIAL_NEIGHBORS} (Talbot MIS costs (N + 1)^2 path evaluations per pixel)",
+                integrator.restir.spatial_neighbors
+            );
+        }
     }
     let envs = scene
         .lights
@@ -117,7 +175,7 @@ fn build_volume(scene: &Scene) -> Result<RenderPlan> {
             _ => continue,
         };
         bail!(
-            "{file}: [[light]] #{}: {kind} is not supported yet by the baseline path tracer",
+            "{file}: [[light]] #{}: {kind} is not supported yet by {integrator_name}",
             i + 1
         );
     }
@@ -128,13 +186,23 @@ fn build_volume(scene: &Scene) -> Result<RenderPlan> {
         .count();
     if lights > MAX_BASELINE_LIGHTS {
         bail!(
-            "{file}: [[light]]: {lights} lights, the baseline path tracer takes at most {MAX_BASELINE_LIGHTS}"
+            "{file}: [[light]]: {lights} lights, {integrator_name} takes at most {MAX_BASELINE_LIGHTS}"
         );
     }
     let has_env = scene
         .lights
         .iter()
         .any(|l| matches!(l, Light::Environment { .. }));
+    if restir {
+        return Ok(restir_plan(
+            scene,
+            index,
+            grid,
+            has_env,
+            env_map.is_some(),
+            lights,
+        ));
+    }
     let baseline = BaselinePlan {
         max_bounces: integrator.max_bounces,
         has_boxes: boxes > 0,
@@ -202,8 +270,167 @@ fn build_volume(scene: &Scene) -> Result<RenderPlan> {
     Ok(RenderPlan {
         crepuscular: None,
         baseline: Some(baseline),
+        restir: None,
         decisions,
     })
+}
+
+/// The ReSTIR plan for a validated grid scene.
+fn restir_plan(
+    scene: &Scene,
+    index: usize,
+    grid: &nimbus_scene::GridMedium,
+    has_env: bool,
+    has_env_map: bool,
+    lights: usize,
+) -> RenderPlan {
+    let s = &scene.integrator.restir;
+    let k = scene.integrator.max_bounces;
+    let plan = RestirPlan {
+        max_bounces: k,
+        has_emission: grid.emission.is_some(),
+        has_env,
+        has_env_map,
+        pixel_jitter: scene.render.pixel_jitter,
+        has_velocity: grid.velocity.is_some(),
+        animated_density: !grid.frames.is_empty(),
+        candidates: s.candidates,
+        temporal: s.temporal,
+        temporal_limit: s.temporal_limit,
+        spatial_neighbors: s.spatial_neighbors,
+        spatial_radius_px: s.spatial_radius_px,
+        spatial_rounds: s.spatial_rounds,
+        vertex_reuse: s.reuse == nimbus_scene::ReuseMode::Vertex,
+        final_ratio_tracking: s.final_ratio_tracking,
+        mip_candidates: s.mip_candidates,
+        mip_indirect: s.mip_indirect,
+        mip_reuse: s.mip_reuse,
+    };
+    let frames = scene.render.frames;
+    let spatial = plan.spatial_neighbors > 0 && plan.spatial_rounds > 0;
+    let on = |name: &'static str, enabled: bool, reason: String| Decision {
+        name,
+        enabled,
+        reason,
+    };
+    let decisions = vec![
+        on(
+            "pass restir initial",
+            true,
+            format!(
+                "grid medium #{}: M = {} random walks per pixel, regular tracking on mip {} (camera) / {} (scattered), \
+                 K = {k}, {lights} analytic light(s); {} bytes of reservoir per pixel and slot, 3 slots",
+                index + 1,
+                plan.candidates,
+                plan.mip_candidates,
+                plan.mip_indirect,
+                crate::passes::restir::reservoir_bytes(k)
+            ),
+        ),
+        on(
+            "pass restir temporal",
+            plan.temporal && frames > 1,
+            if !plan.temporal {
+                "[integrator.restir] temporal = false".into()
+            } else if frames > 1 {
+                format!(
+                    "from the second frame: reprojection of x1{}, Q = {}",
+                    if plan.has_velocity {
+                        " through the velocity field"
+                    } else {
+                        ""
+                    },
+                    plan.temporal_limit
+                )
+            } else {
+                "a single frame has no previous one".into()
+            },
+        ),
+        on(
+            "pass restir spatial",
+            spatial,
+            if spatial {
+                format!(
+                    "{} round(s) of {} neighbours within {} px, Talbot MIS, T~ marched on mip {}, {} reuse",
+                    plan.spatial_rounds,
+                    plan.spatial_neighbors,
+                    plan.spatial_radius_px,
+                    plan.mip_reuse,
+                    if plan.vertex_reuse {
+                        "vertex"
+                    } else {
+                        "direction"
+                    }
+                )
+            } else {
+                "spatial_neighbors or spatial_rounds is 0".into()
+            },
+        ),
+        on(
+            "pass restir shade",
+            true,
+            if plan.final_ratio_tracking {
+                "F with ratio-tracking transmittance (global majorant)".into()
+            } else {
+                "F with closed-form transmittance through the trilinear grid".into()
+            },
+        ),
+        on(
+            "  SC_HAS_EMISSION",
+            plan.has_emission,
+            if plan.has_emission {
+                "the grid emits: emission candidates at every vertex".into()
+            } else {
+                "nothing emits: emission candidates compiled out".into()
+            },
+        ),
+        on(
+            "  SC_HAS_ENV",
+            has_env,
+            if has_env_map {
+                "environment map, importance-sampled in NEE (SC_HAS_ENV_MAP)".into()
+            } else if has_env {
+                "constant environment".into()
+            } else {
+                "no environment".into()
+            },
+        ),
+        on(
+            "  SC_REUSE_VERTEX",
+            plan.vertex_reuse,
+            if plan.vertex_reuse {
+                "vertex reuse: x2 kept in world space (volume-measure geometry term)".into()
+            } else {
+                "direction reuse (z_i, omega_i)".into()
+            },
+        ),
+        on(
+            "  SC_HAS_VELOCITY",
+            plan.has_velocity,
+            if plan.has_velocity {
+                "temporal reprojection follows the velocity grid".into()
+            } else {
+                "no velocity grid: reprojection by the camera only".into()
+            },
+        ),
+        on(
+            "  SC_PIXEL_JITTER",
+            plan.pixel_jitter,
+            "sub-pixel jitter hashed from (pixel, frame)".into(),
+        ),
+        on(
+            "pass baseline path tracer",
+            false,
+            "[integrator] volume = \"restir\"".into(),
+        ),
+        on("pass crepuscular", false, "no box media".into()),
+    ];
+    RenderPlan {
+        crepuscular: None,
+        baseline: None,
+        restir: Some(plan),
+        decisions,
+    }
 }
 
 /// The pass's specialization constants.
@@ -391,6 +618,7 @@ pub fn build(scene: &Scene, samples_along_ray: Option<u32>) -> Result<RenderPlan
 
     Ok(RenderPlan {
         baseline: None,
+        restir: None,
         crepuscular: Some(CrepuscularPlan {
             estimator,
             samples_along_ray,
@@ -495,9 +723,18 @@ mod tests {
                 .expect("parses");
             build(&scene, None).unwrap_err().to_string()
         };
-        let e = err(&grid(0), "restir");
+        let restir = nimbus_scene::parse_str(&text(&grid(0), "restir"), Path::new("grid.toml"))
+            .expect("parses");
+        let plan = build(&restir, None).unwrap();
+        let r = plan.restir.as_ref().expect("restir plan");
+        assert!(plan.baseline.is_none() && !r.has_emission && !r.vertex_reuse);
+        assert_eq!(
+            (r.candidates, r.temporal_limit, r.spatial_neighbors),
+            (4, 4, 3)
+        );
+        let e = err(&format!("{}{}", grid(0), grid(1)), "restir");
         assert!(
-            e.contains("grid.toml") && e.contains("[integrator]") && e.contains("`volume`"),
+            e.contains("[[medium]] #2") && e.contains("Volumetric ReSTIR"),
             "{e}"
         );
         let e = err(&format!("{}{}", grid(0), grid(1)), "baseline");

@@ -971,6 +971,7 @@ mod tests {
     fn scene(media: Vec<BoxMedium>, shapes: Vec<Shape>, lights: Vec<Light>) -> Scene {
         Scene {
             source: PathBuf::from("<test>"),
+            light_keyframes: Vec::new(),
             render: RenderSettings {
                 width: 6,
                 height: 4,

@@ -780,6 +780,7 @@ mod tests {
     fn scene(media: Vec<Medium>, shapes: Vec<Shape>, lights: Vec<Light>) -> Scene {
         Scene {
             source: PathBuf::from("<test>"),
+            light_keyframes: Vec::new(),
             render: RenderSettings {
                 width: 4,
                 height: 3,

@@ -7,7 +7,7 @@
 
 use std::time::{Duration, Instant};
 
-use anyhow::{bail, Result};
+use anyhow::{bail, Context as _, Result};
 use nimbus_gpu::{vk, Buffer, BufferDesc, Context, Profiler, ScopeResult};
 use nimbus_scene::Scene;
 
@@ -16,12 +16,14 @@ use crate::gpu_scene::{self, FrameUniforms, GpuGrid, GpuScene, PassPush};
 use crate::output::ImageRgb;
 use crate::passes::baseline::BaselinePass;
 use crate::passes::crepuscular::{CrepuscularPass, Targets};
+use crate::passes::restir::RestirPass;
 use crate::plan::RenderPlan;
 
 /// The pass a plan runs, with what it needs per frame.
 enum Pass {
     Crepuscular(Box<CrepuscularPass>, Box<GpuScene>, u32),
     Baseline(Box<BaselinePass>, [u32; 4], glam::Vec3),
+    Restir(Box<RestirPass>, [u32; 4], glam::Vec3),
 }
 
 impl Pass {
@@ -30,6 +32,7 @@ impl Pass {
         match self {
             Pass::Crepuscular(..) => "crepuscular",
             Pass::Baseline(..) => "baseline",
+            Pass::Restir(..) => "restir",
         }
     }
 
@@ -38,29 +41,51 @@ impl Pass {
             Pass::Crepuscular(_, gpu_scene, samples) => {
                 gpu_scene.frame_uniforms(scene, camera, *samples)
             }
-            Pass::Baseline(_, counts, env) => {
+            Pass::Baseline(_, counts, env) | Pass::Restir(_, counts, env) => {
                 gpu_scene::frame_uniforms(scene, camera, *env, *counts)
             }
         }
     }
 
+    /// Uploads what the pass needs for render frame `frame` (camera frame `camera_frame`).
+    fn prepare(&self, ctx: &Context, scene: &Scene, frame: u32, camera_frame: u32) -> Result<()> {
+        match self {
+            Pass::Restir(pass, ..) => pass.prepare(ctx, scene, frame, camera_frame),
+            _ => Ok(()),
+        }
+    }
+
+    /// Records the frame's dispatches inside a profiler scope named by [`Pass::label`]
+    /// (ReSTIR nests one scope per pass inside it).
     fn record(
         &self,
         ctx: &Context,
         cmd: vk::CommandBuffer,
         uniforms: &FrameUniforms,
         push: &PassPush,
+        mut profiler: Option<&mut Profiler>,
     ) -> Result<()> {
-        match self {
-            Pass::Crepuscular(pass, ..) => pass.record(ctx, cmd, uniforms, push),
-            Pass::Baseline(pass, ..) => pass.record(ctx, cmd, uniforms, push),
+        if let Some(p) = profiler.as_deref_mut() {
+            p.begin_scope(ctx, cmd, self.label())?;
         }
+        match self {
+            Pass::Crepuscular(pass, ..) => pass.record(ctx, cmd, uniforms, push)?,
+            Pass::Baseline(pass, ..) => pass.record(ctx, cmd, uniforms, push)?,
+            Pass::Restir(pass, ..) => {
+                pass.record(ctx, cmd, uniforms, push.frame, profiler.as_deref_mut())?
+            }
+        }
+        if let Some(p) = profiler {
+            p.end_scope(ctx, cmd)?;
+        }
+        Ok(())
     }
 
     fn destroy(self, ctx: &Context) {
         match self {
             Pass::Crepuscular(pass, ..) => (*pass).destroy(ctx),
             Pass::Baseline(pass, ..) => (*pass).destroy(ctx),
+            Pass::Restir(pass, ..) => (*pass).destroy(ctx),
         }
     }
 }
@@ -75,6 +100,16 @@ fn create_pass(ctx: &Context, scene: &Scene, plan: &RenderPlan, targets: &Target
             Box::new(gpu_scene),
             p.samples_along_ray,
         ));
+    }
+    if let Some(p) = &plan.restir {
+        let grid = GpuGrid::build(scene)?;
+        let mut pass = RestirPass::new(ctx, p, scene, &grid, targets)?;
+        if let Err(e) = pass.load_frames(scene) {
+            pass.destroy(ctx);
+            return Err(e);
+        }
+        let counts = [0, 0, grid.lights.len() as u32, 0];
+        return Ok(Pass::Restir(Box::new(pass), counts, grid.env_radiance));
     }
     let Some(p) = &plan.baseline else {
         bail!("internal: the render plan has no pass to run");
@@ -97,8 +132,18 @@ fn create_pass(ctx: &Context, scene: &Scene, plan: &RenderPlan, targets: &Target
 pub struct RenderOptions {
     /// Show a progress bar once the render has run for a second.
     pub progress: bool,
-    /// Frames to render and discard before the measured ones (for profiling).
+    /// Frames to render and discard before the measured ones (for profiling, and to
+    /// fill ReSTIR's temporal history before measuring).
     pub warmup_frames: u32,
+    /// Write every measured frame's image into this directory as
+    /// `frame_NNNN.<sequence_ext>` (the result is still the mean of all frames).
+    pub sequence: Option<std::path::PathBuf>,
+    /// Extension of the sequence images: "exr" (linear) or "png" (tonemapped).
+    pub sequence_ext: String,
+    /// Exposure of tonemapped sequence images.
+    pub sequence_exposure: f32,
+    /// Keep every measured frame's own image in [`RenderResult::frame_images`].
+    pub keep_frames: bool,
 }
 
 /// The result of a render.
@@ -115,6 +160,8 @@ pub struct RenderResult {
     pub frame_timings: Vec<Vec<ScopeResult>>,
     /// Wall-clock time of the whole render, warm-up included.
     pub wall_time: Duration,
+    /// Each measured frame's own estimate, with [`RenderOptions::keep_frames`].
+    pub frame_images: Vec<ImageRgb>,
 }
 
 /// Render `scene` with `plan` on `ctx`.
@@ -170,8 +217,18 @@ pub fn render(
         let pass = create_pass(ctx, scene, plan, &targets)?;
         let run = run_frames(ctx, scene, &pass, &targets, opts);
         pass.destroy(ctx);
-        let (frame_timings, frames) = run?;
-        read_result(ctx, scene, &targets, frames, frame_timings, start)
+        let (frame_timings, frames, sequence_sums, frame_images) = run?;
+        let mut result = read_result(
+            ctx,
+            scene,
+            &targets,
+            frames,
+            frame_timings,
+            sequence_sums,
+            start,
+        )?;
+        result.frame_images = frame_images;
+        Ok(result)
     })();
     res.destroy(ctx);
     result
@@ -184,10 +241,10 @@ fn run_frames(
     pass: &Pass,
     targets: &Targets,
     opts: &RenderOptions,
-) -> Result<(Vec<Vec<ScopeResult>>, u32)> {
+) -> Result<(Vec<Vec<ScopeResult>>, u32, Option<Sums>, Vec<ImageRgb>)> {
     let r = &scene.render;
     let mut profiler = if ctx.info().timestamp_valid_bits > 0 {
-        Some(Profiler::new(ctx, 4, "frame")?)
+        Some(Profiler::new(ctx, 8, "frame")?)
     } else {
         None
     };
@@ -196,6 +253,12 @@ fn run_frames(
     let mut timings = Vec::new();
     let mut last_camera = None;
     let mut outcome = Ok(());
+    let per_frame = opts.sequence.is_some() || opts.keep_frames;
+    let mut frame_images = Vec::new();
+    let mut sequence_sums = per_frame.then(|| {
+        let n = r.width as usize * r.height as usize;
+        (vec![[0.0f32; 4]; n], vec![[0.0f32; 4]; n])
+    });
     for i in 0..total {
         // Warm-up frames render into the sums too; they are cleared afterwards.
         if i == opts.warmup_frames && i > 0 {
@@ -225,15 +288,17 @@ fn run_frames(
             sample_base: 0,
             ..Default::default()
         };
+        if let Err(e) = pass.prepare(ctx, scene, i, frame) {
+            outcome = Err(e);
+            break;
+        }
         let recorded = ctx.submit_one_shot(&format!("frame {i}"), |cmd| {
             if let Some(p) = profiler.as_mut() {
                 p.begin_frame(cmd);
                 p.begin_scope(ctx, cmd, "frame")?;
-                p.begin_scope(ctx, cmd, pass.label())?;
             }
-            pass.record(ctx, cmd, &uniforms, &push)?;
+            pass.record(ctx, cmd, &uniforms, &push, profiler.as_mut())?;
             if let Some(p) = profiler.as_mut() {
-                p.end_scope(ctx, cmd)?;
                 p.end_scope(ctx, cmd)?;
             }
             Ok(())
@@ -252,13 +317,64 @@ fn run_frames(
                 }
             }
         }
+        if let Some(sums) = sequence_sums.as_mut() {
+            if i >= opts.warmup_frames {
+                match sequence_frame(ctx, scene, targets, frame, opts, sums) {
+                    Ok(image) if opts.keep_frames => frame_images.push(image),
+                    Ok(_) => {}
+                    Err(e) => {
+                        outcome = Err(e);
+                        break;
+                    }
+                }
+            }
+        }
         progress.tick();
     }
     progress.finish();
     if let Some(p) = profiler {
         p.destroy(ctx);
     }
-    outcome.map(|()| (timings, r.frames))
+    outcome.map(|()| (timings, r.frames, sequence_sums, frame_images))
+}
+
+/// Sums of x and x² per pixel (rgb, w = frame count), kept on the CPU in sequence mode.
+type Sums = (Vec<[f32; 4]>, Vec<[f32; 4]>);
+
+/// Per-frame mode: reads this frame's estimate back (the GPU sums hold only this
+/// frame), writes it as an image in sequence mode, adds it to the CPU sums, clears the
+/// GPU sums and returns the frame's image.
+fn sequence_frame(
+    ctx: &Context,
+    scene: &Scene,
+    targets: &Targets,
+    frame: u32,
+    opts: &RenderOptions,
+    sums: &mut Sums,
+) -> Result<ImageRgb> {
+    let r = &scene.render;
+    let sum: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(&ctx.readback_buffer(targets.accum)?);
+    let sum_sq: Vec<[f32; 4]> =
+        bytemuck::pod_collect_to_vec(&ctx.readback_buffer(targets.accum_sq)?);
+    let mut image = ImageRgb::new(r.width, r.height);
+    for (i, (s, q)) in sum.iter().zip(&sum_sq).enumerate() {
+        let n = s[3].max(1.0);
+        for c in 0..3 {
+            image.data[i][c] = s[c] / n;
+        }
+        for c in 0..4 {
+            sums.0[i][c] += s[c];
+            sums.1[i][c] += q[c];
+        }
+    }
+    if let Some(dir) = &opts.sequence {
+        let path = dir.join(format!("frame_{frame:04}.{}", opts.sequence_ext));
+        crate::output::write_image(&path, &image, opts.sequence_exposure)
+            .with_context(|| format!("writing sequence frame {}", path.display()))?;
+    }
+    ctx.fill_buffer(targets.accum, 0)?;
+    ctx.fill_buffer(targets.accum_sq, 0)?;
+    Ok(image)
 }
 
 fn clear_targets(ctx: &Context, targets: &Targets) -> Result<()> {
@@ -274,12 +390,17 @@ fn read_result(
     targets: &Targets,
     frames: u32,
     frame_timings: Vec<Vec<ScopeResult>>,
+    sequence_sums: Option<Sums>,
     start: Instant,
 ) -> Result<RenderResult> {
     let r = &scene.render;
-    let sum: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(&ctx.readback_buffer(targets.accum)?);
-    let sum_sq: Vec<[f32; 4]> =
-        bytemuck::pod_collect_to_vec(&ctx.readback_buffer(targets.accum_sq)?);
+    let (sum, sum_sq) = match sequence_sums {
+        Some(sums) => sums,
+        None => (
+            bytemuck::pod_collect_to_vec(&ctx.readback_buffer(targets.accum)?),
+            bytemuck::pod_collect_to_vec(&ctx.readback_buffer(targets.accum_sq)?),
+        ),
+    };
     let stats: Vec<u32> = bytemuck::pod_collect_to_vec(&ctx.readback_buffer(targets.stats)?);
     let mut image = ImageRgb::new(r.width, r.height);
     let mut std_error = ImageRgb::new(r.width, r.height);
@@ -304,6 +425,7 @@ fn read_result(
         non_finite_samples: u64::from(stats[bindings::STAT_NON_FINITE]),
         frame_timings,
         wall_time: start.elapsed(),
+        frame_images: Vec::new(),
     })
 }
 

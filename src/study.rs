@@ -49,7 +49,7 @@ use crate::renderer::{self, RenderOptions, RenderResult};
 pub const REL_MSE_EPSILON: f64 = 1e-2;
 
 /// The keys `--vary` (and `--baseline`) accept, in the order [`apply`] lists them.
-pub const KEYS: [&str; 7] = [
+pub const KEYS: [&str; 18] = [
     "box_estimator",
     "spp",
     "box_samples",
@@ -57,6 +57,17 @@ pub const KEYS: [&str; 7] = [
     "seed",
     "max_bounces",
     "volume",
+    "candidates",
+    "temporal",
+    "temporal_limit",
+    "spatial_neighbors",
+    "spatial_radius_px",
+    "spatial_rounds",
+    "reuse",
+    "mip_candidates",
+    "mip_indirect",
+    "mip_reuse",
+    "final_transmittance",
 ];
 
 /// The keys that buy accuracy with time: configurations differing only in these form
@@ -120,9 +131,62 @@ pub fn apply(scene: &mut Scene, key: &str, value: &str) -> Result<Option<u32>> {
                     )
                 })?;
         }
+        "candidates" => scene.integrator.restir.candidates = parse_count(key, value, 4096)?,
+        "temporal" => scene.integrator.restir.temporal = parse_bool(key, value)?,
+        "temporal_limit" => {
+            scene.integrator.restir.temporal_limit = parse_count(key, value, 1024)?;
+        }
+        "spatial_neighbors" => {
+            scene.integrator.restir.spatial_neighbors = parse_range(key, value, 0, 64)?;
+        }
+        "spatial_radius_px" => {
+            scene.integrator.restir.spatial_radius_px = match value.parse::<f32>() {
+                Ok(r) if (0.0..=16384.0).contains(&r) => r,
+                _ => bail!("{key}: {value:?} is not a number in [0, 16384]"),
+            };
+        }
+        "spatial_rounds" => {
+            scene.integrator.restir.spatial_rounds = parse_range(key, value, 0, 16)?;
+        }
+        "reuse" => {
+            scene.integrator.restir.reuse = match value {
+                "direction" => nimbus_scene::ReuseMode::Direction,
+                "vertex" => nimbus_scene::ReuseMode::Vertex,
+                _ => bail!("{key}: unknown reuse {value:?}; valid: direction, vertex"),
+            };
+        }
+        "mip_candidates" => {
+            scene.integrator.restir.mip_candidates = parse_range(key, value, 0, 16)?
+        }
+        "mip_indirect" => scene.integrator.restir.mip_indirect = parse_range(key, value, 0, 16)?,
+        "mip_reuse" => scene.integrator.restir.mip_reuse = parse_range(key, value, 0, 16)?,
+        "final_transmittance" => {
+            scene.integrator.restir.final_ratio_tracking = match value {
+                "analytic" => false,
+                "ratio" => true,
+                _ => bail!("{key}: unknown transmittance {value:?}; valid: analytic, ratio"),
+            };
+        }
         _ => bail!("unknown key {key:?}; valid keys: {}", KEYS.join(", ")),
     }
     Ok(None)
+}
+
+/// An integer in min..=max.
+fn parse_range(key: &str, value: &str, min: u32, max: u32) -> Result<u32> {
+    match value.parse::<u32>() {
+        Ok(n) if (min..=max).contains(&n) => Ok(n),
+        _ => bail!("{key}: {value:?} is not an integer in {min}..={max}"),
+    }
+}
+
+/// `true` or `false`.
+fn parse_bool(key: &str, value: &str) -> Result<bool> {
+    match value {
+        "true" => Ok(true),
+        "false" => Ok(false),
+        _ => bail!("{key}: {value:?} is not true or false"),
+    }
 }
 
 /// An integer in 1..=max.
@@ -331,6 +395,25 @@ pub struct ErrorMetrics {
     pub mean_rel_diff: f64,
 }
 
+/// The mean over `frames` of each frame's MSE, relative MSE and mean relative
+/// difference (RMSE = sqrt of the mean MSE).
+pub fn mean_metrics(frames: &[ImageRgb], reference: &ImageRgb) -> Result<ErrorMetrics> {
+    ensure!(!frames.is_empty(), "no frames to measure");
+    let (mut mse, mut rel, mut diff) = (0.0, 0.0, 0.0);
+    for frame in frames {
+        let m = measure(frame, reference)?;
+        mse += m.rmse * m.rmse;
+        rel += m.rel_mse;
+        diff += m.mean_rel_diff;
+    }
+    let n = frames.len() as f64;
+    Ok(ErrorMetrics {
+        rmse: (mse / n).sqrt(),
+        rel_mse: rel / n,
+        mean_rel_diff: diff / n,
+    })
+}
+
 /// RMSE, relative MSE and mean relative difference of the means (see the module docs)
 /// of `image` against `reference`, which must have the same size.
 pub fn measure(image: &ImageRgb, reference: &ImageRgb) -> Result<ErrorMetrics> {
@@ -498,6 +581,13 @@ pub struct StudyOptions {
     pub out_dir: Option<PathBuf>,
     pub width: Option<u32>,
     pub height: Option<u32>,
+    /// Frames rendered before each configuration's measured ones (ReSTIR's temporal
+    /// history); at least 1 (the first frame also compiles pipelines lazily).
+    pub warmup: u32,
+    /// Measure each frame's own error and report their mean (the error of one frame at
+    /// steady state, as Volumetric ReSTIR reports), with the GPU time of one frame;
+    /// otherwise the error of the mean over the frames.
+    pub per_frame: bool,
 }
 
 /// `$XDG_CACHE_HOME/nimbus/references`, else `$HOME/.cache/nimbus/references`.
@@ -566,6 +656,8 @@ pub struct Study {
     out_dir: PathBuf,
     width: u32,
     height: u32,
+    warmup: u32,
+    per_frame: bool,
 }
 
 impl Study {
@@ -635,6 +727,15 @@ impl Study {
                 ref_box_samples = Some(n);
             }
         }
+        // Grid media: the converged reference is the baseline path tracer's (the unbiased
+        // estimator every Volumetric ReSTIR claim is measured against).
+        if ref_scene
+            .media
+            .iter()
+            .any(|m| matches!(m, nimbus_scene::Medium::Grid(_)))
+        {
+            ref_scene.integrator.volume = VolumeIntegrator::Baseline;
+        }
         let ref_plan = plan::build(&ref_scene, ref_box_samples)
             .context("the reference settings cannot be rendered")?;
         let r = &ref_scene.render;
@@ -650,6 +751,14 @@ impl Study {
             ),
             ("box_samples", ref_scene.integrator.box_samples.to_string()),
             ("seed", r.seed.to_string()),
+            (
+                "volume",
+                match ref_scene.integrator.volume {
+                    VolumeIntegrator::Restir => "restir",
+                    VolumeIntegrator::Baseline => "baseline",
+                }
+                .to_owned(),
+            ),
         ]
         .into_iter()
         .map(|(k, v)| (k.to_owned(), v))
@@ -727,6 +836,8 @@ impl Study {
             out_dir,
             width,
             height,
+            warmup: opts.warmup,
+            per_frame: opts.per_frame,
         })
     }
 
@@ -745,15 +856,22 @@ impl Study {
                 format_pairs(&config.assignment)
             };
             let opts = RenderOptions {
-                warmup_frames: 1,
+                warmup_frames: self.warmup.max(1),
+                keep_frames: self.per_frame,
                 ..Default::default()
             };
             let start = Instant::now();
             let result = renderer::render(ctx, &config.scene, &config.plan, &opts)
                 .with_context(|| format!("rendering configuration {label}"))?;
-            let (gpu_ms_per_frame, gpu_ms_total) = frame_gpu_ms(&result.frame_timings)
+            let (gpu_ms_per_frame, mut gpu_ms_total) = frame_gpu_ms(&result.frame_timings)
                 .with_context(|| format!("configuration {label} on device '{device}'"))?;
-            let metrics = measure(&result.image, &reference.image)?;
+            let metrics = if self.per_frame {
+                // The mean of the frames' own errors, at the cost of one frame.
+                gpu_ms_total = gpu_ms_per_frame;
+                mean_metrics(&result.frame_images, &reference.image)?
+            } else {
+                measure(&result.image, &reference.image)?
+            };
             warn_non_finite(&result, &label);
             eprintln!(
                 "[{}/{total}] {label}: {} ms/frame, {} ms total, RMSE {}, rel MSE {}, mean rel diff {:+.2}% ({:.1} s)",

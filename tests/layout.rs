@@ -9,6 +9,7 @@ use nimbus::bindings;
 use nimbus::gpu_scene::{
     BaselineUniformsGpu, BoxMediumGpu, FrameUniforms, GridParamsGpu, LightGpu, PassPush, ShapeGpu,
 };
+use nimbus::passes::restir::{RestirPush, RestirUniformsGpu};
 
 const ROOT: &str = env!("CARGO_MANIFEST_DIR");
 
@@ -58,7 +59,16 @@ fn struct_sizes(text: &str) -> HashMap<String, usize> {
             let elem = match ty {
                 "vec4" | "uvec4" | "ivec4" => 16,
                 "uint" | "int" | "float" => 4,
-                other => panic!("layout test: unsupported member type {other} in {decl}"),
+                // A struct declared earlier in the same file.
+                other => match sizes.get(other) {
+                    Some(&size) => size,
+                    // Not a GPU-interface struct (e.g. vec3 members of shader-local
+                    // structs): left out, so checking it fails loudly.
+                    None => {
+                        current = None;
+                        continue;
+                    }
+                },
             };
             let count = member.split_once('[').map_or(1, |(_, n)| {
                 n.trim_end_matches(']')
@@ -101,6 +111,11 @@ fn record_sizes_match_the_glsl_structs() {
 
     let grid = struct_sizes(&read("shaders/include/grid_types.glsl"));
     assert_eq!(grid["GridParams"], size_of::<GridParamsGpu>());
-    // BaselineUniforms in baseline/pathtrace.comp: GridParams then five 16-byte vectors.
+    assert_eq!(grid["BaselineUniforms"], size_of::<BaselineUniformsGpu>());
     assert_eq!(size_of::<BaselineUniformsGpu>(), grid["GridParams"] + 80);
+
+    let restir = struct_sizes(&read("shaders/include/restir.glsl"));
+    assert_eq!(restir["RestirUniforms"], size_of::<RestirUniformsGpu>());
+    assert_eq!(restir["RestirPush"], size_of::<RestirPush>());
+    assert!(size_of::<RestirPush>() <= 128);
 }
