@@ -241,7 +241,7 @@ fn run_frames(
     pass: &Pass,
     targets: &Targets,
     opts: &RenderOptions,
-) -> Result<(Vec<Vec<ScopeResult>>, u32, Option<Sums>, Vec<ImageRgb>)> {
+) -> Result<FramesRun> {
     let r = &scene.render;
     let mut profiler = if ctx.info().timestamp_valid_bits > 0 {
         Some(Profiler::new(ctx, 8, "frame")?)
@@ -341,6 +341,10 @@ fn run_frames(
 /// Sums of x and x² per pixel (rgb, w = frame count), kept on the CPU in sequence mode.
 type Sums = (Vec<[f32; 4]>, Vec<[f32; 4]>);
 
+/// What the frames loop returns: per-frame timings, the measured frame count, the CPU
+/// sums (per-frame mode) and the kept frame images.
+type FramesRun = (Vec<Vec<ScopeResult>>, u32, Option<Sums>, Vec<ImageRgb>);
+
 /// Per-frame mode: reads this frame's estimate back (the GPU sums hold only this
 /// frame), writes it as an image in sequence mode, adds it to the CPU sums, clears the
 /// GPU sums and returns the frame's image.
@@ -359,9 +363,7 @@ fn sequence_frame(
     let mut image = ImageRgb::new(r.width, r.height);
     for (i, (s, q)) in sum.iter().zip(&sum_sq).enumerate() {
         let n = s[3].max(1.0);
-        for c in 0..3 {
-            image.data[i][c] = s[c] / n;
-        }
+        image.data[i] = [s[0] / n, s[1] / n, s[2] / n];
         for c in 0..4 {
             sums.0[i][c] += s[c];
             sums.1[i][c] += q[c];
