@@ -201,10 +201,13 @@ bool camera_project(FrameUniforms cam, vec3 x, out vec2 px) {
 //   [0] w_sum  [1] M  [2] p_hat (all float bits)  [3] info
 //   [4..6] light point (sphere lights)  [7] light direction (octahedral, 2 x 16 bits)
 //   [8 + 2(i-1)] z_i  [9 + 2(i-1)] omega_i (octahedral), i = 1..K
-// info: bits 0-4 k', bit 5 emission path, bit 6 holds a path, bits 8-15 light index.
+// info: bits 0-4 k', bit 5 emission path, bit 6 holds a path, bit 7 p_hat is the reuse
+// target at the owner's pixel and frame (set by a combination, not by initial sampling),
+// bits 8-15 light index.
 
 #define INFO_EMISSION 0x20u
 #define INFO_VALID 0x40u
+#define INFO_REUSE_TARGET 0x80u
 
 struct Reservoir {
     float w_sum;
@@ -571,7 +574,11 @@ uint combine_candidates(Candidate c[MAX_CANDIDATES], uint n, inout uint rng, out
             if (!(c[j].r.M > 0.0)) {
                 continue;
             }
-            float p = luminance(path_value(c[i].at, ri, c[j].ray, c[i].ray, MODE_TARGET, rng));
+            // The sample's own pixel: a combined reservoir already holds that target
+            // (computed by the same function for the same ray, frame and path).
+            bool stored = j == i && (ri.info & INFO_REUSE_TARGET) != 0u;
+            float p = stored ? ri.p_hat
+                             : luminance(path_value(c[i].at, ri, c[j].ray, c[i].ray, MODE_TARGET, rng));
             p_sum += p * c[j].r.M;
             if (j == i) {
                 p_own = p;
@@ -595,7 +602,7 @@ uint combine_candidates(Candidate c[MAX_CANDIDATES], uint n, inout uint rng, out
         if (rng_next(rng) * s.w_sum < w) {
             chosen = i;
             s.p_hat = p_here;
-            s.info = ri.info;
+            s.info = ri.info | INFO_REUSE_TARGET;
             s.light_point = ri.light_point;
             s.light_dir = ri.light_dir;
         }
