@@ -539,13 +539,28 @@ vec3 path_value(uint at, Reservoir r, CameraRay cam, CameraRay src, uint mode, i
 // Spatial neighbours plus the pixel's own reservoir (the plan caps neighbours at 16).
 #define MAX_CANDIDATES 17
 
-// A reservoir taking part in a combination: where it is stored, its header, and the
-// camera ray of its pixel in its frame (its owner: the representation is relative to it).
-struct Candidate {
-    uint at;
-    Reservoir r;
-    CameraRay ray;
-};
+// The reservoirs taking part in a combination, as small private arrays (the shader's
+// registers; passing structs of rays and headers by value costs far more): where each is
+// stored, its pixel and frame (its owner: the representation is relative to that camera
+// ray), and its M (the temporal limit may lower it, scaling w_sum by the same factor).
+uint cand_at[MAX_CANDIDATES];
+uvec2 cand_pixel[MAX_CANDIDATES];
+uint cand_set[MAX_CANDIDATES];
+float cand_M[MAX_CANDIDATES];
+float cand_w_scale[MAX_CANDIDATES];
+
+// Registers candidate `i` (its header's M unless clamped later).
+void candidate_set(uint i, uint at, uvec2 pixel, uint set) {
+    cand_at[i] = at;
+    cand_pixel[i] = pixel;
+    cand_set[i] = set;
+    cand_M[i] = uintBitsToFloat(reservoirs[at + 1u]);
+    cand_w_scale[i] = 1.0;
+}
+
+CameraRay candidate_ray(uint i) {
+    return camera_ray(cand_pixel[i], cand_set[i]);
+}
 
 // Streams candidates 0..n-1 into one reservoir for the pixel of candidate 0. Each
 // candidate i's sample lambda_i gets the Talbot weight
@@ -555,31 +570,34 @@ struct Candidate {
 // unbiased contribution weight. Stored as in Algorithm 2: w_sum = sum_i w_i M and M =
 // sum_i M_i, so f / p_hat * w_sum / M stays the estimator. Returns the index of the chosen
 // candidate (n if none) and the combined header (its p_hat = p_0 of the chosen sample).
-uint combine_candidates(Candidate c[MAX_CANDIDATES], uint n, inout uint rng, out Reservoir s) {
+uint combine_candidates(uint n, inout uint rng, out Reservoir s) {
     s = res_empty();
     float k = 0.0;
     for (uint i = 0u; i < n; ++i) {
-        k += c[i].r.M;
+        k += cand_M[i];
     }
     uint chosen = n;
     for (uint i = 0u; i < n; ++i) {
-        Reservoir ri = c[i].r;
+        Reservoir ri = res_load(cand_at[i]);
+        ri.M = cand_M[i];
+        ri.w_sum *= cand_w_scale[i];
         if (!res_valid(ri) || !(ri.p_hat > 0.0) || !(ri.w_sum > 0.0) || !(ri.M > 0.0)) {
             continue;
         }
+        CameraRay owner = candidate_ray(i);
         float p_sum = 0.0;
         float p_own = 0.0;
         float p_here = 0.0;
         for (uint j = 0u; j < n; ++j) {
-            if (!(c[j].r.M > 0.0)) {
+            if (!(cand_M[j] > 0.0)) {
                 continue;
             }
             // The sample's own pixel: a combined reservoir already holds that target
             // (computed by the same function for the same ray, frame and path).
             bool stored = j == i && (ri.info & INFO_REUSE_TARGET) != 0u;
             float p = stored ? ri.p_hat
-                             : luminance(path_value(c[i].at, ri, c[j].ray, c[i].ray, MODE_TARGET, rng));
-            p_sum += p * c[j].r.M;
+                             : luminance(path_value(cand_at[i], ri, candidate_ray(j), owner, MODE_TARGET, rng));
+            p_sum += p * cand_M[j];
             if (j == i) {
                 p_own = p;
             }

@@ -18,10 +18,7 @@ void main() {
     uint rng = rng_init(pixel, u_push.frame, 2u + u_push.aux, u_frame.image.w);
     CameraRay cam = camera_ray(pixel, SET_CURRENT);
 
-    Candidate c[MAX_CANDIDATES];
-    c[0].at = res_at(u_push.src, pixel);
-    c[0].r = res_load(c[0].at);
-    c[0].ray = cam;
+    candidate_set(0u, res_at(u_push.src, pixel), pixel, SET_CURRENT);
     uint n = 1u;
     uint neighbors = min(u_restir.settings.z, uint(MAX_CANDIDATES - 1));
     float radius = u_restir.spatial.x;
@@ -37,15 +34,13 @@ void main() {
             q.y >= int(u_frame.image.y)) {
             continue;
         }
-        c[n].at = res_at(u_push.src, uvec2(q));
-        c[n].r = res_load(c[n].at);
-        c[n].ray = camera_ray(uvec2(q), SET_CURRENT);
+        candidate_set(n, res_at(u_push.src, uvec2(q)), uvec2(q), SET_CURRENT);
         ++n;
     }
     Reservoir s;
-    uint chosen = combine_candidates(c, n, rng, s);
+    uint chosen = combine_candidates(n, rng, s);
     uint dst = res_at(u_push.dst, pixel);
-    uint src_at = chosen < n ? c[chosen].at : c[0].at;
-    CameraRay owner = chosen < n ? c[chosen].ray : cam;
+    uint src_at = chosen < n ? cand_at[chosen] : cand_at[0];
+    CameraRay owner = chosen < n ? candidate_ray(chosen) : cam;
     store_combined(dst, s, src_at, owner, cam);
 }

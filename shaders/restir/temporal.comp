@@ -71,23 +71,18 @@ void main() {
     }
     uvec2 q_prev = uvec2(px);
 
-    Candidate c[MAX_CANDIDATES];
-    c[0].at = at;
-    c[0].r = cur;
-    c[0].ray = cam;
-    c[1].at = res_at(u_push.aux, q_prev);
-    c[1].r = res_load(c[1].at);
-    c[1].ray = camera_ray(q_prev, SET_PREVIOUS);
+    candidate_set(0u, at, pixel, SET_CURRENT);
+    candidate_set(1u, res_at(u_push.aux, q_prev), q_prev, SET_PREVIOUS);
     // Temporal limit: M_prev <= Q M, scaling w_sum alike so W_prev is unchanged.
     float m_cap = float(u_restir.settings.y) * float(u_restir.settings.x);
-    if (c[1].r.M > m_cap) {
+    if (cand_M[1] > m_cap) {
         // Domain: M > m_cap > 0.
-        c[1].r.w_sum *= m_cap / c[1].r.M;
-        c[1].r.M = m_cap;
+        cand_w_scale[1] = m_cap / cand_M[1];
+        cand_M[1] = m_cap;
     }
     Reservoir s;
-    uint chosen = combine_candidates(c, 2u, rng, s);
-    uint src_at = chosen < 2u ? c[chosen].at : at;
-    CameraRay owner = chosen < 2u ? c[chosen].ray : cam;
+    uint chosen = combine_candidates(2u, rng, s);
+    uint src_at = chosen < 2u ? cand_at[chosen] : at;
+    CameraRay owner = chosen < 2u ? candidate_ray(chosen) : cam;
     store_combined(at, s, src_at, owner, cam);
 }
