@@ -1222,17 +1222,29 @@ fn equal_time(baseline: &(String, String), series: &[plot::Series]) -> Vec<Compa
         };
         let (base_curve, curve) = (curve(base), curve(s));
         let ratios = equal_time_ratios(&base_curve, &curve);
-        let points = ratios
-            .iter()
-            .map(|&(t, ratio)| {
-                let base_rmse = base_curve
-                    .iter()
-                    .find(|p| p.0 == t)
-                    .map_or(f64::NAN, |p| p.1);
-                (t, base_rmse, base_rmse * ratio, ratio)
-            })
-            .collect();
-        let values: Vec<f64> = ratios.iter().map(|r| r.1).collect();
+        let points: Vec<(f64, f64, f64, f64)> = if ratios.is_empty() {
+            // The series' times fall between the baseline's (e.g. a series of one
+            // time): the baseline interpolated at the series' own times instead.
+            curve
+                .iter()
+                .filter_map(|&(t, rmse)| {
+                    let base_rmse = interpolate_loglog(&base_curve, t)?;
+                    (base_rmse > 0.0).then(|| (t, base_rmse, rmse, rmse / base_rmse))
+                })
+                .collect()
+        } else {
+            ratios
+                .iter()
+                .map(|&(t, ratio)| {
+                    let base_rmse = base_curve
+                        .iter()
+                        .find(|p| p.0 == t)
+                        .map_or(f64::NAN, |p| p.1);
+                    (t, base_rmse, base_rmse * ratio, ratio)
+                })
+                .collect()
+        };
+        let values: Vec<f64> = points.iter().map(|p| p.3).collect();
         out.push(Comparison {
             series: s.label.clone(),
             baseline: base.label.clone(),
@@ -1250,8 +1262,10 @@ fn equal_time_text(comparisons: &[Comparison], baseline: Option<&(String, String
     let _ = writeln!(
         out,
         "RMSE of the series over RMSE of the baseline at the baseline's measured GPU times \
-         (series interpolated linearly in log RMSE over log time); below 1 means more \
-         accurate for the same GPU time.\n"
+         (series interpolated linearly in log RMSE over log time; when the series' times \
+         all fall between the baseline's, the baseline interpolated at the series' times); \
+         below 1 means more accurate for the same GPU time, and the MSE ratio is its \
+         square.\n"
     );
     if comparisons.is_empty() {
         let _ = writeln!(out, "No other series to compare.");
@@ -1735,6 +1749,34 @@ mod tests {
         assert_eq!(c[1].points.len(), 2);
         let text = equal_time_text(&c, Some(&("box_estimator".into(), "rm".into())));
         assert!(text.contains("geometric mean RMSE ratio 0.250"), "{text}");
+    }
+
+    /// A series whose times fall between the baseline's (ReSTIR: one time per frame) is
+    /// compared with the baseline interpolated in log-log at the series' own time.
+    #[test]
+    fn equal_time_interpolates_the_baseline_inside_its_range() {
+        let point = |t: f64, rmse: f64| plot::Point {
+            time_ms: t,
+            rmse,
+            knobs: Vec::new(),
+        };
+        let base = plot::Series {
+            key: pairs(&[("volume", "baseline")]),
+            label: "volume=baseline".into(),
+            // RMSE ∝ t^(-1/2): 1 at 10 ms, 0.5 at 40 ms.
+            points: vec![point(10.0, 1.0), point(40.0, 0.5)],
+        };
+        let restir = plot::Series {
+            key: pairs(&[("volume", "restir")]),
+            label: "volume=restir".into(),
+            points: vec![point(20.0, 0.25)],
+        };
+        let c = equal_time(&("volume".into(), "baseline".into()), &[base, restir]);
+        assert_eq!(c.len(), 1);
+        let (t, b, r, ratio) = c[0].points[0];
+        assert_eq!((t, r), (20.0, 0.25));
+        assert!((b - 0.5f64.sqrt()).abs() < 1e-12, "{b}");
+        assert!((ratio - 0.25 / 0.5f64.sqrt()).abs() < 1e-12);
     }
 
     #[test]
