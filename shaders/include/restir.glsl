@@ -144,17 +144,18 @@ float luminance(vec3 c) {
 }
 
 // ---------------------------------------------------------------------------------------
-// Camera rays. The sub-pixel jitter is a hash of (pixel, frame, seed), independent of the
-// random walk, so any pass can rebuild the camera ray of any pixel of this or the
-// previous frame.
+// Camera rays. The sub-pixel position is part of the path (the pixel's box filter is one
+// more integration dimension): each random walk draws its own, the reservoir keeps it
+// (8 + 8 bits, `info` bits 16-31), and a path moving to another pixel or frame keeps it,
+// so temporal reuse re-evaluates a path on the same ray it was found on. Jitter code c
+// per axis stands for the sub-pixel offset (c + 0.5) / 256 (a 256 x 256 midpoint grid
+// over the pixel); without SC_PIXEL_JITTER every ray goes through the pixel centre.
 
-vec2 pixel_jitter(uvec2 pixel, uint frame) {
-    if (!SC_PIXEL_JITTER) {
-        return vec2(0.5);
-    }
-    uint rng = rng_init(pixel, frame, 0x9e3779b9u, u_frame.image.w);
-    return vec2(rng_next(rng), rng_next(rng));
-}
+struct CameraRay {
+    vec3 o;
+    vec3 d;
+    uint set;
+};
 
 // Unit direction of the camera ray through pixel position px (pixels, (0, 0) top-left).
 vec3 camera_direction(FrameUniforms cam, vec2 px) {
@@ -163,21 +164,32 @@ vec3 camera_direction(FrameUniforms cam, vec2 px) {
     return normalize(cam.cam_forward.xyz + sx * cam.cam_right.xyz + sy * cam.cam_up.xyz);
 }
 
-struct CameraRay {
-    vec3 o;
-    vec3 d;
-    uint set;
-};
+// A jitter code drawn uniformly: (x, y) in bits 0-7 and 8-15.
+uint jitter_sample(inout uint rng) {
+    uint x = min(uint(rng_next(rng) * 256.0), 255u);
+    uint y = min(uint(rng_next(rng) * 256.0), 255u);
+    return x | (y << 8u);
+}
 
-CameraRay camera_ray(uvec2 pixel, uint set) {
+// The sub-pixel offset of a jitter code.
+vec2 jitter_offset(uint code) {
+    if (!SC_PIXEL_JITTER) {
+        return vec2(0.5);
+    }
+    return (vec2(float(code & 0xffu), float((code >> 8u) & 0xffu)) + 0.5) / 256.0;
+}
+
+// The camera ray through `pixel` at sub-pixel jitter `code`, in a frame's set.
+CameraRay camera_ray(uvec2 pixel, uint code, uint set) {
     CameraRay r;
     r.set = set;
+    vec2 px = vec2(pixel) + jitter_offset(code);
     if (set == SET_CURRENT) {
         r.o = u_frame.cam_position.xyz;
-        r.d = camera_direction(u_frame, vec2(pixel) + pixel_jitter(pixel, u_push.frame));
+        r.d = camera_direction(u_frame, px);
     } else {
         r.o = u_prev_frame.cam_position.xyz;
-        r.d = camera_direction(u_prev_frame, vec2(pixel) + pixel_jitter(pixel, u_push.frame - 1u));
+        r.d = camera_direction(u_prev_frame, px);
     }
     return r;
 }
@@ -203,7 +215,7 @@ bool camera_project(FrameUniforms cam, vec3 x, out vec2 px) {
 //   [8 + 2(i-1)] z_i  [9 + 2(i-1)] omega_i (octahedral), i = 1..K
 // info: bits 0-4 k', bit 5 emission path, bit 6 holds a path, bit 7 p_hat is the reuse
 // target at the owner's pixel and frame (set by a combination, not by initial sampling),
-// bits 8-15 light index.
+// bits 8-15 light index, bits 16-31 the sub-pixel jitter code.
 
 #define INFO_EMISSION 0x20u
 #define INFO_VALID 0x40u
@@ -229,6 +241,9 @@ bool res_emission(Reservoir r) {
 }
 uint res_light(Reservoir r) {
     return (r.info >> 8u) & 0xffu;
+}
+uint res_jitter(Reservoir r) {
+    return r.info >> 16u;
 }
 
 uint res_stride() {
@@ -558,8 +573,9 @@ void candidate_set(uint i, uint at, uvec2 pixel, uint set) {
     cand_w_scale[i] = 1.0;
 }
 
-CameraRay candidate_ray(uint i) {
-    return camera_ray(cand_pixel[i], cand_set[i]);
+// The camera ray of candidate i's pixel and frame at jitter `code`.
+CameraRay candidate_ray(uint i, uint code) {
+    return camera_ray(cand_pixel[i], code, cand_set[i]);
 }
 
 // Streams candidates 0..n-1 into one reservoir for the pixel of candidate 0. Each
@@ -584,7 +600,8 @@ uint combine_candidates(uint n, inout uint rng, out Reservoir s) {
         if (!res_valid(ri) || !(ri.p_hat > 0.0) || !(ri.w_sum > 0.0) || !(ri.M > 0.0)) {
             continue;
         }
-        CameraRay owner = candidate_ray(i);
+        uint code = res_jitter(ri);
+        CameraRay owner = candidate_ray(i, code);
         float p_sum = 0.0;
         float p_own = 0.0;
         float p_here = 0.0;
@@ -596,7 +613,7 @@ uint combine_candidates(uint n, inout uint rng, out Reservoir s) {
             // (computed by the same function for the same ray, frame and path).
             bool stored = j == i && (ri.info & INFO_REUSE_TARGET) != 0u;
             float p = stored ? ri.p_hat
-                             : luminance(path_value(cand_at[i], ri, candidate_ray(j), owner, MODE_TARGET, rng));
+                             : luminance(path_value(cand_at[i], ri, candidate_ray(j, code), owner, MODE_TARGET, rng));
             p_sum += p * cand_M[j];
             if (j == i) {
                 p_own = p;

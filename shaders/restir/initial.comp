@@ -52,13 +52,16 @@ void main() {
     }
     uint at = res_at(u_push.dst, pixel);
     uint rng = rng_init(pixel, u_push.frame, 0u, u_frame.image.w);
-    CameraRay cam = camera_ray(pixel, SET_CURRENT);
     vec3 albedo = u_base.albedo_g.rgb;
     float g = u_base.albedo_g.w;
     uint candidates = u_restir.settings.x;
 
     Reservoir r = res_empty();
     for (uint m = 0u; m < candidates; ++m) {
+        // Each walk starts at its own sub-pixel position, which its paths keep.
+        uint code = SC_PIXEL_JITTER ? jitter_sample(rng) : 0u;
+        uint jitter_bits = code << 16u;
+        CameraRay cam = camera_ray(pixel, code, SET_CURRENT);
         vec3 x = cam.o;
         vec3 w = cam.d;
         vec3 Fhat = vec3(1.0);
@@ -82,7 +85,8 @@ void main() {
                     vec3 L = light_seen(0u, x, w, t_seen);
                     // Domain: tau >= 0, so exp(-tau) in (0, 1].
                     float T_star = exp(-tau);
-                    update(at, r, rng, luminance(L), luminance(L * T_star), 0u, sphere == NO_INDEX ? (LIGHT_ENV << 8u) : (sphere << 8u), vec3(0.0), 0u);
+                    update(at, r, rng, luminance(L), luminance(L * T_star), 0u,
+                           jitter_bits | (sphere == NO_INDEX ? (LIGHT_ENV << 8u) : (sphere << 8u)), vec3(0.0), 0u);
                 }
                 break;
             }
@@ -99,7 +103,8 @@ void main() {
             if (SC_HAS_EMISSION) {
                 // Emission candidate: sigma_a Le at x_i (eq. 25, emission case).
                 vec3 emitted = (vec3(1.0) - albedo) * sigma_t * grid_emission(x);
-                update(at, r, rng, luminance(beta * emitted), luminance(Fhat * emitted), i, INFO_EMISSION, vec3(0.0), 0u);
+                update(at, r, rng, luminance(beta * emitted), luminance(Fhat * emitted), i, jitter_bits | INFO_EMISSION,
+                       vec3(0.0), 0u);
             }
 
             // Scattering candidate by next-event estimation.
@@ -112,7 +117,8 @@ void main() {
                 float T_nee = nee_transmittance(x, ls.wi, ls.dist);
                 vec3 Fs = Fhat * sigma_s * rho * ls.L * T_nee;
                 vec3 bs = beta * sigma_s * rho * ls.L_over_pdf * T_nee;
-                update(at, r, rng, luminance(bs), luminance(Fs), i, ls.index << 8u, ls.point, oct_encode(ls.wi));
+                update(at, r, rng, luminance(bs), luminance(Fs), i, jitter_bits | (ls.index << 8u), ls.point,
+                       oct_encode(ls.wi));
             }
             if (i == SC_MAX_BOUNCES) {
                 break;

@@ -14,8 +14,8 @@ void main() {
     }
     uint at = res_at(u_push.src, pixel);
     uint rng = rng_init(pixel, u_push.frame, 3u, u_frame.image.w);
-    CameraRay cam = camera_ray(pixel, SET_CURRENT);
     Reservoir r = res_load(at);
+    CameraRay cam = camera_ray(pixel, res_jitter(r), SET_CURRENT);
     vec3 L = vec3(0.0);
     // An empty reservoir (no candidate with a positive target) estimates 0.
     if (res_valid(r) && r.p_hat > 0.0 && r.M > 0.0 && r.w_sum > 0.0) {

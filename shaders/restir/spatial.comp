@@ -16,7 +16,6 @@ void main() {
         return;
     }
     uint rng = rng_init(pixel, u_push.frame, 2u + u_push.aux, u_frame.image.w);
-    CameraRay cam = camera_ray(pixel, SET_CURRENT);
 
     candidate_set(0u, res_at(u_push.src, pixel), pixel, SET_CURRENT);
     uint n = 1u;
@@ -41,6 +40,7 @@ void main() {
     uint chosen = combine_candidates(n, rng, s);
     uint dst = res_at(u_push.dst, pixel);
     uint src_at = chosen < n ? cand_at[chosen] : cand_at[0];
-    CameraRay owner = chosen < n ? candidate_ray(chosen) : cam;
-    store_combined(dst, s, src_at, owner, cam);
+    uint code = res_jitter(s);
+    CameraRay owner = candidate_ray(chosen < n ? chosen : 0u, code);
+    store_combined(dst, s, src_at, owner, camera_ray(pixel, code, SET_CURRENT));
 }

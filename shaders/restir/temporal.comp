@@ -26,8 +26,9 @@ void main() {
     }
     uint at = res_at(u_push.src, pixel);
     uint rng = rng_init(pixel, u_push.frame, 1u, u_frame.image.w);
-    CameraRay cam = camera_ray(pixel, SET_CURRENT);
     Reservoir cur = res_load(at);
+    // The selected path's own camera ray (its jitter; the pixel centre region otherwise).
+    CameraRay cam = camera_ray(pixel, res_jitter(cur), SET_CURRENT);
 
     // The motion vector's particle: x_1 of the selected path, else velocity resampling.
     vec3 x1 = vec3(0.0);
@@ -83,6 +84,7 @@ void main() {
     Reservoir s;
     uint chosen = combine_candidates(2u, rng, s);
     uint src_at = chosen < 2u ? cand_at[chosen] : at;
-    CameraRay owner = chosen < 2u ? candidate_ray(chosen) : cam;
-    store_combined(at, s, src_at, owner, cam);
+    uint code = res_jitter(s);
+    CameraRay owner = candidate_ray(chosen < 2u ? chosen : 0u, code);
+    store_combined(at, s, src_at, owner, camera_ray(pixel, code, SET_CURRENT));
 }
