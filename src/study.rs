@@ -612,6 +612,21 @@ struct Configuration {
     assignment: Assignment,
     scene: Scene,
     plan: RenderPlan,
+    /// An earlier configuration that renders exactly the same (a knob that the
+    /// integrator ignores differs), whose measurement is reused.
+    same_as: Option<usize>,
+}
+
+/// The scene as far as its integrator reads it: ReSTIR renders one sample per pixel per
+/// frame (spp is unused), the other integrators ignore `[integrator.restir]`.
+fn effective_scene(scene: &Scene, plan: &RenderPlan) -> Scene {
+    let mut s = scene.clone();
+    if plan.restir.is_some() {
+        s.render.spp = 1;
+    } else {
+        s.integrator.restir = nimbus_scene::RestirSettings::default();
+    }
+    s
 }
 
 /// The reference render, its settings and where it is cached.
@@ -634,6 +649,7 @@ struct Reference {
 }
 
 /// One measured configuration.
+#[derive(Clone)]
 struct Row {
     assignment: Assignment,
     frames: u32,
@@ -811,10 +827,15 @@ impl Study {
             );
             let plan = plan::build(&scene, box_samples)
                 .with_context(|| format!("configuration {label} cannot be rendered"))?;
+            let effective = effective_scene(&scene, &plan);
+            let same_as = configurations.iter().position(|c: &Configuration| {
+                c.plan == plan && effective_scene(&c.scene, &c.plan) == effective
+            });
             configurations.push(Configuration {
                 assignment,
                 scene,
                 plan,
+                same_as,
             });
         }
 
@@ -855,6 +876,19 @@ impl Study {
             } else {
                 format_pairs(&config.assignment)
             };
+            if let Some(first) = config.same_as {
+                let earlier: &Row = &rows[first];
+                eprintln!(
+                    "[{}/{total}] {label}: renders exactly as {} (its measurement reused)",
+                    i + 1,
+                    format_pairs(&earlier.assignment)
+                );
+                let mut row = earlier.clone();
+                row.assignment = config.assignment.clone();
+                row.spp = config.scene.render.spp;
+                rows.push(row);
+                continue;
+            }
             let opts = RenderOptions {
                 warmup_frames: self.warmup.max(1),
                 keep_frames: self.per_frame,
@@ -1863,6 +1897,48 @@ mod tests {
             fnv1a64(fnv1a64(FNV_OFFSET, b"foo"), b"bar"),
             fnv1a64(FNV_OFFSET, b"foobar")
         );
+    }
+
+    #[test]
+    fn configurations_an_integrator_cannot_tell_apart_are_rendered_once() {
+        let dir = std::env::temp_dir().join(format!("nimbus-study-dedupe-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let scene = dir.join("grid.toml");
+        std::fs::write(
+            &scene,
+            "[render]\nwidth = 8\nheight = 6\n[camera]\nposition = [0, 0, 3]\nlook_at = [0, 0, 0]\n\
+             [[medium]]\ntype = \"grid\"\nbounds_min = [-1, -1, -1]\nbounds_max = [1, 1, 1]\n\
+             density = { procedural = \"cloud\", dims = [8, 8, 8] }\n",
+        )
+        .unwrap();
+        let study = Study::new(&StudyOptions {
+            scene: scene.clone(),
+            vary: vec![
+                "volume=baseline,restir".into(),
+                "temporal_limit=4,20".into(),
+                "spp=1,4".into(),
+            ],
+            frames: 1,
+            reference_frames: 1,
+            reference_spp: 1,
+            reference_estimator: None,
+            reference_box_samples: 1,
+            baseline: Some("volume=baseline".into()),
+            cache_dir: Some(dir.clone()),
+            out_dir: Some(dir.clone()),
+            width: None,
+            height: None,
+            warmup: 1,
+            per_frame: false,
+        })
+        .unwrap();
+        let same: Vec<Option<usize>> = study.configurations.iter().map(|c| c.same_as).collect();
+        // baseline: Q is ignored (Q=20 repeats Q=4); restir: spp is ignored.
+        assert_eq!(
+            same,
+            [None, None, Some(0), Some(1), None, Some(4), None, Some(6)]
+        );
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]
