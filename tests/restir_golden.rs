@@ -12,8 +12,11 @@ use common::{compare_with_golden, SAME_DEVICE};
 use nimbus::renderer::{render, RenderOptions};
 
 fn asset(name: &str) -> String {
-    std::fs::read_to_string(format!("{}/assets/scenes/{name}", env!("CARGO_MANIFEST_DIR")))
-        .unwrap_or_else(|e| panic!("{name}: {e}"))
+    std::fs::read_to_string(format!(
+        "{}/assets/scenes/{name}",
+        env!("CARGO_MANIFEST_DIR")
+    ))
+    .unwrap_or_else(|e| panic!("{name}: {e}"))
 }
 
 /// Renders `scene` keeping every frame's own image; checks validation and finiteness.
@@ -67,7 +70,12 @@ fn golden_cloud_restir_emissive_vertex_reuse() {
     let restir = plan.restir.as_ref().unwrap();
     assert!(restir.has_emission && restir.vertex_reuse);
     let result = render_frames(&ctx, &scene);
-    compare_with_golden("cloud-restir-emissive-vertex-40x30", &result.image, SAME_DEVICE).unwrap();
+    compare_with_golden(
+        "cloud-restir-emissive-vertex-40x30",
+        &result.image,
+        SAME_DEVICE,
+    )
+    .unwrap();
 }
 
 /// Every frame of the animated plume: camera and sun keyframes, four density frames,
@@ -96,7 +104,10 @@ fn cli_writes_one_image_per_frame() {
     let dir = scratch("restir-sequence", "frames");
     let _ = std::fs::remove_dir_all(&dir);
     let out = dir.with_extension("exr");
-    let scene = format!("{}/assets/scenes/plume-anim.toml", env!("CARGO_MANIFEST_DIR"));
+    let scene = format!(
+        "{}/assets/scenes/plume-anim.toml",
+        env!("CARGO_MANIFEST_DIR")
+    );
     let run = nimbus(&[
         "render",
         &scene,
