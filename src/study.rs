@@ -1618,11 +1618,40 @@ mod tests {
             ("seed", "2"),
             ("max_bounces", "2"),
             ("volume", "restir"),
+            ("candidates", "8"),
+            ("temporal", "false"),
+            ("temporal_limit", "20"),
+            ("spatial_neighbors", "0"),
+            ("spatial_radius_px", "2.5"),
+            ("spatial_rounds", "2"),
+            ("reuse", "vertex"),
+            ("mip_candidates", "0"),
+            ("mip_indirect", "3"),
+            ("mip_reuse", "2"),
+            ("final_transmittance", "ratio"),
         ];
         assert_eq!(values.len(), KEYS.len());
+        let mut s = scene();
         for (key, value) in values {
             assert!(KEYS.contains(&key));
-            apply(&mut scene(), key, value).unwrap();
+            apply(&mut s, key, value).unwrap();
+        }
+        let r = &s.integrator.restir;
+        assert_eq!(
+            (r.candidates, r.temporal, r.temporal_limit, r.spatial_neighbors),
+            (8, false, 20, 0)
+        );
+        assert_eq!((r.spatial_radius_px, r.spatial_rounds), (2.5, 2));
+        assert_eq!(r.reuse, nimbus_scene::ReuseMode::Vertex);
+        assert_eq!((r.mip_candidates, r.mip_indirect, r.mip_reuse), (0, 3, 2));
+        assert!(r.final_ratio_tracking);
+        for (key, value) in [
+            ("temporal", "yes"),
+            ("reuse", "path"),
+            ("spatial_neighbors", "65"),
+            ("final_transmittance", "exact"),
+        ] {
+            assert!(apply(&mut s, key, value).is_err(), "{key}={value}");
         }
     }
 
