@@ -6,7 +6,8 @@
 //!
 //! - **GPU time** from the timestamp scopes: the median over frames of the root
 //!   `"frame"` scope (`gpu_ms_per_frame`) and its sum over frames (`gpu_ms_total`).
-//!   Each configuration renders one warm-up frame first, which is not measured.
+//!   Each configuration renders `--warmup` frames (at least one) first, which are not
+//!   measured.
 //! - **RMSE** over pixels and channels, √(mean (a − r)²), in W/(m²·sr).
 //! - **Relative MSE**, mean (a − r)² / (r² + ε) with ε = [`REL_MSE_EPSILON`] (the
 //!   metric of the golden-image tests).
@@ -1157,12 +1158,25 @@ impl Study {
                 format!(" (rendered on {})", reference.device)
             }
         );
+        let warmup = self.warmup.max(1);
+        let (total, errors) = if self.per_frame {
+            (
+                "the time of one frame (total)",
+                "each measured frame's own error against the reference, averaged over the \
+                 frames (RMSE = sqrt of the mean MSE)",
+            )
+        } else {
+            (
+                "sum over frames (total)",
+                "the error of the mean over the frames against the reference",
+            )
+        };
         let _ = writeln!(
             out,
             "- GPU time: the \"frame\" timestamp scope, median over frames (per frame) and \
-             sum over frames (total), after 1 warm-up frame; errors against the reference \
-             over all pixels and channels; rel_mse = mean (a−r)²/(r²+{REL_MSE_EPSILON}); \
-             mean_rel_diff = mean over channels of (mean a − mean r)/mean r"
+             {total}, after {warmup} warm-up frame(s); errors: {errors}, over all pixels and \
+             channels; rel_mse = mean (a−r)²/(r²+{REL_MSE_EPSILON}); mean_rel_diff = mean \
+             over channels of (mean a − mean r)/mean r"
         );
         out
     }
