@@ -49,8 +49,9 @@ use crate::renderer::{self, RenderOptions, RenderResult};
 /// ε in the relative MSE (a − r)² / (r² + ε), as in the golden-image tests.
 pub const REL_MSE_EPSILON: f64 = 1e-2;
 
-/// The keys `--vary` (and `--baseline`) accept, in the order [`apply`] lists them.
-pub const KEYS: [&str; 18] = [
+/// The keys `--vary` (and `--baseline`) accept besides the ReSTIR knobs, in the order
+/// [`apply`] lists them.
+pub const GENERAL_KEYS: [&str; 7] = [
     "box_estimator",
     "spp",
     "box_samples",
@@ -58,18 +59,17 @@ pub const KEYS: [&str; 18] = [
     "seed",
     "max_bounces",
     "volume",
-    "candidates",
-    "temporal",
-    "temporal_limit",
-    "spatial_neighbors",
-    "spatial_radius_px",
-    "spatial_rounds",
-    "reuse",
-    "mip_candidates",
-    "mip_indirect",
-    "mip_reuse",
-    "final_transmittance",
 ];
+
+/// Every key `--vary` accepts: [`GENERAL_KEYS`], then the fields of
+/// `[integrator.restir]` (the scene crate's list, so the two cannot drift apart).
+pub fn keys() -> Vec<&'static str> {
+    GENERAL_KEYS
+        .iter()
+        .chain(nimbus_scene::RESTIR_KEYS)
+        .copied()
+        .collect()
+}
 
 /// The keys that buy accuracy with time: configurations differing only in these form
 /// one series (one polyline of the plot).
@@ -168,7 +168,7 @@ pub fn apply(scene: &mut Scene, key: &str, value: &str) -> Result<Option<u32>> {
                 _ => bail!("{key}: unknown transmittance {value:?}; valid: analytic, ratio"),
             };
         }
-        _ => bail!("unknown key {key:?}; valid keys: {}", KEYS.join(", ")),
+        _ => bail!("unknown key {key:?}; valid keys: {}", keys().join(", ")),
     }
     Ok(None)
 }
@@ -205,7 +205,7 @@ pub struct Vary {
     pub values: Vec<String>,
 }
 
-/// Parses `KEY=V1,V2,...`: a known key (see [`KEYS`]) and a non-empty list of distinct,
+/// Parses `KEY=V1,V2,...`: a known key (see [`keys`]) and a non-empty list of distinct,
 /// non-empty values. The values themselves are checked by [`apply`].
 pub fn parse_vary(text: &str) -> Result<Vary> {
     let (key, values) = text
@@ -213,9 +213,9 @@ pub fn parse_vary(text: &str) -> Result<Vary> {
         .ok_or_else(|| anyhow!("expected KEY=V1,V2,... (e.g. spp=1,4,16), got {text:?}"))?;
     let key = key.trim();
     ensure!(
-        KEYS.contains(&key),
+        keys().contains(&key),
         "unknown key {key:?}; valid keys: {}",
-        KEYS.join(", ")
+        keys().join(", ")
     );
     ensure!(
         !values.trim().is_empty(),
@@ -1644,15 +1644,20 @@ mod tests {
             ("mip_reuse", "2"),
             ("final_transmittance", "ratio"),
         ];
-        assert_eq!(values.len(), KEYS.len());
+        assert_eq!(values.len(), keys().len());
         let mut s = scene();
         for (key, value) in values {
-            assert!(KEYS.contains(&key));
+            assert!(keys().contains(&key));
             apply(&mut s, key, value).unwrap();
         }
         let r = &s.integrator.restir;
         assert_eq!(
-            (r.candidates, r.temporal, r.temporal_limit, r.spatial_neighbors),
+            (
+                r.candidates,
+                r.temporal,
+                r.temporal_limit,
+                r.spatial_neighbors
+            ),
             (8, false, 20, 0)
         );
         assert_eq!((r.spatial_radius_px, r.spatial_rounds), (2.5, 2));

@@ -161,66 +161,48 @@ impl BaselinePass {
             let emission = partial.emission.as_ref().unwrap_or(density);
 
             let b = &partial.buffers;
-            ctx.create_descriptor_set(
-                &pipeline,
-                &[
-                    DescriptorWrite::UniformBuffer {
-                        binding: bindings::FRAME_UNIFORMS,
-                        buffer: targets.uniforms,
-                    },
-                    DescriptorWrite::StorageBuffer {
-                        binding: bindings::ACCUM,
-                        buffer: targets.accum,
-                    },
-                    DescriptorWrite::StorageBuffer {
-                        binding: bindings::ACCUM_SQ,
-                        buffer: targets.accum_sq,
-                    },
-                    DescriptorWrite::StorageBuffer {
-                        binding: bindings::STATS,
-                        buffer: targets.stats,
-                    },
-                    DescriptorWrite::StorageBuffer {
-                        binding: bindings::SHAPES,
-                        buffer: &b[0],
-                    },
-                    DescriptorWrite::StorageBuffer {
-                        binding: bindings::LIGHTS,
-                        buffer: &b[1],
-                    },
-                    DescriptorWrite::StorageBuffer {
-                        binding: bindings::SUPER_VOXELS,
-                        buffer: &b[2],
-                    },
-                    DescriptorWrite::UniformBuffer {
-                        binding: bindings::BASELINE_UNIFORMS,
-                        buffer: &b[6],
-                    },
-                    DescriptorWrite::StorageBuffer {
-                        binding: bindings::BOX_MEDIA,
-                        buffer: &b[3],
-                    },
-                    DescriptorWrite::StorageBuffer {
-                        binding: bindings::ENV_TEXELS,
-                        buffer: &b[4],
-                    },
-                    DescriptorWrite::StorageBuffer {
-                        binding: bindings::ENV_CDF,
-                        buffer: &b[5],
-                    },
-                    DescriptorWrite::SampledImage {
-                        binding: bindings::GRID_DENSITY,
-                        image: density,
-                        sampler,
-                    },
-                    DescriptorWrite::SampledImage {
-                        binding: bindings::GRID_EMISSION,
-                        image: emission,
-                        sampler,
-                    },
-                ],
-                "baseline set",
-            )
+            let mut writes = Vec::from(targets.writes());
+            writes.extend([
+                DescriptorWrite::StorageBuffer {
+                    binding: bindings::SHAPES,
+                    buffer: &b[0],
+                },
+                DescriptorWrite::StorageBuffer {
+                    binding: bindings::LIGHTS,
+                    buffer: &b[1],
+                },
+                DescriptorWrite::StorageBuffer {
+                    binding: bindings::SUPER_VOXELS,
+                    buffer: &b[2],
+                },
+                DescriptorWrite::UniformBuffer {
+                    binding: bindings::BASELINE_UNIFORMS,
+                    buffer: &b[6],
+                },
+                DescriptorWrite::StorageBuffer {
+                    binding: bindings::BOX_MEDIA,
+                    buffer: &b[3],
+                },
+                DescriptorWrite::StorageBuffer {
+                    binding: bindings::ENV_TEXELS,
+                    buffer: &b[4],
+                },
+                DescriptorWrite::StorageBuffer {
+                    binding: bindings::ENV_CDF,
+                    buffer: &b[5],
+                },
+                DescriptorWrite::SampledImage {
+                    binding: bindings::GRID_DENSITY,
+                    image: density,
+                    sampler,
+                },
+                DescriptorWrite::SampledImage {
+                    binding: bindings::GRID_EMISSION,
+                    image: emission,
+                    sampler,
+                },
+            ]);
+            ctx.create_descriptor_set(&pipeline, &writes, "baseline set")
         })();
         match result {
             Ok(set) => Ok(Self {

@@ -31,6 +31,31 @@ pub struct Targets<'a> {
     pub stats: &'a Buffer,
 }
 
+impl<'a> Targets<'a> {
+    /// The descriptor writes of the frame uniforms and the three outputs, which every
+    /// pass binds at the same binding numbers.
+    pub fn writes(&self) -> [DescriptorWrite<'a>; 4] {
+        [
+            DescriptorWrite::UniformBuffer {
+                binding: bindings::FRAME_UNIFORMS,
+                buffer: self.uniforms,
+            },
+            DescriptorWrite::StorageBuffer {
+                binding: bindings::ACCUM,
+                buffer: self.accum,
+            },
+            DescriptorWrite::StorageBuffer {
+                binding: bindings::ACCUM_SQ,
+                buffer: self.accum_sq,
+            },
+            DescriptorWrite::StorageBuffer {
+                binding: bindings::STATS,
+                buffer: self.stats,
+            },
+        ]
+    }
+}
+
 /// The specialization constants of `crepuscular.comp` for a plan.
 pub fn specialization(plan: &CrepuscularPlan) -> [(u32, SpecValue); 7] {
     let f = plan.features;
@@ -102,44 +127,26 @@ impl CrepuscularPass {
                 &non_empty(&scene.gobo_planes),
                 "gobo planes",
             )?);
-            ctx.create_descriptor_set(
-                &pipeline,
-                &[
-                    DescriptorWrite::UniformBuffer {
-                        binding: bindings::FRAME_UNIFORMS,
-                        buffer: targets.uniforms,
-                    },
-                    DescriptorWrite::StorageBuffer {
-                        binding: bindings::ACCUM,
-                        buffer: targets.accum,
-                    },
-                    DescriptorWrite::StorageBuffer {
-                        binding: bindings::ACCUM_SQ,
-                        buffer: targets.accum_sq,
-                    },
-                    DescriptorWrite::StorageBuffer {
-                        binding: bindings::STATS,
-                        buffer: targets.stats,
-                    },
-                    DescriptorWrite::StorageBuffer {
-                        binding: bindings::BOX_MEDIA,
-                        buffer: &scene_buffers[0],
-                    },
-                    DescriptorWrite::StorageBuffer {
-                        binding: bindings::SHAPES,
-                        buffer: &scene_buffers[1],
-                    },
-                    DescriptorWrite::StorageBuffer {
-                        binding: bindings::LIGHTS,
-                        buffer: &scene_buffers[2],
-                    },
-                    DescriptorWrite::StorageBuffer {
-                        binding: bindings::GOBO_PLANES,
-                        buffer: &scene_buffers[3],
-                    },
-                ],
-                "crepuscular set",
-            )
+            let mut writes = Vec::from(targets.writes());
+            writes.extend([
+                DescriptorWrite::StorageBuffer {
+                    binding: bindings::BOX_MEDIA,
+                    buffer: &scene_buffers[0],
+                },
+                DescriptorWrite::StorageBuffer {
+                    binding: bindings::SHAPES,
+                    buffer: &scene_buffers[1],
+                },
+                DescriptorWrite::StorageBuffer {
+                    binding: bindings::LIGHTS,
+                    buffer: &scene_buffers[2],
+                },
+                DescriptorWrite::StorageBuffer {
+                    binding: bindings::GOBO_PLANES,
+                    buffer: &scene_buffers[3],
+                },
+            ]);
+            ctx.create_descriptor_set(&pipeline, &writes, "crepuscular set")
         })();
         match result {
             Ok(set) => Ok(Self {

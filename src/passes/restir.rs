@@ -499,26 +499,11 @@ impl RestirPass {
             let (b, im) = (&p.buffers, &p.images);
             let (nearest, linear) = (p.samplers[0], p.samplers[1]);
             for (i, pipeline) in p.pipelines.iter().enumerate() {
-                let writes = [
-                    DescriptorWrite::UniformBuffer {
-                        binding: bindings::FRAME_UNIFORMS,
-                        buffer: targets.uniforms,
-                    },
+                let mut writes = Vec::from(targets.writes());
+                writes.extend([
                     DescriptorWrite::UniformBuffer {
                         binding: bindings::PREV_FRAME_UNIFORMS,
                         buffer: &b[6],
-                    },
-                    DescriptorWrite::StorageBuffer {
-                        binding: bindings::ACCUM,
-                        buffer: targets.accum,
-                    },
-                    DescriptorWrite::StorageBuffer {
-                        binding: bindings::ACCUM_SQ,
-                        buffer: targets.accum_sq,
-                    },
-                    DescriptorWrite::StorageBuffer {
-                        binding: bindings::STATS,
-                        buffer: targets.stats,
                     },
                     DescriptorWrite::StorageBuffer {
                         binding: bindings::LIGHTS,
@@ -587,7 +572,7 @@ impl RestirPass {
                         binding: bindings::ENV_CDF,
                         buffer: &b[3],
                     },
-                ];
+                ]);
                 let set = ctx.create_descriptor_set(
                     pipeline,
                     &writes,

@@ -130,7 +130,7 @@ pub use files::{
     check_grid_dims, read_vol_header, VolHeader, MAX_GRID_DIM, MAX_GRID_VOXELS, VOL_HEADER_BYTES,
 };
 pub use geometry::MAX_GOBO_POINTS;
-pub use parse::{MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_LENGTH_M, MAX_SIGMA_T};
+pub use parse::{MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_LENGTH_M, MAX_SIGMA_T, RESTIR_KEYS};
 pub use procedural::procedural_cloud;
 pub use types::*;
 pub use vol_write::write_vol;

@@ -109,7 +109,8 @@ const INTEGRATOR_KEYS: &[&str] = &[
     "box_samples",
     "restir",
 ];
-const RESTIR_KEYS: &[&str] = &[
+/// The fields of `[integrator.restir]`.
+pub const RESTIR_KEYS: &[&str] = &[
     "candidates",
     "temporal",
     "temporal_limit",
