@@ -602,10 +602,15 @@ uint combine_candidates(uint n, inout uint rng, out Reservoir s) {
         }
         uint code = res_jitter(ri);
         CameraRay owner = candidate_ray(i, code);
+        // The target here (j = 0) first, then at the sample's own pixel (j = i): if either
+        // is 0, w_i = 0 whatever the other pixels give, and they are not evaluated.
         float p_sum = 0.0;
         float p_own = 0.0;
         float p_here = 0.0;
-        for (uint j = 0u; j < n; ++j) {
+        bool dead = false;
+        for (uint step = 0u; step < n && !dead; ++step) {
+            // Visit order: 0, i, then the others ascending (0, 1, 2, ... when i = 0).
+            uint j = i == 0u ? step : (step == 0u ? 0u : (step == 1u ? i : (step <= i ? step - 1u : step)));
             if (!(cand_M[j] > 0.0)) {
                 continue;
             }
@@ -617,9 +622,11 @@ uint combine_candidates(uint n, inout uint rng, out Reservoir s) {
             p_sum += p * cand_M[j];
             if (j == i) {
                 p_own = p;
+                dead = !(p > 0.0);
             }
             if (j == 0u) {
                 p_here = p;
+                dead = dead || !(p > 0.0);
             }
         }
         // Domain: p_sum > 0 (else no pixel could have produced lambda_i: weight 0).
