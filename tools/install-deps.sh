@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
-# Installs what Nimbus needs on Debian 12 besides Rust: the Vulkan loader, Mesa's
-# lavapipe (a CPU Vulkan device), the Khronos validation layers, and the static
-# shaderc / glslang / SPIRV-Tools libraries that build.rs links (see .cargo/config.toml).
+# Installs what Nimbus needs on Debian 12: the Vulkan loader, Mesa's lavapipe (a CPU
+# Vulkan device), the Khronos validation layers, the static shaderc / glslang /
+# SPIRV-Tools libraries that build.rs links (see .cargo/config.toml), and, when no
+# `cargo` is on PATH, a stable Rust toolchain by rustup (Debian 12's own rustc 1.63 is
+# too old for the dependencies), linked into /usr/local/bin so the same shell finds it.
 set -euo pipefail
 
 packages=(
@@ -13,6 +15,8 @@ packages=(
     spirv-tools           # libSPIRV-Tools.a, libSPIRV-Tools-opt.a
     g++                   # the nv-flip test dependency builds C++
     pkg-config
+    ca-certificates       # rustup's download, when Rust is missing
+    curl
 )
 
 if [ "$(id -u)" -eq 0 ]; then
@@ -23,3 +27,13 @@ fi
 export DEBIAN_FRONTEND=noninteractive
 "${sudo[@]}" apt-get update -qq
 "${sudo[@]}" apt-get install -y -qq --no-install-recommends "${packages[@]}"
+
+if ! command -v cargo >/dev/null 2>&1; then
+    echo "install-deps: no cargo on PATH; installing stable Rust with rustup" >&2
+    curl --proto '=https' --tlsv1.2 -sSf https://sh.rustup.rs \
+        | sh -s -- -y --profile minimal --default-toolchain stable
+    for tool in cargo rustc rustup; do
+        "${sudo[@]}" ln -sf "$HOME/.cargo/bin/$tool" "/usr/local/bin/$tool"
+    done
+    cargo --version
+fi
