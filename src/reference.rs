@@ -945,10 +945,7 @@ fn integrate_adaptive_tagged(
 
 #[cfg(test)]
 mod tests {
-    use std::path::PathBuf;
-
     use glam::{Vec2, Vec3};
-    use nimbus_scene::{Camera, Integrator, RenderSettings};
 
     use super::*;
 
@@ -969,26 +966,13 @@ mod tests {
     }
 
     fn scene(media: Vec<BoxMedium>, shapes: Vec<Shape>, lights: Vec<Light>) -> Scene {
-        Scene {
-            source: PathBuf::from("<test>"),
-            light_keyframes: Vec::new(),
-            render: RenderSettings {
-                width: 6,
-                height: 4,
-                ..RenderSettings::default()
-            },
-            camera: Camera {
-                position: Vec3::new(0.0, 0.0, 5.0),
-                look_at: Vec3::ZERO,
-                up: Vec3::Y,
-                horizontal_fov_deg: 40.0,
-                keyframes: Vec::new(),
-            },
-            lights,
-            media: media.into_iter().map(Medium::Box).collect(),
+        crate::reference_common::test_scene(
+            media.into_iter().map(Medium::Box).collect(),
             shapes,
-            integrator: Integrator::default(),
-        }
+            lights,
+            (6, 4),
+            40.0,
+        )
     }
 
     fn sun(direction: Vec3, irradiance: f32) -> Light {

@@ -610,3 +610,35 @@ pub(crate) fn render_paths<S: PathSums>(
     }
     (mean, std_error)
 }
+
+/// A scene for the oracles' unit tests: a camera at (0, 0, 5) looking at the origin,
+/// `size` pixels, `fov_deg` horizontal field of view, default integrator settings.
+#[cfg(test)]
+pub(crate) fn test_scene(
+    media: Vec<nimbus_scene::Medium>,
+    shapes: Vec<Shape>,
+    lights: Vec<nimbus_scene::Light>,
+    size: (u32, u32),
+    fov_deg: f32,
+) -> Scene {
+    Scene {
+        source: std::path::PathBuf::from("<test>"),
+        light_keyframes: Vec::new(),
+        render: nimbus_scene::RenderSettings {
+            width: size.0,
+            height: size.1,
+            ..nimbus_scene::RenderSettings::default()
+        },
+        camera: nimbus_scene::Camera {
+            position: Vec3::new(0.0, 0.0, 5.0),
+            look_at: Vec3::ZERO,
+            up: Vec3::Y,
+            horizontal_fov_deg: fov_deg,
+            keyframes: Vec::new(),
+        },
+        lights,
+        media,
+        shapes,
+        integrator: nimbus_scene::Integrator::default(),
+    }
+}

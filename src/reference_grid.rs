@@ -772,32 +772,13 @@ mod tests {
     use std::path::PathBuf;
 
     use glam::Vec3;
-    use nimbus_scene::{BoxMedium, Camera, GridSource, Integrator, RenderSettings, Shape};
+    use nimbus_scene::{BoxMedium, GridSource, Shape};
 
     use super::*;
     use crate::reference_mc::{radiance_mc, McOptions};
 
     fn scene(media: Vec<Medium>, shapes: Vec<Shape>, lights: Vec<Light>) -> Scene {
-        Scene {
-            source: PathBuf::from("<test>"),
-            light_keyframes: Vec::new(),
-            render: RenderSettings {
-                width: 4,
-                height: 3,
-                ..RenderSettings::default()
-            },
-            camera: Camera {
-                position: Vec3::new(0.0, 0.0, 5.0),
-                look_at: Vec3::ZERO,
-                up: Vec3::Y,
-                horizontal_fov_deg: 30.0,
-                keyframes: Vec::new(),
-            },
-            lights,
-            media,
-            shapes,
-            integrator: Integrator::default(),
-        }
+        crate::reference_common::test_scene(media, shapes, lights, (4, 3), 30.0)
     }
 
     fn grid_medium(lo: Vec3, hi: Vec3, density_scale: f32, albedo: Vec3, g: f32) -> GridMedium {

@@ -408,9 +408,7 @@ mod tests {
     use std::path::PathBuf;
 
     use glam::{Vec2, Vec3};
-    use nimbus_scene::{
-        BoxMedium, Camera, Gobo, GridMedium, GridSource, Integrator, RenderSettings, Shape,
-    };
+    use nimbus_scene::{BoxMedium, Gobo, GridMedium, GridSource, Shape};
 
     use super::*;
     use crate::reference::{self, ReferenceOptions};
@@ -433,26 +431,13 @@ mod tests {
     }
 
     fn scene(media: Vec<BoxMedium>, shapes: Vec<Shape>, lights: Vec<Light>) -> Scene {
-        Scene {
-            source: PathBuf::from("<test>"),
-            light_keyframes: Vec::new(),
-            render: RenderSettings {
-                width: 6,
-                height: 4,
-                ..RenderSettings::default()
-            },
-            camera: Camera {
-                position: Vec3::new(0.0, 0.0, 5.0),
-                look_at: Vec3::ZERO,
-                up: Vec3::Y,
-                horizontal_fov_deg: 40.0,
-                keyframes: Vec::new(),
-            },
-            lights,
-            media: media.into_iter().map(Medium::Box).collect(),
+        crate::reference_common::test_scene(
+            media.into_iter().map(Medium::Box).collect(),
             shapes,
-            integrator: Integrator::default(),
-        }
+            lights,
+            (6, 4),
+            40.0,
+        )
     }
 
     fn sun(direction: Vec3, irradiance: Vec3) -> Light {

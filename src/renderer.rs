@@ -47,10 +47,10 @@ impl Pass {
         }
     }
 
-    /// Uploads what the pass needs for render frame `frame` (camera frame `camera_frame`).
-    fn prepare(&self, ctx: &Context, scene: &Scene, frame: u32, camera_frame: u32) -> Result<()> {
+    /// Uploads what the pass needs for the scene's frame `camera_frame`.
+    fn prepare(&self, ctx: &Context, scene: &Scene, camera_frame: u32) -> Result<()> {
         match self {
-            Pass::Restir(pass, ..) => pass.prepare(ctx, scene, frame, camera_frame),
+            Pass::Restir(pass, ..) => pass.prepare(ctx, scene, camera_frame),
             _ => Ok(()),
         }
     }
@@ -104,7 +104,7 @@ fn create_pass(ctx: &Context, scene: &Scene, plan: &RenderPlan, targets: &Target
     if let Some(p) = &plan.restir {
         let grid = GpuGrid::build(scene)?;
         let mut pass = RestirPass::new(ctx, p, scene, &grid, targets)?;
-        if let Err(e) = pass.load_frames(scene) {
+        if let Err(e) = pass.load_frames() {
             pass.destroy(ctx);
             return Err(e);
         }
@@ -288,7 +288,7 @@ fn run_frames(
             sample_base: 0,
             ..Default::default()
         };
-        if let Err(e) = pass.prepare(ctx, scene, i, frame) {
+        if let Err(e) = pass.prepare(ctx, scene, frame) {
             outcome = Err(e);
             break;
         }

@@ -10,7 +10,7 @@ use nimbus_gpu::{
 
 use crate::bindings;
 use crate::gpu_scene::{non_empty, BoxMediumGpu, FrameUniforms, GpuGrid, PassPush, ShapeGpu};
-use crate::passes::crepuscular::{spirv_words, upload_records, Targets, GROUP_SIZE};
+use crate::passes::crepuscular::{image_groups, spirv_words, upload_records, Targets};
 use crate::plan::BaselinePlan;
 use crate::shaders;
 
@@ -231,11 +231,7 @@ impl BaselinePass {
         uniforms: &FrameUniforms,
         push: &PassPush,
     ) -> Result<()> {
-        let groups = [
-            uniforms.image[0].div_ceil(GROUP_SIZE[0]),
-            uniforms.image[1].div_ceil(GROUP_SIZE[1]),
-            1,
-        ];
+        let groups = image_groups(uniforms);
         self.pipeline
             .dispatch(ctx, cmd, &self.set, bytemuck::bytes_of(push), groups)
     }

@@ -16,6 +16,15 @@ use crate::shaders;
 /// Workgroup size of the shader (`local_size_x`, `local_size_y`).
 pub const GROUP_SIZE: [u32; 2] = [8, 8];
 
+/// Workgroups covering the frame's image, one invocation per pixel.
+pub fn image_groups(uniforms: &FrameUniforms) -> [u32; 3] {
+    [
+        uniforms.image[0].div_ceil(GROUP_SIZE[0]),
+        uniforms.image[1].div_ceil(GROUP_SIZE[1]),
+        1,
+    ]
+}
+
 /// The pass's pipeline and the scene buffers it reads.
 pub struct CrepuscularPass {
     pipeline: ComputePipeline,
@@ -172,11 +181,7 @@ impl CrepuscularPass {
         uniforms: &FrameUniforms,
         push: &PassPush,
     ) -> Result<()> {
-        let groups = [
-            uniforms.image[0].div_ceil(GROUP_SIZE[0]),
-            uniforms.image[1].div_ceil(GROUP_SIZE[1]),
-            1,
-        ];
+        let groups = image_groups(uniforms);
         self.pipeline
             .dispatch(ctx, cmd, &self.set, bytemuck::bytes_of(push), groups)
     }

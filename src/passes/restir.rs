@@ -19,7 +19,7 @@ use nimbus_scene::{GridMedium, Medium, Scene, VoxelGrid};
 
 use crate::bindings;
 use crate::gpu_scene::{self, non_empty, FrameUniforms, GpuGrid, LightGpu, LightSet};
-use crate::passes::crepuscular::{spirv_words, upload_records, Targets, GROUP_SIZE};
+use crate::passes::crepuscular::{image_groups, spirv_words, upload_records, Targets};
 use crate::plan::RestirPlan;
 use crate::shaders;
 
@@ -107,12 +107,16 @@ impl DerivedVolume {
     }
 }
 
-/// The GPU images of one frame's density.
-struct VolumeImages {
-    density: Image,
-    march_reuse: Image,
-    march_nee: Image,
-}
+// The pass's images, by index: this frame's density (full resolution) and its ray-march
+// mips for reuse and for NEE, the previous frame's density and reuse mip (what the
+// temporal pass evaluates the previous reservoirs with), emission, velocity.
+const IMAGE_DENSITY: usize = 0;
+const IMAGE_MARCH_REUSE: usize = 1;
+const IMAGE_MARCH_NEE: usize = 2;
+const IMAGE_DENSITY_PREV: usize = 3;
+const IMAGE_MARCH_REUSE_PREV: usize = 4;
+const IMAGE_EMISSION: usize = 5;
+const IMAGE_VELOCITY: usize = 6;
 
 /// The four pipelines, their descriptor sets and everything they read.
 pub struct RestirPass {
@@ -120,10 +124,8 @@ pub struct RestirPass {
     pipelines: Vec<ComputePipeline>,
     sets: Vec<DescriptorSet>,
     buffers: Buffers,
-    current: VolumeImages,
-    previous: VolumeImages,
-    emission: Option<Image>,
-    velocity: Option<Image>,
+    /// Indexed by the IMAGE_* constants.
+    images: Vec<Image>,
     nearest: vk::Sampler,
     linear: vk::Sampler,
     grid: GridMedium,
@@ -137,8 +139,10 @@ pub struct RestirPass {
     loaded: Cell<(usize, usize)>,
     /// The slot holding the previous frame's final reservoirs.
     prev_slot: Cell<Option<u32>>,
-    /// The frame last prepared.
-    frame: Cell<u32>,
+    /// The constant environment radiance (frame uniforms).
+    env_radiance: glam::Vec3,
+    /// The previous-frame uniforms last uploaded.
+    prev_uploaded: std::cell::RefCell<Option<Vec<u8>>>,
 }
 
 struct Buffers {
@@ -251,49 +255,6 @@ fn image_3d(
     Ok(image)
 }
 
-fn volume_images(ctx: &Context, v: &DerivedVolume, which: &str) -> Result<VolumeImages> {
-    let d = v.density.dims;
-    let density = image_3d(
-        ctx,
-        d,
-        vk::Format::R32_SFLOAT,
-        bytemuck::cast_slice(&v.density.data),
-        &format!("{which} density"),
-    )?;
-    let march_reuse = match image_3d(
-        ctx,
-        v.march_reuse.1,
-        vk::Format::R16_SFLOAT,
-        bytemuck::cast_slice(&v.march_reuse.0),
-        &format!("{which} march (reuse)"),
-    ) {
-        Ok(i) => i,
-        Err(e) => {
-            ctx.destroy_image(density);
-            return Err(e);
-        }
-    };
-    let march_nee = match image_3d(
-        ctx,
-        v.march_nee.1,
-        vk::Format::R16_SFLOAT,
-        bytemuck::cast_slice(&v.march_nee.0),
-        &format!("{which} march (NEE)"),
-    ) {
-        Ok(i) => i,
-        Err(e) => {
-            ctx.destroy_image(density);
-            ctx.destroy_image(march_reuse);
-            return Err(e);
-        }
-    };
-    Ok(VolumeImages {
-        density,
-        march_reuse,
-        march_nee,
-    })
-}
-
 /// The scene's grid medium and its index among the media.
 fn scene_grid(scene: &Scene) -> Result<(usize, &GridMedium)> {
     scene
@@ -399,11 +360,12 @@ impl RestirPass {
                 pc_primary: first.pc_primary,
                 pc_indirect: first.pc_indirect,
                 factors: [
-                    1 << plan.mip_candidates.min(first_level_cap(&first.density)),
-                    1 << plan.mip_indirect.min(first_level_cap(&first.density)),
-                    1 << plan.mip_reuse.min(first_level_cap(&first.density)),
-                    1 << plan.mip_indirect.min(first_level_cap(&first.density)),
-                ],
+                    plan.mip_candidates,
+                    plan.mip_indirect,
+                    plan.mip_reuse,
+                    plan.mip_indirect,
+                ]
+                .map(|level| 1 << level.min(last_level(first.density.dims))),
                 march_dims: [
                     first.march_reuse.1[0],
                     first.march_reuse.1[1],
@@ -441,13 +403,20 @@ impl RestirPass {
             )?);
             ctx.fill_buffer(&p.buffers[8], 0)?;
 
-            // Images: current density set, previous density set, emission, velocity.
-            let cur = volume_images(ctx, &first, "current")?;
-            p.images
-                .extend([cur.density, cur.march_reuse, cur.march_nee]);
-            let prev = volume_images(ctx, &first, "previous")?;
-            p.images
-                .extend([prev.density, prev.march_reuse, prev.march_nee]);
+            // Images, in the order of the IMAGE_* constants.
+            let density: &[u8] = bytemuck::cast_slice(&first.density.data);
+            let reuse: &[u8] = bytemuck::cast_slice(&first.march_reuse.0);
+            let nee: &[u8] = bytemuck::cast_slice(&first.march_nee.0);
+            let (r32, r16) = (vk::Format::R32_SFLOAT, vk::Format::R16_SFLOAT);
+            for (dims, format, bytes, name) in [
+                (first.density.dims, r32, density, "density"),
+                (first.march_reuse.1, r16, reuse, "march (reuse)"),
+                (first.march_nee.1, r16, nee, "march (NEE)"),
+                (first.density.dims, r32, density, "previous density"),
+                (first.march_reuse.1, r16, reuse, "previous march (reuse)"),
+            ] {
+                p.images.push(image_3d(ctx, dims, format, bytes, name)?);
+            }
             let emission = match &grid_gpu.emission {
                 Some(e) => image_3d(
                     ctx,
@@ -519,37 +488,37 @@ impl RestirPass {
                     },
                     DescriptorWrite::SampledImage {
                         binding: bindings::GRID_DENSITY,
-                        image: &im[0],
+                        image: &im[IMAGE_DENSITY],
                         sampler: nearest,
                     },
                     DescriptorWrite::SampledImage {
                         binding: bindings::GRID_DENSITY_PREV,
-                        image: &im[3],
+                        image: &im[IMAGE_DENSITY_PREV],
                         sampler: nearest,
                     },
                     DescriptorWrite::SampledImage {
                         binding: bindings::GRID_EMISSION,
-                        image: &im[6],
+                        image: &im[IMAGE_EMISSION],
                         sampler: nearest,
                     },
                     DescriptorWrite::SampledImage {
                         binding: bindings::MARCH_REUSE,
-                        image: &im[1],
+                        image: &im[IMAGE_MARCH_REUSE],
                         sampler: linear,
                     },
                     DescriptorWrite::SampledImage {
                         binding: bindings::MARCH_REUSE_PREV,
-                        image: &im[4],
+                        image: &im[IMAGE_MARCH_REUSE_PREV],
                         sampler: linear,
                     },
                     DescriptorWrite::SampledImage {
                         binding: bindings::MARCH_NEE,
-                        image: &im[2],
+                        image: &im[IMAGE_MARCH_NEE],
                         sampler: linear,
                     },
                     DescriptorWrite::SampledImage {
                         binding: bindings::VELOCITY,
-                        image: &im[7],
+                        image: &im[IMAGE_VELOCITY],
                         sampler: linear,
                     },
                     DescriptorWrite::StorageBuffer {
@@ -600,29 +569,12 @@ impl RestirPass {
             pc_grid: next(),
             reservoirs: next(),
         };
-        let mut images = p.images.into_iter();
-        let mut next = || images.next().expect("all images were created");
-        let current = VolumeImages {
-            density: next(),
-            march_reuse: next(),
-            march_nee: next(),
-        };
-        let previous = VolumeImages {
-            density: next(),
-            march_reuse: next(),
-            march_nee: next(),
-        };
-        let emission = Some(next());
-        let velocity = Some(next());
         Ok(RestirPass {
             plan: plan.clone(),
             pipelines: p.pipelines,
             sets: p.sets,
             buffers,
-            current,
-            previous,
-            emission,
-            velocity,
+            images: p.images,
             nearest: p.samplers[0],
             linear: p.samplers[1],
             grid: grid.clone(),
@@ -633,14 +585,10 @@ impl RestirPass {
             volumes,
             loaded: Cell::new((0, 0)),
             prev_slot: Cell::new(None),
-            frame: Cell::new(0),
+            env_radiance: grid_gpu.env_radiance,
+            prev_uploaded: std::cell::RefCell::new(None),
         })
     }
-}
-
-/// The last mip level of a grid's chain (its 1×1×1 level).
-fn first_level_cap(grid: &VoxelGrid) -> u32 {
-    last_level(grid.dims)
 }
 
 /// The ray-marching step at mip `level`: the diagonal of one of its voxels, in metres
@@ -665,17 +613,11 @@ fn last_level(dims: [u32; 3]) -> u32 {
 impl RestirPass {
     /// Uploads what changes per frame: the lights of this frame and the previous one,
     /// the previous camera, and the density grids of both frames when they change.
-    pub fn prepare(
-        &self,
-        ctx: &Context,
-        scene: &Scene,
-        frame: u32,
-        camera_frame: u32,
-    ) -> Result<()> {
-        self.frame.set(frame);
+    pub fn prepare(&self, ctx: &Context, scene: &Scene, camera_frame: u32) -> Result<()> {
         let prev_camera_frame = camera_frame.saturating_sub(1);
-        // Lights: the current set, then the previous frame's.
-        if scene.lights_animated() || frame == 0 {
+        // Lights: the current set, then the previous frame's (uploaded at creation when
+        // nothing is animated).
+        if scene.lights_animated() {
             let cur = LightSet::build(
                 &scene.lights_at(camera_frame),
                 self.scene_lights_radius,
@@ -692,58 +634,53 @@ impl RestirPass {
             base.env_select[0] = cur.env_select;
             ctx.upload_buffer(&self.buffers.base_uniforms, 0, bytemuck::bytes_of(&base))?;
         }
-        // The previous frame's camera (the first frame's own camera on frame 0).
+        // The previous frame's camera (the first frame's own camera on frame 0), uploaded
+        // when it changes.
         let camera = scene.camera.frame_at(prev_camera_frame);
         let counts = [0, 0, self.light_count(scene), 0];
-        let env = LightSet::build(
-            &scene.lights,
-            self.scene_lights_radius,
-            self.env_map_luminance,
-        )
-        .env_radiance;
-        let prev = gpu_scene::frame_uniforms(scene, &camera, env, counts);
-        ctx.upload_buffer(&self.buffers.prev_frame, 0, bytemuck::bytes_of(&prev))?;
+        let prev = gpu_scene::frame_uniforms(scene, &camera, self.env_radiance, counts);
+        let bytes = bytemuck::bytes_of(&prev);
+        if self.prev_uploaded.borrow().as_deref() != Some(bytes) {
+            ctx.upload_buffer(&self.buffers.prev_frame, 0, bytes)?;
+            *self.prev_uploaded.borrow_mut() = Some(bytes.to_vec());
+        }
         // Density of this frame and of the previous one.
         let want = (
             self.grid.density_index_at(camera_frame),
             self.grid.density_index_at(prev_camera_frame),
         );
-        if frame == 0 || want != self.loaded.get() {
+        if want != self.loaded.get() {
             for index in [want.0, want.1] {
-                if !self.volumes_contains(index) {
+                if !self.volumes.contains_key(&index) {
                     bail!("internal: density frame {index} was not loaded before rendering");
                 }
             }
             let cur = &self.volumes[&want.0];
             let prev = &self.volumes[&want.1];
             ctx.upload_image(
-                &self.current.density,
+                &self.images[IMAGE_DENSITY],
                 bytemuck::cast_slice(&cur.density.data),
             )?;
             ctx.upload_image(
-                &self.current.march_reuse,
+                &self.images[IMAGE_MARCH_REUSE],
                 bytemuck::cast_slice(&cur.march_reuse.0),
             )?;
             ctx.upload_image(
-                &self.current.march_nee,
+                &self.images[IMAGE_MARCH_NEE],
                 bytemuck::cast_slice(&cur.march_nee.0),
             )?;
             ctx.upload_buffer(&self.buffers.pc_grid, 0, bytemuck::cast_slice(&cur.pc))?;
             ctx.upload_image(
-                &self.previous.density,
+                &self.images[IMAGE_DENSITY_PREV],
                 bytemuck::cast_slice(&prev.density.data),
             )?;
             ctx.upload_image(
-                &self.previous.march_reuse,
+                &self.images[IMAGE_MARCH_REUSE_PREV],
                 bytemuck::cast_slice(&prev.march_reuse.0),
             )?;
             self.loaded.set(want);
         }
         Ok(())
-    }
-
-    fn volumes_contains(&self, index: usize) -> bool {
-        self.volumes.contains_key(&index)
     }
 
     /// Number of analytic lights per set.
@@ -757,7 +694,7 @@ impl RestirPass {
 
     /// Loads and derives every density grid of the animation (checked to have the base
     /// grid's dims), so frames only upload.
-    pub fn load_frames(&mut self, scene: &Scene) -> Result<()> {
+    pub fn load_frames(&mut self) -> Result<()> {
         let dims = self.volumes[&0].density.dims;
         for (i, frame) in self.grid.frames.clone().iter().enumerate() {
             let what = format!(
@@ -777,7 +714,6 @@ impl RestirPass {
             let derived = DerivedVolume::build(grid, self.grid.density_scale, &self.plan);
             self.volumes.insert(i + 1, derived);
         }
-        let _ = scene;
         Ok(())
     }
 
@@ -789,11 +725,7 @@ impl RestirPass {
         uniforms: &FrameUniforms,
         push: RestirPush,
     ) -> Result<()> {
-        let groups = [
-            uniforms.image[0].div_ceil(GROUP_SIZE[0]),
-            uniforms.image[1].div_ceil(GROUP_SIZE[1]),
-            1,
-        ];
+        let groups = image_groups(uniforms);
         self.pipelines[index].dispatch(
             ctx,
             cmd,
@@ -896,16 +828,6 @@ impl RestirPass {
 
     pub fn destroy(self, ctx: &Context) {
         let b = self.buffers;
-        let mut images = vec![
-            self.current.density,
-            self.current.march_reuse,
-            self.current.march_nee,
-            self.previous.density,
-            self.previous.march_reuse,
-            self.previous.march_nee,
-        ];
-        images.extend(self.emission);
-        images.extend(self.velocity);
         Partial {
             buffers: vec![
                 b.lights,
@@ -918,7 +840,7 @@ impl RestirPass {
                 b.pc_grid,
                 b.reservoirs,
             ],
-            images,
+            images: self.images,
             samplers: vec![self.nearest, self.linear],
             pipelines: self.pipelines,
             sets: self.sets,
