@@ -64,11 +64,6 @@ vec3 grid_index_scale() {
     return vec3(u_grid.dims.xyz) / (u_grid.bounds_max.xyz - u_grid.bounds_min.xyz);
 }
 
-// Unscaled density of voxel (i, j, k), indices already inside the grid.
-float grid_voxel(ivec3 v) {
-    return texelFetch(u_density, v, 0).r;
-}
-
 // Trilinear blend of the 8 corner values c[z][y][x] (packed x fastest) with fractions f.
 float grid_trilinear(float c[8], vec3 f) {
     float x00 = mix(c[0], c[1], f.x);
@@ -78,39 +73,57 @@ float grid_trilinear(float c[8], vec3 f) {
     return mix(mix(x00, x10, f.y), mix(x01, x11, f.y), f.z);
 }
 
-// The 8 voxel values of dual cell `cell` (per axis in [-1, n - 1]): lower corner
-// clamp(cell, 0, n - 1), upper corner clamp(cell + 1, 0, n - 1) (equal in border cells).
-void grid_cell_corners(ivec3 cell, out float c[8]) {
+// The 8 voxel values of dual cell `cell` (per axis in [-1, n - 1]) of a density texture
+// with the grid's dims: lower corner clamp(cell, 0, n - 1), upper corner
+// clamp(cell + 1, 0, n - 1) (equal in border cells).
+void grid_cell_corners_in(sampler3D density, ivec3 cell, out float c[8]) {
     ivec3 n_minus_1 = ivec3(u_grid.dims.xyz) - 1;
     ivec3 lo = clamp(cell, ivec3(0), n_minus_1);
     ivec3 hi = clamp(cell + 1, ivec3(0), n_minus_1);
-    c[0] = grid_voxel(ivec3(lo.x, lo.y, lo.z));
-    c[1] = grid_voxel(ivec3(hi.x, lo.y, lo.z));
-    c[2] = grid_voxel(ivec3(lo.x, hi.y, lo.z));
-    c[3] = grid_voxel(ivec3(hi.x, hi.y, lo.z));
-    c[4] = grid_voxel(ivec3(lo.x, lo.y, hi.z));
-    c[5] = grid_voxel(ivec3(hi.x, lo.y, hi.z));
-    c[6] = grid_voxel(ivec3(lo.x, hi.y, hi.z));
-    c[7] = grid_voxel(ivec3(hi.x, hi.y, hi.z));
+    c[0] = texelFetch(density, ivec3(lo.x, lo.y, lo.z), 0).r;
+    c[1] = texelFetch(density, ivec3(hi.x, lo.y, lo.z), 0).r;
+    c[2] = texelFetch(density, ivec3(lo.x, hi.y, lo.z), 0).r;
+    c[3] = texelFetch(density, ivec3(hi.x, hi.y, lo.z), 0).r;
+    c[4] = texelFetch(density, ivec3(lo.x, lo.y, hi.z), 0).r;
+    c[5] = texelFetch(density, ivec3(hi.x, lo.y, hi.z), 0).r;
+    c[6] = texelFetch(density, ivec3(lo.x, hi.y, hi.z), 0).r;
+    c[7] = texelFetch(density, ivec3(hi.x, hi.y, hi.z), 0).r;
 }
 
-// sigma_t at index-space point p (clamped per SCENE_FORMAT.md; any p is accepted).
-float grid_sigma_index(vec3 p) {
+// The same for the grid's own density u_density.
+void grid_cell_corners(ivec3 cell, out float c[8]) {
+    grid_cell_corners_in(u_density, cell, c);
+}
+
+// sigma_t of a density texture (the grid's dims, unscaled) at index-space point p
+// (clamped per SCENE_FORMAT.md; any p is accepted).
+float grid_sigma_index_in(sampler3D density, vec3 p) {
     vec3 n = vec3(u_grid.dims.xyz);
     // Shifted so centres sit at integers, clamped to the outermost centres.
     vec3 q = clamp(p - 0.5, vec3(0.0), n - 1.0);
     ivec3 cell = min(ivec3(floor(q)), ivec3(u_grid.dims.xyz) - 1);
     float c[8];
-    grid_cell_corners(cell, c);
+    grid_cell_corners_in(density, cell, c);
     return u_grid.bounds_min.w * grid_trilinear(c, clamp(q - vec3(cell), 0.0, 1.0));
 }
 
-// sigma_t = density_scale * trilinear density at world x; 0 outside the closed bounds.
-float grid_sigma_t(vec3 x) {
+// sigma_t of u_density at index-space point p.
+float grid_sigma_index(vec3 p) {
+    return grid_sigma_index_in(u_density, p);
+}
+
+// sigma_t = density_scale * trilinear density (of a texture with the grid's dims) at world
+// x; 0 outside the closed bounds.
+float grid_sigma_t_in(sampler3D density, vec3 x) {
     if (any(lessThan(x, u_grid.bounds_min.xyz)) || any(greaterThan(x, u_grid.bounds_max.xyz))) {
         return 0.0;
     }
-    return grid_sigma_index((x - u_grid.bounds_min.xyz) * grid_index_scale());
+    return grid_sigma_index_in(density, (x - u_grid.bounds_min.xyz) * grid_index_scale());
+}
+
+// The same for the grid's own density u_density.
+float grid_sigma_t(vec3 x) {
+    return grid_sigma_t_in(u_density, x);
 }
 
 // Parameter s >= s_now at which an axis-aligned DDA leaves its current cell along one

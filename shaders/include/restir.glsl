@@ -323,31 +323,8 @@ vec3 oct_decode(uint e) {
 // ---------------------------------------------------------------------------------------
 // Media lookups for a frame's set.
 
-// Trilinear sigma_t of `density` (unscaled, texelFetch) at world x, as grid_sigma_t.
-float sigma_t_in(sampler3D density, vec3 x) {
-    if (any(lessThan(x, u_grid.bounds_min.xyz)) || any(greaterThan(x, u_grid.bounds_max.xyz))) {
-        return 0.0;
-    }
-    vec3 n = vec3(u_grid.dims.xyz);
-    vec3 q = clamp((x - u_grid.bounds_min.xyz) * grid_index_scale() - 0.5, vec3(0.0), n - 1.0);
-    ivec3 hi = ivec3(u_grid.dims.xyz) - 1;
-    ivec3 i0 = min(ivec3(floor(q)), hi);
-    ivec3 i1 = min(i0 + 1, hi);
-    vec3 f = clamp(q - vec3(i0), 0.0, 1.0);
-    float c[8];
-    c[0] = texelFetch(density, ivec3(i0.x, i0.y, i0.z), 0).r;
-    c[1] = texelFetch(density, ivec3(i1.x, i0.y, i0.z), 0).r;
-    c[2] = texelFetch(density, ivec3(i0.x, i1.y, i0.z), 0).r;
-    c[3] = texelFetch(density, ivec3(i1.x, i1.y, i0.z), 0).r;
-    c[4] = texelFetch(density, ivec3(i0.x, i0.y, i1.z), 0).r;
-    c[5] = texelFetch(density, ivec3(i1.x, i0.y, i1.z), 0).r;
-    c[6] = texelFetch(density, ivec3(i0.x, i1.y, i1.z), 0).r;
-    c[7] = texelFetch(density, ivec3(i1.x, i1.y, i1.z), 0).r;
-    return u_grid.bounds_min.w * grid_trilinear(c, f);
-}
-
 float sigma_t_of(uint set, vec3 x) {
-    return set == SET_CURRENT ? sigma_t_in(u_density, x) : sigma_t_in(u_density_prev, x);
+    return set == SET_CURRENT ? grid_sigma_t_in(u_density, x) : grid_sigma_t_in(u_density_prev, x);
 }
 
 // Most midpoint steps of one ray march (a cap against absurd lengths; the step grows).
@@ -518,7 +495,7 @@ vec3 path_value(uint at, Reservoir r, CameraRay cam, CameraRay src, uint mode, i
         }
         float T = mode == MODE_FINAL ? final_transmittance(x, w, z, rng) : reuse_transmittance(set, x, w, z);
         x += z * w;
-        float sigma_t = mode == MODE_FINAL ? sigma_t_in(u_density, x) : sigma_t_of(set, x);
+        float sigma_t = mode == MODE_FINAL ? grid_sigma_t_in(u_density, x) : sigma_t_of(set, x);
         f *= T;
         if (i == kp && res_emission(r)) {
             if (!SC_HAS_EMISSION) {

@@ -92,7 +92,7 @@ void main() {
             }
             x += z * w;
             walk_z[i - 1u] = z;
-            float sigma_t = sigma_t_in(u_density, x);
+            float sigma_t = grid_sigma_t_in(u_density, x);
             if (!(sigma_t > 0.0)) {
                 break;
             }
