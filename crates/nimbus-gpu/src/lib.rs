@@ -3,8 +3,9 @@
 //! One module per Vulkan concept, in the manner of kajiya's backend: [`context`] (instance,
 //! device, queue, validation), [`buffer`] and [`image`] (memory through gpu-allocator),
 //! [`pipeline`] (compute pipelines with specialization constants), [`descriptor`],
-//! [`command`] (one-shot submission, upload, readback, barriers) and [`profiler`]
-//! (timestamp scopes and a Chrome trace writer). Nothing here knows about light.
+//! [`command`] (one-shot submission, upload, readback, barriers), [`profiler`]
+//! (timestamp scopes and a Chrome trace writer) and [`objects`] (one cleanup bag for the
+//! objects of a half-built pass, with typed handles). Nothing here knows about light.
 //!
 //! # Invariants
 //!
@@ -43,6 +44,7 @@ pub mod context;
 pub mod descriptor;
 pub mod error;
 pub mod image;
+pub mod objects;
 pub mod pipeline;
 pub mod profiler;
 
@@ -54,6 +56,7 @@ pub use descriptor::{DescriptorSet, DescriptorWrite};
 pub use error::VkError;
 pub use gpu_allocator::MemoryLocation;
 pub use image::{format_texel_size, Image, ImageDesc, SamplerDesc};
+pub use objects::{GpuObject, GpuObjects, Handle};
 pub use pipeline::{BindingDesc, ComputePipeline, ComputePipelineDesc, SpecValue};
 pub use profiler::{summarize, ticks_to_ns, write_chrome_trace, PassStats, Profiler, ScopeResult};
 
