@@ -4,8 +4,7 @@
 //! ([`renderer`]), one compute pass per module under [`passes`]. See
 //! `shared/ARCHITECTURE.md` for the layering.
 
-pub mod bindings;
-pub mod gpu_scene;
+pub mod gpu;
 pub mod output;
 pub mod passes;
 pub mod plan;

@@ -8,124 +8,13 @@
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context as _, Result};
-use nimbus_gpu::{vk, Buffer, BufferDesc, Context, Profiler, ScopeResult};
+use nimbus_gpu::{vk, Buffer, BufferDesc, Context, GpuObjects, Handle, Profiler, ScopeResult};
 use nimbus_scene::Scene;
 
-use crate::bindings;
-use crate::gpu_scene::{self, FrameUniforms, GpuGrid, GpuScene, PassPush};
+use crate::gpu::{bindings, FrameUniforms};
 use crate::output::ImageRgb;
-use crate::passes::baseline::BaselinePass;
-use crate::passes::crepuscular::{CrepuscularPass, Targets};
-use crate::passes::restir::RestirPass;
+use crate::passes::{self, Pass, Targets};
 use crate::plan::RenderPlan;
-
-/// The pass a plan runs, with what it needs per frame.
-enum Pass {
-    Crepuscular(Box<CrepuscularPass>, Box<GpuScene>, u32),
-    Baseline(Box<BaselinePass>, [u32; 4], glam::Vec3),
-    Restir(Box<RestirPass>, [u32; 4], glam::Vec3),
-}
-
-impl Pass {
-    /// The scope name in profiles.
-    fn label(&self) -> &'static str {
-        match self {
-            Pass::Crepuscular(..) => "crepuscular",
-            Pass::Baseline(..) => "baseline",
-            Pass::Restir(..) => "restir",
-        }
-    }
-
-    fn uniforms(&self, scene: &Scene, camera: &nimbus_scene::CameraFrame) -> FrameUniforms {
-        match self {
-            Pass::Crepuscular(_, gpu_scene, samples) => {
-                gpu_scene.frame_uniforms(scene, camera, *samples)
-            }
-            Pass::Baseline(_, counts, env) | Pass::Restir(_, counts, env) => {
-                gpu_scene::frame_uniforms(scene, camera, *env, *counts)
-            }
-        }
-    }
-
-    /// Uploads what the pass needs for the scene's frame `camera_frame`.
-    fn prepare(&self, ctx: &Context, scene: &Scene, camera_frame: u32) -> Result<()> {
-        match self {
-            Pass::Restir(pass, ..) => pass.prepare(ctx, scene, camera_frame),
-            _ => Ok(()),
-        }
-    }
-
-    /// Records the frame's dispatches inside a profiler scope named by [`Pass::label`]
-    /// (ReSTIR nests one scope per pass inside it).
-    fn record(
-        &self,
-        ctx: &Context,
-        cmd: vk::CommandBuffer,
-        uniforms: &FrameUniforms,
-        push: &PassPush,
-        mut profiler: Option<&mut Profiler>,
-    ) -> Result<()> {
-        if let Some(p) = profiler.as_deref_mut() {
-            p.begin_scope(ctx, cmd, self.label())?;
-        }
-        match self {
-            Pass::Crepuscular(pass, ..) => pass.record(ctx, cmd, uniforms, push)?,
-            Pass::Baseline(pass, ..) => pass.record(ctx, cmd, uniforms, push)?,
-            Pass::Restir(pass, ..) => {
-                pass.record(ctx, cmd, uniforms, push.frame, profiler.as_deref_mut())?
-            }
-        }
-        if let Some(p) = profiler {
-            p.end_scope(ctx, cmd)?;
-        }
-        Ok(())
-    }
-
-    fn destroy(self, ctx: &Context) {
-        match self {
-            Pass::Crepuscular(pass, ..) => (*pass).destroy(ctx),
-            Pass::Baseline(pass, ..) => (*pass).destroy(ctx),
-            Pass::Restir(pass, ..) => (*pass).destroy(ctx),
-        }
-    }
-}
-
-/// Create the pass of `plan`.
-fn create_pass(ctx: &Context, scene: &Scene, plan: &RenderPlan, targets: &Targets) -> Result<Pass> {
-    if let Some(p) = &plan.crepuscular {
-        let gpu_scene = GpuScene::build(scene)?;
-        let pass = CrepuscularPass::new(ctx, p, &gpu_scene, targets)?;
-        return Ok(Pass::Crepuscular(
-            Box::new(pass),
-            Box::new(gpu_scene),
-            p.samples_along_ray,
-        ));
-    }
-    if let Some(p) = &plan.restir {
-        let grid = GpuGrid::build(scene)?;
-        let mut pass = RestirPass::new(ctx, p, scene, &grid, targets)?;
-        if let Err(e) = pass.load_frames() {
-            pass.destroy(ctx);
-            return Err(e);
-        }
-        let counts = [0, 0, grid.lights.len() as u32, 0];
-        return Ok(Pass::Restir(Box::new(pass), counts, grid.env_radiance));
-    }
-    let Some(p) = &plan.baseline else {
-        bail!("internal: the render plan has no pass to run");
-    };
-    let grid = GpuGrid::build(scene)?;
-    let shapes = gpu_scene::shape_records(scene);
-    let boxes = gpu_scene::box_records(scene);
-    let pass = BaselinePass::new(ctx, p, &grid, &boxes, &shapes, targets)?;
-    let counts = [
-        boxes.len() as u32,
-        shapes.len() as u32,
-        grid.lights.len() as u32,
-        0,
-    ];
-    Ok(Pass::Baseline(Box::new(pass), counts, grid.env_radiance))
-}
 
 /// How to run a render.
 #[derive(Clone, Debug, Default)]
@@ -188,34 +77,34 @@ pub fn render(
         );
     }
 
-    // Create the render targets; `Resources` frees them whatever happens next.
-    let mut res = Resources::default();
+    // Create the render targets; `objects` frees them whatever happens next.
     let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
-    let uniforms = res.push(ctx.create_buffer(
-        &BufferDesc::gpu_only(
-            std::mem::size_of::<crate::gpu_scene::FrameUniforms>() as u64,
-            vk::BufferUsageFlags::UNIFORM_BUFFER,
-        ),
-        "frame uniforms",
-    ))?;
-    let accum =
-        res.push(ctx.create_buffer(&BufferDesc::gpu_only(accum_bytes, storage), "accum"))?;
-    let accum_sq =
-        res.push(ctx.create_buffer(&BufferDesc::gpu_only(accum_bytes, storage), "accum squares"))?;
-    let stats = res.push(ctx.create_buffer(
-        &BufferDesc::gpu_only((bindings::STAT_COUNT * 4) as u64, storage),
-        "stats",
-    ))?;
+    let (objects, handles) = GpuObjects::build(ctx, |o| {
+        let uniforms = o.add(ctx.create_buffer(
+            &BufferDesc::gpu_only(
+                std::mem::size_of::<FrameUniforms>() as u64,
+                vk::BufferUsageFlags::UNIFORM_BUFFER,
+            ),
+            "frame uniforms",
+        )?);
+        let accum = o.add(ctx.create_buffer(&BufferDesc::gpu_only(accum_bytes, storage), "accum")?);
+        let accum_sq =
+            o.add(ctx.create_buffer(&BufferDesc::gpu_only(accum_bytes, storage), "accum squares")?);
+        let stats = o.add(ctx.create_buffer(
+            &BufferDesc::gpu_only((bindings::STAT_COUNT * 4) as u64, storage),
+            "stats",
+        )?);
+        Ok(TargetHandles {
+            uniforms,
+            accum,
+            accum_sq,
+            stats,
+        })
+    })?;
     let result = (|| {
-        let b = &res.buffers;
-        let targets = Targets {
-            uniforms: &b[uniforms],
-            accum: &b[accum],
-            accum_sq: &b[accum_sq],
-            stats: &b[stats],
-        };
-        let pass = create_pass(ctx, scene, plan, &targets)?;
-        let run = run_frames(ctx, scene, &pass, &targets, opts);
+        let targets = handles.targets(&objects);
+        let mut pass = passes::create(ctx, scene, plan, &targets)?;
+        let run = run_frames(ctx, scene, pass.as_mut(), &targets, opts);
         pass.destroy(ctx);
         let (frame_timings, frames, sequence_sums, frame_images) = run?;
         let mut result = read_result(
@@ -230,15 +119,34 @@ pub fn render(
         result.frame_images = frame_images;
         Ok(result)
     })();
-    res.destroy(ctx);
+    objects.destroy(ctx);
     result
+}
+
+/// The render targets in the renderer's object bag.
+struct TargetHandles {
+    uniforms: Handle<Buffer>,
+    accum: Handle<Buffer>,
+    accum_sq: Handle<Buffer>,
+    stats: Handle<Buffer>,
+}
+
+impl TargetHandles {
+    fn targets<'a>(&self, objects: &'a GpuObjects) -> Targets<'a> {
+        Targets {
+            uniforms: &objects[self.uniforms],
+            accum: &objects[self.accum],
+            accum_sq: &objects[self.accum_sq],
+            stats: &objects[self.stats],
+        }
+    }
 }
 
 /// Frames loop: uniforms for the frame's camera, one submission, timestamps resolved.
 fn run_frames(
     ctx: &Context,
     scene: &Scene,
-    pass: &Pass,
+    pass: &mut dyn Pass,
     targets: &Targets,
     opts: &RenderOptions,
 ) -> Result<FramesRun> {
@@ -269,7 +177,7 @@ fn run_frames(
         }
         let frame = i.saturating_sub(opts.warmup_frames);
         let camera = scene.camera.frame_at(frame);
-        let uniforms = pass.uniforms(scene, &camera);
+        let uniforms = pass.frame_uniforms(scene, &camera);
         if last_camera != Some(camera) || i == 0 {
             if let Err(e) = ctx.upload_buffer(targets.uniforms, 0, bytemuck::bytes_of(&uniforms)) {
                 outcome = Err(e);
@@ -283,11 +191,6 @@ fn run_frames(
                 break;
             }
         }
-        let push = PassPush {
-            frame: i,
-            sample_base: 0,
-            ..Default::default()
-        };
         if let Err(e) = pass.prepare(ctx, scene, frame) {
             outcome = Err(e);
             break;
@@ -297,7 +200,13 @@ fn run_frames(
                 p.begin_frame(cmd);
                 p.begin_scope(ctx, cmd, "frame")?;
             }
-            pass.record(ctx, cmd, &uniforms, &push, profiler.as_mut())?;
+            if let Some(p) = profiler.as_mut() {
+                p.begin_scope(ctx, cmd, pass.label())?;
+            }
+            pass.record(ctx, cmd, &uniforms, i, profiler.as_mut())?;
+            if let Some(p) = profiler.as_mut() {
+                p.end_scope(ctx, cmd)?;
+            }
             if let Some(p) = profiler.as_mut() {
                 p.end_scope(ctx, cmd)?;
             }
@@ -429,25 +338,6 @@ fn read_result(
         wall_time: start.elapsed(),
         frame_images: Vec::new(),
     })
-}
-
-/// Buffers owned by a render, destroyed together.
-#[derive(Default)]
-struct Resources {
-    buffers: Vec<Buffer>,
-}
-
-impl Resources {
-    fn push(&mut self, buffer: Result<Buffer>) -> Result<usize> {
-        self.buffers.push(buffer?);
-        Ok(self.buffers.len() - 1)
-    }
-
-    fn destroy(self, ctx: &Context) {
-        for b in self.buffers {
-            ctx.destroy_buffer(b);
-        }
-    }
 }
 
 /// A progress bar that appears only once a render has taken more than a second.

@@ -622,7 +622,7 @@ struct Configuration {
 /// frame (spp is unused), the other integrators ignore `[integrator.restir]`.
 fn effective_scene(scene: &Scene, plan: &RenderPlan) -> Scene {
     let mut s = scene.clone();
-    if plan.restir.is_some() {
+    if plan.restir().is_some() {
         s.render.spp = 1;
     } else {
         s.integrator.restir = nimbus_scene::RestirSettings::default();

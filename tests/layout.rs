@@ -5,11 +5,11 @@
 use std::collections::HashMap;
 use std::mem::size_of;
 
-use nimbus::bindings;
-use nimbus::gpu_scene::{
-    BaselineUniformsGpu, BoxMediumGpu, FrameUniforms, GridParamsGpu, LightGpu, PassPush, ShapeGpu,
+use nimbus::gpu::bindings;
+use nimbus::gpu::{
+    BaselineUniformsGpu, BoxMediumGpu, FrameUniforms, GridParamsGpu, LightGpu, PassPush,
+    RestirPush, RestirUniformsGpu, ShapeGpu,
 };
-use nimbus::passes::restir::{RestirPush, RestirUniformsGpu};
 
 const ROOT: &str = env!("CARGO_MANIFEST_DIR");
 

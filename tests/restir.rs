@@ -804,6 +804,6 @@ fn unsupported_scenes_are_plan_errors() {
         ..Cloud::default()
     };
     let plan = nimbus::plan::build(&at_limits.scene("restir-limits.toml"), None).expect("plan");
-    let restir = plan.restir.expect("a ReSTIR plan");
+    let restir = plan.restir().cloned().expect("a ReSTIR plan");
     assert_eq!((restir.max_bounces, restir.spatial_neighbors), (16, 16));
 }

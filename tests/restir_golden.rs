@@ -25,7 +25,7 @@ fn render_frames(
     scene: &nimbus_scene::Scene,
 ) -> nimbus::renderer::RenderResult {
     let plan = nimbus::plan::build(scene, None).expect("plan");
-    assert!(plan.restir.is_some(), "the scene renders with ReSTIR");
+    assert!(plan.restir().is_some(), "the scene renders with ReSTIR");
     let opts = RenderOptions {
         keep_frames: true,
         ..Default::default()
@@ -67,7 +67,7 @@ fn golden_cloud_restir_emissive_vertex_reuse() {
     scene.render.height = 30;
     scene.render.frames = 2;
     let plan = nimbus::plan::build(&scene, None).unwrap();
-    let restir = plan.restir.as_ref().unwrap();
+    let restir = plan.restir().unwrap();
     assert!(restir.has_emission && restir.vertex_reuse);
     let result = render_frames(&ctx, &scene);
     compare_with_golden(
@@ -89,7 +89,7 @@ fn golden_plume_sequence() {
     scene.render.width = 48;
     scene.render.height = 36;
     let plan = nimbus::plan::build(&scene, None).unwrap();
-    let restir = plan.restir.as_ref().unwrap();
+    let restir = plan.restir().unwrap();
     assert!(restir.has_velocity && restir.animated_density);
     assert!(scene.lights_animated());
     let result = render_frames(&ctx, &scene);

@@ -1,71 +1,13 @@
-//! The scene as GPU records: `#[repr(C)]` mirrors of `shaders/include/scene.glsl`.
-//!
-//! All records are made of 16-byte vectors so that std140 / std430 and `repr(C)` agree;
-//! `tests/layout.rs` checks the sizes against the GLSL declarations.
+//! The scene as GPU records (the types are in [`super::records`]): box media, shapes,
+//! lights with their selection CDF, gobo half-planes, frame uniforms, and a grid medium
+//! with its super-voxel majorants and environment-map tables.
 
 use anyhow::{bail, Result};
 use bytemuck::{Pod, Zeroable};
+
+use super::records::*;
 use glam::{Mat3, Vec3};
 use nimbus_scene::{rotation_xyz_deg, CameraFrame, Gobo, Light, Medium, Scene, Shape};
-
-/// `BoxMedium` in scene.glsl.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable)]
-pub struct BoxMediumGpu {
-    pub world_to_local: [[f32; 4]; 3],
-    pub center_sigma_t: [f32; 4],
-    pub half_size_g: [f32; 4],
-    pub sigma_s: [f32; 4],
-}
-
-pub const SHAPE_QUAD: u32 = 0;
-pub const SHAPE_BOX: u32 = 1;
-pub const SHAPE_SPHERE: u32 = 2;
-
-/// `Shape` in scene.glsl.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable)]
-pub struct ShapeGpu {
-    pub p: [[f32; 4]; 5],
-    pub albedo_type: [f32; 4],
-}
-
-pub const LIGHT_DIRECTIONAL: u32 = 0;
-
-/// `Light` in scene.glsl.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable)]
-pub struct LightGpu {
-    pub direction_type: [f32; 4],
-    pub irradiance: [f32; 4],
-    pub gobo_origin: [f32; 4],
-    pub gobo_u: [f32; 4],
-    pub gobo_v: [f32; 4],
-}
-
-/// `FrameUniforms` in scene.glsl (std140).
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable)]
-pub struct FrameUniforms {
-    pub cam_position: [f32; 4],
-    pub cam_forward: [f32; 4],
-    pub cam_right: [f32; 4],
-    pub cam_up: [f32; 4],
-    pub env_radiance: [f32; 4],
-    pub image: [u32; 4],
-    pub counts: [u32; 4],
-    pub reserved: [f32; 4],
-}
-
-/// `PassPush` in scene.glsl: the push constants of every dispatch.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
-pub struct PassPush {
-    pub frame: u32,
-    pub sample_base: u32,
-    pub pad0: u32,
-    pub pad1: u32,
-}
 
 /// Every record of a scene the box pass reads. Storage buffers cannot be empty, so an
 /// empty list still uploads one zeroed record; the counts say how many are real.
@@ -151,26 +93,6 @@ impl GpuScene {
             env_radiance,
             any_gobo,
         })
-    }
-
-    /// The per-frame uniforms for camera frame `camera` of `scene`.
-    pub fn frame_uniforms(
-        &self,
-        scene: &Scene,
-        camera: &CameraFrame,
-        samples_along_ray: u32,
-    ) -> FrameUniforms {
-        frame_uniforms(
-            scene,
-            camera,
-            self.env_radiance,
-            [
-                self.media.len() as u32,
-                self.shapes.len() as u32,
-                self.lights.len() as u32,
-                samples_along_ray,
-            ],
-        )
     }
 }
 
@@ -288,36 +210,6 @@ pub fn non_empty<T: Pod + Zeroable>(records: &[T]) -> Vec<T> {
         records.to_vec()
     }
 }
-
-/// `GridParams` in grid_types.glsl.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
-pub struct GridParamsGpu {
-    pub bounds_min: [f32; 4],
-    pub bounds_max: [f32; 4],
-    pub dims: [u32; 4],
-    pub super_dims: [u32; 4],
-}
-
-/// `BaselineUniforms` in baseline/pathtrace.comp (std140).
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
-pub struct BaselineUniformsGpu {
-    pub grid: GridParamsGpu,
-    /// rgb single-scattering albedo, w HG g.
-    pub albedo_g: [f32; 4],
-    /// Probability that next-event estimation picks the environment, in x.
-    pub env_select: [f32; 4],
-    /// rgb emission_scale (Le = scale · trilinear emission grid), w unused.
-    pub emission_scale: [f32; 4],
-    /// Emission grid dims xyz (its own resolution), w unused.
-    pub emission_dims: [u32; 4],
-    /// Environment map width and height in xy (1 x 1 without a map).
-    pub env_size: [u32; 4],
-}
-
-pub const LIGHT_POINT: u32 = 1;
-pub const LIGHT_SPHERE: u32 = 2;
 
 /// A grid medium ready for upload: the density texels (unscaled), the super-voxel
 /// bounds of sigma_t, and the uniforms.

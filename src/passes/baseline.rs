@@ -4,25 +4,20 @@
 
 use anyhow::Result;
 use nimbus_gpu::{
-    vk, BindingDesc, Buffer, BufferDesc, ComputePipeline, ComputePipelineDesc, Context,
-    DescriptorSet, DescriptorWrite, Image, ImageDesc, SamplerDesc, SpecValue,
+    vk, BindingDesc, ComputePipeline, Context, DescriptorSet, DescriptorWrite, GpuObjects, Handle,
+    Profiler, SamplerDesc, SpecValue,
 };
+use nimbus_scene::{CameraFrame, Scene};
 
-use crate::bindings;
-use crate::gpu_scene::{non_empty, BoxMediumGpu, FrameUniforms, GpuGrid, PassPush, ShapeGpu};
-use crate::passes::crepuscular::{image_groups, spirv_words, upload_records, Targets};
+use super::{
+    compute_pipeline, image_3d, image_groups, upload_env_map, upload_records, upload_uniform,
+    FrameConstants, Pass, Targets,
+};
+use crate::gpu::{
+    bindings, box_records, non_empty, shape_records, FrameUniforms, GpuGrid, PassPush,
+};
 use crate::plan::BaselinePlan;
 use crate::shaders;
-
-/// The pipeline, the grid's density texture and the buffers the pass reads.
-pub struct BaselinePass {
-    pipeline: ComputePipeline,
-    set: DescriptorSet,
-    buffers: Vec<Buffer>,
-    density: Image,
-    emission: Option<Image>,
-    sampler: vk::Sampler,
-}
 
 /// The specialization constants of `pathtrace.comp` for a plan.
 pub fn specialization(plan: &BaselinePlan) -> [(u32, SpecValue); 7] {
@@ -37,214 +32,168 @@ pub fn specialization(plan: &BaselinePlan) -> [(u32, SpecValue); 7] {
     ]
 }
 
-/// GPU objects made so far, freed together if creation fails half-way.
-#[derive(Default)]
-struct Partial {
-    buffers: Vec<Buffer>,
-    density: Option<Image>,
-    emission: Option<Image>,
-    sampler: Option<vk::Sampler>,
-}
-
-impl Partial {
-    fn destroy(self, ctx: &Context) {
-        for b in self.buffers {
-            ctx.destroy_buffer(b);
-        }
-        for image in [self.density, self.emission].into_iter().flatten() {
-            ctx.destroy_image(image);
-        }
-        if let Some(sampler) = self.sampler {
-            ctx.destroy_sampler(sampler);
-        }
-    }
+/// The pipeline, the grid's density texture and the buffers the pass reads.
+pub struct BaselinePass {
+    objects: GpuObjects,
+    pipeline: Handle<ComputePipeline>,
+    set: Handle<DescriptorSet>,
+    constants: FrameConstants,
 }
 
 impl BaselinePass {
     pub fn new(
         ctx: &Context,
         plan: &BaselinePlan,
-        grid: &GpuGrid,
-        boxes: &[BoxMediumGpu],
-        shapes: &[ShapeGpu],
+        scene: &Scene,
+        grid: GpuGrid,
         targets: &Targets,
     ) -> Result<Self> {
-        let spirv = spirv_words(shaders::BASELINE_PATHTRACE)?;
-        let layout = [
-            BindingDesc::uniform_buffer(bindings::FRAME_UNIFORMS),
-            BindingDesc::storage_buffer(bindings::ACCUM),
-            BindingDesc::storage_buffer(bindings::ACCUM_SQ),
-            BindingDesc::storage_buffer(bindings::STATS),
-            BindingDesc::storage_buffer(bindings::SHAPES),
-            BindingDesc::storage_buffer(bindings::LIGHTS),
-            BindingDesc::uniform_buffer(bindings::BASELINE_UNIFORMS),
-            BindingDesc::sampled_image(bindings::GRID_DENSITY),
-            BindingDesc::storage_buffer(bindings::SUPER_VOXELS),
-            BindingDesc::sampled_image(bindings::GRID_EMISSION),
-            BindingDesc::storage_buffer(bindings::BOX_MEDIA),
-            BindingDesc::storage_buffer(bindings::ENV_TEXELS),
-            BindingDesc::storage_buffer(bindings::ENV_CDF),
-        ];
-        let spec = specialization(plan);
-        let pipeline = ctx.create_compute_pipeline(
-            &ComputePipelineDesc {
-                spirv: &spirv,
-                entry: "main",
-                bindings: &layout,
-                push_constant_size: std::mem::size_of::<PassPush>() as u32,
-                specialization: &spec,
-            },
-            "baseline path tracer",
-        )?;
-
-        let mut partial = Partial::default();
-        let result = (|| -> Result<DescriptorSet> {
-            partial
-                .buffers
-                .push(upload_records(ctx, &non_empty(shapes), "shapes")?);
-            partial
-                .buffers
-                .push(upload_records(ctx, &non_empty(&grid.lights), "lights")?);
-            partial
-                .buffers
-                .push(upload_records(ctx, &grid.super_voxels, "super-voxels")?);
-            partial
-                .buffers
-                .push(upload_records(ctx, &non_empty(boxes), "box media")?);
-            // Without a map the (compiled-out) environment bindings get one zero record.
-            let (texels, tables) = grid
-                .env_map
-                .clone()
-                .unwrap_or_else(|| (vec![[0.0; 4]], vec![0.0]));
-            partial
-                .buffers
-                .push(upload_records(ctx, &texels, "environment texels")?);
-            partial
-                .buffers
-                .push(upload_records(ctx, &tables, "environment tables")?);
-            let uniforms = ctx.create_buffer(
-                &BufferDesc::gpu_only(
-                    std::mem::size_of_val(&grid.uniforms) as u64,
-                    vk::BufferUsageFlags::UNIFORM_BUFFER,
-                ),
-                "baseline uniforms",
+        let shapes = shape_records(scene);
+        let boxes = box_records(scene);
+        let constants = FrameConstants {
+            env_radiance: grid.env_radiance,
+            counts: [
+                boxes.len() as u32,
+                shapes.len() as u32,
+                grid.lights.len() as u32,
+                0,
+            ],
+        };
+        let (objects, (pipeline, set)) = GpuObjects::build(ctx, |o| {
+            let mut layout = Vec::from(Targets::layout());
+            layout.extend([
+                BindingDesc::storage_buffer(bindings::SHAPES),
+                BindingDesc::storage_buffer(bindings::LIGHTS),
+                BindingDesc::uniform_buffer(bindings::BASELINE_UNIFORMS),
+                BindingDesc::sampled_image(bindings::GRID_DENSITY),
+                BindingDesc::storage_buffer(bindings::SUPER_VOXELS),
+                BindingDesc::sampled_image(bindings::GRID_EMISSION),
+                BindingDesc::storage_buffer(bindings::BOX_MEDIA),
+                BindingDesc::storage_buffer(bindings::ENV_TEXELS),
+                BindingDesc::storage_buffer(bindings::ENV_CDF),
+            ]);
+            let pipeline = compute_pipeline::<PassPush>(
+                ctx,
+                o,
+                shaders::BASELINE_PATHTRACE,
+                &layout,
+                &specialization(plan),
+                "baseline path tracer",
             )?;
-            let uploaded = ctx.upload_buffer(&uniforms, 0, bytemuck::bytes_of(&grid.uniforms));
-            partial.buffers.push(uniforms);
-            uploaded?;
-
-            let [nx, ny, nz] = grid.density.dims;
-            let image = ctx.create_image(
-                &ImageDesc::sampled_3d(nx, ny, nz, vk::Format::R32_SFLOAT),
+            let shapes = upload_records(ctx, o, &non_empty(&shapes), "shapes")?;
+            let lights = upload_records(ctx, o, &non_empty(&grid.lights), "lights")?;
+            let super_voxels = upload_records(ctx, o, &grid.super_voxels, "super-voxels")?;
+            let boxes = upload_records(ctx, o, &non_empty(&boxes), "box media")?;
+            let (env_texels, env_tables) = upload_env_map(ctx, o, &grid)?;
+            let uniforms = upload_uniform(ctx, o, &grid.uniforms, "baseline uniforms")?;
+            let r32 = vk::Format::R32_SFLOAT;
+            let density = image_3d(
+                ctx,
+                o,
+                grid.density.dims,
+                r32,
+                bytemuck::cast_slice(&grid.density.data),
                 "grid density",
             )?;
-            let uploaded = ctx.upload_image(&image, bytemuck::cast_slice(&grid.density.data));
-            partial.density = Some(image);
-            uploaded?;
-            if let Some(emission) = &grid.emission {
-                let [ex, ey, ez] = emission.dims;
-                let image = ctx.create_image(
-                    &ImageDesc::sampled_3d(ex, ey, ez, vk::Format::R32_SFLOAT),
-                    "grid emission",
-                )?;
-                let uploaded = ctx.upload_image(&image, bytemuck::cast_slice(&emission.data));
-                partial.emission = Some(image);
-                uploaded?;
-            }
-            partial.sampler = Some(ctx.create_sampler(&SamplerDesc::nearest(), "grid density")?);
-            let density = partial
-                .density
-                .as_ref()
-                .expect("density image was just created");
-            let sampler = partial.sampler.expect("sampler was just created");
             // Without emission the (compiled-out) emission binding sees the density.
-            let emission = partial.emission.as_ref().unwrap_or(density);
+            let emission = match &grid.emission {
+                Some(e) => image_3d(
+                    ctx,
+                    o,
+                    e.dims,
+                    r32,
+                    bytemuck::cast_slice(&e.data),
+                    "grid emission",
+                )?,
+                None => density,
+            };
+            let sampler = ctx.create_sampler(&SamplerDesc::nearest(), "grid density")?;
+            o.add(sampler);
 
-            let b = &partial.buffers;
             let mut writes = Vec::from(targets.writes());
             writes.extend([
                 DescriptorWrite::StorageBuffer {
                     binding: bindings::SHAPES,
-                    buffer: &b[0],
+                    buffer: &o[shapes],
                 },
                 DescriptorWrite::StorageBuffer {
                     binding: bindings::LIGHTS,
-                    buffer: &b[1],
+                    buffer: &o[lights],
                 },
                 DescriptorWrite::StorageBuffer {
                     binding: bindings::SUPER_VOXELS,
-                    buffer: &b[2],
+                    buffer: &o[super_voxels],
                 },
                 DescriptorWrite::UniformBuffer {
                     binding: bindings::BASELINE_UNIFORMS,
-                    buffer: &b[6],
+                    buffer: &o[uniforms],
                 },
                 DescriptorWrite::StorageBuffer {
                     binding: bindings::BOX_MEDIA,
-                    buffer: &b[3],
+                    buffer: &o[boxes],
                 },
                 DescriptorWrite::StorageBuffer {
                     binding: bindings::ENV_TEXELS,
-                    buffer: &b[4],
+                    buffer: &o[env_texels],
                 },
                 DescriptorWrite::StorageBuffer {
                     binding: bindings::ENV_CDF,
-                    buffer: &b[5],
+                    buffer: &o[env_tables],
                 },
                 DescriptorWrite::SampledImage {
                     binding: bindings::GRID_DENSITY,
-                    image: density,
+                    image: &o[density],
                     sampler,
                 },
                 DescriptorWrite::SampledImage {
                     binding: bindings::GRID_EMISSION,
-                    image: emission,
+                    image: &o[emission],
                     sampler,
                 },
             ]);
-            ctx.create_descriptor_set(&pipeline, &writes, "baseline set")
-        })();
-        match result {
-            Ok(set) => Ok(Self {
-                pipeline,
-                set,
-                buffers: partial.buffers,
-                density: partial
-                    .density
-                    .expect("density image exists when the set does"),
-                emission: partial.emission,
-                sampler: partial.sampler.expect("sampler exists when the set does"),
-            }),
-            Err(e) => {
-                partial.destroy(ctx);
-                ctx.destroy_compute_pipeline(pipeline);
-                Err(e)
-            }
-        }
+            let set = ctx.create_descriptor_set(&o[pipeline], &writes, "baseline set")?;
+            Ok((pipeline, o.add(set)))
+        })?;
+        Ok(Self {
+            objects,
+            pipeline,
+            set,
+            constants,
+        })
+    }
+}
+
+impl Pass for BaselinePass {
+    fn label(&self) -> &'static str {
+        "baseline"
     }
 
-    /// Record one dispatch over the image.
-    pub fn record(
-        &self,
+    fn frame_uniforms(&self, scene: &Scene, camera: &CameraFrame) -> FrameUniforms {
+        self.constants.uniforms(scene, camera)
+    }
+
+    fn record(
+        &mut self,
         ctx: &Context,
         cmd: vk::CommandBuffer,
         uniforms: &FrameUniforms,
-        push: &PassPush,
+        dispatch_index: u32,
+        _profiler: Option<&mut Profiler>,
     ) -> Result<()> {
-        let groups = image_groups(uniforms);
-        self.pipeline
-            .dispatch(ctx, cmd, &self.set, bytemuck::bytes_of(push), groups)
+        let push = PassPush {
+            frame: dispatch_index,
+            ..Default::default()
+        };
+        self.objects[self.pipeline].dispatch(
+            ctx,
+            cmd,
+            &self.objects[self.set],
+            bytemuck::bytes_of(&push),
+            image_groups(uniforms),
+        )
     }
 
-    pub fn destroy(self, ctx: &Context) {
-        ctx.destroy_descriptor_set(self.set);
-        Partial {
-            buffers: self.buffers,
-            density: Some(self.density),
-            emission: self.emission,
-            sampler: Some(self.sampler),
-        }
-        .destroy(ctx);
-        ctx.destroy_compute_pipeline(self.pipeline);
+    fn destroy(self: Box<Self>, ctx: &Context) {
+        self.objects.destroy(ctx);
     }
 }

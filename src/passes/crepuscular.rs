@@ -2,68 +2,17 @@
 //! homogeneous box media under collimated light, direct lighting of the shapes, and the
 //! background, accumulated per pixel.
 
-use anyhow::{bail, Result};
+use anyhow::Result;
 use nimbus_gpu::{
-    vk, BindingDesc, Buffer, BufferDesc, ComputePipeline, ComputePipelineDesc, Context,
-    DescriptorSet, DescriptorWrite, SpecValue,
+    vk, BindingDesc, ComputePipeline, Context, DescriptorSet, DescriptorWrite, GpuObjects, Handle,
+    Profiler, SpecValue,
 };
+use nimbus_scene::{CameraFrame, Scene};
 
-use crate::bindings;
-use crate::gpu_scene::{non_empty, FrameUniforms, GpuScene, PassPush};
+use super::{compute_pipeline, image_groups, upload_records, FrameConstants, Pass, Targets};
+use crate::gpu::{bindings, non_empty, FrameUniforms, GpuScene, PassPush};
 use crate::plan::{estimator_id, CrepuscularPlan};
 use crate::shaders;
-
-/// Workgroup size of the shader (`local_size_x`, `local_size_y`).
-pub const GROUP_SIZE: [u32; 2] = [8, 8];
-
-/// Workgroups covering the frame's image, one invocation per pixel.
-pub fn image_groups(uniforms: &FrameUniforms) -> [u32; 3] {
-    [
-        uniforms.image[0].div_ceil(GROUP_SIZE[0]),
-        uniforms.image[1].div_ceil(GROUP_SIZE[1]),
-        1,
-    ]
-}
-
-/// The pass's pipeline and the scene buffers it reads.
-pub struct CrepuscularPass {
-    pipeline: ComputePipeline,
-    set: DescriptorSet,
-    scene_buffers: Vec<Buffer>,
-}
-
-/// Buffers shared with the renderer: written by the pass, read back by the renderer.
-pub struct Targets<'a> {
-    pub uniforms: &'a Buffer,
-    pub accum: &'a Buffer,
-    pub accum_sq: &'a Buffer,
-    pub stats: &'a Buffer,
-}
-
-impl<'a> Targets<'a> {
-    /// The descriptor writes of the frame uniforms and the three outputs, which every
-    /// pass binds at the same binding numbers.
-    pub fn writes(&self) -> [DescriptorWrite<'a>; 4] {
-        [
-            DescriptorWrite::UniformBuffer {
-                binding: bindings::FRAME_UNIFORMS,
-                buffer: self.uniforms,
-            },
-            DescriptorWrite::StorageBuffer {
-                binding: bindings::ACCUM,
-                buffer: self.accum,
-            },
-            DescriptorWrite::StorageBuffer {
-                binding: bindings::ACCUM_SQ,
-                buffer: self.accum_sq,
-            },
-            DescriptorWrite::StorageBuffer {
-                binding: bindings::STATS,
-                buffer: self.stats,
-            },
-        ]
-    }
-}
 
 /// The specialization constants of `crepuscular.comp` for a plan.
 pub fn specialization(plan: &CrepuscularPlan) -> [(u32, SpecValue); 7] {
@@ -79,132 +28,114 @@ pub fn specialization(plan: &CrepuscularPlan) -> [(u32, SpecValue); 7] {
     ]
 }
 
-pub fn upload_records<T: bytemuck::Pod>(
-    ctx: &Context,
-    records: &[T],
-    name: &str,
-) -> Result<Buffer> {
-    let bytes: &[u8] = bytemuck::cast_slice(records);
-    let buffer = ctx.create_buffer(
-        &BufferDesc::gpu_only(bytes.len() as u64, vk::BufferUsageFlags::STORAGE_BUFFER),
-        name,
-    )?;
-    if let Err(e) = ctx.upload_buffer(&buffer, 0, bytes) {
-        ctx.destroy_buffer(buffer);
-        return Err(e);
-    }
-    Ok(buffer)
+/// The pass's pipeline and the scene records it reads.
+pub struct CrepuscularPass {
+    objects: GpuObjects,
+    pipeline: Handle<ComputePipeline>,
+    set: Handle<DescriptorSet>,
+    constants: FrameConstants,
 }
 
 impl CrepuscularPass {
     pub fn new(
         ctx: &Context,
         plan: &CrepuscularPlan,
-        scene: &GpuScene,
+        scene: &Scene,
         targets: &Targets,
     ) -> Result<Self> {
-        let spirv = spirv_words(shaders::BOX_CREPUSCULAR)?;
-        let layout = [
-            BindingDesc::uniform_buffer(bindings::FRAME_UNIFORMS),
-            BindingDesc::storage_buffer(bindings::ACCUM),
-            BindingDesc::storage_buffer(bindings::ACCUM_SQ),
-            BindingDesc::storage_buffer(bindings::STATS),
-            BindingDesc::storage_buffer(bindings::BOX_MEDIA),
-            BindingDesc::storage_buffer(bindings::SHAPES),
-            BindingDesc::storage_buffer(bindings::LIGHTS),
-            BindingDesc::storage_buffer(bindings::GOBO_PLANES),
-        ];
-        let spec = specialization(plan);
-        let pipeline = ctx.create_compute_pipeline(
-            &ComputePipelineDesc {
-                spirv: &spirv,
-                entry: "main",
-                bindings: &layout,
-                push_constant_size: std::mem::size_of::<PassPush>() as u32,
-                specialization: &spec,
-            },
-            "crepuscular",
-        )?;
-
-        let mut scene_buffers = Vec::new();
-        let result = (|| -> Result<DescriptorSet> {
-            scene_buffers.push(upload_records(ctx, &non_empty(&scene.media), "box media")?);
-            scene_buffers.push(upload_records(ctx, &non_empty(&scene.shapes), "shapes")?);
-            scene_buffers.push(upload_records(ctx, &non_empty(&scene.lights), "lights")?);
-            scene_buffers.push(upload_records(
+        let records = GpuScene::build(scene)?;
+        let constants = FrameConstants {
+            env_radiance: records.env_radiance,
+            counts: [
+                records.media.len() as u32,
+                records.shapes.len() as u32,
+                records.lights.len() as u32,
+                plan.samples_along_ray,
+            ],
+        };
+        let (objects, (pipeline, set)) = GpuObjects::build(ctx, |o| {
+            let mut layout = Vec::from(Targets::layout());
+            layout.extend([
+                BindingDesc::storage_buffer(bindings::BOX_MEDIA),
+                BindingDesc::storage_buffer(bindings::SHAPES),
+                BindingDesc::storage_buffer(bindings::LIGHTS),
+                BindingDesc::storage_buffer(bindings::GOBO_PLANES),
+            ]);
+            let pipeline = compute_pipeline::<PassPush>(
                 ctx,
-                &non_empty(&scene.gobo_planes),
-                "gobo planes",
-            )?);
+                o,
+                shaders::BOX_CREPUSCULAR,
+                &layout,
+                &specialization(plan),
+                "crepuscular",
+            )?;
+            let media = upload_records(ctx, o, &non_empty(&records.media), "box media")?;
+            let shapes = upload_records(ctx, o, &non_empty(&records.shapes), "shapes")?;
+            let lights = upload_records(ctx, o, &non_empty(&records.lights), "lights")?;
+            let gobo_planes =
+                upload_records(ctx, o, &non_empty(&records.gobo_planes), "gobo planes")?;
             let mut writes = Vec::from(targets.writes());
             writes.extend([
                 DescriptorWrite::StorageBuffer {
                     binding: bindings::BOX_MEDIA,
-                    buffer: &scene_buffers[0],
+                    buffer: &o[media],
                 },
                 DescriptorWrite::StorageBuffer {
                     binding: bindings::SHAPES,
-                    buffer: &scene_buffers[1],
+                    buffer: &o[shapes],
                 },
                 DescriptorWrite::StorageBuffer {
                     binding: bindings::LIGHTS,
-                    buffer: &scene_buffers[2],
+                    buffer: &o[lights],
                 },
                 DescriptorWrite::StorageBuffer {
                     binding: bindings::GOBO_PLANES,
-                    buffer: &scene_buffers[3],
+                    buffer: &o[gobo_planes],
                 },
             ]);
-            ctx.create_descriptor_set(&pipeline, &writes, "crepuscular set")
-        })();
-        match result {
-            Ok(set) => Ok(Self {
-                pipeline,
-                set,
-                scene_buffers,
-            }),
-            Err(e) => {
-                for b in scene_buffers {
-                    ctx.destroy_buffer(b);
-                }
-                ctx.destroy_compute_pipeline(pipeline);
-                Err(e)
-            }
-        }
-    }
-
-    /// Record one dispatch over a `width` x `height` image.
-    pub fn record(
-        &self,
-        ctx: &Context,
-        cmd: vk::CommandBuffer,
-        uniforms: &FrameUniforms,
-        push: &PassPush,
-    ) -> Result<()> {
-        let groups = image_groups(uniforms);
-        self.pipeline
-            .dispatch(ctx, cmd, &self.set, bytemuck::bytes_of(push), groups)
-    }
-
-    pub fn destroy(self, ctx: &Context) {
-        ctx.destroy_descriptor_set(self.set);
-        for b in self.scene_buffers {
-            ctx.destroy_buffer(b);
-        }
-        ctx.destroy_compute_pipeline(self.pipeline);
+            let set = ctx.create_descriptor_set(&o[pipeline], &writes, "crepuscular set")?;
+            Ok((pipeline, o.add(set)))
+        })?;
+        Ok(Self {
+            objects,
+            pipeline,
+            set,
+            constants,
+        })
     }
 }
 
-/// SPIR-V bytes as words (the embedded bytes carry no alignment guarantee).
-pub fn spirv_words(bytes: &[u8]) -> Result<Vec<u32>> {
-    if !bytes.len().is_multiple_of(4) {
-        bail!(
-            "embedded SPIR-V of {} bytes is not a whole number of words",
-            bytes.len()
-        );
+impl Pass for CrepuscularPass {
+    fn label(&self) -> &'static str {
+        "crepuscular"
     }
-    Ok(bytes
-        .chunks_exact(4)
-        .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-        .collect())
+
+    fn frame_uniforms(&self, scene: &Scene, camera: &CameraFrame) -> FrameUniforms {
+        self.constants.uniforms(scene, camera)
+    }
+
+    fn record(
+        &mut self,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        uniforms: &FrameUniforms,
+        dispatch_index: u32,
+        _profiler: Option<&mut Profiler>,
+    ) -> Result<()> {
+        let push = PassPush {
+            frame: dispatch_index,
+            ..Default::default()
+        };
+        self.objects[self.pipeline].dispatch(
+            ctx,
+            cmd,
+            &self.objects[self.set],
+            bytemuck::bytes_of(&push),
+            image_groups(uniforms),
+        )
+    }
+
+    fn destroy(self: Box<Self>, ctx: &Context) {
+        self.objects.destroy(ctx);
+    }
 }

@@ -1,5 +1,289 @@
-//! One module per pass: each creates its pipeline and records its dispatch.
+//! The passes: each one Rust module implementing [`Pass`] and one shader folder.
+//!
+//! A pass owns its GPU objects in one [`GpuObjects`] bag and keeps them as named
+//! [`nimbus_gpu::Handle`]s, so a half-built pass frees what it made with one call and no
+//! resource is addressed by its position in a vector. The renderer knows passes only
+//! through the [`Pass`] trait; [`create`] is the one place that maps a plan's
+//! [`Integrator`] to a pass.
+//!
+//! # How to add a pass
+//!
+//! Four places, each checked by a test or by the compiler:
+//!
+//! 1. **Shader**: `shaders/<pass>/<name>.comp` (shared code in `shaders/include/`). New
+//!    specialization-constant IDs, estimator IDs or limits go into
+//!    `shaders/include/features.glsl` and their Rust twins into [`crate::gpu::features`];
+//!    new bindings into `shaders/include/bindings.glsl` and [`crate::gpu::bindings`]; a new
+//!    uniform or record struct into [`crate::gpu::records`] with named scalar members
+//!    (`tests/layout.rs` checks all of these against the GLSL).
+//! 2. **Plan**: a settings struct and a variant of [`Integrator`] in `src/plan/`, with its
+//!    decision rows (what runs, which features are on, and why); `--explain` prints them.
+//! 3. **Pass**: `src/passes/<pass>.rs`, a struct implementing [`Pass`]: `new` creates its
+//!    pipelines and resources inside [`GpuObjects::build`], `record` dispatches.
+//! 4. **Dispatch**: one arm in [`create`] below.
+//!
+//! Then a test: a golden image or a comparison with a CPU oracle in `tests/`.
+//! `build.rs` compiles every `.comp` it finds, and `crate::shaders` names its SPIR-V by
+//! path (`shaders/box/crepuscular.comp` is `shaders::BOX_CREPUSCULAR`).
 
 pub mod baseline;
 pub mod crepuscular;
 pub mod restir;
+
+use anyhow::{bail, Context as _, Result};
+use glam::Vec3;
+use nimbus_gpu::{
+    vk, BindingDesc, Buffer, BufferDesc, ComputePipeline, ComputePipelineDesc, Context,
+    DescriptorWrite, GpuObjects, Handle, Image, ImageDesc, Profiler, SpecValue,
+};
+use nimbus_scene::{CameraFrame, GridMedium, Medium, Scene};
+
+use crate::gpu::{bindings, frame_uniforms, FrameUniforms, GpuGrid};
+use crate::plan::{Integrator, RenderPlan};
+
+/// Workgroup size of every image-space shader (`local_size_x`, `local_size_y`).
+pub const GROUP_SIZE: [u32; 2] = [8, 8];
+
+/// A render pass: created once per render from its plan, then recorded once per frame.
+pub trait Pass {
+    /// The scope name in profiles (`frame/<label>/…`).
+    fn label(&self) -> &'static str;
+
+    /// The frame uniforms for camera frame `camera`: the pass knows its record counts
+    /// and the constant environment radiance.
+    fn frame_uniforms(&self, scene: &Scene, camera: &CameraFrame) -> FrameUniforms;
+
+    /// Uploads what changes for the scene's frame `scene_frame` (animated lights,
+    /// density frames, the previous camera) before that frame is recorded.
+    fn prepare(&mut self, _ctx: &Context, _scene: &Scene, _scene_frame: u32) -> Result<()> {
+        Ok(())
+    }
+
+    /// Records the frame's dispatches. `dispatch_index` counts every recorded frame,
+    /// warm-up included (it seeds the random numbers). A pass with several dispatches
+    /// opens one profiler scope per stage inside the renderer's scope.
+    fn record(
+        &mut self,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        uniforms: &FrameUniforms,
+        dispatch_index: u32,
+        profiler: Option<&mut Profiler>,
+    ) -> Result<()>;
+
+    /// Frees every GPU object of the pass.
+    fn destroy(self: Box<Self>, ctx: &Context);
+}
+
+/// Creates the pass of `plan`.
+pub fn create(
+    ctx: &Context,
+    scene: &Scene,
+    plan: &RenderPlan,
+    targets: &Targets,
+) -> Result<Box<dyn Pass>> {
+    Ok(match &plan.integrator {
+        Integrator::Crepuscular(p) => {
+            Box::new(crepuscular::CrepuscularPass::new(ctx, p, scene, targets)?)
+        }
+        Integrator::Baseline(p) => Box::new(baseline::BaselinePass::new(
+            ctx,
+            p,
+            scene,
+            GpuGrid::build(scene)?,
+            targets,
+        )?),
+        Integrator::Restir(p) => Box::new(restir::RestirPass::new(
+            ctx,
+            p,
+            scene,
+            GpuGrid::build(scene)?,
+            targets,
+        )?),
+    })
+}
+
+/// Buffers shared with the renderer: written by the pass, read back by the renderer.
+pub struct Targets<'a> {
+    pub uniforms: &'a Buffer,
+    pub accum: &'a Buffer,
+    pub accum_sq: &'a Buffer,
+    pub stats: &'a Buffer,
+}
+
+impl<'a> Targets<'a> {
+    /// The descriptor writes of the frame uniforms and the three outputs, which every
+    /// pass binds at the same binding numbers.
+    pub fn writes(&self) -> [DescriptorWrite<'a>; 4] {
+        [
+            DescriptorWrite::UniformBuffer {
+                binding: bindings::FRAME_UNIFORMS,
+                buffer: self.uniforms,
+            },
+            DescriptorWrite::StorageBuffer {
+                binding: bindings::ACCUM,
+                buffer: self.accum,
+            },
+            DescriptorWrite::StorageBuffer {
+                binding: bindings::ACCUM_SQ,
+                buffer: self.accum_sq,
+            },
+            DescriptorWrite::StorageBuffer {
+                binding: bindings::STATS,
+                buffer: self.stats,
+            },
+        ]
+    }
+
+    /// The layout entries of [`Targets::writes`].
+    pub fn layout() -> [BindingDesc; 4] {
+        [
+            BindingDesc::uniform_buffer(bindings::FRAME_UNIFORMS),
+            BindingDesc::storage_buffer(bindings::ACCUM),
+            BindingDesc::storage_buffer(bindings::ACCUM_SQ),
+            BindingDesc::storage_buffer(bindings::STATS),
+        ]
+    }
+}
+
+/// The per-frame constants every pass puts into [`FrameUniforms`]: the constant
+/// environment radiance and the pass's record counts.
+#[derive(Clone, Copy, Debug)]
+pub struct FrameConstants {
+    pub env_radiance: Vec3,
+    pub counts: [u32; 4],
+}
+
+impl FrameConstants {
+    pub fn uniforms(&self, scene: &Scene, camera: &CameraFrame) -> FrameUniforms {
+        frame_uniforms(scene, camera, self.env_radiance, self.counts)
+    }
+}
+
+/// Workgroups covering the frame's image, one invocation per pixel.
+pub fn image_groups(uniforms: &FrameUniforms) -> [u32; 3] {
+    [
+        uniforms.image[0].div_ceil(GROUP_SIZE[0]),
+        uniforms.image[1].div_ceil(GROUP_SIZE[1]),
+        1,
+    ]
+}
+
+/// SPIR-V bytes as words (the embedded bytes carry no alignment guarantee).
+pub fn spirv_words(bytes: &[u8]) -> Result<Vec<u32>> {
+    if !bytes.len().is_multiple_of(4) {
+        bail!(
+            "embedded SPIR-V of {} bytes is not a whole number of words",
+            bytes.len()
+        );
+    }
+    Ok(bytes
+        .chunks_exact(4)
+        .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        .collect())
+}
+
+/// An image-space compute pipeline from embedded SPIR-V, with push constants of type
+/// `P`, owned by `objects`.
+pub fn compute_pipeline<P>(
+    ctx: &Context,
+    objects: &mut GpuObjects,
+    spirv: &[u8],
+    bindings: &[BindingDesc],
+    specialization: &[(u32, SpecValue)],
+    name: &str,
+) -> Result<Handle<ComputePipeline>> {
+    let spirv = spirv_words(spirv)?;
+    let pipeline = ctx.create_compute_pipeline(
+        &ComputePipelineDesc {
+            spirv: &spirv,
+            entry: "main",
+            bindings,
+            push_constant_size: std::mem::size_of::<P>() as u32,
+            specialization,
+        },
+        name,
+    )?;
+    Ok(objects.add(pipeline))
+}
+
+/// A GPU-only storage buffer holding `records`, owned by `objects`.
+pub fn upload_records<T: bytemuck::Pod>(
+    ctx: &Context,
+    objects: &mut GpuObjects,
+    records: &[T],
+    name: &str,
+) -> Result<Handle<Buffer>> {
+    let bytes: &[u8] = bytemuck::cast_slice(records);
+    let buffer = objects.add(ctx.create_buffer(
+        &BufferDesc::gpu_only(bytes.len() as u64, vk::BufferUsageFlags::STORAGE_BUFFER),
+        name,
+    )?);
+    ctx.upload_buffer(&objects[buffer], 0, bytes)?;
+    Ok(buffer)
+}
+
+/// A GPU-only uniform buffer holding `value`, owned by `objects`.
+pub fn upload_uniform<T: bytemuck::Pod>(
+    ctx: &Context,
+    objects: &mut GpuObjects,
+    value: &T,
+    name: &str,
+) -> Result<Handle<Buffer>> {
+    let buffer = objects.add(ctx.create_buffer(
+        &BufferDesc::gpu_only(
+            std::mem::size_of::<T>() as u64,
+            vk::BufferUsageFlags::UNIFORM_BUFFER,
+        ),
+        name,
+    )?);
+    ctx.upload_buffer(&objects[buffer], 0, bytemuck::bytes_of(value))?;
+    Ok(buffer)
+}
+
+/// A sampled 3D image of `dims` texels holding `bytes`, owned by `objects`.
+pub fn image_3d(
+    ctx: &Context,
+    objects: &mut GpuObjects,
+    dims: [u32; 3],
+    format: vk::Format,
+    bytes: &[u8],
+    name: &str,
+) -> Result<Handle<Image>> {
+    let image = objects.add(ctx.create_image(
+        &ImageDesc::sampled_3d(dims[0], dims[1], dims[2], format),
+        name,
+    )?);
+    ctx.upload_image(&objects[image], bytes)?;
+    Ok(image)
+}
+
+/// The environment map's texels and sampling tables as two storage buffers; without a
+/// map the (compiled-out) bindings get one zero record each.
+pub fn upload_env_map(
+    ctx: &Context,
+    objects: &mut GpuObjects,
+    grid: &GpuGrid,
+) -> Result<(Handle<Buffer>, Handle<Buffer>)> {
+    let (texels, tables): (&[[f32; 4]], &[f32]) = match &grid.env_map {
+        Some((texels, tables)) => (texels, tables),
+        None => (&[[0.0; 4]], &[0.0]),
+    };
+    Ok((
+        upload_records(ctx, objects, texels, "environment texels")?,
+        upload_records(ctx, objects, tables, "environment tables")?,
+    ))
+}
+
+/// The scene's grid medium and its index among the media.
+pub fn scene_grid(scene: &Scene) -> Result<(usize, &GridMedium)> {
+    scene
+        .media
+        .iter()
+        .enumerate()
+        .find_map(|(i, m)| match m {
+            Medium::Grid(g) => Some((i, g)),
+            Medium::Box(_) => None,
+        })
+        .context("internal: a grid pass was given no grid medium")
+}

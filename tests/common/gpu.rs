@@ -66,5 +66,5 @@ pub fn assert_no_validation_errors(ctx: &Context) {
 
 /// Embedded SPIR-V of a test shader as words.
 pub fn spirv(bytes: &[u8]) -> Vec<u32> {
-    nimbus::passes::crepuscular::spirv_words(bytes).expect("embedded SPIR-V is whole words")
+    nimbus::passes::spirv_words(bytes).expect("embedded SPIR-V is whole words")
 }

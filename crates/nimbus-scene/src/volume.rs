@@ -24,7 +24,7 @@ pub const SUPER_VOXEL_FACTOR: u32 = 8;
 
 /// A dense voxel grid: x fastest, then y, then z, channels interleaved per voxel, so
 /// value (i, j, k, c) = `data[((k·ny + j)·nx + i)·channels + c]`.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct VoxelGrid {
     pub dims: [u32; 3],
     pub channels: u32,

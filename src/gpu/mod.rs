@@ -1,0 +1,17 @@
+//! The GPU side of the scene: what passes upload and how the shaders see it.
+//!
+//! - [`records`]: every `#[repr(C)]` mirror of a GLSL struct (records, uniforms, push
+//!   constants), checked against the GLSL by `tests/layout.rs`;
+//! - [`bindings`]: descriptor binding numbers, mirrored from `bindings.glsl`;
+//! - [`scene`]: turning a [`nimbus_scene::Scene`] into those records (box media, shapes,
+//!   lights with their selection CDF, grids with their super-voxels, environment maps).
+
+pub mod bindings;
+pub mod records;
+pub mod scene;
+
+pub use records::*;
+pub use scene::{
+    box_records, frame_uniforms, gobo_half_planes, non_empty, shape_records, GpuGrid, GpuScene,
+    LightSet,
+};

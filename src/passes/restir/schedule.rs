@@ -1,0 +1,237 @@
+//! Which ReSTIR stages a frame dispatches, and on which reservoir slots.
+//!
+//! Reservoirs live in three slots. A frame writes its initial candidates into a slot
+//! other than the previous frame's result, reuses temporally in place (reading the
+//! previous slot), ping-pongs spatial rounds between the two slots the previous result
+//! does not occupy, and shades the last output, which becomes the next frame's previous
+//! slot. This is a pure function of the frame, the previous slot and the settings, so it
+//! is unit-tested here rather than through images.
+
+use crate::gpu::RestirPush;
+
+/// Reservoir slots in the buffer.
+pub const SLOTS: u32 = 3;
+
+/// One stage of a frame, in dispatch order.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Stage {
+    Initial,
+    Temporal,
+    Spatial,
+    Shade,
+}
+
+impl Stage {
+    pub const ALL: [Stage; 4] = [
+        Stage::Initial,
+        Stage::Temporal,
+        Stage::Spatial,
+        Stage::Shade,
+    ];
+
+    /// The profiler scope and pipeline name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Stage::Initial => "initial",
+            Stage::Temporal => "temporal",
+            Stage::Spatial => "spatial",
+            Stage::Shade => "shade",
+        }
+    }
+}
+
+/// The settings the schedule depends on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ScheduleSettings {
+    pub temporal: bool,
+    pub spatial_neighbors: u32,
+    pub spatial_rounds: u32,
+}
+
+/// One dispatch: a stage and its push constants (`src`, `dst` slots; `aux` is the
+/// previous slot for the temporal stage and the round for spatial ones).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Dispatch {
+    pub stage: Stage,
+    pub push: RestirPush,
+}
+
+/// The dispatches of frame `frame` (counting warm-up frames) given the slot holding the
+/// previous frame's final reservoirs, and the slot this frame's final reservoirs end in.
+/// Frame 0 has no previous frame, whatever `previous` says.
+pub fn schedule(
+    frame: u32,
+    previous: Option<u32>,
+    settings: &ScheduleSettings,
+) -> (Vec<Dispatch>, u32) {
+    let previous = previous.filter(|_| frame > 0);
+    let mut free = (0..SLOTS).filter(|s| Some(*s) != previous);
+    // Three slots, at most one taken: two are always free.
+    let (first, second) = (free.next().unwrap_or(0), free.next().unwrap_or(1));
+    let push = |src, dst, aux| RestirPush {
+        frame,
+        src,
+        dst,
+        aux,
+    };
+    let mut dispatches = vec![Dispatch {
+        stage: Stage::Initial,
+        push: push(first, first, 0),
+    }];
+    if let (true, Some(p)) = (settings.temporal, previous) {
+        dispatches.push(Dispatch {
+            stage: Stage::Temporal,
+            push: push(first, first, p),
+        });
+    }
+    let mut at = first;
+    if settings.spatial_neighbors > 0 {
+        for round in 0..settings.spatial_rounds {
+            let other = if at == first { second } else { first };
+            dispatches.push(Dispatch {
+                stage: Stage::Spatial,
+                push: push(at, other, round),
+            });
+            at = other;
+        }
+    }
+    dispatches.push(Dispatch {
+        stage: Stage::Shade,
+        push: push(at, at, 0),
+    });
+    (dispatches, at)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn settings(temporal: bool, neighbors: u32, rounds: u32) -> ScheduleSettings {
+        ScheduleSettings {
+            temporal,
+            spatial_neighbors: neighbors,
+            spatial_rounds: rounds,
+        }
+    }
+
+    fn stages(d: &[Dispatch]) -> Vec<Stage> {
+        d.iter().map(|d| d.stage).collect()
+    }
+
+    #[test]
+    fn first_frame_has_no_temporal_stage() {
+        let (d, last) = schedule(0, Some(2), &settings(true, 3, 1));
+        assert_eq!(stages(&d), [Stage::Initial, Stage::Spatial, Stage::Shade]);
+        assert_eq!(
+            d[0].push,
+            RestirPush {
+                frame: 0,
+                src: 0,
+                dst: 0,
+                aux: 0
+            }
+        );
+        assert_eq!(
+            d[1].push,
+            RestirPush {
+                frame: 0,
+                src: 0,
+                dst: 1,
+                aux: 0
+            }
+        );
+        assert_eq!(last, 1);
+    }
+
+    #[test]
+    fn temporal_reads_the_previous_slot_and_spatial_rounds_ping_pong() {
+        let (d, last) = schedule(5, Some(0), &settings(true, 3, 3));
+        assert_eq!(
+            stages(&d),
+            [
+                Stage::Initial,
+                Stage::Temporal,
+                Stage::Spatial,
+                Stage::Spatial,
+                Stage::Spatial,
+                Stage::Shade
+            ]
+        );
+        assert_eq!(
+            d[1].push,
+            RestirPush {
+                frame: 5,
+                src: 1,
+                dst: 1,
+                aux: 0
+            }
+        );
+        let rounds: Vec<_> = d[2..5]
+            .iter()
+            .map(|d| (d.push.src, d.push.dst, d.push.aux))
+            .collect();
+        assert_eq!(rounds, [(1, 2, 0), (2, 1, 1), (1, 2, 2)]);
+        assert_eq!(
+            d[5].push,
+            RestirPush {
+                frame: 5,
+                src: 2,
+                dst: 2,
+                aux: 0
+            }
+        );
+        assert_eq!(last, 2);
+    }
+
+    #[test]
+    fn no_spatial_stage_without_neighbours_or_rounds() {
+        for s in [settings(true, 0, 2), settings(true, 4, 0)] {
+            let (d, last) = schedule(1, Some(1), &s);
+            assert_eq!(stages(&d), [Stage::Initial, Stage::Temporal, Stage::Shade]);
+            assert_eq!(last, 0);
+        }
+        let (d, _) = schedule(1, Some(1), &settings(false, 0, 0));
+        assert_eq!(stages(&d), [Stage::Initial, Stage::Shade]);
+    }
+
+    /// Over many frames and every setting: the previous result is never overwritten
+    /// before the temporal stage reads it, stages come in order, and the result slot of
+    /// a frame is what the next frame's temporal stage reads.
+    #[test]
+    fn slots_never_clobber_the_previous_result() {
+        for temporal in [false, true] {
+            for neighbors in [0, 1, 3] {
+                for rounds in 0..5 {
+                    let s = settings(temporal, neighbors, rounds);
+                    let mut previous = None;
+                    for frame in 0..12 {
+                        let (d, last) = schedule(frame, previous, &s);
+                        let mut sorted = stages(&d);
+                        sorted.sort();
+                        assert_eq!(sorted, stages(&d), "stages in order");
+                        assert_eq!(d.last().map(|d| d.stage), Some(Stage::Shade));
+                        for x in &d {
+                            assert!(x.push.src < SLOTS && x.push.dst < SLOTS);
+                            assert_eq!(x.push.frame, frame);
+                            if frame > 0 {
+                                assert_ne!(Some(x.push.dst), previous, "{s:?} frame {frame}");
+                            }
+                            match x.stage {
+                                Stage::Temporal => assert_eq!(Some(x.push.aux), previous),
+                                Stage::Spatial => assert_ne!(x.push.src, x.push.dst),
+                                _ => assert_eq!(x.push.src, x.push.dst),
+                            }
+                        }
+                        let temporal_ran = d.iter().any(|x| x.stage == Stage::Temporal);
+                        assert_eq!(temporal_ran, temporal && frame > 0);
+                        let spatial = d.iter().filter(|x| x.stage == Stage::Spatial).count();
+                        let want = if neighbors > 0 { rounds as usize } else { 0 };
+                        assert_eq!(spatial, want);
+                        assert_eq!(d.last().map(|d| d.push.src), Some(last));
+                        previous = Some(last);
+                    }
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,160 @@
+//! The plan of scenes without grid media: the crepuscular pass renders box media,
+//! shapes and the background under directional lights.
+
+use anyhow::{bail, Result};
+use nimbus_scene::{Light, Scene};
+
+use super::{
+    CrepuscularFeatures, CrepuscularPlan, Decision, Integrator, MAX_BOX_MEDIA,
+    MAX_DIRECTIONAL_LIGHTS,
+};
+
+/// The crepuscular plan of a scene without grid media and its decision rows.
+/// `samples_along_ray` overrides the scene's `[integrator] box_samples`.
+pub(super) fn build(
+    scene: &Scene,
+    samples_along_ray: Option<u32>,
+) -> Result<(Integrator, Vec<Decision>)> {
+    let file = scene.source.display();
+
+    // Reject what the crepuscular pass does not render, naming where it is.
+    for (i, light) in scene.lights.iter().enumerate() {
+        let kind = match light {
+            Light::Directional { .. } => continue,
+            Light::Environment { file: None, .. } => continue,
+            Light::Environment { file: Some(_), .. } => "type = \"environment\" with a `file`",
+            Light::Point { .. } => "type = \"point\"",
+            Light::Sphere { .. } => "type = \"sphere\"",
+        };
+        bail!(
+            "{file}: [[light]] #{} ({kind}): not supported yet by the crepuscular pass \
+             (directional lights and constant environments are)",
+            i + 1
+        );
+    }
+    let integrator = &scene.integrator;
+    let box_media = scene.media.len();
+    if box_media > MAX_BOX_MEDIA {
+        bail!(
+            "{file}: [[medium]]: {box_media} box media, the crepuscular pass takes at most {MAX_BOX_MEDIA}"
+        );
+    }
+    let directional_lights = scene
+        .lights
+        .iter()
+        .filter(|l| matches!(l, Light::Directional { .. }))
+        .count();
+    if directional_lights > MAX_DIRECTIONAL_LIGHTS {
+        bail!(
+            "{file}: [[light]]: {directional_lights} directional lights, the crepuscular pass takes at most {MAX_DIRECTIONAL_LIGHTS}"
+        );
+    }
+    let samples_along_ray = samples_along_ray.unwrap_or(integrator.box_samples);
+    if samples_along_ray == 0 || samples_along_ray > 65_536 {
+        bail!("samples along a camera ray must be in 1..=65536, got {samples_along_ray}");
+    }
+
+    let media = scene.media.len();
+    let shapes = scene.shapes.len();
+    let directional = directional_lights;
+    let gobos = scene
+        .lights
+        .iter()
+        .filter(|l| matches!(l, Light::Directional { gobo: Some(_), .. }))
+        .count();
+    let env = scene
+        .lights
+        .iter()
+        .any(|l| matches!(l, Light::Environment { .. }));
+
+    let features = CrepuscularFeatures {
+        has_media: media > 0,
+        has_shapes: shapes > 0,
+        has_gobos: gobos > 0,
+        has_env: env,
+        pixel_jitter: scene.render.pixel_jitter,
+    };
+    let max_bounces = integrator.max_bounces;
+    let estimator = integrator.box_estimator;
+    let mut decisions = vec![Decision {
+        name: "pass crepuscular",
+        enabled: true,
+        reason: if media > 0 {
+            format!(
+                "{media} box medium(s), {directional} directional light(s): {} by {} \
+                 with {samples_along_ray} samples along each path segment",
+                if max_bounces == 1 {
+                    "single scattering".to_string()
+                } else {
+                    format!("scattering orders 1..={max_bounces} (path tracing)")
+                },
+                estimator.name()
+            )
+        } else {
+            format!("no media: direct lighting of {shapes} shape(s) and the background only")
+        },
+    }];
+    decisions.push(Decision {
+        name: "  SC_HAS_MEDIA",
+        enabled: features.has_media,
+        reason: if features.has_media {
+            format!("{media} box medium(s) scatter and attenuate")
+        } else {
+            "no media: in-scattering and transmittance compiled out".into()
+        },
+    });
+    decisions.push(Decision {
+        name: "  SC_HAS_SHAPES",
+        enabled: features.has_shapes,
+        reason: if features.has_shapes {
+            format!("{shapes} shape(s) occlude light and reflect it (Lambertian)")
+        } else {
+            "no shapes: shadow rays compiled out".into()
+        },
+    });
+    decisions.push(Decision {
+        name: "  SC_HAS_GOBOS",
+        enabled: features.has_gobos,
+        reason: if features.has_gobos {
+            format!("{gobos} light(s) masked by a gobo")
+        } else {
+            "no light has a gobo".into()
+        },
+    });
+    decisions.push(Decision {
+        name: "  SC_HAS_ENV",
+        enabled: features.has_env,
+        reason: if features.has_env {
+            "constant environment seen by escaping rays (it does not light the medium or surfaces \
+             in the single-scattering box pass)"
+                .into()
+        } else {
+            "no environment: escaping rays see black".into()
+        },
+    });
+    decisions.push(Decision {
+        name: "  SC_MAX_BOUNCES",
+        enabled: max_bounces > 1,
+        reason: if max_bounces > 1 {
+            format!("K = {max_bounces}: paths continue by free-flight collisions and Lambertian reflections")
+        } else {
+            "K = 1: single-scattering variant, path continuation compiled out".into()
+        },
+    });
+    decisions.push(Decision {
+        name: "  SC_PIXEL_JITTER",
+        enabled: features.pixel_jitter,
+        reason: if features.pixel_jitter {
+            "rays jittered over the pixel footprint (box filter)".into()
+        } else {
+            "[render] pixel_jitter = false: every ray through the pixel centre".into()
+        },
+    });
+    let plan = CrepuscularPlan {
+        estimator,
+        samples_along_ray,
+        max_bounces,
+        features,
+    };
+    Ok((Integrator::Crepuscular(plan), decisions))
+}

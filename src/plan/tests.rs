@@ -1,0 +1,108 @@
+//! Unit tests of the render plan: limits, features and refusals.
+
+use std::path::Path;
+
+use super::*;
+
+fn scene(extra: &str) -> Scene {
+    let text = format!(
+        "[camera]\nposition = [0, 0, 30]\nlook_at = [0, 0, 0]\n{extra}\n[integrator]\nbox_estimator = \"rees\"\n"
+    );
+    nimbus_scene::parse_str(&text, Path::new("plan.toml")).expect("parses")
+}
+
+#[test]
+fn too_many_lights_or_media_are_errors_naming_the_table() {
+    let lights =
+        "[[light]]\ntype = \"directional\"\ndirection = [0, -1, 0]\nirradiance = 1\n".repeat(17);
+    let err = build(&scene(&lights), None).unwrap_err().to_string();
+    assert!(
+        err.contains("plan.toml") && err.contains("[[light]]") && err.contains("at most 16"),
+        "{err}"
+    );
+
+    let media: String = (0..17)
+        .map(|i| {
+            format!(
+                "[[medium]]\ntype = \"box\"\ncenter = [{}, 0, 0]\nsize = [1, 1, 1]\nsigma_t = 1\n",
+                2 * i
+            )
+        })
+        .collect();
+    let err = build(&scene(&media), None).unwrap_err().to_string();
+    assert!(
+        err.contains("plan.toml") && err.contains("[[medium]]") && err.contains("at most 16"),
+        "{err}"
+    );
+}
+
+#[test]
+fn features_follow_the_scene() {
+    let plain = build(&scene(""), None).unwrap();
+    let f = plain.crepuscular().unwrap().features;
+    assert!(!f.has_media && !f.has_shapes && !f.has_gobos && !f.has_env && f.pixel_jitter);
+
+    let gobo = scene(
+        "[[light]]\ntype = \"directional\"\ndirection = [0, -1, 0]\nirradiance = 1\ngobo = [[0, 0], [1, 0], [0, 1]]\n\
+         [[medium]]\ntype = \"box\"\ncenter = [0, 0, 0]\nsize = [1, 1, 1]\nsigma_t = 1\n",
+    );
+    let plan = build(&gobo, Some(7)).unwrap();
+    let p = plan.crepuscular().unwrap();
+    assert!(p.features.has_gobos && p.features.has_media);
+    assert_eq!(p.samples_along_ray, 7);
+    assert_eq!(p.estimator, BoxEstimator::Rees);
+    assert!(plan.explain(&gobo).contains("[on ]   SC_HAS_GOBOS"));
+}
+
+#[test]
+fn grid_scenes_name_what_the_baseline_does_not_take() {
+    let grid = |i: u32| {
+        format!(
+            "[[medium]]\ntype = \"grid\"\nbounds_min = [{x}, 0, 0]\nbounds_max = [{y}, 1, 1]\n\
+             density = {{ procedural = \"cloud\", dims = [4, 4, 4] }}\n",
+            x = 2 * i,
+            y = 2 * i + 1
+        )
+    };
+    let text = |body: &str, volume: &str| {
+        format!(
+            "[camera]\nposition = [0, 0, 30]\nlook_at = [0, 0, 0]\n{body}\n[integrator]\nvolume = \"{volume}\"\n"
+        )
+    };
+    let err = |body: &str, volume: &str| {
+        let scene =
+            nimbus_scene::parse_str(&text(body, volume), Path::new("grid.toml")).expect("parses");
+        build(&scene, None).unwrap_err().to_string()
+    };
+    let restir =
+        nimbus_scene::parse_str(&text(&grid(0), "restir"), Path::new("grid.toml")).expect("parses");
+    let plan = build(&restir, None).unwrap();
+    let r = plan.restir().expect("restir plan");
+    assert!(plan.baseline().is_none() && !r.has_emission && !r.vertex_reuse);
+    assert_eq!(
+        (r.candidates, r.temporal_limit, r.spatial_neighbors),
+        (4, 4, 3)
+    );
+    let e = err(&format!("{}{}", grid(0), grid(1)), "restir");
+    assert!(
+        e.contains("[[medium]] #2") && e.contains("Volumetric ReSTIR"),
+        "{e}"
+    );
+    let e = err(&format!("{}{}", grid(0), grid(1)), "baseline");
+    assert!(
+        e.contains("[[medium]] #2") && e.contains("one grid medium"),
+        "{e}"
+    );
+    let gobo = "[[light]]\ntype = \"directional\"\ndirection = [0, -1, 0]\nirradiance = 1\ngobo = [[0, 0], [1, 0], [0, 1]]\n";
+    let e = err(&format!("{}{gobo}", grid(0)), "baseline");
+    assert!(e.contains("[[light]] #1") && e.contains("gobo"), "{e}");
+
+    let ok = nimbus_scene::parse_str(&text(&grid(0), "baseline"), Path::new("grid.toml")).unwrap();
+    let plan = build(&ok, None).unwrap();
+    assert!(plan.crepuscular().is_none());
+    let b = plan.baseline().unwrap();
+    assert!(!b.has_emission && !b.has_env && !b.has_env_map && !b.has_boxes);
+    assert!(plan
+        .explain(&ok)
+        .contains("[on ] pass baseline path tracer"));
+}

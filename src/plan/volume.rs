@@ -1,0 +1,333 @@
+//! The plan of scenes with a grid medium: the baseline path tracer or Volumetric
+//! ReSTIR, with what each takes beside the grid.
+
+use anyhow::{bail, Result};
+use nimbus_scene::{Light, Medium, Scene};
+
+use super::{BaselinePlan, Decision, Integrator, RestirPlan, MAX_BOX_MEDIA};
+
+/// Most scattering events per path ReSTIR stores (reservoirs hold K vertices).
+pub const MAX_RESTIR_BOUNCES: u32 = 16;
+/// Most spatial neighbours (Talbot MIS costs (N + 1)² target evaluations per pixel).
+pub const MAX_SPATIAL_NEIGHBORS: u32 = 16;
+
+/// Most lights the baseline path tracer takes (`MAX_LIGHTS` in pathtrace.comp).
+pub const MAX_BASELINE_LIGHTS: usize = 16;
+
+/// The plan of a scene with a grid medium and its decision rows.
+pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
+    let file = scene.source.display();
+    let integrator = &scene.integrator;
+    let restir = integrator.volume == nimbus_scene::VolumeIntegrator::Restir;
+    let integrator_name = if restir {
+        "Volumetric ReSTIR"
+    } else {
+        "the baseline path tracer"
+    };
+    let grids: Vec<_> = scene
+        .media
+        .iter()
+        .enumerate()
+        .filter_map(|(i, m)| match m {
+            Medium::Grid(g) => Some((i, g)),
+            Medium::Box(_) => None,
+        })
+        .collect();
+    if grids.len() > 1 {
+        bail!(
+            "{file}: [[medium]] #{}: {integrator_name} takes one grid medium, this scene has {}",
+            grids[1].0 + 1,
+            grids.len()
+        );
+    }
+    let boxes = scene.media.len() - 1;
+    if boxes > MAX_BOX_MEDIA {
+        bail!(
+            "{file}: [[medium]]: {boxes} box media next to the grid, the baseline path tracer takes at most {MAX_BOX_MEDIA}"
+        );
+    }
+    let (index, grid) = grids[0];
+    let animated = grid.velocity.is_some() || !grid.frames.is_empty();
+    if animated && !restir {
+        bail!(
+            "{file}: [[medium]] #{} (type = \"grid\"): animated density (velocity / [[medium.frame]]) is not supported yet by the baseline path tracer; use volume = \"restir\"",
+            index + 1
+        );
+    }
+    if restir {
+        if let Some(i) = scene.media.iter().position(|m| matches!(m, Medium::Box(_))) {
+            bail!(
+                "{file}: [[medium]] #{} (type = \"box\"): Volumetric ReSTIR renders one grid medium alone; box media beside it need volume = \"baseline\"",
+                i + 1
+            );
+        }
+        if !scene.shapes.is_empty() {
+            bail!(
+                "{file}: [[shape]] #1: Volumetric ReSTIR does not render surfaces yet; use [integrator] volume = \"baseline\""
+            );
+        }
+        if integrator.max_bounces > MAX_RESTIR_BOUNCES {
+            bail!(
+                "{file}: [integrator] field `max_bounces` = {}: Volumetric ReSTIR stores paths of at most {MAX_RESTIR_BOUNCES} scattering events",
+                integrator.max_bounces
+            );
+        }
+        if integrator.restir.spatial_neighbors > MAX_SPATIAL_NEIGHBORS {
+            bail!(
+                "{file}: [integrator.restir] field `spatial_neighbors` = {}: at most {MAX_SPATIAL_NEIGHBORS} (Talbot MIS costs (N + 1)^2 path evaluations per pixel)",
+                integrator.restir.spatial_neighbors
+            );
+        }
+    }
+    let envs = scene
+        .lights
+        .iter()
+        .filter(|l| matches!(l, Light::Environment { .. }))
+        .count();
+    let env_map = scene
+        .lights
+        .iter()
+        .position(|l| matches!(l, Light::Environment { file: Some(_), .. }));
+    if let (Some(i), true) = (env_map, envs > 1) {
+        bail!(
+            "{file}: [[light]] #{}: an environment map cannot be combined with another environment light",
+            i + 1
+        );
+    }
+    for (i, light) in scene.lights.iter().enumerate() {
+        let kind = match light {
+            Light::Directional { gobo: Some(_), .. } => "a directional light with a gobo",
+            _ => continue,
+        };
+        bail!(
+            "{file}: [[light]] #{}: {kind} is not supported yet by {integrator_name}",
+            i + 1
+        );
+    }
+    let lights = scene
+        .lights
+        .iter()
+        .filter(|l| !matches!(l, Light::Environment { .. }))
+        .count();
+    if lights > MAX_BASELINE_LIGHTS {
+        bail!(
+            "{file}: [[light]]: {lights} lights, {integrator_name} takes at most {MAX_BASELINE_LIGHTS}"
+        );
+    }
+    let has_env = scene
+        .lights
+        .iter()
+        .any(|l| matches!(l, Light::Environment { .. }));
+    if restir {
+        return Ok(restir_plan(
+            scene,
+            index,
+            grid,
+            has_env,
+            env_map.is_some(),
+            lights,
+        ));
+    }
+    let baseline = BaselinePlan {
+        max_bounces: integrator.max_bounces,
+        has_boxes: boxes > 0,
+        has_emission: grid.emission.is_some(),
+        has_shapes: !scene.shapes.is_empty(),
+        has_env,
+        has_env_map: env_map.is_some(),
+        pixel_jitter: scene.render.pixel_jitter,
+    };
+    let decisions = vec![
+        Decision {
+            name: "pass baseline path tracer",
+            enabled: true,
+            reason: format!(
+                "grid medium #{}: decomposition tracking + residual ratio tracking on {}x super-voxels, \
+                 K = {}, {lights} analytic light(s)",
+                index + 1,
+                nimbus_scene::SUPER_VOXEL_FACTOR,
+                integrator.max_bounces
+            ),
+        },
+        Decision {
+            name: "  SC_HAS_SHAPES",
+            enabled: baseline.has_shapes,
+            reason: format!("{} shape(s)", scene.shapes.len()),
+        },
+        Decision {
+            name: "  SC_HAS_MEDIA (boxes)",
+            enabled: boxes > 0,
+            reason: format!("{boxes} homogeneous box medium(s) beside the grid"),
+        },
+        Decision {
+            name: "  SC_HAS_EMISSION",
+            enabled: baseline.has_emission,
+            reason: if baseline.has_emission {
+                "the grid emits: absorbed emission added at every real collision".into()
+            } else {
+                "nothing emits: emission lookups compiled out".into()
+            },
+        },
+        Decision {
+            name: "  SC_HAS_ENV",
+            enabled: has_env,
+            reason: if env_map.is_some() {
+                "environment map: seen by camera rays, importance-sampled in next-event estimation \
+                 (SC_HAS_ENV_MAP)"
+                    .into()
+            } else if has_env {
+                "constant environment: seen by camera rays, light by next-event estimation".into()
+            } else {
+                "no environment".into()
+            },
+        },
+    ];
+    Ok((Integrator::Baseline(baseline), decisions))
+}
+
+/// The ReSTIR plan for a validated grid scene.
+fn restir_plan(
+    scene: &Scene,
+    index: usize,
+    grid: &nimbus_scene::GridMedium,
+    has_env: bool,
+    has_env_map: bool,
+    lights: usize,
+) -> (Integrator, Vec<Decision>) {
+    let s = &scene.integrator.restir;
+    let k = scene.integrator.max_bounces;
+    let plan = RestirPlan {
+        max_bounces: k,
+        has_emission: grid.emission.is_some(),
+        has_env,
+        has_env_map,
+        pixel_jitter: scene.render.pixel_jitter,
+        has_velocity: grid.velocity.is_some(),
+        animated_density: !grid.frames.is_empty(),
+        candidates: s.candidates,
+        temporal: s.temporal,
+        temporal_limit: s.temporal_limit,
+        spatial_neighbors: s.spatial_neighbors,
+        spatial_radius_px: s.spatial_radius_px,
+        spatial_rounds: s.spatial_rounds,
+        vertex_reuse: s.reuse == nimbus_scene::ReuseMode::Vertex,
+        final_ratio_tracking: s.final_ratio_tracking,
+        mip_candidates: s.mip_candidates,
+        mip_indirect: s.mip_indirect,
+        mip_reuse: s.mip_reuse,
+    };
+    let frames = scene.render.frames;
+    let spatial = plan.spatial_neighbors > 0 && plan.spatial_rounds > 0;
+    let on = |name: &'static str, enabled: bool, reason: String| Decision {
+        name,
+        enabled,
+        reason,
+    };
+    let decisions = vec![
+        on(
+            "pass restir initial",
+            true,
+            format!(
+                "grid medium #{}: M = {} random walks per pixel, regular tracking on mip {} (camera) / {} (scattered), \
+                 K = {k}, {lights} analytic light(s); {} bytes of reservoir per pixel and slot, 3 slots",
+                index + 1,
+                plan.candidates,
+                plan.mip_candidates,
+                plan.mip_indirect,
+                crate::gpu::reservoir_bytes(k)
+            ),
+        ),
+        on(
+            "pass restir temporal",
+            plan.temporal && frames > 1,
+            if !plan.temporal {
+                "[integrator.restir] temporal = false".into()
+            } else if frames > 1 {
+                format!(
+                    "from the second frame: reprojection of x1{}, Q = {}",
+                    if plan.has_velocity {
+                        " through the velocity field"
+                    } else {
+                        ""
+                    },
+                    plan.temporal_limit
+                )
+            } else {
+                "a single frame has no previous one".into()
+            },
+        ),
+        on(
+            "pass restir spatial",
+            spatial,
+            if spatial {
+                format!(
+                    "{} round(s) of {} neighbours within {} px, Talbot MIS, T~ marched on mip {}, {} reuse",
+                    plan.spatial_rounds,
+                    plan.spatial_neighbors,
+                    plan.spatial_radius_px,
+                    plan.mip_reuse,
+                    if plan.vertex_reuse {
+                        "vertex"
+                    } else {
+                        "direction"
+                    }
+                )
+            } else {
+                "spatial_neighbors or spatial_rounds is 0".into()
+            },
+        ),
+        on(
+            "pass restir shade",
+            true,
+            if plan.final_ratio_tracking {
+                "F with ratio-tracking transmittance (global majorant)".into()
+            } else {
+                "F with closed-form transmittance through the trilinear grid".into()
+            },
+        ),
+        on(
+            "  SC_HAS_EMISSION",
+            plan.has_emission,
+            if plan.has_emission {
+                "the grid emits: emission candidates at every vertex".into()
+            } else {
+                "nothing emits: emission candidates compiled out".into()
+            },
+        ),
+        on(
+            "  SC_HAS_ENV",
+            has_env,
+            if has_env_map {
+                "environment map, importance-sampled in NEE (SC_HAS_ENV_MAP)".into()
+            } else if has_env {
+                "constant environment".into()
+            } else {
+                "no environment".into()
+            },
+        ),
+        on(
+            "  SC_REUSE_VERTEX",
+            plan.vertex_reuse,
+            if plan.vertex_reuse {
+                "vertex reuse: x2 kept in world space (volume-measure geometry term)".into()
+            } else {
+                "direction reuse (z_i, omega_i)".into()
+            },
+        ),
+        on(
+            "  SC_HAS_VELOCITY",
+            plan.has_velocity,
+            if plan.has_velocity {
+                "temporal reprojection follows the velocity grid".into()
+            } else {
+                "no velocity grid: reprojection by the camera only".into()
+            },
+        ),
+        on(
+            "  SC_PIXEL_JITTER",
+            plan.pixel_jitter,
+            "sub-pixel jitter hashed from (pixel, frame)".into(),
+        ),
+    ];
+    (Integrator::Restir(plan), decisions)
+}
