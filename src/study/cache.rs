@@ -201,6 +201,34 @@ pub(super) fn store_cached(
 mod tests {
     use super::*;
 
+    /// A fresh, empty directory for one test.
+    fn scratch(name: &str) -> PathBuf {
+        let dir =
+            std::env::temp_dir().join(format!("nimbus-study-cache-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        dir
+    }
+
+    /// The job of a 3x2 reference of the default scene at `spp`, as if its scene file
+    /// held `scene_bytes`.
+    fn reference_job(dir: &Path, scene_bytes: &[u8], spp: u32) -> ReferenceJob {
+        let mut scene =
+            nimbus_scene::parse_str(crate::DEFAULT_SCENE, Path::new("window.toml")).unwrap();
+        scene.render.width = 3;
+        scene.render.height = 2;
+        scene.render.spp = spp;
+        let plan = crate::plan::build(&scene, None).unwrap();
+        ReferenceJob::new(scene, plan, scene_bytes, "window", dir)
+    }
+
+    fn noise() -> ReferenceNoise {
+        ReferenceNoise {
+            rms_std_error: 0.125,
+            mean_rel_std_error: 0.0625,
+        }
+    }
+
     #[test]
     fn fnv1a64_matches_the_published_vectors() {
         assert_eq!(fnv1a64(FNV_OFFSET, b""), 0xcbf2_9ce4_8422_2325);
@@ -211,5 +239,125 @@ mod tests {
             fnv1a64(fnv1a64(FNV_OFFSET, b"foo"), b"bar"),
             fnv1a64(FNV_OFFSET, b"foobar")
         );
+    }
+
+    #[test]
+    fn the_key_hashes_the_scene_file_and_the_settings() {
+        let dir = Path::new("cache");
+        let a = reference_job(dir, b"scene a", 4);
+        let names: Vec<&str> = a.settings.iter().map(|(k, _)| k.as_str()).collect();
+        assert_eq!(
+            names,
+            [
+                "nimbus_version",
+                "width",
+                "height",
+                "frames",
+                "spp",
+                "box_estimator",
+                "box_samples",
+                "seed",
+                "volume"
+            ]
+        );
+        assert!(a.settings.contains(&("spp".to_owned(), "4".to_owned())));
+        assert!(a.settings.contains(&("width".to_owned(), "3".to_owned())));
+        let mut hash = fnv1a64(FNV_OFFSET, b"scene a");
+        for (k, v) in &a.settings {
+            hash = fnv1a64(hash, format!("\n{k}={v}").as_bytes());
+        }
+        assert_eq!(a.key, format!("window-{hash:016x}"));
+        assert_eq!(a.exr, dir.join(format!("{}.exr", a.key)));
+        assert_eq!(a.sidecar, dir.join(format!("{}.json", a.key)));
+        assert_eq!(reference_job(dir, b"scene a", 4).key, a.key);
+        assert_ne!(reference_job(dir, b"scene b", 4).key, a.key);
+        assert_ne!(reference_job(dir, b"scene a", 8).key, a.key);
+    }
+
+    #[test]
+    fn a_stored_reference_loads_back() {
+        let dir = scratch("round-trip");
+        let job = reference_job(&dir, b"scene", 4);
+        assert!(load_cached(&job).unwrap().is_none(), "nothing cached yet");
+        let image = ImageRgb {
+            width: 3,
+            height: 2,
+            data: (0..6).map(|i| [i as f32 * 0.25, 1.0, 1e-3]).collect(),
+        };
+        store_cached(&job, &image, &noise(), "lavapipe", 1.5).unwrap();
+        let cached = load_cached(&job).unwrap().expect("the stored reference");
+        assert_eq!(cached.image, image);
+        assert_eq!(cached.noise, noise());
+        assert_eq!(cached.device, "lavapipe");
+        assert!(cached.cached);
+
+        let text = std::fs::read_to_string(&job.sidecar).unwrap();
+        let meta: serde_json::Value = serde_json::from_str(&text).unwrap();
+        assert_eq!(meta["key"], job.key.as_str());
+        assert_eq!(meta["spp"], 4);
+        assert_eq!(meta["width"], 3);
+        assert_eq!(
+            meta["box_estimator"],
+            job.scene.integrator.box_estimator.name()
+        );
+        assert_eq!(meta["device"], "lavapipe");
+        assert_eq!(meta["render_wall_s"], 1.5);
+        assert_eq!(meta["rms_std_error"], 0.125);
+
+        // The temporary files were renamed into place.
+        let mut files: Vec<String> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        files.sort();
+        assert_eq!(
+            files,
+            [format!("{}.exr", job.key), format!("{}.json", job.key)]
+        );
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn a_cache_entry_that_does_not_match_is_not_used() {
+        let dir = scratch("mismatch");
+        let job = reference_job(&dir, b"scene", 4);
+        let image = ImageRgb::new(3, 2);
+        let store = |j: &ReferenceJob, image: &ImageRgb| {
+            store_cached(j, image, &noise(), "lavapipe", 1.0).unwrap();
+        };
+
+        // The EXR without its sidecar.
+        store(&job, &image);
+        std::fs::remove_file(&job.sidecar).unwrap();
+        assert!(load_cached(&job).unwrap().is_none(), "no sidecar");
+
+        // A sidecar that is not JSON.
+        store(&job, &image);
+        std::fs::write(&job.sidecar, "{ not json").unwrap();
+        assert!(load_cached(&job).unwrap().is_none(), "broken sidecar");
+
+        // The sidecar of another reference.
+        let other = reference_job(&dir, b"another scene", 4);
+        store(&other, &image);
+        std::fs::copy(&other.sidecar, &job.sidecar).unwrap();
+        assert!(load_cached(&job).unwrap().is_none(), "another key");
+
+        // An EXR of another size.
+        store(&job, &ImageRgb::new(4, 2));
+        assert!(load_cached(&job).unwrap().is_none(), "another size");
+
+        // A sidecar with only the key: noise and device unknown.
+        store(&job, &image);
+        std::fs::write(&job.sidecar, format!("{{\"key\": \"{}\"}}", job.key)).unwrap();
+        let cached = load_cached(&job).unwrap().expect("key matches");
+        assert!(cached.noise.rms_std_error.is_nan());
+        assert!(cached.noise.mean_rel_std_error.is_nan());
+        assert_eq!(cached.device, "unknown");
+
+        // An EXR that cannot be read is an error naming the file.
+        std::fs::write(&job.exr, b"not an EXR").unwrap();
+        let message = format!("{:#}", load_cached(&job).err().expect("unreadable EXR"));
+        assert!(message.contains(&job.key), "{message}");
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -440,4 +440,51 @@ mod tests {
         assert_eq!(median(&[4.0, 1.0, 2.0, 3.0]), Some(2.5));
         assert_eq!(median(&[]), None);
     }
+
+    #[test]
+    fn mean_metrics_averages_each_frames_error() {
+        let pixel = |v: f32| ImageRgb {
+            width: 1,
+            height: 1,
+            data: vec![[v, v, v]],
+        };
+        let reference = pixel(1.0);
+        // The mean image (1.5) has RMSE 0.5; the mean of the frames' MSEs (1 and 0) is
+        // 0.5, so RMSE sqrt(0.5).
+        let m = mean_metrics(&[pixel(2.0), pixel(1.0)], &reference).unwrap();
+        assert!((m.rmse - 0.5f64.sqrt()).abs() < 1e-12, "{}", m.rmse);
+        assert!((m.rel_mse - 0.5 / (1.0 + REL_MSE_EPSILON)).abs() < 1e-12);
+        assert!((m.mean_rel_diff - 0.5).abs() < 1e-12);
+        let message = format!("{:#}", mean_metrics(&[], &reference).unwrap_err());
+        assert!(message.contains("no frames"), "{message}");
+        assert!(mean_metrics(&[ImageRgb::new(2, 1)], &reference).is_err());
+    }
+
+    #[test]
+    fn frame_gpu_ms_is_the_median_and_sum_of_the_frame_scope() {
+        let scope = |label: &str, ms: f64| ScopeResult {
+            label: label.to_owned(),
+            begin_ns: 1e6,
+            end_ns: 1e6 + ms * 1e6,
+            children: Vec::new(),
+        };
+        let frames = vec![
+            vec![scope("upload", 9.0), scope("frame", 1.0)],
+            vec![scope("frame", 3.0)],
+            vec![scope("frame", 2.0)],
+        ];
+        let (median, total) = frame_gpu_ms(&frames).unwrap();
+        assert!((median - 2.0).abs() < 1e-9, "{median}");
+        assert!((total - 6.0).abs() < 1e-9, "{total}");
+        let message = format!("{:#}", frame_gpu_ms(&[]).unwrap_err());
+        assert!(message.contains("no timestamps"), "{message}");
+        let message = format!(
+            "{:#}",
+            frame_gpu_ms(&[vec![scope("frame", 1.0)], vec![scope("upload", 1.0)]]).unwrap_err()
+        );
+        assert!(
+            message.contains("no \"frame\" timestamp scope"),
+            "{message}"
+        );
+    }
 }

@@ -354,6 +354,25 @@ fn remove_scratch(opts: &StudyOptions) {
     }
 }
 
+/// A measured row for tests: 2 frames of 1 spp, `box_samples` 8, `gpu_ms` in total
+/// (half of it per frame) and `rmse` as every error.
+#[cfg(test)]
+fn test_row(assignment: &[(&str, &str)], gpu_ms: f64, rmse: f64) -> Row {
+    Row {
+        assignment: vary::assignment(assignment),
+        frames: 2,
+        spp: 1,
+        box_samples: 8,
+        gpu_ms_per_frame: gpu_ms / 2.0,
+        gpu_ms_total: gpu_ms,
+        metrics: ErrorMetrics {
+            rmse,
+            rel_mse: rmse,
+            mean_rel_diff: rmse,
+        },
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -376,6 +395,47 @@ mod tests {
             same,
             [None, None, Some(0), Some(1), None, Some(4), None, Some(6)]
         );
+        remove_scratch(&opts);
+    }
+
+    #[test]
+    fn the_reference_of_a_grid_medium_is_the_baseline_with_its_own_seed() {
+        let opts = StudyOptions {
+            vary: vec!["volume=restir".into()],
+            reference_frames: 3,
+            reference_spp: 2,
+            ..grid_options("reference")
+        };
+        let study = Study::new(&opts).unwrap();
+        let job = &study.reference;
+        assert_eq!(job.scene.integrator.volume, VolumeIntegrator::Baseline);
+        assert_eq!((job.scene.render.frames, job.scene.render.spp), (3, 2));
+        let seed = study.configurations[0].scene.render.seed;
+        assert_eq!(job.scene.render.seed, seed ^ REFERENCE_SEED_MIX);
+        assert!(job.key.starts_with("grid-"), "{}", job.key);
+        assert_eq!(job.exr.parent(), opts.cache_dir.as_deref());
+        assert_eq!(study.out_dir, opts.out_dir.clone().unwrap());
+        remove_scratch(&opts);
+    }
+
+    #[test]
+    fn bad_options_fail_before_rendering() {
+        let opts = grid_options("bad-options");
+        let cases = [
+            (vec!["spp=1,2", "spp=4"], None, "already varied"),
+            // The scene's seed is 0, so the reference's folds to 0x5EED_5EED.
+            (vec!["seed=1592614637"], None, "same random numbers"),
+            (vec!["spp=1,2"], Some("spp=1"), "knob"),
+        ];
+        for (vary, baseline, needle) in cases {
+            let bad = StudyOptions {
+                vary: vary.iter().map(|v| (*v).to_owned()).collect(),
+                baseline: baseline.map(str::to_owned),
+                ..opts.clone()
+            };
+            let message = format!("{:#}", Study::new(&bad).err().expect("an error"));
+            assert!(message.contains(needle), "{vary:?}: {message}");
+        }
         remove_scratch(&opts);
     }
 

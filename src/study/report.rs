@@ -315,6 +315,8 @@ pub(super) fn equal_time_text(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::study::vary::parse_vary;
+    use crate::study::{grid_options, remove_scratch, test_row, StudyOptions};
 
     #[test]
     fn csv_quotes_only_when_needed() {
@@ -346,6 +348,74 @@ mod tests {
         assert_eq!(sig(2.0, 3), "2.00");
         assert_eq!(sig(1.5e-7, 3), "1.50e-7");
         assert_eq!(sig(0.0, 3), "0");
+    }
+
+    #[test]
+    fn the_table_has_a_column_per_varied_series_key() {
+        let varies = [
+            parse_vary("box_estimator=rm,reds").unwrap(),
+            parse_vary("spp=1,4").unwrap(),
+        ];
+        let rows = [
+            test_row(&[("box_estimator", "rm"), ("spp", "1")], 1.0 / 3.0, 0.5),
+            test_row(&[("box_estimator", "reds"), ("spp", "4")], 12.0, 1e-7),
+        ];
+        let (header, cells) = table(&varies, &rows, false);
+        assert_eq!(
+            header,
+            [
+                "box_estimator",
+                "frames",
+                "spp",
+                "box_samples",
+                "gpu_ms_per_frame",
+                "gpu_ms_total",
+                "rmse",
+                "rel_mse",
+                "mean_rel_diff"
+            ]
+        );
+        assert_eq!(
+            cells[0],
+            ["rm", "2", "1", "8", "0.1667", "0.3333", "0.5000", "0.5000", "0.5000"]
+        );
+        assert_eq!(cells[1][..6], ["reds", "2", "1", "8", "6.000", "12.00"]);
+        assert_eq!(cells[1][6], "1.000e-7");
+        let (full_header, full) = table(&varies, &rows, true);
+        assert_eq!(full_header, header);
+        assert_eq!(full[0][5], format!("{}", 1.0 / 3.0));
+        assert_eq!(full[1][6], "0.0000001");
+    }
+
+    #[test]
+    fn noise_text_warns_when_the_reference_is_noisy() {
+        let noise = |rms: f64| ReferenceNoise {
+            rms_std_error: rms,
+            mean_rel_std_error: 0.01,
+        };
+        let rows = [test_row(&[], 1.0, 0.2), test_row(&[], 2.0, 0.1)];
+        let text = noise_text(&noise(0.001), 1, &rows);
+        assert!(text.starts_with("Reference noise: unknown"), "{text}");
+        assert!(text.contains("has 1 frame"), "{text}");
+        let text = noise_text(&noise(0.001), 2, &rows);
+        assert!(
+            text.contains("mean relative standard error 0.0100, RMS standard error 0.00100."),
+            "{text}"
+        );
+        assert!(
+            text.contains("It is 1.0% of the smallest RMSE measured (0.100)"),
+            "{text}"
+        );
+        assert!(!text.contains("WARNING"), "{text}");
+        let text = noise_text(&noise(0.05), 2, &rows);
+        assert!(text.contains("WARNING"), "{text}");
+        assert!(text.contains("its RMS standard error is 50%"), "{text}");
+        assert!(
+            text.contains("about 25% of that configuration's MSE"),
+            "{text}"
+        );
+        // No positive RMSE: nothing to compare with.
+        assert_eq!(noise_text(&noise(0.05), 2, &[]).lines().count(), 1);
     }
 
     #[test]
@@ -390,5 +460,60 @@ mod tests {
         let none = equal_time_text(&[], Some(&baseline));
         assert!(none.contains("No other series to compare."), "{none}");
         assert!(!none.contains('|'), "{none}");
+    }
+
+    #[test]
+    fn header_text_describes_the_scene_device_and_reference() {
+        let opts = StudyOptions {
+            vary: vec!["spp=1,4".into(), "max_bounces=1,2".into()],
+            reference_frames: 3,
+            ..grid_options("header")
+        };
+        let study = Study::new(&opts).unwrap();
+        let reference = |device: &str, cached: bool| Reference {
+            image: crate::output::ImageRgb::new(8, 6),
+            noise: ReferenceNoise {
+                rms_std_error: 0.0,
+                mean_rel_std_error: 0.0,
+            },
+            device: device.to_owned(),
+            cached,
+        };
+        let text = study.header_text("gpu", &reference("gpu", false));
+        assert!(text.starts_with("# Accuracy versus GPU time\n"), "{text}");
+        assert!(
+            text.contains(&format!("- scene: `{}`", opts.scene.display())),
+            "{text}"
+        );
+        assert!(text.contains("- device: gpu\n"), "{text}");
+        assert!(text.contains("- resolution: 8x6\n"), "{text}");
+        assert!(
+            text.contains("- varied: `spp=1,4`, `max_bounces=1,2`\n"),
+            "{text}"
+        );
+        assert!(text.contains("- reference: 3 frame(s) x 1 spp"), "{text}");
+        assert!(text.contains("rendered now and cached as `"), "{text}");
+        assert!(
+            text.contains("sum over frames (total), after 1 warm-up frame(s)"),
+            "{text}"
+        );
+        let text = study.header_text("gpu", &reference("other gpu", true));
+        assert!(text.contains("; cached `"), "{text}");
+        assert!(text.contains("` (rendered on other gpu)\n"), "{text}");
+        remove_scratch(&opts);
+
+        let opts = StudyOptions {
+            per_frame: true,
+            warmup: 0,
+            ..grid_options("header-per-frame")
+        };
+        let study = Study::new(&opts).unwrap();
+        let text = study.header_text("gpu", &reference("gpu", true));
+        assert!(!text.contains("- varied"), "{text}");
+        assert!(
+            text.contains("the time of one frame (total), after 1 warm-up frame(s)"),
+            "{text}"
+        );
+        remove_scratch(&opts);
     }
 }

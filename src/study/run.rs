@@ -232,3 +232,28 @@ fn warn_non_finite(result: &RenderResult, what: &str) {
         );
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::study::test_row;
+    use crate::study::vary::assignment;
+
+    #[test]
+    fn rows_become_series_sorted_by_time_with_their_knobs() {
+        let rows = [
+            test_row(&[("box_estimator", "rm"), ("spp", "4")], 4.0, 0.5),
+            test_row(&[("box_estimator", "reds"), ("spp", "4")], 5.0, 0.2),
+            test_row(&[("box_estimator", "rm"), ("spp", "1")], 1.0, 1.0),
+        ];
+        let all = series(&rows);
+        assert_eq!(all.len(), 2);
+        assert_eq!(all[0].key, assignment(&[("box_estimator", "rm")]));
+        assert_eq!(all[0].label, "box_estimator=rm");
+        let points: Vec<(f64, f64)> = all[0].points.iter().map(|p| (p.time_ms, p.rmse)).collect();
+        assert_eq!(points, [(1.0, 1.0), (4.0, 0.5)]);
+        assert_eq!(all[0].points[0].knobs, assignment(&[("spp", "1")]));
+        assert_eq!(all[1].label, "box_estimator=reds");
+        assert_eq!(all[1].points.len(), 1);
+    }
+}
