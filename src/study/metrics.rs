@@ -449,11 +449,12 @@ mod tests {
             data: vec![[v, v, v]],
         };
         let reference = pixel(1.0);
-        // The mean image (1.5) has RMSE 0.5; the mean of the frames' MSEs (1 and 0) is
-        // 0.5, so RMSE sqrt(0.5).
-        let m = mean_metrics(&[pixel(2.0), pixel(1.0)], &reference).unwrap();
-        assert!((m.rmse - 0.5f64.sqrt()).abs() < 1e-12, "{}", m.rmse);
-        assert!((m.rel_mse - 0.5 / (1.0 + REL_MSE_EPSILON)).abs() < 1e-12);
+        // Frames 3 and 0 have MSEs 4 and 1: RMSE sqrt(2.5). Not the error of the mean
+        // image (1.5, RMSE 0.5), nor the mean of the frames' RMSEs (1.5).
+        let m = mean_metrics(&[pixel(3.0), pixel(0.0)], &reference).unwrap();
+        assert!((m.rmse - 2.5f64.sqrt()).abs() < 1e-12, "{}", m.rmse);
+        assert!((m.rel_mse - 2.5 / (1.0 + REL_MSE_EPSILON)).abs() < 1e-12);
+        // Mean relative differences +2 and -1.
         assert!((m.mean_rel_diff - 0.5).abs() < 1e-12);
         let message = format!("{:#}", mean_metrics(&[], &reference).unwrap_err());
         assert!(message.contains("no frames"), "{message}");
