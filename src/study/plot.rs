@@ -229,7 +229,7 @@ fn draw(
         let color = PALETTE[i % PALETTE.len()];
         let shape = marker(i, 5);
         let xy: Vec<(f64, f64)> = s.points.iter().map(|p| (p.time_ms, p.rmse)).collect();
-        let front = super::pareto_front(&xy);
+        let front = super::metrics::pareto_front(&xy);
         let line: Vec<(f64, f64)> = front.iter().map(|&j| xy[j]).collect();
         let legend_shape = shape.clone();
         chart

@@ -1,0 +1,491 @@
+//! How a configuration is measured: error metrics against the reference ([`measure`],
+//! [`mean_metrics`]), the reference's own noise ([`ReferenceNoise`]), GPU time from the
+//! timestamp scopes, and the equal-time comparison of series (log–log interpolation,
+//! Pareto fronts, RMSE ratios, geometric means).
+
+use anyhow::{anyhow, ensure, Result};
+use nimbus_gpu::ScopeResult;
+
+use super::plot;
+use super::vary::Assignment;
+use crate::output::ImageRgb;
+/// ε in the relative MSE (a − r)² / (r² + ε), as in the golden-image tests.
+pub(super) const REL_MSE_EPSILON: f64 = 1e-2;
+/// y(x) on the polyline through `points` (x ascending, all coordinates > 0), linear in
+/// (log x, log y). `None` outside [x_first, x_last], for an empty polyline, or for a
+/// non-positive x. Where several points share x = x_query, the first one's y.
+fn interpolate_loglog(points: &[(f64, f64)], x: f64) -> Option<f64> {
+    let (first, last) = (points.first()?, points.last()?);
+    if x.is_nan() || x <= 0.0 || x < first.0 || x > last.0 {
+        return None;
+    }
+    if let Some(p) = points.iter().find(|p| p.0 == x) {
+        return Some(p.1);
+    }
+    let i = points.windows(2).position(|w| w[0].0 <= x && x <= w[1].0)?;
+    let (a, b) = (points[i], points[i + 1]);
+    // Interpolate log y linearly in log x; x_a < x < x_b here, so the span is positive.
+    let t = (x.ln() - a.0.ln()) / (b.0.ln() - a.0.ln());
+    Some((a.1.ln() + t * (b.1.ln() - a.1.ln())).exp())
+}
+
+/// The indices of the (time, RMSE) points that no other point beats in both: sorted
+/// by time, each one with a lower RMSE than every faster point (of equal times, the
+/// lower RMSE). This is the best a series buys for a given time, and the curve the
+/// equal-time comparison interpolates; with one knob varied it is usually every
+/// point.
+pub(super) fn pareto_front(points: &[(f64, f64)]) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..points.len())
+        .filter(|&i| points[i].0 > 0.0 && points[i].1 > 0.0)
+        .collect();
+    order.sort_by(|&a, &b| {
+        points[a]
+            .0
+            .total_cmp(&points[b].0)
+            .then(points[a].1.total_cmp(&points[b].1))
+    });
+    let mut front = Vec::new();
+    let mut best = f64::INFINITY;
+    for i in order {
+        if points[i].1 < best {
+            best = points[i].1;
+            front.push(i);
+        }
+    }
+    front
+}
+
+/// The RMSE ratio of `other` to `baseline` at equal GPU time: at every measured time of
+/// `baseline` that lies inside `other`'s time range, `other`'s RMSE interpolated there
+/// ([`interpolate_loglog`]) over the baseline's RMSE. Both are (time, RMSE) with time
+/// ascending. Returns (time, ratio) pairs.
+fn equal_time_ratios(baseline: &[(f64, f64)], other: &[(f64, f64)]) -> Vec<(f64, f64)> {
+    baseline
+        .iter()
+        .filter_map(|&(t, rmse)| {
+            let at = interpolate_loglog(other, t)?;
+            (rmse > 0.0).then(|| (t, at / rmse))
+        })
+        .collect()
+}
+
+/// exp(mean ln v), `None` for an empty slice or a non-positive value.
+fn geometric_mean(values: &[f64]) -> Option<f64> {
+    if values.is_empty() || values.iter().any(|v| v.is_nan() || *v <= 0.0) {
+        return None;
+    }
+    Some((values.iter().map(|v| v.ln()).sum::<f64>() / values.len() as f64).exp())
+}
+
+/// The median (mean of the middle two for an even count); `None` when empty.
+fn median(values: &[f64]) -> Option<f64> {
+    let mut v = values.to_vec();
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    match n {
+        0 => None,
+        _ if n % 2 == 1 => Some(v[n / 2]),
+        _ => Some(0.5 * (v[n / 2 - 1] + v[n / 2])),
+    }
+}
+
+/// How an image differs from the reference.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct ErrorMetrics {
+    pub(super) rmse: f64,
+    pub(super) rel_mse: f64,
+    pub(super) mean_rel_diff: f64,
+}
+
+/// The mean over `frames` of each frame's MSE, relative MSE and mean relative
+/// difference (RMSE = sqrt of the mean MSE).
+pub(super) fn mean_metrics(frames: &[ImageRgb], reference: &ImageRgb) -> Result<ErrorMetrics> {
+    ensure!(!frames.is_empty(), "no frames to measure");
+    let (mut mse, mut rel, mut diff) = (0.0, 0.0, 0.0);
+    for frame in frames {
+        let m = measure(frame, reference)?;
+        mse += m.rmse * m.rmse;
+        rel += m.rel_mse;
+        diff += m.mean_rel_diff;
+    }
+    let n = frames.len() as f64;
+    Ok(ErrorMetrics {
+        rmse: (mse / n).sqrt(),
+        rel_mse: rel / n,
+        mean_rel_diff: diff / n,
+    })
+}
+
+/// RMSE, relative MSE and mean relative difference of the means (see the
+/// [`study`](super) docs) of `image` against `reference`, which must have the same size.
+pub(super) fn measure(image: &ImageRgb, reference: &ImageRgb) -> Result<ErrorMetrics> {
+    ensure!(
+        (image.width, image.height) == (reference.width, reference.height),
+        "cannot compare a {}x{} image with a {}x{} reference",
+        image.width,
+        image.height,
+        reference.width,
+        reference.height
+    );
+    ensure!(!image.data.is_empty(), "cannot compare empty images");
+    let (mut sq, mut rel) = (0.0f64, 0.0f64);
+    for (a, r) in image.data.iter().zip(&reference.data) {
+        for c in 0..3 {
+            let (a, r) = (f64::from(a[c]), f64::from(r[c]));
+            sq += (a - r) * (a - r);
+            rel += (a - r) * (a - r) / (r * r + REL_MSE_EPSILON);
+        }
+    }
+    let n = (3 * image.data.len()) as f64;
+    let (mean_a, mean_r) = (image.mean(), reference.mean());
+    let diffs: Vec<f64> = (0..3)
+        .filter(|&c| mean_r[c] > 0.0)
+        .map(|c| (mean_a[c] - mean_r[c]) / mean_r[c])
+        .collect();
+    let mean_rel_diff = if diffs.is_empty() {
+        0.0
+    } else {
+        diffs.iter().sum::<f64>() / diffs.len() as f64
+    };
+    Ok(ErrorMetrics {
+        rmse: (sq / n).sqrt(),
+        rel_mse: rel / n,
+        mean_rel_diff,
+    })
+}
+
+/// The reference's own noise, from its per-pixel standard error σ.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct ReferenceNoise {
+    /// √(mean σ²) over pixels and channels: its share of every measured RMSE
+    /// (measured² ≈ true² + this²).
+    pub(super) rms_std_error: f64,
+    /// mean σ / √(r² + ε), ε = [`REL_MSE_EPSILON`].
+    pub(super) mean_rel_std_error: f64,
+}
+
+impl ReferenceNoise {
+    pub(super) fn of(image: &ImageRgb, std_error: &ImageRgb) -> Self {
+        let (mut sq, mut rel) = (0.0f64, 0.0f64);
+        for (r, s) in image.data.iter().zip(&std_error.data) {
+            for c in 0..3 {
+                let (r, s) = (f64::from(r[c]), f64::from(s[c]));
+                sq += s * s;
+                rel += s / (r * r + REL_MSE_EPSILON).sqrt();
+            }
+        }
+        let n = (3 * image.data.len()).max(1) as f64;
+        Self {
+            rms_std_error: (sq / n).sqrt(),
+            mean_rel_std_error: rel / n,
+        }
+    }
+}
+
+/// A series compared with its baseline at equal GPU time.
+pub(super) struct Comparison {
+    pub(super) series: String,
+    pub(super) baseline: String,
+    /// (time ms, baseline RMSE, series RMSE at that time, ratio).
+    pub(super) points: Vec<(f64, f64, f64, f64)>,
+    pub(super) geo_mean: Option<f64>,
+}
+
+/// Compares every series that does not have the baseline's value with the baseline
+/// series that shares all its other series keys, along both series' Pareto fronts
+/// ([`pareto_front`]).
+pub(super) fn equal_time(baseline: &(String, String), series: &[plot::Series]) -> Vec<Comparison> {
+    let (bkey, bvalue) = baseline;
+    let mut out = Vec::new();
+    for s in series {
+        if s.key.iter().any(|(k, v)| k == bkey && v == bvalue) {
+            continue;
+        }
+        let want: Assignment = s
+            .key
+            .iter()
+            .map(|(k, v)| {
+                if k == bkey {
+                    (k.clone(), bvalue.clone())
+                } else {
+                    (k.clone(), v.clone())
+                }
+            })
+            .collect();
+        let Some(base) = series.iter().find(|b| b.key == want) else {
+            continue;
+        };
+        let curve = |s: &plot::Series| -> Vec<(f64, f64)> {
+            let all: Vec<(f64, f64)> = s.points.iter().map(|p| (p.time_ms, p.rmse)).collect();
+            pareto_front(&all).into_iter().map(|i| all[i]).collect()
+        };
+        let (base_curve, curve) = (curve(base), curve(s));
+        let ratios = equal_time_ratios(&base_curve, &curve);
+        let points: Vec<(f64, f64, f64, f64)> = if ratios.is_empty() {
+            // The series' times fall between the baseline's (e.g. a series of one
+            // time): the baseline interpolated at the series' own times instead.
+            curve
+                .iter()
+                .filter_map(|&(t, rmse)| {
+                    let base_rmse = interpolate_loglog(&base_curve, t)?;
+                    (base_rmse > 0.0).then(|| (t, base_rmse, rmse, rmse / base_rmse))
+                })
+                .collect()
+        } else {
+            ratios
+                .iter()
+                .map(|&(t, ratio)| {
+                    let base_rmse = base_curve
+                        .iter()
+                        .find(|p| p.0 == t)
+                        .map_or(f64::NAN, |p| p.1);
+                    (t, base_rmse, base_rmse * ratio, ratio)
+                })
+                .collect()
+        };
+        let values: Vec<f64> = points.iter().map(|p| p.3).collect();
+        out.push(Comparison {
+            series: s.label.clone(),
+            baseline: base.label.clone(),
+            points,
+            geo_mean: geometric_mean(&values),
+        });
+    }
+    out
+}
+
+/// (median, sum) over frames of the root "frame" scope's GPU milliseconds.
+pub(super) fn frame_gpu_ms(frames: &[Vec<ScopeResult>]) -> Result<(f64, f64)> {
+    ensure!(
+        !frames.is_empty(),
+        "the device reported no timestamps; a study needs GPU times"
+    );
+    let ms: Vec<f64> = frames
+        .iter()
+        .map(|scopes| {
+            scopes
+                .iter()
+                .find(|s| s.label == "frame")
+                .map(|s| s.duration_ms())
+                .ok_or_else(|| anyhow!("a frame has no \"frame\" timestamp scope"))
+        })
+        .collect::<Result<_>>()?;
+    let median = median(&ms).unwrap_or(0.0);
+    Ok((median, ms.iter().sum()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::study::vary::{assignment, series_label};
+
+    #[test]
+    fn loglog_interpolation_is_exact_on_power_laws() {
+        // RMSE = 3 t^-1/2 is a straight line in log-log.
+        let f = |t: f64| 3.0 / t.sqrt();
+        let points: Vec<(f64, f64)> = [1.0, 4.0, 100.0].iter().map(|&t| (t, f(t))).collect();
+        for t in [1.0, 2.0, 3.5, 4.0, 20.0, 100.0] {
+            let y = interpolate_loglog(&points, t).unwrap();
+            assert!((y - f(t)).abs() < 1e-12 * f(t), "t {t}: {y} vs {}", f(t));
+        }
+        assert_eq!(interpolate_loglog(&points, 0.5), None);
+        assert_eq!(interpolate_loglog(&points, 101.0), None);
+        assert_eq!(interpolate_loglog(&points, 0.0), None);
+        assert_eq!(interpolate_loglog(&[], 1.0), None);
+        assert_eq!(interpolate_loglog(&[(2.0, 5.0)], 2.0), Some(5.0));
+        // Geometric midpoint in x gives the geometric mean in y.
+        let y = interpolate_loglog(&[(1.0, 1.0), (100.0, 4.0)], 10.0).unwrap();
+        assert!((y - 2.0).abs() < 1e-12);
+        // Equal times do not divide by zero.
+        assert_eq!(
+            interpolate_loglog(&[(1.0, 2.0), (1.0, 3.0), (2.0, 1.0)], 1.0),
+            Some(2.0)
+        );
+    }
+
+    #[test]
+    fn equal_time_ratio_uses_baseline_times_inside_the_other_range() {
+        // The baseline needs 4x the time for the same error as the other series:
+        // baseline RMSE = 1/sqrt(t), other = 1/sqrt(4t) = half at equal time.
+        let baseline: Vec<(f64, f64)> = [1.0, 4.0, 16.0, 64.0]
+            .iter()
+            .map(|&t: &f64| (t, 1.0 / t.sqrt()))
+            .collect();
+        let other: Vec<(f64, f64)> = [2.0, 8.0, 32.0]
+            .iter()
+            .map(|&t: &f64| (t, 0.5 / t.sqrt()))
+            .collect();
+        let ratios = equal_time_ratios(&baseline, &other);
+        let times: Vec<f64> = ratios.iter().map(|r| r.0).collect();
+        assert_eq!(times, [4.0, 16.0]);
+        for (_, r) in &ratios {
+            assert!((r - 0.5).abs() < 1e-12, "{r}");
+        }
+        let values: Vec<f64> = ratios.iter().map(|r| r.1).collect();
+        assert!((geometric_mean(&values).unwrap() - 0.5).abs() < 1e-12);
+        assert!((geometric_mean(&[2.0, 8.0]).unwrap() - 4.0).abs() < 1e-12);
+        assert_eq!(geometric_mean(&[]), None);
+        assert_eq!(geometric_mean(&[1.0, 0.0]), None);
+        assert!(equal_time_ratios(&baseline, &[(100.0, 1.0), (200.0, 0.5)]).is_empty());
+    }
+
+    #[test]
+    fn pareto_front_drops_dominated_points() {
+        let points = [
+            (4.0, 1.0),
+            (1.0, 3.0),
+            (2.0, 3.5),
+            (3.0, 2.0),
+            (3.0, 1.5),
+            (8.0, 1.2),
+        ];
+        assert_eq!(pareto_front(&points), [1, 4, 0]);
+        assert_eq!(pareto_front(&[]), Vec::<usize>::new());
+        assert_eq!(pareto_front(&[(1.0, 0.0), (2.0, 1.0)]), [1]);
+    }
+
+    #[test]
+    fn equal_time_pairs_each_series_with_its_baseline() {
+        let point = |t: f64, rmse: f64| plot::Point {
+            time_ms: t,
+            rmse,
+            knobs: Vec::new(),
+        };
+        let series = |key: &[(&str, &str)], scale: f64| plot::Series {
+            key: assignment(key),
+            label: series_label(&assignment(key)),
+            points: vec![point(1.0, scale), point(10.0, scale * 0.5)],
+        };
+        let all = [
+            series(&[("box_estimator", "rm"), ("max_bounces", "1")], 1.0),
+            series(&[("box_estimator", "reds"), ("max_bounces", "1")], 0.25),
+            series(&[("box_estimator", "rm"), ("max_bounces", "2")], 2.0),
+            series(&[("box_estimator", "reds"), ("max_bounces", "2")], 3.0),
+        ];
+        let c = equal_time(&("box_estimator".to_owned(), "rm".to_owned()), &all);
+        assert_eq!(c.len(), 2);
+        assert_eq!(c[0].baseline, "box_estimator=rm max_bounces=1");
+        assert!((c[0].geo_mean.unwrap() - 0.25).abs() < 1e-12);
+        assert_eq!(c[1].baseline, "box_estimator=rm max_bounces=2");
+        assert!((c[1].geo_mean.unwrap() - 1.5).abs() < 1e-12);
+        assert_eq!(c[1].points.len(), 2);
+    }
+
+    /// A series whose times fall between the baseline's (ReSTIR: one time per frame) is
+    /// compared with the baseline interpolated in log-log at the series' own time.
+    #[test]
+    fn equal_time_interpolates_the_baseline_inside_its_range() {
+        let point = |t: f64, rmse: f64| plot::Point {
+            time_ms: t,
+            rmse,
+            knobs: Vec::new(),
+        };
+        let base = plot::Series {
+            key: assignment(&[("volume", "baseline")]),
+            label: "volume=baseline".into(),
+            // RMSE ∝ t^(-1/2): 1 at 10 ms, 0.5 at 40 ms.
+            points: vec![point(10.0, 1.0), point(40.0, 0.5)],
+        };
+        let restir = plot::Series {
+            key: assignment(&[("volume", "restir")]),
+            label: "volume=restir".into(),
+            points: vec![point(20.0, 0.25)],
+        };
+        let c = equal_time(&("volume".into(), "baseline".into()), &[base, restir]);
+        assert_eq!(c.len(), 1);
+        let (t, b, r, ratio) = c[0].points[0];
+        assert_eq!((t, r), (20.0, 0.25));
+        assert!((b - 0.5f64.sqrt()).abs() < 1e-12, "{b}");
+        assert!((ratio - 0.25 / 0.5f64.sqrt()).abs() < 1e-12);
+    }
+
+    #[test]
+    fn metrics_of_known_images() {
+        let reference = ImageRgb {
+            width: 2,
+            height: 1,
+            data: vec![[1.0, 2.0, 0.0], [3.0, 2.0, 0.0]],
+        };
+        let image = ImageRgb {
+            width: 2,
+            height: 1,
+            data: vec![[2.0, 2.0, 0.0], [3.0, 4.0, 0.0]],
+        };
+        let m = measure(&image, &reference).unwrap();
+        assert!((m.rmse - (5.0f64 / 6.0).sqrt()).abs() < 1e-12);
+        let rel = (1.0 / (1.0 + REL_MSE_EPSILON) + 4.0 / (4.0 + REL_MSE_EPSILON)) / 6.0;
+        assert!((m.rel_mse - rel).abs() < 1e-12);
+        // Means: red 2.5 vs 2 (+25%), green 3 vs 2 (+50%), blue 0 vs 0 (skipped).
+        assert!((m.mean_rel_diff - 0.375).abs() < 1e-12);
+        assert!(measure(&ImageRgb::new(1, 2), &reference).is_err());
+        assert_eq!(measure(&reference, &reference).unwrap().rmse, 0.0);
+    }
+
+    #[test]
+    fn reference_noise_and_medians() {
+        let image = ImageRgb {
+            width: 1,
+            height: 1,
+            data: vec![[0.0, 0.0, 0.0]],
+        };
+        let se = ImageRgb {
+            width: 1,
+            height: 1,
+            data: vec![[0.1, 0.1, 0.1]],
+        };
+        let n = ReferenceNoise::of(&image, &se);
+        assert!((n.rms_std_error - 0.1).abs() < 1e-7);
+        assert!((n.mean_rel_std_error - 1.0).abs() < 1e-6);
+        assert_eq!(median(&[3.0, 1.0, 2.0]), Some(2.0));
+        assert_eq!(median(&[4.0, 1.0, 2.0, 3.0]), Some(2.5));
+        assert_eq!(median(&[]), None);
+    }
+
+    #[test]
+    fn mean_metrics_averages_each_frames_error() {
+        let pixel = |v: f32| ImageRgb {
+            width: 1,
+            height: 1,
+            data: vec![[v, v, v]],
+        };
+        let reference = pixel(1.0);
+        // Frames 3 and 0 have MSEs 4 and 1: RMSE sqrt(2.5). Not the error of the mean
+        // image (1.5, RMSE 0.5), nor the mean of the frames' RMSEs (1.5).
+        let m = mean_metrics(&[pixel(3.0), pixel(0.0)], &reference).unwrap();
+        assert!((m.rmse - 2.5f64.sqrt()).abs() < 1e-12, "{}", m.rmse);
+        assert!((m.rel_mse - 2.5 / (1.0 + REL_MSE_EPSILON)).abs() < 1e-12);
+        // Mean relative differences +2 and -1.
+        assert!((m.mean_rel_diff - 0.5).abs() < 1e-12);
+        let message = format!("{:#}", mean_metrics(&[], &reference).unwrap_err());
+        assert!(message.contains("no frames"), "{message}");
+        assert!(mean_metrics(&[ImageRgb::new(2, 1)], &reference).is_err());
+    }
+
+    #[test]
+    fn frame_gpu_ms_is_the_median_and_sum_of_the_frame_scope() {
+        let scope = |label: &str, ms: f64| ScopeResult {
+            label: label.to_owned(),
+            begin_ns: 1e6,
+            end_ns: 1e6 + ms * 1e6,
+            children: Vec::new(),
+        };
+        let frames = vec![
+            vec![scope("upload", 9.0), scope("frame", 1.0)],
+            vec![scope("frame", 3.0)],
+            vec![scope("frame", 2.0)],
+        ];
+        let (median, total) = frame_gpu_ms(&frames).unwrap();
+        assert!((median - 2.0).abs() < 1e-9, "{median}");
+        assert!((total - 6.0).abs() < 1e-9, "{total}");
+        let message = format!("{:#}", frame_gpu_ms(&[]).unwrap_err());
+        assert!(message.contains("no timestamps"), "{message}");
+        let message = format!(
+            "{:#}",
+            frame_gpu_ms(&[vec![scope("frame", 1.0)], vec![scope("upload", 1.0)]]).unwrap_err()
+        );
+        assert!(
+            message.contains("no \"frame\" timestamp scope"),
+            "{message}"
+        );
+    }
+}

@@ -1,0 +1,519 @@
+//! What a study writes: the results table as CSV and Markdown, numbers to a few
+//! significant digits ([`sig`]), and the texts of study.md (header, the reference's
+//! noise, the equal-time comparison).
+
+use std::fmt::Write as _;
+
+use super::cache::Reference;
+use super::metrics::{Comparison, ReferenceNoise, REL_MSE_EPSILON};
+use super::vary::{Vary, KNOB_KEYS};
+use super::{Row, Study};
+
+/// One field of a CSV row (RFC 4180): quoted when it holds a comma, quote or line
+/// break, with quotes doubled.
+fn csv_field(text: &str) -> String {
+    if text.contains([',', '"', '\n', '\r']) {
+        format!("\"{}\"", text.replace('"', "\"\""))
+    } else {
+        text.to_owned()
+    }
+}
+
+/// A CSV document: the header, then one line per row.
+pub(super) fn csv(header: &[String], rows: &[Vec<String>]) -> String {
+    let line = |fields: &[String]| {
+        let f: Vec<String> = fields.iter().map(|f| csv_field(f)).collect();
+        f.join(",") + "\n"
+    };
+    let mut out = line(header);
+    for row in rows {
+        out += &line(row);
+    }
+    out
+}
+
+/// A Markdown table with padded columns (readable as plain text too); numeric-looking
+/// columns are right-aligned.
+pub(super) fn markdown_table(header: &[String], rows: &[Vec<String>]) -> String {
+    let widths: Vec<usize> = (0..header.len())
+        .map(|i| {
+            rows.iter()
+                .map(|r| r[i].chars().count())
+                .chain([header[i].chars().count(), 3])
+                .max()
+                .unwrap_or(3)
+        })
+        .collect();
+    let numeric: Vec<bool> = (0..header.len())
+        .map(|i| !rows.is_empty() && rows.iter().all(|r| r[i].parse::<f64>().is_ok()))
+        .collect();
+    let cell = |text: &str, i: usize| {
+        if numeric[i] {
+            format!("{text:>w$}", w = widths[i])
+        } else {
+            format!("{text:<w$}", w = widths[i])
+        }
+    };
+    let mut out = String::new();
+    let row_line = |cells: Vec<String>| format!("| {} |\n", cells.join(" | "));
+    out += &row_line(header.iter().enumerate().map(|(i, h)| cell(h, i)).collect());
+    out += &row_line(
+        widths
+            .iter()
+            .zip(&numeric)
+            .map(|(&w, &num)| {
+                if num {
+                    format!("{}:", "-".repeat(w - 1))
+                } else {
+                    "-".repeat(w)
+                }
+            })
+            .collect(),
+    );
+    for r in rows {
+        out += &row_line(r.iter().enumerate().map(|(i, c)| cell(c, i)).collect());
+    }
+    out
+}
+
+/// `x` with `digits` significant digits, without exponent for moderate magnitudes.
+pub(super) fn sig(x: f64, digits: usize) -> String {
+    if x == 0.0 || !x.is_finite() {
+        return format!("{x}");
+    }
+    let magnitude = x.abs().log10().floor() as i32;
+    if !(-4..6).contains(&magnitude) {
+        return format!("{x:.p$e}", p = digits.saturating_sub(1));
+    }
+    let decimals = (digits as i32 - 1 - magnitude).max(0) as usize;
+    format!("{x:.decimals$}")
+}
+
+/// The results table: varied keys, frames/spp/box_samples, then the measurements.
+/// `full` gives every digit (for the CSV); otherwise 4 significant digits.
+pub(super) fn table(varies: &[Vary], rows: &[Row], full: bool) -> (Vec<String>, Vec<Vec<String>>) {
+    let varied: Vec<&str> = varies
+        .iter()
+        .map(|v| v.key.as_str())
+        .filter(|k| !KNOB_KEYS.contains(k))
+        .collect();
+    let mut header: Vec<String> = varied.iter().map(|k| (*k).to_owned()).collect();
+    header.extend(
+        [
+            "frames",
+            "spp",
+            "box_samples",
+            "gpu_ms_per_frame",
+            "gpu_ms_total",
+            "rmse",
+            "rel_mse",
+            "mean_rel_diff",
+        ]
+        .map(str::to_owned),
+    );
+    let num = |x: f64| if full { format!("{x}") } else { sig(x, 4) };
+    let cells = rows
+        .iter()
+        .map(|row| {
+            let mut cells: Vec<String> = varied
+                .iter()
+                .map(|k| {
+                    row.assignment
+                        .iter()
+                        .find(|(key, _)| key == k)
+                        .map(|(_, v)| v.clone())
+                        .unwrap_or_default()
+                })
+                .collect();
+            cells.extend([
+                row.frames.to_string(),
+                row.spp.to_string(),
+                row.box_samples.to_string(),
+                num(row.gpu_ms_per_frame),
+                num(row.gpu_ms_total),
+                num(row.metrics.rmse),
+                num(row.metrics.rel_mse),
+                num(row.metrics.mean_rel_diff),
+            ]);
+            cells
+        })
+        .collect();
+    (header, cells)
+}
+
+impl Study {
+    /// The first lines of study.md: scene, device, resolution, reference.
+    pub(super) fn header_text(&self, device: &str, reference: &Reference) -> String {
+        let job = &self.reference;
+        let r = &job.scene.render;
+        let mut out = String::new();
+        let _ = writeln!(out, "# Accuracy versus GPU time\n");
+        let _ = writeln!(out, "- scene: `{}`", self.scene_path.display());
+        let _ = writeln!(out, "- device: {device}");
+        let _ = writeln!(out, "- resolution: {}x{}", self.width, self.height);
+        let varied: Vec<String> = self
+            .varies
+            .iter()
+            .map(|v| format!("`{}={}`", v.key, v.values.join(",")))
+            .collect();
+        if !varied.is_empty() {
+            let _ = writeln!(out, "- varied: {}", varied.join(", "));
+        }
+        let _ = writeln!(
+            out,
+            "- reference: {} frame(s) x {} spp, box_estimator = {}, box_samples = {}, seed {}; {} `{}`{}",
+            r.frames,
+            r.spp,
+            job.scene.integrator.box_estimator.name(),
+            job.scene.integrator.box_samples,
+            r.seed,
+            if reference.cached { "cached" } else { "rendered now and cached as" },
+            job.exr.display(),
+            if reference.device == device {
+                String::new()
+            } else {
+                format!(" (rendered on {})", reference.device)
+            }
+        );
+        let warmup = self.warmup.max(1);
+        let (total, errors) = if self.per_frame {
+            (
+                "the time of one frame (total)",
+                "each measured frame's own error against the reference, averaged over the \
+                 frames (RMSE = sqrt of the mean MSE)",
+            )
+        } else {
+            (
+                "sum over frames (total)",
+                "the error of the mean over the frames against the reference",
+            )
+        };
+        let _ = writeln!(
+            out,
+            "- GPU time: the \"frame\" timestamp scope, median over frames (per frame) and \
+             {total}, after {warmup} warm-up frame(s); errors: {errors}, over all pixels and \
+             channels; rel_mse = mean (a−r)²/(r²+{REL_MSE_EPSILON}); mean_rel_diff = mean \
+             over channels of (mean a − mean r)/mean r"
+        );
+        out
+    }
+}
+
+/// The reference's own noise, and a warning when it is not small against the
+/// errors measured.
+pub(super) fn noise_text(noise: &ReferenceNoise, frames: u32, rows: &[Row]) -> String {
+    let mut out = String::new();
+    if frames < 2 {
+        let _ = writeln!(
+            out,
+            "Reference noise: unknown (the reference has {frames} frame; its standard \
+             error needs at least 2)."
+        );
+        return out;
+    }
+    let _ = writeln!(
+        out,
+        "Reference noise: mean relative standard error {}, RMS standard error {}.",
+        sig(noise.mean_rel_std_error, 3),
+        sig(noise.rms_std_error, 3)
+    );
+    let min_rmse = rows
+        .iter()
+        .map(|r| r.metrics.rmse)
+        .fold(f64::INFINITY, f64::min);
+    if min_rmse.is_finite() && min_rmse > 0.0 {
+        let q = noise.rms_std_error / min_rmse;
+        if q > 0.1 {
+            let _ = writeln!(
+                out,
+                "WARNING: the reference is not converged enough for this study: its RMS \
+                 standard error is {:.0}% of the smallest RMSE measured ({}), so it \
+                 accounts for about {:.0}% of that configuration's MSE. Raise \
+                 --reference-frames (the standard error falls as 1/sqrt(frames)).",
+                q * 100.0,
+                sig(min_rmse, 3),
+                (q * q).min(1.0) * 100.0
+            );
+        } else {
+            let _ = writeln!(
+                out,
+                "It is {:.1}% of the smallest RMSE measured ({}): small enough.",
+                q * 100.0,
+                sig(min_rmse, 3)
+            );
+        }
+    }
+    out
+}
+
+pub(super) fn equal_time_text(
+    comparisons: &[Comparison],
+    baseline: Option<&(String, String)>,
+) -> String {
+    let mut out = String::new();
+    let name = baseline.map_or(String::new(), |(k, v)| format!("{k}={v}"));
+    let _ = writeln!(out, "## Equal-time RMSE ratio against {name}\n");
+    let _ = writeln!(
+        out,
+        "RMSE of the series over RMSE of the baseline at the baseline's measured GPU times \
+         (series interpolated linearly in log RMSE over log time; when the series' times \
+         all fall between the baseline's, the baseline interpolated at the series' times); \
+         below 1 means more accurate for the same GPU time, and the MSE ratio is its \
+         square.\n"
+    );
+    if comparisons.is_empty() {
+        let _ = writeln!(out, "No other series to compare.");
+        return out;
+    }
+    let header: Vec<String> = [
+        "series",
+        "baseline",
+        "gpu_ms_total",
+        "baseline_rmse",
+        "series_rmse",
+        "ratio",
+    ]
+    .map(str::to_owned)
+    .to_vec();
+    let mut rows = Vec::new();
+    let mut summary = Vec::new();
+    for c in comparisons {
+        for &(t, b, s, ratio) in &c.points {
+            rows.push(vec![
+                c.series.clone(),
+                c.baseline.clone(),
+                sig(t, 4),
+                sig(b, 4),
+                sig(s, 4),
+                sig(ratio, 3),
+            ]);
+        }
+        summary.push(match c.geo_mean {
+            Some(g) => format!(
+                "- {} vs {}: geometric mean RMSE ratio {} over {} time(s)",
+                c.series,
+                c.baseline,
+                sig(g, 3),
+                c.points.len()
+            ),
+            None => format!(
+                "- {} vs {}: no common GPU time range (the series' times do not overlap the baseline's)",
+                c.series, c.baseline
+            ),
+        });
+    }
+    if !rows.is_empty() {
+        out += &markdown_table(&header, &rows);
+        out += "\n";
+    }
+    for line in summary {
+        let _ = writeln!(out, "{line}");
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::study::vary::parse_vary;
+    use crate::study::{grid_options, remove_scratch, test_row, StudyOptions};
+
+    #[test]
+    fn csv_quotes_only_when_needed() {
+        assert_eq!(csv_field("rm"), "rm");
+        assert_eq!(csv_field("a,b"), "\"a,b\"");
+        assert_eq!(csv_field("say \"hi\""), "\"say \"\"hi\"\"\"");
+        let header = vec!["spp".to_owned(), "rmse".to_owned()];
+        let rows = vec![
+            vec!["1".to_owned(), format!("{}", 0.125)],
+            vec!["4".to_owned(), format!("{}", 1e-7)],
+        ];
+        assert_eq!(csv(&header, &rows), "spp,rmse\n1,0.125\n4,0.0000001\n");
+    }
+
+    #[test]
+    fn markdown_table_aligns_columns() {
+        let header = vec!["box_estimator".to_owned(), "rmse".to_owned()];
+        let rows = vec![vec!["rm".to_owned(), "0.5".to_owned()]];
+        assert_eq!(
+            markdown_table(&header, &rows),
+            "| box_estimator | rmse |\n| ------------- | ---: |\n| rm            |  0.5 |\n"
+        );
+    }
+
+    #[test]
+    fn sig_keeps_significant_digits() {
+        assert_eq!(sig(1234.567, 4), "1235");
+        assert_eq!(sig(0.012345, 3), "0.0123");
+        assert_eq!(sig(2.0, 3), "2.00");
+        assert_eq!(sig(1.5e-7, 3), "1.50e-7");
+        assert_eq!(sig(0.0, 3), "0");
+    }
+
+    #[test]
+    fn the_table_has_a_column_per_varied_series_key() {
+        let varies = [
+            parse_vary("box_estimator=rm,reds").unwrap(),
+            parse_vary("spp=1,4").unwrap(),
+        ];
+        let rows = [
+            test_row(&[("box_estimator", "rm"), ("spp", "1")], 1.0 / 3.0, 0.5),
+            test_row(&[("box_estimator", "reds"), ("spp", "4")], 12.0, 1e-7),
+        ];
+        let (header, cells) = table(&varies, &rows, false);
+        assert_eq!(
+            header,
+            [
+                "box_estimator",
+                "frames",
+                "spp",
+                "box_samples",
+                "gpu_ms_per_frame",
+                "gpu_ms_total",
+                "rmse",
+                "rel_mse",
+                "mean_rel_diff"
+            ]
+        );
+        assert_eq!(
+            cells[0],
+            ["rm", "2", "1", "8", "0.1667", "0.3333", "0.5000", "0.5000", "0.5000"]
+        );
+        assert_eq!(cells[1][..6], ["reds", "2", "1", "8", "6.000", "12.00"]);
+        assert_eq!(cells[1][6], "1.000e-7");
+        let (full_header, full) = table(&varies, &rows, true);
+        assert_eq!(full_header, header);
+        assert_eq!(full[0][5], format!("{}", 1.0 / 3.0));
+        assert_eq!(full[1][6], "0.0000001");
+    }
+
+    #[test]
+    fn noise_text_warns_when_the_reference_is_noisy() {
+        let noise = |rms: f64| ReferenceNoise {
+            rms_std_error: rms,
+            mean_rel_std_error: 0.01,
+        };
+        let rows = [test_row(&[], 1.0, 0.2), test_row(&[], 2.0, 0.1)];
+        let text = noise_text(&noise(0.001), 1, &rows);
+        assert!(text.starts_with("Reference noise: unknown"), "{text}");
+        assert!(text.contains("has 1 frame"), "{text}");
+        let text = noise_text(&noise(0.001), 2, &rows);
+        assert!(
+            text.contains("mean relative standard error 0.0100, RMS standard error 0.00100."),
+            "{text}"
+        );
+        assert!(
+            text.contains("It is 1.0% of the smallest RMSE measured (0.100)"),
+            "{text}"
+        );
+        assert!(!text.contains("WARNING"), "{text}");
+        let text = noise_text(&noise(0.05), 2, &rows);
+        assert!(text.contains("WARNING"), "{text}");
+        assert!(text.contains("its RMS standard error is 50%"), "{text}");
+        assert!(
+            text.contains("about 25% of that configuration's MSE"),
+            "{text}"
+        );
+        // No positive RMSE: nothing to compare with.
+        assert_eq!(noise_text(&noise(0.05), 2, &[]).lines().count(), 1);
+    }
+
+    #[test]
+    fn equal_time_text_tabulates_and_summarises_each_comparison() {
+        let baseline = ("box_estimator".to_owned(), "rm".to_owned());
+        let comparisons = [
+            Comparison {
+                series: "box_estimator=reds".into(),
+                baseline: "box_estimator=rm".into(),
+                points: vec![(1.0, 1.0, 0.25, 0.25), (10.0, 0.5, 0.125, 0.25)],
+                geo_mean: Some(0.25),
+            },
+            Comparison {
+                series: "box_estimator=mcds".into(),
+                baseline: "box_estimator=rm".into(),
+                points: Vec::new(),
+                geo_mean: None,
+            },
+        ];
+        let text = equal_time_text(&comparisons, Some(&baseline));
+        assert!(
+            text.starts_with("## Equal-time RMSE ratio against box_estimator=rm\n"),
+            "{text}"
+        );
+        assert!(text.contains("| series "), "{text}");
+        assert!(
+            text.contains(
+                "box_estimator=reds vs box_estimator=rm: geometric mean RMSE ratio 0.250 \
+                 over 2 time(s)"
+            ),
+            "{text}"
+        );
+        assert!(
+            text.contains("box_estimator=mcds vs box_estimator=rm: no common GPU time range"),
+            "{text}"
+        );
+        let table_rows = text
+            .lines()
+            .filter(|l| l.starts_with("| box_estimator="))
+            .count();
+        assert_eq!(table_rows, 2, "{text}");
+        let none = equal_time_text(&[], Some(&baseline));
+        assert!(none.contains("No other series to compare."), "{none}");
+        assert!(!none.contains('|'), "{none}");
+    }
+
+    #[test]
+    fn header_text_describes_the_scene_device_and_reference() {
+        let opts = StudyOptions {
+            vary: vec!["spp=1,4".into(), "max_bounces=1,2".into()],
+            reference_frames: 3,
+            ..grid_options("header")
+        };
+        let study = Study::new(&opts).unwrap();
+        let reference = |device: &str, cached: bool| Reference {
+            image: crate::output::ImageRgb::new(8, 6),
+            noise: ReferenceNoise {
+                rms_std_error: 0.0,
+                mean_rel_std_error: 0.0,
+            },
+            device: device.to_owned(),
+            cached,
+        };
+        let text = study.header_text("gpu", &reference("gpu", false));
+        assert!(text.starts_with("# Accuracy versus GPU time\n"), "{text}");
+        assert!(
+            text.contains(&format!("- scene: `{}`", opts.scene.display())),
+            "{text}"
+        );
+        assert!(text.contains("- device: gpu\n"), "{text}");
+        assert!(text.contains("- resolution: 8x6\n"), "{text}");
+        assert!(
+            text.contains("- varied: `spp=1,4`, `max_bounces=1,2`\n"),
+            "{text}"
+        );
+        assert!(text.contains("- reference: 3 frame(s) x 1 spp"), "{text}");
+        assert!(text.contains("rendered now and cached as `"), "{text}");
+        assert!(
+            text.contains("sum over frames (total), after 1 warm-up frame(s)"),
+            "{text}"
+        );
+        let text = study.header_text("gpu", &reference("other gpu", true));
+        assert!(text.contains("; cached `"), "{text}");
+        assert!(text.contains("` (rendered on other gpu)\n"), "{text}");
+        remove_scratch(&opts);
+
+        let opts = StudyOptions {
+            per_frame: true,
+            warmup: 0,
+            ..grid_options("header-per-frame")
+        };
+        let study = Study::new(&opts).unwrap();
+        let text = study.header_text("gpu", &reference("gpu", true));
+        assert!(!text.contains("- varied"), "{text}");
+        assert!(
+            text.contains("the time of one frame (total), after 1 warm-up frame(s)"),
+            "{text}"
+        );
+        remove_scratch(&opts);
+    }
+}
