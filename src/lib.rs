@@ -19,7 +19,7 @@ pub mod study;
 use std::path::{Path, PathBuf};
 
 use anyhow::Result;
-use nimbus_scene::Scene;
+use nimbus_scene::{FieldOverride, Scene};
 
 /// SPIR-V of every shader, compiled by `build.rs`.
 pub mod shaders {
@@ -29,13 +29,15 @@ pub mod shaders {
 /// The default scene (`assets/scenes/window.toml`), embedded in the binary.
 pub const DEFAULT_SCENE: &str = include_str!("../assets/scenes/window.toml");
 
-/// Load `path`, or the embedded default scene when there is none.
-pub fn load_scene(path: Option<&Path>) -> Result<Scene> {
+/// Load `path`, or the embedded default scene when there is none, with `overrides`
+/// applied to its fields before validation.
+pub fn load_scene(path: Option<&Path>, overrides: &[FieldOverride]) -> Result<Scene> {
     match path {
-        Some(path) => nimbus_scene::load(path),
-        None => nimbus_scene::parse_str(
+        Some(path) => nimbus_scene::load_with(path, overrides),
+        None => nimbus_scene::parse_str_with(
             DEFAULT_SCENE,
             &PathBuf::from("assets/scenes/window.toml (embedded default)"),
+            overrides,
         ),
     }
 }

@@ -1,12 +1,13 @@
 //! `nimbus`: the command-line renderer and GPU profiler.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{bail, Context as _, Result};
 use clap::{Args, Parser, Subcommand};
 use nimbus::{load_scene, output, plan, profile, renderer, study};
 use nimbus_gpu::{enumerate_devices, Context, ContextDesc};
+use nimbus_scene::FieldOverride;
 
 #[derive(Parser)]
 #[command(
@@ -32,21 +33,56 @@ enum Command {
     Study(StudyArgs),
 }
 
-/// Overrides of the scene's `[render]` table and renderer knobs.
+/// Overrides of scene fields. Each is applied to the scene's tables before validation,
+/// so it is checked exactly like the same value written in the file.
 #[derive(Args, Clone, Debug, Default)]
 struct Overrides {
-    /// Samples per pixel per frame.
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    /// Samples per pixel per frame ([render] spp).
+    #[arg(long)]
     spp: Option<u32>,
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16384))]
+    /// Image width in pixels ([render] width).
+    #[arg(long)]
     width: Option<u32>,
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16384))]
+    /// Image height in pixels ([render] height).
+    #[arg(long)]
     height: Option<u32>,
+    /// Random seed ([render] seed): same seed, scene and device, same image.
     #[arg(long)]
     seed: Option<u64>,
-    /// Samples along each camera ray for the box estimators (N_sample of the paper).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    /// Samples along each camera ray for the box estimators, N_sample of the paper
+    /// ([integrator] box_samples).
+    #[arg(long)]
     box_samples: Option<u32>,
+    /// Set any scene field: TABLE.FIELD=VALUE (repeatable), e.g. render.width=640,
+    /// light.2.irradiance=[1,2,3], integrator.volume=baseline. [[arrays]] are indexed
+    /// from 1.
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    set: Vec<String>,
+}
+
+impl Overrides {
+    /// The field overrides, flags first, then every --set in order (a later one wins).
+    fn fields(&self, frames: Option<u32>) -> Result<Vec<FieldOverride>> {
+        let mut out = Vec::new();
+        let mut int = |key: &str, value: Option<u64>| -> Result<()> {
+            if let Some(v) = value {
+                let v = i64::try_from(v)
+                    .map_err(|_| anyhow::anyhow!("{key} = {v} does not fit a TOML integer"))?;
+                out.push(FieldOverride::new(key, v));
+            }
+            Ok(())
+        };
+        int("render.spp", self.spp.map(u64::from))?;
+        int("render.width", self.width.map(u64::from))?;
+        int("render.height", self.height.map(u64::from))?;
+        int("render.seed", self.seed)?;
+        int("render.frames", frames.map(u64::from))?;
+        int("integrator.box_samples", self.box_samples.map(u64::from))?;
+        for text in &self.set {
+            out.push(FieldOverride::parse(text)?);
+        }
+        Ok(out)
+    }
 }
 
 #[derive(Args)]
@@ -59,11 +95,11 @@ struct RenderArgs {
     /// Print the render plan (passes and shader features, and why) and exit.
     #[arg(long)]
     explain: bool,
-    /// Frames to render (the output is their mean).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
+    /// Frames to render, the output is their mean ([render] frames).
+    #[arg(long)]
     frames: Option<u32>,
-    /// Exposure multiplier applied before tonemapping a .png.
-    #[arg(long, default_value_t = 1.0)]
+    /// Exposure multiplier applied before tonemapping a .png (finite, > 0).
+    #[arg(long, default_value_t = 1.0, value_parser = parse_exposure)]
     exposure: f32,
     /// Also write every frame's own image into this directory (frame_0000.exr, ...;
     /// .png with --sequence-format png).
@@ -193,19 +229,22 @@ fn study_cmd(args: StudyArgs) -> Result<()> {
     report_validation(&ctx)
 }
 
-fn apply(scene: &mut nimbus_scene::Scene, o: &Overrides) {
-    let r = &mut scene.render;
-    r.spp = o.spp.unwrap_or(r.spp);
-    r.width = o.width.unwrap_or(r.width);
-    r.height = o.height.unwrap_or(r.height);
-    r.seed = o.seed.unwrap_or(r.seed);
+/// `--exposure`: a finite multiplier > 0 (0, negative, NaN or infinite exposure would
+/// write an all-black or all-white image).
+fn parse_exposure(text: &str) -> std::result::Result<f32, String> {
+    match text.trim().parse::<f32>() {
+        Ok(x) if x.is_finite() && x > 0.0 => Ok(x),
+        Ok(x) => Err(format!("{x} is not a finite number > 0")),
+        Err(e) => Err(format!("{text:?} is not a number: {e}")),
+    }
 }
 
 fn render(args: RenderArgs) -> Result<()> {
-    let mut scene = load_scene(args.scene.as_deref())?;
-    apply(&mut scene, &args.overrides);
-    scene.render.frames = args.frames.unwrap_or(scene.render.frames);
-    let plan = plan::build(&scene, args.overrides.box_samples)?;
+    let scene = load_scene(
+        args.scene.as_deref(),
+        &args.overrides.fields(args.frames)?,
+    )?;
+    let plan = plan::build(&scene, None)?;
     if args.explain {
         print!("{}", plan.explain(&scene));
         return Ok(());
@@ -213,7 +252,7 @@ fn render(args: RenderArgs) -> Result<()> {
     let Some(out) = args.out else {
         bail!("--out FILE is required to render (or pass --explain to print the plan)");
     };
-    check_output_path(&out)?;
+    output::check_writable(&out).context("--out")?;
     if let Some(dir) = &args.sequence {
         std::fs::create_dir_all(dir).with_context(|| {
             format!("--sequence {}: cannot create the directory", dir.display())
@@ -261,10 +300,11 @@ fn render(args: RenderArgs) -> Result<()> {
 }
 
 fn profile_cmd(args: ProfileArgs) -> Result<()> {
-    let mut scene = load_scene(args.scene.as_deref())?;
-    apply(&mut scene, &args.overrides);
-    scene.render.frames = args.frames;
-    let plan = plan::build(&scene, args.overrides.box_samples)?;
+    let scene = load_scene(
+        args.scene.as_deref(),
+        &args.overrides.fields(Some(args.frames))?,
+    )?;
+    let plan = plan::build(&scene, None)?;
     let ctx = Context::new(&ContextDesc::from_env())?;
     let result = renderer::render(
         &ctx,
@@ -322,20 +362,6 @@ fn devices() -> Result<()> {
     }
     println!("(* = picked by default; NIMBUS_DEVICE=<substring of a name> picks another)");
     Ok(())
-}
-
-fn check_output_path(out: &Path) -> Result<()> {
-    let ext = out
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase);
-    match ext.as_deref() {
-        Some("exr" | "png") => Ok(()),
-        _ => bail!(
-            "--out {}: unsupported image type; use .exr (linear radiance) or .png (tonemapped)",
-            out.display()
-        ),
-    }
 }
 
 /// Validation errors seen during a run fail it (they are on with NIMBUS_VALIDATION=1).

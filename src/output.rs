@@ -10,7 +10,7 @@
 //! Writers refuse images holding NaN or infinity: a non-finite pixel is a renderer bug,
 //! and a file is no place to hide it.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use anyhow::{bail, ensure, Context};
 
@@ -136,10 +136,82 @@ pub fn write_image(path: &Path, img: &ImageRgb, exposure: f32) -> anyhow::Result
             path.display()
         );
     }
-    match extension.as_str() {
-        "exr" => write_exr(path, img),
-        _ => write_png(path, img, exposure),
+    write_atomically(path, |tmp| match extension.as_str() {
+        "exr" => write_exr(tmp, img),
+        _ => write_png(tmp, img, exposure),
+    })
+}
+
+/// The temporary file beside `path` that [`write_atomically`] writes first: hidden,
+/// in the same directory (so the rename stays on one file system), unique per process,
+/// with the target's extension (the encoders pick formats by it).
+fn temporary_path(path: &Path) -> PathBuf {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let ext = path
+        .extension()
+        .map(|e| format!(".{}", e.to_string_lossy()))
+        .unwrap_or_default();
+    path.with_file_name(format!(".{name}.{}.tmp{ext}", std::process::id()))
+}
+
+/// Writes through `write` into a temporary file beside `path`, flushes it to disk and
+/// renames it over `path`: a reader sees the old file or the complete new one, never a
+/// partial file, and a failed write (full disk, interrupt) leaves the old file intact.
+pub fn write_atomically(
+    path: &Path,
+    write: impl FnOnce(&Path) -> anyhow::Result<()>,
+) -> anyhow::Result<()> {
+    let tmp = temporary_path(path);
+    let result = write(&tmp).and_then(|()| {
+        std::fs::File::open(&tmp)
+            .and_then(|f| f.sync_all())
+            .with_context(|| format!("flush {}", tmp.display()))?;
+        std::fs::rename(&tmp, path)
+            .with_context(|| format!("rename {} to {}", tmp.display(), path.display()))
+    });
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
     }
+    result
+}
+
+/// Checks, before any rendering, that an image can be written at `path`: a known
+/// extension, an existing directory, and permission to create a file in it (tried by
+/// creating and removing the temporary file [`write_atomically`] would use).
+pub fn check_writable(path: &Path) -> anyhow::Result<()> {
+    let extension = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        .unwrap_or_default();
+    ensure!(
+        SUPPORTED_EXTENSIONS.contains(&extension.as_str()),
+        "{}: unsupported image type; use .exr (linear radiance) or .png (tonemapped)",
+        path.display()
+    );
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    ensure!(
+        dir.is_dir(),
+        "{}: the directory {} does not exist",
+        path.display(),
+        dir.display()
+    );
+    ensure!(
+        !path.is_dir(),
+        "{}: is a directory, not an image file",
+        path.display()
+    );
+    let tmp = temporary_path(path);
+    std::fs::File::create(&tmp)
+        .with_context(|| format!("{}: cannot create a file in {}", path.display(), dir.display()))?;
+    let _ = std::fs::remove_file(&tmp);
+    Ok(())
 }
 
 /// Writes linear float32 RGB with lossless compression.

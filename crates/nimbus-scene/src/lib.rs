@@ -112,6 +112,7 @@ mod envmap;
 mod fields;
 mod files;
 mod geometry;
+mod overrides;
 mod parse;
 mod procedural;
 mod types;
@@ -130,6 +131,7 @@ pub use files::{
     check_grid_dims, read_vol_header, VolHeader, MAX_GRID_DIM, MAX_GRID_VOXELS, VOL_HEADER_BYTES,
 };
 pub use geometry::MAX_GOBO_POINTS;
+pub use overrides::FieldOverride;
 pub use parse::{MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_LENGTH_M, MAX_SIGMA_T, RESTIR_KEYS};
 pub use procedural::procedural_cloud;
 pub use types::*;
@@ -141,13 +143,24 @@ pub use volume::{
 
 /// Reads and validates the scene file at `path`.
 pub fn load(path: &Path) -> Result<Scene> {
+    load_with(path, &[])
+}
+
+/// Reads the scene file at `path`, applies `overrides` to its tables, and validates
+/// the result (an overridden field is checked like one written in the file).
+pub fn load_with(path: &Path, overrides: &[FieldOverride]) -> Result<Scene> {
     let text = std::fs::read_to_string(path)
         .map_err(|e| anyhow!("{}: cannot read scene file: {e}", path.display()))?;
-    parse_str(&text, path)
+    parse_str_with(&text, path, overrides)
 }
 
 /// Parses and validates a scene from `text`. `source` names the scene in error
 /// messages, and relative file paths resolve against `source.parent()`.
 pub fn parse_str(text: &str, source: &Path) -> Result<Scene> {
-    parse::parse_scene(text, source)
+    parse_str_with(text, source, &[])
+}
+
+/// [`parse_str`] with `overrides` applied to the tables before validation.
+pub fn parse_str_with(text: &str, source: &Path, overrides: &[FieldOverride]) -> Result<Scene> {
+    parse::parse_scene(text, source, overrides)
 }

@@ -11,6 +11,7 @@ use crate::fields::{
 };
 use crate::files::{check_grid_dims, file_size, read_vol_header};
 use crate::geometry::{convex_ccw_polygon, OrientedBox};
+use crate::overrides::FieldOverride;
 use crate::types::*;
 
 /// Largest size, extent or radius in metres.
@@ -126,10 +127,11 @@ pub const RESTIR_KEYS: &[&str] = &[
 
 /// Parses and validates the scene in `text`; `file` names it in errors and anchors
 /// relative paths.
-pub(crate) fn parse_scene(text: &str, file: &Path) -> Result<Scene> {
+pub(crate) fn parse_scene(text: &str, file: &Path, overrides: &[FieldOverride]) -> Result<Scene> {
     let source = Source { file };
-    let root: toml::Table = toml::from_str(text)
+    let mut root: toml::Table = toml::from_str(text)
         .map_err(|e| source.error(format!("TOML syntax error: {}", e.to_string().trim_end())))?;
+    crate::overrides::apply(&mut root, overrides).map_err(|e| source.error(e))?;
     let top = Fields::new(&source, "top level".into(), &root, TOP_KEYS)?;
 
     let render = match top.opt_table("render")? {
