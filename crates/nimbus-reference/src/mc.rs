@@ -2,7 +2,7 @@
 //! homogeneous box media, in f64 on the CPU.
 //!
 //! This is the oracle for the renderer's multiple-scattering (K > 1) box pass, where the
-//! quadrature reference ([`crate::reference`]) stops at single scattering. It shares no
+//! quadrature reference ([`crate::quadrature`]) stops at single scattering. It shares no
 //! algorithm with the GPU passes (no distance sampling over the whole volume, no ratio
 //! estimators, no majorants) and none of its geometry code with either: it is the
 //! plainest analog path tracer that estimates the model below, with its own small f64
@@ -11,7 +11,7 @@
 //!
 //! # Model
 //!
-//! The same as the renderer's box pass and [`crate::reference`]:
+//! The same as the renderer's box pass and [`crate::quadrature`]:
 //!
 //! - **Media**: homogeneous boxes, world = center + R·local, R =
 //!   `rotation_xyz_deg(rotation_deg)`, local ∈ [−size/2, size/2]; scalar σt, σs =
@@ -64,7 +64,7 @@ use anyhow::{bail, ensure};
 use glam::DVec3;
 use nimbus_scene::{Light, Medium, Scene};
 
-use crate::reference_common::{
+use crate::common::{
     check_render, phase_hg, radiance_paths, render_paths, sample_cosine, sample_hg, surface_offset,
     GoboF64, Moments, OrientedBox, PathSums, Rng, Surface,
 };
@@ -411,8 +411,8 @@ mod tests {
     use nimbus_scene::{BoxMedium, Gobo, GridMedium, GridSource, Shape};
 
     use super::*;
-    use crate::reference::{self, ReferenceOptions};
-    use crate::reference_common::{rotation_f64, CameraRays};
+    use crate::quadrature::{self, ReferenceOptions};
+    use crate::common::{rotation_f64, CameraRays};
 
     const QUADRATURE: ReferenceOptions = ReferenceOptions {
         rel_tol: 1e-9,
@@ -431,7 +431,7 @@ mod tests {
     }
 
     fn scene(media: Vec<BoxMedium>, shapes: Vec<Shape>, lights: Vec<Light>) -> Scene {
-        crate::reference_common::test_scene(
+        crate::common::test_scene(
             media.into_iter().map(Medium::Box).collect(),
             shapes,
             lights,
@@ -605,7 +605,7 @@ mod tests {
                     seed: (10 * i + j) as u64,
                 };
                 let dir = target - origin;
-                let expected = reference::radiance(s, origin, dir, &QUADRATURE).unwrap();
+                let expected = quadrature::radiance(s, origin, dir, &QUADRATURE).unwrap();
                 let mc = radiance_mc(s, origin, dir, &opts).unwrap();
                 assert_within(&mc, expected, 4.0, &format!("{name}, towards {target}"));
             }
@@ -807,7 +807,7 @@ mod tests {
             rel_tol: 1e-8,
             footprint_samples: 6,
         };
-        let expected = reference::render(&s, &ref_opts).unwrap();
+        let expected = quadrature::render(&s, &ref_opts).unwrap();
         for (i, e) in expected.into_iter().enumerate() {
             let mc = McEstimate {
                 mean: mean[i],
@@ -822,7 +822,7 @@ mod tests {
             rel_tol: 1e-8,
             footprint_samples: 1,
         };
-        for (i, e) in reference::render(&s, &ref_centre)
+        for (i, e) in quadrature::render(&s, &ref_centre)
             .unwrap()
             .into_iter()
             .enumerate()

@@ -1,10 +1,10 @@
 //! f64 building blocks shared by the two CPU Monte Carlo oracles,
-//! [`crate::reference_mc`] (box media) and [`crate::reference_grid`] (grid media).
+//! [`crate::mc`] (box media) and [`crate::grid`] (grid media).
 //!
 //! Random numbers, direction sampling, ray–box/quad/sphere tests, the scene's shapes
 //! and gobos in f64, camera rays, running moments and the threading over paths and
 //! pixels. None of it is shared with the GPU passes or with the quadrature reference
-//! ([`crate::reference`]): the oracles stay independent of what they check.
+//! ([`crate::quadrature`]): the oracles stay independent of what they check.
 
 use std::f64::consts::PI;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -13,7 +13,7 @@ use anyhow::ensure;
 use glam::{DMat3, DVec2, DVec3, Vec3};
 use nimbus_scene::{Gobo, Scene, Shape};
 
-use crate::reference_mc::{McEstimate, McImage};
+use crate::mc::{McEstimate, McImage};
 
 // ---------------------------------------------------------------------------------------
 // Random numbers: xoshiro256** (Blackman & Vigna), seeded through SplitMix64.

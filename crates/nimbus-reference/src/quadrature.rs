@@ -966,7 +966,7 @@ mod tests {
     }
 
     fn scene(media: Vec<BoxMedium>, shapes: Vec<Shape>, lights: Vec<Light>) -> Scene {
-        crate::reference_common::test_scene(
+        crate::common::test_scene(
             media.into_iter().map(Medium::Box).collect(),
             shapes,
             lights,

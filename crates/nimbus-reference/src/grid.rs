@@ -7,7 +7,7 @@
 //! transmittance is estimated by **ratio tracking** with the same global majorant — no
 //! super-voxels, no decomposition tracking, no closed-form or quadrature transmittance.
 //! Geometry, random numbers and sampling are small f64 routines shared only with
-//! [`crate::reference_mc`] (in `reference_common`), whose public
+//! [`crate::mc`] (in `reference_common`), whose public
 //! [`McEstimate`] it returns.
 //!
 //! # Model
@@ -20,7 +20,7 @@
 //!     `density`. σs = albedo·σt, σa = (1 − albedo)·σt per channel. Optional emission
 //!     Le(x) = `emission_scale` · trilinear(emission grid, its own index space), with
 //!     the absorbed-emission convention: σa·Le is the emitted power density.
-//!   - box media: homogeneous, as in [`crate::reference_mc`].
+//!   - box media: homogeneous, as in [`crate::mc`].
 //!   - HG phase p(cosθ), θ between the travel directions before and after scattering.
 //! - **Shapes**: opaque two-sided Lambertian quads, oriented boxes and spheres.
 //! - **Lights**:
@@ -79,12 +79,12 @@ use anyhow::{bail, ensure, Context};
 use glam::{DMat3, DVec3};
 use nimbus_scene::{load_grid, EnvMap, EnvSampler, GridMedium, Light, Medium, Scene, VoxelGrid};
 
-use crate::reference_common::{
+use crate::common::{
     check_render, direction_around, hit_sphere, phase_hg, radiance_paths, render_paths,
     sample_cosine, sample_hg, sample_sphere, surface_offset, GoboF64, Moments, OrientedBox, Rng,
     Surface,
 };
-use crate::reference_mc::{McEstimate, McImage};
+use crate::mc::{McEstimate, McImage};
 
 /// Settings of a grid Monte Carlo reference run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -120,7 +120,7 @@ pub fn radiance_grid_mc(
 }
 
 /// Renders the scene's frame 0: mean and standard error per pixel, row-major from the
-/// top left, exactly like [`crate::reference_mc::render_mc`]: path i of a pixel goes
+/// top left, exactly like [`crate::mc::render_mc`]: path i of a pixel goes
 /// through stratum i mod footprint² of a footprint × footprint grid, jittered (box
 /// filter; `opts.paths` must be a multiple of footprint²); footprint 0 shoots every
 /// path through the pixel centre.
@@ -775,10 +775,10 @@ mod tests {
     use nimbus_scene::{BoxMedium, GridSource, Shape};
 
     use super::*;
-    use crate::reference_mc::{radiance_mc, McOptions};
+    use crate::mc::{radiance_mc, McOptions};
 
     fn scene(media: Vec<Medium>, shapes: Vec<Shape>, lights: Vec<Light>) -> Scene {
-        crate::reference_common::test_scene(media, shapes, lights, (4, 3), 30.0)
+        crate::common::test_scene(media, shapes, lights, (4, 3), 30.0)
     }
 
     fn grid_medium(lo: Vec3, hi: Vec3, density_scale: f32, albedo: Vec3, g: f32) -> GridMedium {
