@@ -37,11 +37,11 @@ use std::f64::consts::FRAC_1_SQRT_2;
 use bytemuck::{Pod, Zeroable};
 use common::rng::Pcg32;
 use glam::{DVec3, Vec3};
-use nimbus_reference::quadrature::unoccluded_single_scatter;
 use nimbus_gpu::{
     vk, BindingDesc, Buffer, BufferDesc, ComputePipeline, ComputePipelineDesc, Context,
     DescriptorWrite,
 };
+use nimbus_reference::quadrature::unoccluded_single_scatter;
 use nimbus_scene::BoxMedium;
 
 /// Relative accuracy asked of the f64 reference (its error estimate is pessimistic, so

@@ -8,8 +8,8 @@ mod common;
 use common::gpu::{context, render_checked, scene, se_of_mean};
 use common::{compare_with_golden, SAME_DEVICE};
 use nimbus::output::ImageRgb;
-use nimbus_reference::quadrature::{self, ReferenceOptions};
 use nimbus::DEFAULT_SCENE;
+use nimbus_reference::quadrature::{self, ReferenceOptions};
 use nimbus_scene::{BoxEstimator, Scene};
 
 /// Relative difference of two image means, per channel, largest of the three.

@@ -6,10 +6,10 @@ mod common;
 
 use common::{compare_with_golden, SAME_DEVICE};
 use nimbus::output::ImageRgb;
-use nimbus_reference::quadrature::{self, ReferenceOptions};
 use nimbus::renderer::RenderResult;
 use nimbus::DEFAULT_SCENE;
 use nimbus_gpu::Context;
+use nimbus_reference::quadrature::{self, ReferenceOptions};
 use nimbus_scene::{BoxEstimator, Scene};
 
 use common::gpu::{context, scene};
