@@ -11,6 +11,7 @@ use crate::common::lights::Sun;
 use crate::common::rng::Rng;
 use crate::common::sampling::{direction_around, sample_sphere};
 
+/// An environment light: constant radiance, or an EXR map with its sampler.
 pub(super) enum Environment {
     Constant(DVec3),
     Map { map: EnvMap, sampler: EnvSampler },
@@ -28,6 +29,7 @@ impl Environment {
     }
 }
 
+/// A light of the scene in f64.
 pub(super) enum LightF64 {
     Directional(Sun),
     Point {

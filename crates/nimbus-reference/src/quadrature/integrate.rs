@@ -52,7 +52,7 @@ const WGK: [f64; 8] = [
     0.204_432_940_075_298_892_414_161_999_234_649,
     0.209_482_141_084_727_828_012_999_174_891_714,
 ];
-/// Weights of the 7-point Gauss rule at XGK[1], XGK[3], XGK[5], XGK[7].
+/// Weights of the 7-point Gauss rule at `XGK[1]`, `XGK[3]`, `XGK[5]`, `XGK[7]`.
 #[allow(clippy::excessive_precision)]
 const WG: [f64; 4] = [
     0.129_484_966_168_869_693_270_611_432_679_082,
