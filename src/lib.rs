@@ -9,10 +9,6 @@ pub mod output;
 pub mod passes;
 pub mod plan;
 pub mod profile;
-pub mod reference;
-pub(crate) mod reference_common;
-pub mod reference_grid;
-pub mod reference_mc;
 pub mod renderer;
 pub mod study;
 

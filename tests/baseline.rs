@@ -48,10 +48,10 @@ max_bounces = {bounces}
     )
 }
 
-/// Render `scene` on the GPU and with the CPU oracle (`reference_grid`: delta tracking
-/// and ratio tracking with one global majorant, f64; 1024 paths per pixel over 4x4
-/// footprint strata) and check that every channel's image mean agrees within 1% plus 4
-/// combined standard errors, and that at most 2% of the pixel channels differ by more
+/// Render `scene` on the GPU and with the CPU oracle (`nimbus_reference::grid`: delta
+/// tracking and ratio tracking with one global majorant, f64; 1024 paths per pixel over
+/// 4x4 footprint strata) and check that every channel's image mean agrees within 1% plus
+/// 4 combined standard errors, and that at most 2% of the pixel channels differ by more
 /// than 4.5 combined standard errors.
 fn check_against_oracle(
     ctx: &nimbus_gpu::Context,
@@ -60,7 +60,7 @@ fn check_against_oracle(
     label: &str,
 ) {
     use nimbus::output::ImageRgb;
-    use nimbus::reference_grid::{render_grid_mc, GridOptions};
+    use nimbus_reference::grid::{render_grid_mc, GridOptions};
     let (w, h) = (scene.render.width, scene.render.height);
     let gpu = render_checked(ctx, scene, None);
     let (cpu_mean, cpu_se) = render_grid_mc(

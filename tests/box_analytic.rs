@@ -3,8 +3,8 @@
 //! with validation layers on, against independent f64 computations:
 //!
 //! - T_box (the unoccluded transmittance integral) against
-//!   [`nimbus::reference::unoccluded_single_scatter`] (adaptive Gauss–Kronrod) on 10 000
-//!   random configurations and on the hard cases one by one;
+//!   [`nimbus_reference::quadrature::unoccluded_single_scatter`] (adaptive
+//!   Gauss–Kronrod) on 10 000 random configurations and on the hard cases one by one;
 //! - no NaN or infinity anywhere in the shader, also at the scene format's limits;
 //! - the whole-volume distance sampling pdf integrates to 1 and equals the integrand
 //!   over T_box;
@@ -37,11 +37,11 @@ use std::f64::consts::FRAC_1_SQRT_2;
 use bytemuck::{Pod, Zeroable};
 use common::rng::Pcg32;
 use glam::{DVec3, Vec3};
-use nimbus::reference::unoccluded_single_scatter;
 use nimbus_gpu::{
     vk, BindingDesc, Buffer, BufferDesc, ComputePipeline, ComputePipelineDesc, Context,
     DescriptorWrite,
 };
+use nimbus_reference::quadrature::unoccluded_single_scatter;
 use nimbus_scene::BoxMedium;
 
 /// Relative accuracy asked of the f64 reference (its error estimate is pessimistic, so

@@ -8,8 +8,8 @@ mod common;
 use common::gpu::{context, render_checked, scene, se_of_mean};
 use common::{compare_with_golden, SAME_DEVICE};
 use nimbus::output::ImageRgb;
-use nimbus::reference::{self, ReferenceOptions};
 use nimbus::DEFAULT_SCENE;
+use nimbus_reference::quadrature::{self, ReferenceOptions};
 use nimbus_scene::{BoxEstimator, Scene};
 
 /// Relative difference of two image means, per channel, largest of the three.
@@ -69,7 +69,7 @@ fn unoccluded_pixels_are_exact_with_one_mcwvds_sample() {
     for gobo in [false, true] {
         let scene = unoccluded_scene(gobo);
         let gpu = render_checked(&ctx, &scene, Some(1));
-        let reference = reference::render(
+        let reference = quadrature::render(
             &scene,
             &ReferenceOptions {
                 rel_tol: 1e-9,
@@ -150,12 +150,12 @@ fn golden_estimators_at_low_sample_count() {
 
 /// Multiple scattering (K = 1, 2, 4, 8) in a rotated box above a Lambertian floor, with
 /// a gobo: every estimator's path tracer agrees with the independent CPU Monte Carlo
-/// reference (`reference_mc`, analog tracking with next-event estimation) on the image
-/// mean within 4 combined standard errors plus 1%, and the per-pixel differences are
-/// consistent with their standard errors.
+/// reference (`nimbus_reference::mc`, analog tracking with next-event estimation) on the
+/// image mean within 4 combined standard errors plus 1%, and the per-pixel differences
+/// are consistent with their standard errors.
 #[test]
 fn multiple_scattering_matches_the_cpu_monte_carlo_reference() {
-    use nimbus::reference_mc::{render_mc, McOptions};
+    use nimbus_reference::mc::{render_mc, McOptions};
     let ctx = context();
     let mut scene = scene(
         r#"

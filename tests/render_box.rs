@@ -6,10 +6,10 @@ mod common;
 
 use common::{compare_with_golden, SAME_DEVICE};
 use nimbus::output::ImageRgb;
-use nimbus::reference::{self, ReferenceOptions};
 use nimbus::renderer::RenderResult;
 use nimbus::DEFAULT_SCENE;
 use nimbus_gpu::Context;
+use nimbus_reference::quadrature::{self, ReferenceOptions};
 use nimbus_scene::{BoxEstimator, Scene};
 
 use common::gpu::{context, scene};
@@ -58,7 +58,7 @@ fn rm_converges_to_the_f64_reference_on_an_unoccluded_box() {
     let ctx = context();
     let scene = scene(UNOCCLUDED_BOX, "unoccluded_box.toml");
     let gpu = render_scene(&ctx, &scene, Some(16));
-    let reference = reference::render(
+    let reference = quadrature::render(
         &scene,
         &ReferenceOptions {
             rel_tol: 1e-6,
@@ -196,7 +196,7 @@ fn rm_matches_the_reference_with_gobo_and_occluders() {
     scene.render.frames = 64;
     scene.render.spp = 4;
     let gpu = render_scene(&ctx, &scene, Some(16));
-    let reference = reference::render(
+    let reference = quadrature::render(
         &scene,
         &ReferenceOptions {
             rel_tol: 1e-5,
@@ -349,7 +349,7 @@ box_estimator = "rm"
 "#
         );
         let mut scene = scene(&text, &format!("{name}.toml"));
-        let reference = reference::render(
+        let reference = quadrature::render(
             &scene,
             &ReferenceOptions {
                 rel_tol: 1e-6,

@@ -1,0 +1,111 @@
+//! Scenes and checks for the oracles' unit tests.
+
+use glam::Vec3;
+use nimbus_scene::{BoxMedium, Light, Medium, Scene, Shape};
+
+use super::estimate::McEstimate;
+
+/// A scene for the oracles' unit tests: a camera at (0, 0, 5) looking at the origin,
+/// `size` pixels, `fov_deg` horizontal field of view, default integrator settings.
+pub(crate) fn test_scene(
+    media: Vec<Medium>,
+    shapes: Vec<Shape>,
+    lights: Vec<Light>,
+    size: (u32, u32),
+    fov_deg: f32,
+) -> Scene {
+    Scene {
+        source: std::path::PathBuf::from("<test>"),
+        light_keyframes: Vec::new(),
+        render: nimbus_scene::RenderSettings {
+            width: size.0,
+            height: size.1,
+            ..nimbus_scene::RenderSettings::default()
+        },
+        camera: nimbus_scene::Camera {
+            position: Vec3::new(0.0, 0.0, 5.0),
+            look_at: Vec3::ZERO,
+            up: Vec3::Y,
+            horizontal_fov_deg: fov_deg,
+            keyframes: Vec::new(),
+        },
+        lights,
+        media,
+        shapes,
+        integrator: nimbus_scene::Integrator::default(),
+    }
+}
+
+/// [`test_scene`] of 6×4 pixels, 40° wide, with homogeneous box media.
+pub(crate) fn box_scene(media: Vec<BoxMedium>, shapes: Vec<Shape>, lights: Vec<Light>) -> Scene {
+    test_scene(
+        media.into_iter().map(Medium::Box).collect(),
+        shapes,
+        lights,
+        (6, 4),
+        40.0,
+    )
+}
+
+/// A homogeneous box of albedo (0.9, 0.5, 0.25).
+pub(crate) fn box_medium(
+    center: Vec3,
+    size: Vec3,
+    rotation_deg: Vec3,
+    sigma_t: f32,
+    g: f32,
+) -> BoxMedium {
+    BoxMedium {
+        center,
+        size,
+        rotation_deg,
+        sigma_t,
+        albedo: Vec3::new(0.9, 0.5, 0.25),
+        g,
+    }
+}
+
+/// A directional light without a gobo.
+pub(crate) fn sun(direction: Vec3, irradiance: Vec3) -> Light {
+    Light::Directional {
+        direction: direction.normalize(),
+        irradiance,
+        gobo: None,
+    }
+}
+
+/// A constant environment light.
+pub(crate) fn constant_env(radiance: Vec3) -> Light {
+    Light::Environment {
+        radiance,
+        file: None,
+        scale: Vec3::ONE,
+    }
+}
+
+/// |mc − expected| ≤ k·SE + 1e-12·|expected| per channel (the slack covers rays
+/// whose estimate is deterministic, SE = 0).
+pub(crate) fn assert_within(mc: &McEstimate, expected: [f64; 3], k: f64, what: &str) {
+    for (c, e) in expected.into_iter().enumerate() {
+        let (m, se) = (mc.mean[c], mc.std_error[c]);
+        println!(
+            "{what}, channel {c}: MC {m:.6} ± {se:.6}, expected {e:.6} ({:.2} SE)",
+            (m - e) / se
+        );
+        assert!(
+            (m - e).abs() <= k * se + 1e-12 * e.abs(),
+            "{what}, channel {c}: MC {m:e} ± {se:e}, expected {e:e} ({:.2} SE)",
+            (m - e) / se
+        );
+    }
+}
+
+/// |actual − expected| ≤ rel·|expected|.
+pub(crate) fn assert_close(actual: f64, expected: f64, rel: f64) {
+    let err = (actual - expected).abs();
+    assert!(
+        err <= rel * expected.abs().max(1e-300),
+        "actual {actual:e}, expected {expected:e}, relative error {:e} > {rel:e}",
+        err / expected.abs()
+    );
+}

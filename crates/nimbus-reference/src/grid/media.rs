@@ -1,0 +1,208 @@
+//! The media of the grid oracle: homogeneous boxes and voxel grids, with free-flight
+//! sampling (delta tracking) and transmittance estimates (ratio tracking).
+
+use anyhow::{bail, ensure};
+use glam::{DMat3, DVec3};
+use nimbus_scene::{load_grid, GridMedium, GridSource, Medium, Scene, VoxelGrid};
+
+use crate::common::geometry::OrientedBox;
+use crate::common::rng::Rng;
+
+/// A grid medium in f64 with its grids loaded.
+pub(super) struct GridF64 {
+    pub(super) bounds: OrientedBox,
+    lo: DVec3,
+    size: DVec3,
+    density: VoxelGrid,
+    density_scale: f64,
+    /// σ̄ = density_scale · max voxel ≥ every trilinear σt in the grid.
+    pub(super) majorant: f64,
+    /// Emission grid and `emission_scale`.
+    pub(super) emission: Option<(VoxelGrid, DVec3)>,
+}
+
+impl GridF64 {
+    fn index_space(&self, x: DVec3, dims: [u32; 3]) -> [f64; 3] {
+        let p = (x - self.lo) / self.size;
+        [
+            p.x * f64::from(dims[0]),
+            p.y * f64::from(dims[1]),
+            p.z * f64::from(dims[2]),
+        ]
+    }
+
+    pub(super) fn sigma_t(&self, x: DVec3) -> f64 {
+        self.density_scale
+            * self
+                .density
+                .sample_trilinear(self.index_space(x, self.density.dims))
+    }
+
+    pub(super) fn emission(&self, x: DVec3) -> DVec3 {
+        match &self.emission {
+            None => DVec3::ZERO,
+            Some((grid, scale)) => *scale * grid.sample_trilinear(self.index_space(x, grid.dims)),
+        }
+    }
+}
+
+pub(super) enum MediumKind {
+    Homogeneous { bounds: OrientedBox, sigma_t: f64 },
+    Grid(GridF64),
+}
+
+pub(super) struct MediumF64 {
+    pub(super) kind: MediumKind,
+    pub(super) albedo: DVec3,
+    pub(super) g: f64,
+}
+
+impl MediumF64 {
+    /// Medium `medium` with its grids `loaded` (`None` for a box); `what` names it in
+    /// errors.
+    pub(super) fn new(
+        medium: &Medium,
+        loaded: Option<LoadedGrid>,
+        what: &str,
+    ) -> anyhow::Result<Self> {
+        Ok(match (medium, loaded) {
+            (Medium::Box(m), _) => MediumF64 {
+                kind: MediumKind::Homogeneous {
+                    bounds: OrientedBox::from_scene(m.center, m.size, m.rotation_deg),
+                    sigma_t: f64::from(m.sigma_t),
+                },
+                albedo: m.albedo.as_dvec3(),
+                g: f64::from(m.g),
+            },
+            (Medium::Grid(m), Some((density, emission))) => {
+                let (lo, hi) = (m.bounds_min.as_dvec3(), m.bounds_max.as_dvec3());
+                ensure!(hi.cmpgt(lo).all(), "{what}: empty grid bounds {lo} .. {hi}");
+                let density_scale = f64::from(m.density_scale);
+                let max_voxel = density
+                    .data
+                    .iter()
+                    .step_by(density.channels as usize)
+                    .fold(0f64, |a, &v| a.max(f64::from(v)));
+                MediumF64 {
+                    kind: MediumKind::Grid(GridF64 {
+                        bounds: OrientedBox::new(0.5 * (lo + hi), 0.5 * (hi - lo), DMat3::IDENTITY),
+                        lo,
+                        size: hi - lo,
+                        density,
+                        density_scale,
+                        majorant: density_scale * max_voxel,
+                        emission: emission.map(|e| (e, m.emission_scale.as_dvec3())),
+                    }),
+                    albedo: m.albedo.as_dvec3(),
+                    g: f64::from(m.g),
+                }
+            }
+            (Medium::Grid(_), None) => bail!("{what}: grid not loaded"),
+        })
+    }
+
+    pub(super) fn span(&self, o: DVec3, d: DVec3, t_max: f64) -> Option<(f64, f64)> {
+        match &self.kind {
+            MediumKind::Homogeneous { bounds, sigma_t } => {
+                if *sigma_t > 0.0 {
+                    bounds.clip(o, d, 0.0, t_max)
+                } else {
+                    None
+                }
+            }
+            MediumKind::Grid(grid) => {
+                if grid.majorant > 0.0 {
+                    grid.bounds.clip(o, d, 0.0, t_max)
+                } else {
+                    None
+                }
+            }
+        }
+    }
+
+    /// A collision on (t0, t1) of o + t·d: exponential in a box, delta tracking with
+    /// the global majorant in a grid.
+    pub(super) fn sample_collision(
+        &self,
+        o: DVec3,
+        d: DVec3,
+        t0: f64,
+        t1: f64,
+        rng: &mut Rng,
+    ) -> Option<f64> {
+        match &self.kind {
+            MediumKind::Homogeneous { sigma_t, .. } => {
+                let t = t0 + rng.exponential(*sigma_t);
+                (t < t1).then_some(t)
+            }
+            MediumKind::Grid(grid) => {
+                let mut t = t0;
+                loop {
+                    t += rng.exponential(grid.majorant);
+                    if t >= t1 {
+                        return None;
+                    }
+                    if rng.uniform() * grid.majorant < grid.sigma_t(o + t * d) {
+                        return Some(t);
+                    }
+                }
+            }
+        }
+    }
+
+    /// An unbiased estimate of the transmittance over (t0, t1): exact in a box, ratio
+    /// tracking with the global majorant in a grid.
+    pub(super) fn transmittance(&self, o: DVec3, d: DVec3, t0: f64, t1: f64, rng: &mut Rng) -> f64 {
+        match &self.kind {
+            MediumKind::Homogeneous { sigma_t, .. } => (-sigma_t * (t1 - t0)).exp(),
+            MediumKind::Grid(grid) => {
+                let mut t = t0;
+                let mut tr = 1.0;
+                loop {
+                    t += rng.exponential(grid.majorant);
+                    if t >= t1 {
+                        return tr;
+                    }
+                    tr *= 1.0 - grid.sigma_t(o + t * d) / grid.majorant;
+                    if tr <= 0.0 {
+                        return 0.0;
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// The density source of a grid medium at frame 0.
+fn frame0_density(m: &GridMedium) -> &GridSource {
+    m.frames
+        .iter()
+        .rev()
+        .find(|f| f.frame == 0)
+        .map_or(&m.density, |f| &f.density)
+}
+
+/// Loaded grids of one grid medium: density and optional emission.
+pub(super) type LoadedGrid = (VoxelGrid, Option<VoxelGrid>);
+
+/// Loads the grids of every grid medium (`None` for boxes), each once.
+pub(super) fn load_grids(scene: &Scene) -> anyhow::Result<Vec<Option<LoadedGrid>>> {
+    let source = scene.source.display();
+    let mut grids = Vec::new();
+    for (i, medium) in scene.media.iter().enumerate() {
+        grids.push(match medium {
+            Medium::Box(_) => None,
+            Medium::Grid(m) => {
+                let what = format!("{source}: [[medium]] #{}", i + 1);
+                let density = load_grid(frame0_density(m), 1, &format!("{what} > density"))?;
+                let emission = m
+                    .emission
+                    .as_ref()
+                    .map(|e| load_grid(e, 1, &format!("{what} > emission")))
+                    .transpose()?;
+                Some((density, emission))
+            }
+        });
+    }
+    Ok(grids)
+}
