@@ -240,10 +240,7 @@ fn parse_exposure(text: &str) -> std::result::Result<f32, String> {
 }
 
 fn render(args: RenderArgs) -> Result<()> {
-    let scene = load_scene(
-        args.scene.as_deref(),
-        &args.overrides.fields(args.frames)?,
-    )?;
+    let scene = load_scene(args.scene.as_deref(), &args.overrides.fields(args.frames)?)?;
     let plan = plan::build(&scene, None)?;
     if args.explain {
         print!("{}", plan.explain(&scene));

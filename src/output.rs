@@ -208,8 +208,13 @@ pub fn check_writable(path: &Path) -> anyhow::Result<()> {
         path.display()
     );
     let tmp = temporary_path(path);
-    std::fs::File::create(&tmp)
-        .with_context(|| format!("{}: cannot create a file in {}", path.display(), dir.display()))?;
+    std::fs::File::create(&tmp).with_context(|| {
+        format!(
+            "{}: cannot create a file in {}",
+            path.display(),
+            dir.display()
+        )
+    })?;
     let _ = std::fs::remove_file(&tmp);
     Ok(())
 }

@@ -348,6 +348,7 @@ impl GpuGrid {
             index + 1
         );
         let density = nimbus_scene::load_grid(&grid.density, 1, &what)?;
+        grid.check_density(&density, &scene.position_scale(), &what)?;
         let emission = match &grid.emission {
             Some(source) => {
                 let what = format!(

@@ -8,8 +8,8 @@ use super::{BaselinePlan, Decision, Integrator, RestirPlan, MAX_BOX_MEDIA};
 
 /// Most scattering events per path ReSTIR stores (reservoirs hold K vertices).
 pub const MAX_RESTIR_BOUNCES: u32 = 16;
-/// Most spatial neighbours (Talbot MIS costs (N + 1)² target evaluations per pixel).
-pub const MAX_SPATIAL_NEIGHBORS: u32 = 16;
+/// Most spatial neighbours (validated by the scene loader).
+pub use nimbus_scene::MAX_SPATIAL_NEIGHBORS;
 
 /// Most lights the baseline path tracer takes (`MAX_LIGHTS` in pathtrace.comp).
 pub const MAX_BASELINE_LIGHTS: usize = 16;
@@ -70,12 +70,6 @@ pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
             bail!(
                 "{file}: [integrator] field `max_bounces` = {}: Volumetric ReSTIR stores paths of at most {MAX_RESTIR_BOUNCES} scattering events",
                 integrator.max_bounces
-            );
-        }
-        if integrator.restir.spatial_neighbors > MAX_SPATIAL_NEIGHBORS {
-            bail!(
-                "{file}: [integrator.restir] field `spatial_neighbors` = {}: at most {MAX_SPATIAL_NEIGHBORS} (Talbot MIS costs (N + 1)^2 path evaluations per pixel)",
-                integrator.restir.spatial_neighbors
             );
         }
     }

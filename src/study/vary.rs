@@ -90,7 +90,8 @@ pub(super) fn apply(scene: &mut Scene, key: &str, value: &str) -> Result<Option<
             scene.integrator.restir.temporal_limit = parse_count(key, value, 1024)?;
         }
         "spatial_neighbors" => {
-            scene.integrator.restir.spatial_neighbors = parse_range(key, value, 0, 64)?;
+            scene.integrator.restir.spatial_neighbors =
+                parse_range(key, value, 0, nimbus_scene::MAX_SPATIAL_NEIGHBORS)?;
         }
         "spatial_radius_px" => {
             scene.integrator.restir.spatial_radius_px = match value.parse::<f32>() {

@@ -93,6 +93,12 @@ pub struct DeviceInfo {
     pub max_compute_work_group_count: [u32; 3],
     pub max_compute_work_group_size: [u32; 3],
     pub max_compute_work_group_invocations: u32,
+    pub max_image_dimension_2d: u32,
+    pub max_image_dimension_3d: u32,
+    /// `maxMemoryAllocationSize` (Vulkan 1.1); 0 when the device does not report it.
+    pub max_memory_allocation_size: u64,
+    /// Size of the largest device-local memory heap in bytes.
+    pub device_local_bytes: u64,
 }
 
 impl DeviceInfo {
@@ -386,9 +392,12 @@ fn query_device_info(instance: &ash::Instance, pd: vk::PhysicalDevice, index: us
     let api = props.api_version;
     let mut driver = vk::PhysicalDeviceDriverProperties::default();
     let mut subgroup = vk::PhysicalDeviceSubgroupProperties::default();
+    let mut maintenance3 = vk::PhysicalDeviceMaintenance3Properties::default();
     // Ask for 1.1 / 1.2 properties only from devices that define them.
     if api >= vk::API_VERSION_1_1 {
-        let mut props2 = vk::PhysicalDeviceProperties2::default().push_next(&mut subgroup);
+        let mut props2 = vk::PhysicalDeviceProperties2::default()
+            .push_next(&mut subgroup)
+            .push_next(&mut maintenance3);
         if api >= vk::API_VERSION_1_2 {
             props2 = props2.push_next(&mut driver);
         }
@@ -411,6 +420,13 @@ fn query_device_info(instance: &ash::Instance, pd: vk::PhysicalDevice, index: us
         .map(|i| families[i as usize].timestamp_valid_bits)
         .unwrap_or(0);
     let limits = &props.limits;
+    let memory = unsafe { instance.get_physical_device_memory_properties(pd) };
+    let device_local_bytes = memory.memory_heaps[..memory.memory_heap_count as usize]
+        .iter()
+        .filter(|h| h.flags.contains(vk::MemoryHeapFlags::DEVICE_LOCAL))
+        .map(|h| h.size)
+        .max()
+        .unwrap_or(0);
     DeviceInfo {
         index,
         name: c_chars_to_string(&props.device_name),
@@ -434,6 +450,11 @@ fn query_device_info(instance: &ash::Instance, pd: vk::PhysicalDevice, index: us
         max_compute_work_group_count: limits.max_compute_work_group_count,
         max_compute_work_group_size: limits.max_compute_work_group_size,
         max_compute_work_group_invocations: limits.max_compute_work_group_invocations,
+        max_image_dimension_2d: limits.max_image_dimension2_d,
+        max_image_dimension_3d: limits.max_image_dimension3_d,
+        // Vulkan 1.1 guarantees at least 1 GiB; 0 (pre-1.1) means unknown.
+        max_memory_allocation_size: maintenance3.max_memory_allocation_size,
+        device_local_bytes,
     }
 }
 
@@ -664,6 +685,10 @@ mod tests {
             max_compute_work_group_count: [65535; 3],
             max_compute_work_group_size: [1024, 1024, 64],
             max_compute_work_group_invocations: 1024,
+            max_image_dimension_2d: 16384,
+            max_image_dimension_3d: 2048,
+            max_memory_allocation_size: 1 << 30,
+            device_local_bytes: 8 << 30,
         }
     }
 

@@ -188,11 +188,14 @@ impl EnvMap {
                     );
                 }
                 let scaled = value * s[c];
-                if !scaled.is_finite() {
+                if f64::from(scaled) > crate::MAX_RADIOMETRIC {
                     bail!(
-                        "{name}: pixel ({x}, {y}) channel {channel} = {value} times scale \
-                         {} overflows f32",
-                        s[c]
+                        "{name}: pixel ({x}, {y}) channel {channel} = {value} times the \
+                         light's radiance x scale {} is {:e} W/(m²·sr), above the largest \
+                         radiometric input {:e}",
+                        s[c],
+                        f64::from(value) * f64::from(s[c]),
+                        crate::MAX_RADIOMETRIC
                     );
                 }
                 t[c] = scaled;

@@ -139,7 +139,19 @@ impl<'a> Fields<'a> {
                 ),
             ));
         }
-        Ok(value as f32)
+        // The renderer sees the f32: check it too.
+        let v32 = value as f32;
+        if !range.contains(&f64::from(v32)) {
+            return Err(self.error(
+                key,
+                format!(
+                    "{value} becomes {v32} as a 32-bit float, out of range [{}, {}]",
+                    range.start(),
+                    range.end()
+                ),
+            ));
+        }
+        Ok(v32)
     }
 
     /// A finite number with `check` (returns a complaint for a bad value).
@@ -156,7 +168,17 @@ impl<'a> Fields<'a> {
         if let Some(message) = check(value) {
             return Err(self.error(key, format!("{value} is out of range, {message}")));
         }
-        Ok(value as f32)
+        // The renderer sees the f32: check it too (179.999999999 rounds to 180).
+        let v32 = value as f32;
+        if let Some(message) = check(f64::from(v32)) {
+            return Err(self.error(
+                key,
+                format!(
+                    "{value} becomes {v32} as a 32-bit float, which is out of range: {message}"
+                ),
+            ));
+        }
+        Ok(v32)
     }
 
     /// An integer in `range`, or `default` when absent (required when `default` is
@@ -298,6 +320,13 @@ impl<'a> Fields<'a> {
             if let Some(message) = check(*x) {
                 return Err(self.error(key, format!("component {channel} is {x}, {message}")));
             }
+            let x32 = *x as f32;
+            if let Some(message) = check(f64::from(x32)) {
+                return Err(self.error(
+                    key,
+                    format!("component {channel} is {x}, which becomes {x32} as a 32-bit float: {message}"),
+                ));
+            }
         }
         Ok(DVec3::from_array(rgb).as_vec3())
     }
@@ -385,6 +414,18 @@ pub(crate) fn parse_numbers<const N: usize>(
 /// Complaint for a value that must be >= 0.
 pub(crate) fn non_negative(x: f64) -> Option<String> {
     (x < 0.0).then(|| "must be >= 0".to_string())
+}
+
+/// Largest radiometric input (irradiance W/m², radiance W/(m²·sr), intensity W/sr,
+/// emission), after any scale. Pixel values are accumulated as sums of x and x² in f32:
+/// this leaves a factor of 1e7 for geometry (a point light a millimetre away) before x²
+/// summed over a million frames could overflow.
+pub const MAX_RADIOMETRIC: f64 = 1e12;
+
+/// Complaint for a radiometric value outside [0, [`MAX_RADIOMETRIC`]].
+pub(crate) fn radiometric(x: f64) -> Option<String> {
+    (!(0.0..=MAX_RADIOMETRIC).contains(&x))
+        .then(|| format!("must be >= 0 and <= {MAX_RADIOMETRIC:e} (the largest radiometric input)"))
 }
 
 /// Complaint for a value outside [0, 1].

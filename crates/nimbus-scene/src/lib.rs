@@ -73,7 +73,7 @@
 //! | `box_estimator` | `"mcwvds"`, `"reds"`, `"rees"`, `"rm"`, `"mcds"` |
 //! | restir `candidates` | 1..=4096 |
 //! | restir `temporal_limit` | 1..=1024 (turn temporal reuse off with `temporal = false`) |
-//! | restir `spatial_neighbors` | 0..=64 |
+//! | restir `spatial_neighbors` | 0..=16 ([`MAX_SPATIAL_NEIGHBORS`]) |
 //! | restir `spatial_radius_px` | [0, 16384] |
 //! | restir `spatial_rounds` | 0..=16 |
 //! | restir `mip_candidates`, `mip_indirect`, `mip_reuse` | 0..=16 |
@@ -114,6 +114,7 @@ mod files;
 mod geometry;
 mod overrides;
 mod parse;
+pub mod precision;
 mod procedural;
 mod types;
 mod vol_write;
@@ -127,12 +128,15 @@ pub use envmap::{
     direction_to_uv, luminance, uv_to_direction, EnvMap, EnvSampler, MAX_ENVMAP_HEIGHT,
     MAX_ENVMAP_WIDTH,
 };
+pub use fields::MAX_RADIOMETRIC;
 pub use files::{
     check_grid_dims, read_vol_header, VolHeader, MAX_GRID_DIM, MAX_GRID_VOXELS, VOL_HEADER_BYTES,
 };
 pub use geometry::MAX_GOBO_POINTS;
 pub use overrides::FieldOverride;
-pub use parse::{MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_LENGTH_M, MAX_SIGMA_T, RESTIR_KEYS};
+pub use parse::{
+    MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_LENGTH_M, MAX_SIGMA_T, MAX_SPATIAL_NEIGHBORS, RESTIR_KEYS,
+};
 pub use procedural::procedural_cloud;
 pub use types::*;
 pub use vol_write::write_vol;

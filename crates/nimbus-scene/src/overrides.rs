@@ -68,8 +68,7 @@ impl FieldOverride {
 pub(crate) fn apply(root: &mut toml::Table, overrides: &[FieldOverride]) -> Result<()> {
     for o in overrides {
         let segments: Vec<&str> = o.key.split('.').map(str::trim).collect();
-        set(root, &segments, o.value.clone())
-            .map_err(|e| anyhow!("--set {}: {e}", o.key))?;
+        set(root, &segments, o.value.clone()).map_err(|e| anyhow!("--set {}: {e}", o.key))?;
     }
     Ok(())
 }
@@ -105,7 +104,10 @@ fn set(table: &mut toml::Table, path: &[&str], value: Value) -> Result<()> {
         .or_insert_with(|| Value::Table(toml::Table::new()));
     match child {
         Value::Table(t) => set(t, rest, value),
-        Value::Array(_) => bail!("{first} is an array of tables: pick one, e.g. {first}.1.{}", rest[0]),
+        Value::Array(_) => bail!(
+            "{first} is an array of tables: pick one, e.g. {first}.1.{}",
+            rest[0]
+        ),
         _ => bail!("{first} is a value, not a table"),
     }
 }
@@ -121,14 +123,23 @@ mod tests {
     #[test]
     fn values_are_toml_or_bare_words() {
         let o = FieldOverride::parse("render.width = 640").unwrap();
-        assert_eq!((o.key.as_str(), o.value), ("render.width", Value::Integer(640)));
+        assert_eq!(
+            (o.key.as_str(), o.value),
+            ("render.width", Value::Integer(640))
+        );
         let o = FieldOverride::parse("integrator.volume=baseline").unwrap();
         assert_eq!(o.value, Value::String("baseline".into()));
         let o = FieldOverride::parse("light.1.irradiance=[1, 2.5, 3]").unwrap();
         assert!(matches!(o.value, Value::Array(ref a) if a.len() == 3));
         let o = FieldOverride::parse("render.pixel_jitter=false").unwrap();
         assert_eq!(o.value, Value::Boolean(false));
-        for bad in ["render.width", "=3", "render..width=3", "a.b=[1,", "a=two words"] {
+        for bad in [
+            "render.width",
+            "=3",
+            "render..width=3",
+            "a.b=[1,",
+            "a=two words",
+        ] {
             assert!(FieldOverride::parse(bad).is_err(), "{bad}");
         }
     }
@@ -145,7 +156,10 @@ mod tests {
         )
         .unwrap();
         assert_eq!(t["light"][1]["radius"].as_float(), Some(0.5));
-        assert_eq!(t["integrator"]["restir"]["candidates"].as_integer(), Some(8));
+        assert_eq!(
+            t["integrator"]["restir"]["candidates"].as_integer(),
+            Some(8)
+        );
         let err = apply(&mut t, &[FieldOverride::new("light.3.radius", 1.0)]).unwrap_err();
         assert!(err.to_string().contains("the scene has 2"), "{err}");
         let err = apply(&mut t, &[FieldOverride::new("light.radius", 1.0)]).unwrap_err();

@@ -7,7 +7,8 @@ use glam::{DVec2, DVec3, Vec2, Vec3};
 use toml::Value;
 
 use crate::fields::{
-    non_negative, open_interval, positive_up_to, type_name, unit_interval, Fields, Source,
+    non_negative, open_interval, positive_up_to, radiometric, type_name, unit_interval, Fields,
+    Source,
 };
 use crate::files::{check_grid_dims, file_size, read_vol_header};
 use crate::geometry::{convex_ccw_polygon, OrientedBox};
@@ -18,6 +19,10 @@ use crate::types::*;
 pub const MAX_LENGTH_M: f64 = 1e7;
 /// Largest `sigma_t` / `density_scale` in 1/m.
 pub const MAX_SIGMA_T: f64 = 1e9;
+/// Most ReSTIR spatial neighbours: the shaders combine at most 17 candidates (the
+/// pixel's own and 16 neighbours' reservoirs), and Talbot MIS costs (N + 1)² path
+/// evaluations per pixel.
+pub const MAX_SPATIAL_NEIGHBORS: u32 = 16;
 /// Largest image side in pixels.
 pub const MAX_IMAGE_SIDE: u32 = 16384;
 /// Most pixels in an image (64 Mi).
@@ -180,7 +185,7 @@ pub(crate) fn parse_scene(text: &str, file: &Path, overrides: &[FieldOverride]) 
         None => Integrator::default(),
     };
 
-    Ok(Scene {
+    let scene = Scene {
         source: file.to_path_buf(),
         render,
         camera,
@@ -189,7 +194,88 @@ pub(crate) fn parse_scene(text: &str, file: &Path, overrides: &[FieldOverride]) 
         media,
         shapes,
         integrator,
-    })
+    };
+    check_precision(&source, &scene)?;
+    Ok(scene)
+}
+
+/// Refuses features and extinctions that 32-bit positions cannot resolve at the
+/// scene's extent (see [`crate::precision`]). Grid densities are checked when the grid
+/// is read ([`GridMedium::check_density`]).
+fn check_precision(source: &Source, scene: &Scene) -> Result<()> {
+    let scale = scene.position_scale();
+    let fail = |table: String, field: &str, problem: String| {
+        source.error(format!("{table}: field `{field}`: {problem}"))
+    };
+    for (i, medium) in scene.media.iter().enumerate() {
+        match medium {
+            Medium::Box(b) => {
+                let table = format!("[[medium]] #{} (type = \"box\")", i + 1);
+                if let Some(p) = scale.feature_problem(f64::from(b.size.min_element())) {
+                    return Err(fail(table, "size", p));
+                }
+                if let Some(p) = scale.sigma_t_problem(f64::from(b.sigma_t), "sigma_t") {
+                    return Err(fail(table, "sigma_t", p));
+                }
+            }
+            Medium::Grid(g) => {
+                let table = format!("[[medium]] #{} (type = \"grid\")", i + 1);
+                for source_grid in g.density_sources() {
+                    let Ok(dims) = source_grid.dims() else {
+                        continue;
+                    };
+                    let voxel = (g.bounds_max - g.bounds_min) / Vec3::from(dims.map(|d| d as f32));
+                    if let Some(p) = scale.feature_problem(f64::from(voxel.min_element())) {
+                        return Err(fail(table, "density", format!("a voxel of {p}")));
+                    }
+                }
+            }
+        }
+    }
+    for (i, shape) in scene.shapes.iter().enumerate() {
+        let (kind, field, size) = match shape {
+            Shape::Quad { edge_u, edge_v, .. } => {
+                let (field, len) = if edge_u.length() <= edge_v.length() {
+                    ("edge_u", edge_u.length())
+                } else {
+                    ("edge_v", edge_v.length())
+                };
+                ("quad", field, len)
+            }
+            Shape::Box { size, .. } => ("box", "size", size.min_element()),
+            Shape::Sphere { radius, .. } => ("sphere", "radius", *radius),
+        };
+        if let Some(p) = scale.feature_problem(f64::from(size)) {
+            return Err(fail(
+                format!("[[shape]] #{} (type = \"{kind}\")", i + 1),
+                field,
+                p,
+            ));
+        }
+    }
+    for (i, light) in scene.lights.iter().enumerate() {
+        let (kind, field, size) = match light {
+            Light::Sphere { radius, .. } => ("sphere", "radius", *radius),
+            Light::Directional {
+                gobo: Some(gobo), ..
+            } => {
+                let n = gobo.polygon.len();
+                let shortest = (0..n)
+                    .map(|k| (gobo.polygon[(k + 1) % n] - gobo.polygon[k]).length())
+                    .fold(f32::INFINITY, f32::min);
+                ("directional", "gobo", shortest)
+            }
+            _ => continue,
+        };
+        if let Some(p) = scale.feature_problem(f64::from(size)) {
+            return Err(fail(
+                format!("[[light]] #{} (type = \"{kind}\")", i + 1),
+                field,
+                p,
+            ));
+        }
+    }
+    Ok(())
 }
 
 fn parse_render(source: &Source, table: &toml::Table) -> Result<RenderSettings> {
@@ -216,17 +302,26 @@ fn parse_render(source: &Source, table: &toml::Table) -> Result<RenderSettings> 
 
 /// Why a camera looking from `position` at `look_at` with `up` has no frame, if it
 /// has none.
-fn view_problem(position: Vec3, look_at: Vec3, up: Vec3) -> Option<&'static str> {
+fn view_problem(position: Vec3, look_at: Vec3, up: Vec3) -> Option<String> {
     let view = (look_at - position).as_dvec3();
     let scale = position
         .abs()
         .max_element()
         .max(look_at.abs().max_element()) as f64;
     if view.length() <= (1e-6 * scale).max(1e-12) {
-        return Some("`position` and `look_at` coincide");
+        // Points far from the origin may differ in the file and still coincide as f32.
+        let resolution = scale * crate::precision::F32_EPSILON;
+        return Some(if resolution > 1e-6 {
+            format!(
+                "`position` and `look_at` coincide or nearly so: {scale:e} m from the origin, \
+                 32-bit positions are only known to {resolution:.2e} m"
+            )
+        } else {
+            "`position` and `look_at` coincide".to_string()
+        });
     }
     if view.normalize().cross(up.as_dvec3()).length() < 1e-4 {
-        return Some("`up` is parallel to the view direction (look_at - position)");
+        return Some("`up` is parallel to the view direction (look_at - position)".to_string());
     }
     None
 }
@@ -352,7 +447,7 @@ fn parse_light(
     let light = match kind {
         "directional" => {
             let direction = f.direction("direction", first_vector.map(|v| v.as_dvec3()))?;
-            let irradiance = f.color("irradiance", first_colour, non_negative)?;
+            let irradiance = f.color("irradiance", first_colour, radiometric)?;
             let gobo = match f.value("gobo") {
                 Some(value) => Some(Gobo {
                     polygon: parse_gobo_polygon(&f, value)?,
@@ -380,20 +475,33 @@ fn parse_light(
                     "missing: an environment light needs `radiance`, `file`, or both",
                 ));
             }
+            let radiance = f.color("radiance", Some(Vec3::ONE), radiometric)?;
+            let scale = f.color("scale", Some(Vec3::ONE), non_negative)?;
+            // What the renderer sees is the product; a map's texels are checked with
+            // the same limit when the map is read.
+            let product = radiance.as_dvec3() * scale.as_dvec3();
+            if let Some(message) = radiometric(product.max_element()) {
+                return Err(f.error(
+                    "scale",
+                    format!(
+                        "radiance {radiance} times scale {scale} is {product} W/(m²·sr): {message}"
+                    ),
+                ));
+            }
             Light::Environment {
-                radiance: f.color("radiance", Some(Vec3::ONE), non_negative)?,
+                radiance,
                 file,
-                scale: f.color("scale", Some(Vec3::ONE), non_negative)?,
+                scale,
             }
         }
         "point" => Light::Point {
             position: f.vec3("position", first_vector)?,
-            intensity: f.color("intensity", first_colour, non_negative)?,
+            intensity: f.color("intensity", first_colour, radiometric)?,
         },
         _ => Light::Sphere {
             center: f.vec3("center", first_vector)?,
             radius: f.f32_with("radius", None, positive_up_to(MAX_LENGTH_M))?,
-            radiance: f.color("radiance", first_colour, non_negative)?,
+            radiance: f.color("radiance", first_colour, radiometric)?,
         },
     };
     let keyframes = resolve_light_keyframes(&f, &light, &keys)?;
@@ -444,7 +552,7 @@ fn parse_light_keyframes(f: &Fields, kind: &str) -> Result<Vec<LightKeyInput>> {
             (true, _) => Some(k.vec3(vector_key, None)?),
         };
         let colour = match k.has(colour_key) {
-            true => Some(k.color(colour_key, None, non_negative)?),
+            true => Some(k.color(colour_key, None, radiometric)?),
             false => None,
         };
         keys.push(LightKeyInput {
@@ -689,7 +797,7 @@ fn parse_medium(
         albedo,
         g,
         emission,
-        emission_scale: f.color("emission_scale", Some(Vec3::ONE), non_negative)?,
+        emission_scale: f.color("emission_scale", Some(Vec3::ONE), radiometric)?,
         velocity,
         frames: frames.into_iter().map(|(frame, _)| frame).collect(),
     };
@@ -917,7 +1025,11 @@ fn parse_restir(source: &Source, table: &toml::Table) -> Result<RestirSettings> 
         candidates: f.u32_in("candidates", Some(d.candidates), 1..=4096)?,
         temporal: f.opt_bool("temporal")?.unwrap_or(d.temporal),
         temporal_limit: f.u32_in("temporal_limit", Some(d.temporal_limit), 1..=1024)?,
-        spatial_neighbors: f.u32_in("spatial_neighbors", Some(d.spatial_neighbors), 0..=64)?,
+        spatial_neighbors: f.u32_in(
+            "spatial_neighbors",
+            Some(d.spatial_neighbors),
+            0..=MAX_SPATIAL_NEIGHBORS,
+        )?,
         spatial_radius_px: f.f32_in(
             "spatial_radius_px",
             Some(d.spatial_radius_px),

@@ -102,7 +102,7 @@ impl RestirPass {
         // The density moves into `volumes`; the rest of the grid records are uploaded.
         let density = std::mem::take(&mut grid_gpu.density);
         let dims = density.dims;
-        let volumes = Volumes::load(density, grid, plan, &grid_label)?;
+        let volumes = Volumes::load(density, grid, plan, &scene.position_scale(), &grid_label)?;
         let first = volumes.base()?;
         let restir_uniforms = RestirUniformsGpu {
             pc_primary: first.pc_primary,

@@ -5,6 +5,7 @@
 use std::collections::HashMap;
 
 use anyhow::{bail, Result};
+use nimbus_scene::precision::PositionScale;
 use nimbus_scene::{GridMedium, VoxelGrid};
 
 use crate::plan::RestirPlan;
@@ -75,6 +76,7 @@ impl Volumes {
         base: VoxelGrid,
         grid: &GridMedium,
         plan: &RestirPlan,
+        scale: &PositionScale,
         label: &str,
     ) -> Result<Volumes> {
         let dims = base.dims;
@@ -87,6 +89,7 @@ impl Volumes {
                 frame.frame
             );
             let density = nimbus_scene::load_grid(&frame.density, 1, &what)?;
+            grid.check_density(&density, scale, &what)?;
             if density.dims != dims {
                 bail!(
                     "{what}: field `density`: dims {:?} differ from the medium's density {:?}; every frame must have the same resolution",

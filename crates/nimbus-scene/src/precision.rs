@@ -1,0 +1,323 @@
+//! What 32-bit float positions can resolve, and the scenes that stay inside it.
+//!
+//! The renderer computes every position in f32: a point the renderer computes is known
+//! to about one unit in the last place of its largest coordinate. A scene reaching `R`
+//! metres from the origin (its *extent*: camera positions, media, shapes, positioned
+//! lights) therefore has a **position resolution** δ = R · 2⁻²³. Two things go wrong
+//! below it, and both render wrong images silently rather than failing:
+//!
+//! - **Features** (a box's size, a voxel, a quad edge, a sphere's radius, a gobo edge)
+//!   much smaller than δ are misplaced by a large fraction of themselves. Every feature
+//!   must span at least [`MIN_FEATURE_RESOLUTIONS`] = 256 resolutions (0.4 % error).
+//! - **Optical depth** across a position error: where a medium's extinction jumps
+//!   (a box medium's faces, a grid's boundary voxels, a steep step between voxels),
+//!   a point misplaced by δ misjudges the optical depth to the boundary by σt · δ.
+//!   Nimbus requires σt · δ ≤ [`MAX_OPTICAL_RESOLUTION`] = 1/256 (0.4 % in
+//!   transmittance), i.e. a mean free path of at least 256 resolutions. In a trilinear
+//!   grid a step from σ₀ to σ₁ over one voxel of size h is not a jump: scattering
+//!   happens where its optical depth reaches ~1, where the extinction is
+//!   σ_eff = min(σ₁, σ₀ + √(2(σ₁ − σ₀)/h)), and that is what is checked.
+//!
+//! A scene outside these limits is refused before anything is allocated, with the
+//! largest value that would render right and the farthest point that sets δ, so the
+//! remedy (move the scene closer to the origin, scale it, lower σt) is plain.
+
+use glam::Vec3;
+
+use crate::types::{Light, Medium, Scene, Shape};
+use crate::volume::VoxelGrid;
+
+/// f32 epsilon (2⁻²³): the relative spacing of f32 values.
+pub const F32_EPSILON: f64 = f32::EPSILON as f64;
+/// A feature must span at least this many position resolutions.
+pub const MIN_FEATURE_RESOLUTIONS: f64 = 256.0;
+/// Largest σt · δ (optical depth across one position resolution).
+pub const MAX_OPTICAL_RESOLUTION: f64 = 1.0 / 256.0;
+
+/// A scene's extent and the farthest point that sets it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PositionScale {
+    /// R: the largest absolute coordinate of any point the renderer computes, in metres.
+    pub extent: f64,
+    /// What sets `extent`, e.g. "[camera] field `position`".
+    pub farthest: String,
+}
+
+impl PositionScale {
+    /// δ = R · 2⁻²³ in metres.
+    pub fn resolution(&self) -> f64 {
+        self.extent * F32_EPSILON
+    }
+
+    /// The smallest feature size that renders right, in metres.
+    pub fn min_feature(&self) -> f64 {
+        MIN_FEATURE_RESOLUTIONS * self.resolution()
+    }
+
+    /// The largest extinction (1/m) at a jump that renders right.
+    pub fn max_sigma_t(&self) -> f64 {
+        MAX_OPTICAL_RESOLUTION / self.resolution()
+    }
+
+    /// Why a feature of `size` metres cannot be rendered, if it cannot.
+    pub fn feature_problem(&self, size: f64) -> Option<String> {
+        (size < self.min_feature()).then(|| {
+            format!(
+                "{size:e} m is below what 32-bit positions resolve in this scene: it reaches \
+                 {:e} m from the origin ({}), where positions are known to {:.2e} m, and \
+                 features must span at least {MIN_FEATURE_RESOLUTIONS} of those ({:.2e} m); \
+                 move the scene closer to the origin or shrink its extent",
+                self.extent,
+                self.farthest,
+                self.resolution(),
+                self.min_feature()
+            )
+        })
+    }
+
+    /// Why an extinction of `sigma_t` (1/m) at a jump cannot be rendered, if it cannot.
+    pub fn sigma_t_problem(&self, sigma_t: f64, what: &str) -> Option<String> {
+        (sigma_t > self.max_sigma_t()).then(|| {
+            format!(
+                "{what} {sigma_t:e} /m gives a mean free path of {:.2e} m, below what 32-bit \
+                 positions resolve in this scene (it reaches {:e} m from the origin ({}), \
+                 where positions are known to {:.2e} m); at most {:.3e} /m renders right \
+                 here: lower the extinction, or move the scene closer to the origin",
+                1.0 / sigma_t,
+                self.extent,
+                self.farthest,
+                self.resolution(),
+                self.max_sigma_t()
+            )
+        })
+    }
+}
+
+/// The largest absolute coordinate of `points` (max-norm), with `what` if it is larger
+/// than `best`.
+fn widen(best: &mut (f64, String), what: impl FnOnce() -> String, points: &[Vec3]) {
+    let m = points
+        .iter()
+        .map(|p| f64::from(p.abs().max_element()))
+        .fold(0.0, f64::max);
+    if m > best.0 {
+        *best = (m, what());
+    }
+}
+
+impl Scene {
+    /// The scene's extent R (see the module docs): camera positions of every keyframe,
+    /// the bounding boxes of media and shapes, positioned lights and gobo planes.
+    pub fn position_scale(&self) -> PositionScale {
+        // A floor so that a scene at the origin still has a positive resolution.
+        let mut best = (1e-30, "the origin".to_string());
+        let cam = &self.camera;
+        widen(
+            &mut best,
+            || "[camera] field `position`".into(),
+            &[cam.position],
+        );
+        for (i, k) in cam.keyframes.iter().enumerate() {
+            widen(
+                &mut best,
+                || format!("[[camera.keyframe]] #{} field `position`", i + 1),
+                &[k.position],
+            );
+        }
+        for (i, medium) in self.media.iter().enumerate() {
+            let corners = match medium {
+                Medium::Box(b) => {
+                    let r = Vec3::splat(0.5 * b.size.length());
+                    vec![b.center - r, b.center + r]
+                }
+                Medium::Grid(g) => vec![g.bounds_min, g.bounds_max],
+            };
+            widen(&mut best, || format!("[[medium]] #{}", i + 1), &corners);
+        }
+        for (i, shape) in self.shapes.iter().enumerate() {
+            let corners = match shape {
+                Shape::Quad {
+                    corner,
+                    edge_u,
+                    edge_v,
+                    ..
+                } => vec![
+                    *corner,
+                    *corner + *edge_u,
+                    *corner + *edge_v,
+                    *corner + *edge_u + *edge_v,
+                ],
+                Shape::Box { center, size, .. } => {
+                    let r = Vec3::splat(0.5 * size.length());
+                    vec![*center - r, *center + r]
+                }
+                Shape::Sphere { center, radius, .. } => {
+                    vec![
+                        *center - Vec3::splat(*radius),
+                        *center + Vec3::splat(*radius),
+                    ]
+                }
+            };
+            widen(&mut best, || format!("[[shape]] #{}", i + 1), &corners);
+        }
+        let frames = self.render.frames.max(1);
+        let light_sets = if self.lights_animated() {
+            (0..frames.min(4096)).map(|f| self.lights_at(f)).collect()
+        } else {
+            vec![self.lights.clone()]
+        };
+        for lights in &light_sets {
+            for (i, light) in lights.iter().enumerate() {
+                let points = match light {
+                    Light::Point { position, .. } => vec![*position],
+                    Light::Sphere { center, radius, .. } => {
+                        vec![
+                            *center - Vec3::splat(*radius),
+                            *center + Vec3::splat(*radius),
+                        ]
+                    }
+                    Light::Directional {
+                        gobo: Some(gobo), ..
+                    } => vec![gobo.origin],
+                    _ => continue,
+                };
+                widen(&mut best, || format!("[[light]] #{}", i + 1), &points);
+            }
+        }
+        PositionScale {
+            extent: best.0,
+            farthest: best.1,
+        }
+    }
+}
+
+/// The largest effective extinction of a grid (see the module docs): its boundary
+/// voxels (the density is constant from each face to the first centre, a jump from
+/// vacuum), and for every pair of neighbouring voxels the extinction where a step
+/// between them reaches optical depth one. `scale` is `density_scale`; `voxel` the
+/// voxel size in metres per axis. Returns σ_eff and the voxel (i, j, k) it occurs at.
+pub fn grid_effective_sigma_t(grid: &VoxelGrid, scale: f64, voxel: [f64; 3]) -> (f64, [u32; 3]) {
+    let [nx, ny, nz] = grid.dims.map(|d| d as usize);
+    let at = |i: usize, j: usize, k: usize| scale * f64::from(grid.data[(k * ny + j) * nx + i]);
+    let mut best = (0.0f64, [0u32; 3]);
+    let mut consider = |sigma: f64, ijk: [usize; 3]| {
+        if sigma > best.0 {
+            best = (sigma, ijk.map(|v| v as u32));
+        }
+    };
+    for k in 0..nz {
+        for j in 0..ny {
+            for i in 0..nx {
+                let s = at(i, j, k);
+                if i == 0 || j == 0 || k == 0 || i + 1 == nx || j + 1 == ny || k + 1 == nz {
+                    consider(s, [i, j, k]);
+                }
+                for (axis, (ni, nj, nk)) in
+                    [(0, (i + 1, j, k)), (1, (i, j + 1, k)), (2, (i, j, k + 1))]
+                {
+                    if ni >= nx || nj >= ny || nk >= nz {
+                        continue;
+                    }
+                    let t = at(ni, nj, nk);
+                    let (lo, hi) = if s < t { (s, t) } else { (t, s) };
+                    // Domain: voxel sizes > 0 (validated extents and dims).
+                    let ramp = lo + (2.0 * (hi - lo) / voxel[axis]).sqrt();
+                    let ijk = if s < t { [ni, nj, nk] } else { [i, j, k] };
+                    consider(hi.min(ramp), ijk);
+                }
+            }
+        }
+    }
+    best
+}
+
+impl crate::types::GridMedium {
+    /// Checks a loaded density grid of this medium before the renderer uses it:
+    /// σt = `density_scale` × voxel must stay within [`crate::MAX_SIGMA_T`] (so it is
+    /// finite in f32 too), and the grid's effective extinction
+    /// ([`grid_effective_sigma_t`]) must be resolvable at the scene's `scale`. `what`
+    /// names the grid in errors, e.g. `scene.toml: [[medium]] #1 > density`.
+    pub fn check_density(
+        &self,
+        density: &VoxelGrid,
+        scale: &PositionScale,
+        what: &str,
+    ) -> anyhow::Result<()> {
+        let s = f64::from(self.density_scale);
+        let (max_index, max_value) = density
+            .data
+            .iter()
+            .enumerate()
+            .fold((0, 0.0f32), |m, (i, v)| if *v > m.1 { (i, *v) } else { m });
+        let sigma_max = s * f64::from(max_value);
+        if sigma_max > crate::MAX_SIGMA_T {
+            let [nx, ny, _] = density.dims.map(|d| d as usize);
+            let (i, j, k) = (max_index % nx, (max_index / nx) % ny, max_index / (nx * ny));
+            anyhow::bail!(
+                "{what}: voxel ({i}, {j}, {k}) = {max_value:e} times density_scale {s:e} is \
+                 sigma_t = {sigma_max:e} /m, above the largest extinction {:e} /m",
+                crate::MAX_SIGMA_T
+            );
+        }
+        let size = self.bounds_max - self.bounds_min;
+        let voxel = [0, 1, 2].map(|a| f64::from(size[a]) / f64::from(density.dims[a].max(1)));
+        let (sigma, [i, j, k]) = grid_effective_sigma_t(density, s, voxel);
+        if let Some(problem) = scale.sigma_t_problem(sigma, "the extinction where light enters it")
+        {
+            anyhow::bail!(
+                "{what} (with density_scale {s:e}): near voxel ({i}, {j}, {k}), {problem}"
+            );
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scale(extent: f64) -> PositionScale {
+        PositionScale {
+            extent,
+            farthest: "[camera] field `position`".into(),
+        }
+    }
+
+    #[test]
+    fn limits_follow_the_extent() {
+        let s = scale(1.0);
+        assert!((s.resolution() - 1.1920929e-7).abs() < 1e-13);
+        assert!(s.feature_problem(1e-3).is_none());
+        let m = s.feature_problem(1e-5).expect("too small");
+        assert!(
+            m.contains("[camera] field `position`") && m.contains("3.05e-5"),
+            "{m}"
+        );
+        assert!(s.sigma_t_problem(3e4, "sigma_t").is_none());
+        let m = s.sigma_t_problem(1e9, "sigma_t").expect("too dense");
+        assert!(m.contains("at most 3.277e4 /m"), "{m}");
+        // A camera 2e19 m away leaves no room for a 1 m box.
+        assert!(scale(2e19).feature_problem(1.0).is_some());
+    }
+
+    #[test]
+    fn effective_sigma_of_a_hot_voxel_is_its_ramp() {
+        let mut grid = VoxelGrid {
+            dims: [5, 5, 5],
+            channels: 1,
+            data: vec![0.5; 125],
+        };
+        grid.data[2 + 5 * (2 + 5 * 2)] = 1e6;
+        let (sigma, ijk) = grid_effective_sigma_t(&grid, 1.0, [0.1; 3]);
+        assert_eq!(ijk, [2, 2, 2]);
+        let ramp = 0.5 + (2.0 * (1e6 - 0.5) / 0.1f64).sqrt();
+        assert!((sigma - ramp).abs() < 1e-6 * ramp, "{sigma} {ramp}");
+        // A uniform grid's boundary jumps from vacuum to its full density.
+        let uniform = VoxelGrid {
+            dims: [3, 3, 3],
+            channels: 1,
+            data: vec![2.0; 27],
+        };
+        assert_eq!(grid_effective_sigma_t(&uniform, 10.0, [1.0; 3]).0, 20.0);
+    }
+}
