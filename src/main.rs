@@ -277,15 +277,20 @@ fn render(args: RenderArgs) -> Result<()> {
         .filter_map(|f| f.first())
         .map(|s| s.duration_ms())
         .sum();
+    let mib = |b: u64| b as f64 / f64::from(1u32 << 20);
+    let host = nimbus::budget::peak_host_bytes().map_or_else(String::new, |b| {
+        format!(", peak host memory {:.0} MiB", mib(b))
+    });
     eprintln!(
-        "wrote {} ({}x{}, {} frame(s) x {} spp) in {:.2} s, GPU {:.1} ms",
+        "wrote {} ({}x{}, {} frame(s) x {} spp) in {:.2} s, GPU {:.1} ms, GPU memory {:.1} MiB{host}",
         out.display(),
         scene.render.width,
         scene.render.height,
         result.frames,
         scene.render.spp,
         result.wall_time.as_secs_f64(),
-        gpu_ms
+        gpu_ms,
+        mib(result.device_bytes)
     );
     if result.non_finite_samples > 0 {
         eprintln!(

@@ -7,7 +7,7 @@
 
 use std::time::{Duration, Instant};
 
-use anyhow::{bail, Context as _, Result};
+use anyhow::{Context as _, Result};
 use nimbus_gpu::{vk, Buffer, BufferDesc, Context, GpuObjects, Handle, Profiler, ScopeResult};
 use nimbus_scene::Scene;
 
@@ -51,6 +51,8 @@ pub struct RenderResult {
     pub wall_time: Duration,
     /// Each measured frame's own estimate, with [`RenderOptions::keep_frames`].
     pub frame_images: Vec<ImageRgb>,
+    /// Bytes of every GPU buffer and image the render created.
+    pub device_bytes: u64,
 }
 
 /// Render `scene` with `plan` on `ctx`.
@@ -64,18 +66,9 @@ pub fn render(
     let r = &scene.render;
     let pixels = u64::from(r.width) * u64::from(r.height);
     let accum_bytes = pixels * 16;
-    let max_range = u64::from(ctx.info().max_storage_buffer_range);
-    if accum_bytes > max_range {
-        bail!(
-            "{}: [render] {}x{} pixels need a {} MiB accumulation buffer; device '{}' allows {} MiB per storage buffer",
-            scene.source.display(),
-            r.width,
-            r.height,
-            accum_bytes >> 20,
-            ctx.info().name,
-            max_range >> 20
-        );
-    }
+    // Everything this render allocates, checked against the device and the host
+    // budget before anything is.
+    crate::budget::Footprint::of(scene, plan)?.check(ctx.info(), crate::budget::host_budget()?)?;
 
     // Create the render targets; `objects` frees them whatever happens next.
     let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
@@ -104,6 +97,7 @@ pub fn render(
     let result = (|| {
         let targets = handles.targets(&objects);
         let mut pass = passes::create(ctx, scene, plan, &targets)?;
+        let device_bytes = objects.bytes() + pass.device_bytes();
         let run = run_frames(ctx, scene, pass.as_mut(), &targets, opts);
         pass.destroy(ctx);
         let (frame_timings, frames, sequence_sums, frame_images) = run?;
@@ -117,6 +111,7 @@ pub fn render(
             start,
         )?;
         result.frame_images = frame_images;
+        result.device_bytes = device_bytes;
         Ok(result)
     })();
     objects.destroy(ctx);
@@ -337,6 +332,7 @@ fn read_result(
         frame_timings,
         wall_time: start.elapsed(),
         frame_images: Vec::new(),
+        device_bytes: 0,
     })
 }
 

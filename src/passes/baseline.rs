@@ -193,6 +193,10 @@ impl Pass for BaselinePass {
         )
     }
 
+    fn device_bytes(&self) -> u64 {
+        self.objects.bytes()
+    }
+
     fn destroy(self: Box<Self>, ctx: &Context) {
         self.objects.destroy(ctx);
     }

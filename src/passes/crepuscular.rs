@@ -135,6 +135,10 @@ impl Pass for CrepuscularPass {
         )
     }
 
+    fn device_bytes(&self) -> u64 {
+        self.objects.bytes()
+    }
+
     fn destroy(self: Box<Self>, ctx: &Context) {
         self.objects.destroy(ctx);
     }

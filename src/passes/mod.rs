@@ -71,6 +71,9 @@ pub trait Pass {
         profiler: Option<&mut Profiler>,
     ) -> Result<()>;
 
+    /// Bytes of every buffer and image the pass created.
+    fn device_bytes(&self) -> u64;
+
     /// Frees every GPU object of the pass.
     fn destroy(self: Box<Self>, ctx: &Context);
 }

@@ -139,6 +139,18 @@ impl GpuObjects {
         self.len() == 0
     }
 
+    /// Bytes of every buffer and image in the bag (their requested sizes; the
+    /// allocator may round up).
+    pub fn bytes(&self) -> u64 {
+        let buffers: u64 = self.buffers.iter().map(|b| b.size).sum();
+        let images: u64 = self
+            .images
+            .iter()
+            .map(|i| i.desc.byte_size().unwrap_or(0))
+            .sum();
+        buffers + images
+    }
+
     /// Frees every object: descriptor sets, pipelines, samplers, images, then buffers.
     pub fn destroy(self, ctx: &Context) {
         for set in self.sets {

@@ -114,22 +114,11 @@ impl EnvMap {
         }
     }
 
-    /// Reads the R, G, B channels of the first layer of an equirectangular EXR (any
-    /// sample type: half, float or uint, converted to f32; alpha ignored) and
-    /// multiplies every texel by `scale` (for a scene light, `radiance · scale`).
-    ///
-    /// Errors, each naming the file: unreadable file; no R, G and B channels in the
-    /// first layer; size outside 1×1 ..= [`MAX_ENVMAP_WIDTH`]×[`MAX_ENVMAP_HEIGHT`];
-    /// a negative or non-finite `scale`; a NaN, infinite or negative texel (the message
-    /// names pixel (x, y), the channel and the value), or one that overflows f32 once
-    /// scaled.
-    pub fn load_exr(path: &Path, scale: Vec3) -> Result<EnvMap> {
+    /// The width and height of an environment map from its EXR header, checked like
+    /// [`EnvMap::load_exr`] checks them (R, G, B channels; 1×1 ..=
+    /// [`MAX_ENVMAP_WIDTH`]×[`MAX_ENVMAP_HEIGHT`]), without reading any pixels.
+    pub fn read_size(path: &Path) -> Result<[u32; 2]> {
         let name = path.display();
-        if !scale.to_array().iter().all(|s| s.is_finite() && *s >= 0.0) {
-            bail!("{name}: environment scale {scale} must be finite and >= 0");
-        }
-
-        // Check the channels and size from the header before decoding any pixels.
         let meta = exr::meta::MetaData::read_from_file(path, false)
             .with_context(|| format!("{name}: cannot read EXR header"))?;
         let header = meta
@@ -156,6 +145,28 @@ impl EnvMap {
                  {MAX_ENVMAP_WIDTH}×{MAX_ENVMAP_HEIGHT}"
             );
         }
+
+        Ok([w as u32, h as u32])
+    }
+
+    /// Reads the R, G, B channels of the first layer of an equirectangular EXR (any
+    /// sample type: half, float or uint, converted to f32; alpha ignored) and
+    /// multiplies every texel by `scale` (for a scene light, `radiance · scale`).
+    ///
+    /// Errors, each naming the file: unreadable file; no R, G and B channels in the
+    /// first layer; size outside 1×1 ..= [`MAX_ENVMAP_WIDTH`]×[`MAX_ENVMAP_HEIGHT`];
+    /// a negative or non-finite `scale`; a NaN, infinite or negative texel (the message
+    /// names pixel (x, y), the channel and the value), or one that overflows f32 once
+    /// scaled.
+    pub fn load_exr(path: &Path, scale: Vec3) -> Result<EnvMap> {
+        let name = path.display();
+        if !scale.to_array().iter().all(|s| s.is_finite() && *s >= 0.0) {
+            bail!("{name}: environment scale {scale} must be finite and >= 0");
+        }
+
+        // Check the channels and size from the header before decoding any pixels.
+        let [w, h] = EnvMap::read_size(path)?;
+        let (w, h) = (w as usize, h as usize);
 
         let image = exr::prelude::read_first_rgba_layer_from_file(
             path,

@@ -14,7 +14,7 @@ pub mod resources;
 pub mod schedule;
 pub mod volumes;
 
-use anyhow::{bail, Result};
+use anyhow::Result;
 use nimbus_gpu::{compute_barrier, vk, Context, GpuObjects, Profiler, SpecValue};
 use nimbus_scene::{CameraFrame, GridMedium, Scene};
 
@@ -77,20 +77,6 @@ impl RestirPass {
         let pixels = u64::from(r.width) * u64::from(r.height);
         let stride_bytes = reservoir_bytes(plan.max_bounces);
         let reservoir_total = u64::from(SLOTS) * pixels * stride_bytes;
-        let max_range = u64::from(ctx.info().max_storage_buffer_range);
-        if reservoir_total > max_range {
-            bail!(
-                "{}: [render] {}x{} pixels with K = {} need {} MiB of reservoirs ({SLOTS} slots of {} bytes per pixel); device '{}' allows {} MiB per storage buffer",
-                scene.source.display(),
-                r.width,
-                r.height,
-                plan.max_bounces,
-                reservoir_total >> 20,
-                stride_bytes,
-                ctx.info().name,
-                max_range >> 20
-            );
-        }
         let velocity = match &grid.velocity {
             Some(source) if plan.has_velocity => Some(nimbus_scene::load_grid(
                 source,
@@ -307,6 +293,10 @@ impl Pass for RestirPass {
         }
         self.prev_slot = Some(last);
         Ok(())
+    }
+
+    fn device_bytes(&self) -> u64 {
+        self.objects.bytes()
     }
 
     fn destroy(self: Box<Self>, ctx: &Context) {

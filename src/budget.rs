@@ -1,0 +1,344 @@
+//! What a render will allocate, known before anything is: every GPU buffer and image
+//! with its size and the scene field it comes from, and the host memory at its peak.
+//!
+//! [`Footprint::of`] reads only what the scene file and the headers of the files it
+//! names say (grid dims, environment-map sizes), never the data. [`Footprint::check`]
+//! compares it with the device's limits (`maxStorageBufferRange`, image dimensions,
+//! `maxMemoryAllocationSize`, the device-local heap) and with the host memory budget,
+//! and refuses a render that does not fit, naming the file and field, before any
+//! allocation. A test compares the footprint with what the passes really create.
+
+use std::fmt::Write as _;
+
+use anyhow::{bail, Result};
+use nimbus_gpu::DeviceInfo;
+use nimbus_scene::{GridSource, Light, Medium, Scene};
+
+use crate::gpu::{reservoir_bytes, FrameUniforms};
+use crate::plan::{Integrator, RenderPlan};
+
+/// How a GPU allocation is bound, which decides the limits it must meet.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Binding {
+    Storage,
+    Uniform,
+    Image3d([u32; 3]),
+}
+
+/// One GPU allocation of a render.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Need {
+    /// The scene field it comes from, e.g. `scene.toml: [[medium]] #1 field `density``.
+    pub what: String,
+    pub binding: Binding,
+    pub bytes: u64,
+}
+
+/// The GPU allocations of a render and its peak host memory.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Footprint {
+    pub device: Vec<Need>,
+    /// Peak bytes the host holds for the scene's data while the render is built (grids,
+    /// their derived levels, environment maps and tables, staging copies).
+    pub host_peak: u64,
+}
+
+/// Bytes of a `dims` grid of `bytes_per_voxel`.
+fn grid_bytes(dims: [u32; 3], bytes_per_voxel: u64) -> u64 {
+    dims.iter().map(|&d| u64::from(d)).product::<u64>() * bytes_per_voxel
+}
+
+/// Dims of mip level `level` (each halving rounds up), clamped at the 1×1×1 level.
+pub fn level_dims(dims: [u32; 3], level: u32) -> [u32; 3] {
+    let mut d = dims;
+    for _ in 0..level {
+        if d == [1, 1, 1] {
+            break;
+        }
+        d = d.map(|n| n.div_ceil(2).max(1));
+    }
+    d
+}
+
+/// The environment map's size from its header, if the scene has one.
+fn env_map_size(scene: &Scene) -> Result<Option<(String, [u32; 2])>> {
+    for (i, light) in scene.lights.iter().enumerate() {
+        if let Light::Environment {
+            file: Some(file), ..
+        } = light
+        {
+            let what = format!(
+                "{}: [[light]] #{} (type = \"environment\") field `file` ({})",
+                scene.source.display(),
+                i + 1,
+                file.display()
+            );
+            let size = nimbus_scene::EnvMap::read_size(file)
+                .map_err(|e| anyhow::anyhow!("{what}: {e:#}"))?;
+            return Ok(Some((what, size)));
+        }
+    }
+    Ok(None)
+}
+
+impl Footprint {
+    fn add(&mut self, what: impl Into<String>, binding: Binding, bytes: u64) {
+        self.device.push(Need {
+            what: what.into(),
+            binding,
+            bytes,
+        });
+    }
+
+    /// The footprint of rendering `scene` with `plan`.
+    pub fn of(scene: &Scene, plan: &RenderPlan) -> Result<Footprint> {
+        let file = scene.source.display().to_string();
+        let mut f = Footprint::default();
+        let r = &scene.render;
+        let pixels = u64::from(r.width) * u64::from(r.height);
+        let render = format!("{file}: [render] fields `width` x `height`");
+        f.add(&render, Binding::Storage, pixels * 16);
+        f.add(&render, Binding::Storage, pixels * 16);
+        f.add(
+            "frame uniforms",
+            Binding::Uniform,
+            std::mem::size_of::<FrameUniforms>() as u64,
+        );
+        // Per-pixel readback of both sums.
+        f.host_peak += 2 * pixels * 16 + pixels * 12 * 2;
+
+        let grid = scene.media.iter().enumerate().find_map(|(i, m)| match m {
+            Medium::Grid(g) => Some((i, g)),
+            Medium::Box(_) => None,
+        });
+        let env = env_map_size(scene)?;
+        if let Some((what, [w, h])) = &env {
+            let texels = u64::from(*w) * u64::from(*h);
+            f.add(format!("{what}: texels"), Binding::Storage, texels * 16);
+            f.add(
+                format!("{what}: sampling tables"),
+                Binding::Storage,
+                (texels + u64::from(*h) * 2 + 1) * 4,
+            );
+            // Texels (f32 RGB) + sampler (f64 weights and CDF) + the GPU copies.
+            f.host_peak += texels * (12 + 8 + 8 + 16 + 4);
+        }
+
+        let (index, g) = match (&plan.integrator, grid) {
+            (Integrator::Crepuscular(_), _) | (_, None) => return Ok(f),
+            (_, Some(grid)) => grid,
+        };
+        let table = format!("{file}: [[medium]] #{} (type = \"grid\")", index + 1);
+        let dims = g.density.dims()?;
+        let voxels = grid_bytes(dims, 1);
+        let density = format!("{table} field `density`");
+        let sv = dims.map(|n| n.div_ceil(nimbus_scene::SUPER_VOXEL_FACTOR));
+        f.add(&density, Binding::Image3d(dims), voxels * 4);
+        f.add(
+            format!("{table} field `density` (super-voxels)"),
+            Binding::Storage,
+            grid_bytes(sv, 16),
+        );
+        // The grid as read, plus its staging copy.
+        f.host_peak += 2 * voxels * 4;
+        if let Some(emission) = &g.emission {
+            let e = emission.dims()?;
+            f.add(
+                format!("{table} field `emission`"),
+                Binding::Image3d(e),
+                grid_bytes(e, 4),
+            );
+            f.host_peak += 2 * grid_bytes(e, 4);
+        }
+        let Integrator::Restir(p) = &plan.integrator else {
+            return Ok(f);
+        };
+        let reservoirs = 3 * pixels * reservoir_bytes(p.max_bounces);
+        f.add(
+            format!("{file}: [render] `width` x `height` with [integrator] `max_bounces` = {} (ReSTIR reservoirs)", p.max_bounces),
+            Binding::Storage,
+            reservoirs,
+        );
+        let primary = level_dims(dims, p.mip_candidates);
+        let indirect = level_dims(dims, p.mip_indirect);
+        let reuse = level_dims(dims, p.mip_reuse);
+        f.add(
+            format!("{table} (piecewise-constant levels)"),
+            Binding::Storage,
+            grid_bytes(primary, 4) + grid_bytes(indirect, 4),
+        );
+        // Previous-frame density and the ray-march mips (f16, or f32 for densities f16
+        // cannot hold: counted as f32).
+        f.add(
+            format!("{table} (previous density)"),
+            Binding::Image3d(dims),
+            voxels * 4,
+        );
+        for (name, d) in [
+            ("reuse", reuse),
+            ("reuse, previous", reuse),
+            ("NEE", indirect),
+        ] {
+            f.add(
+                format!("{table} (ray-march mip, {name})"),
+                Binding::Image3d(d),
+                grid_bytes(d, 4),
+            );
+        }
+        if let Some(v) = &g.velocity {
+            let vd = v.dims()?;
+            f.add(
+                format!("{table} field `velocity`"),
+                Binding::Image3d(vd),
+                grid_bytes(vd, 8),
+            );
+            f.host_peak += grid_bytes(vd, 12 + 8);
+        }
+        // Every density frame is derived and kept: the grid, its levels and mips; while
+        // one is built, its conservative copy and one mip level are alive too.
+        let derived = |d: [u32; 3]| {
+            grid_bytes(d, 4)
+                + grid_bytes(primary, 4)
+                + grid_bytes(indirect, 4)
+                + grid_bytes(reuse, 4)
+                + grid_bytes(indirect, 4)
+        };
+        let frames: Vec<&GridSource> = g.density_sources().collect();
+        let kept: u64 = frames
+            .iter()
+            .map(|s| s.dims().map(derived))
+            .sum::<Result<u64>>()?;
+        let building = grid_bytes(dims, 4) + grid_bytes(level_dims(dims, 1), 4);
+        f.host_peak += kept + building;
+        Ok(f)
+    }
+
+    /// Total device bytes.
+    pub fn device_bytes(&self) -> u64 {
+        self.device.iter().map(|n| n.bytes).sum()
+    }
+
+    /// Refuses what the device or the host cannot hold, naming the scene field.
+    pub fn check(&self, info: &DeviceInfo, host_budget: u64) -> Result<()> {
+        let mib = |b: u64| b as f64 / f64::from(1u32 << 20);
+        for need in &self.device {
+            let (limit, limit_name) = match need.binding {
+                Binding::Storage => (
+                    u64::from(info.max_storage_buffer_range),
+                    "maxStorageBufferRange",
+                ),
+                Binding::Uniform => (
+                    u64::from(info.max_uniform_buffer_range),
+                    "maxUniformBufferRange",
+                ),
+                Binding::Image3d(d) => {
+                    let max = info.max_image_dimension_3d;
+                    if d.iter().any(|&n| n > max) {
+                        bail!(
+                            "{}: a {}x{}x{} 3D texture exceeds device '{}''s \
+                             maxImageDimension3D of {max} texels per axis",
+                            need.what,
+                            d[0],
+                            d[1],
+                            d[2],
+                            info.name
+                        );
+                    }
+                    (u64::MAX, "")
+                }
+            };
+            if need.bytes > limit {
+                bail!(
+                    "{}: needs a {:.1} MiB buffer; device '{}' allows {:.1} MiB ({limit_name})",
+                    need.what,
+                    mib(need.bytes),
+                    info.name,
+                    mib(limit)
+                );
+            }
+            let alloc = info.max_memory_allocation_size;
+            if alloc > 0 && need.bytes > alloc {
+                bail!(
+                    "{}: needs a {:.1} MiB allocation; device '{}' allows {:.1} MiB \
+                     (maxMemoryAllocationSize)",
+                    need.what,
+                    mib(need.bytes),
+                    info.name,
+                    mib(alloc)
+                );
+            }
+        }
+        let total = self.device_bytes();
+        if info.device_local_bytes > 0 && total > info.device_local_bytes {
+            let mut largest: Vec<&Need> = self.device.iter().collect();
+            largest.sort_by_key(|n| std::cmp::Reverse(n.bytes));
+            let mut list = String::new();
+            for n in largest.iter().take(3) {
+                let _ = write!(list, "\n  {:.1} MiB  {}", mib(n.bytes), n.what);
+            }
+            bail!(
+                "this render needs {:.1} MiB of GPU memory; device '{}' has {:.1} MiB. \
+                 The largest parts:{list}",
+                mib(total),
+                info.name,
+                mib(info.device_local_bytes)
+            );
+        }
+        if self.host_peak > host_budget {
+            bail!(
+                "this render needs about {:.1} MiB of host memory at its peak; the budget is \
+                 {:.1} MiB (available memory, or NIMBUS_HOST_MEMORY_BUDGET in MiB)",
+                mib(self.host_peak),
+                mib(host_budget)
+            );
+        }
+        Ok(())
+    }
+}
+
+/// The host memory a render may use: `NIMBUS_HOST_MEMORY_BUDGET` (MiB) if set, else
+/// the `MemAvailable` of `/proc/meminfo`, else 8 GiB.
+pub fn host_budget() -> Result<u64> {
+    if let Ok(text) = std::env::var("NIMBUS_HOST_MEMORY_BUDGET") {
+        return match text.trim().parse::<u64>() {
+            Ok(mib) if mib > 0 => Ok(mib << 20),
+            _ => bail!("NIMBUS_HOST_MEMORY_BUDGET={text:?}: expected a whole number of MiB > 0"),
+        };
+    }
+    let available = std::fs::read_to_string("/proc/meminfo")
+        .ok()
+        .and_then(|text| {
+            text.lines()
+                .find_map(|l| l.strip_prefix("MemAvailable:"))
+                .and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<u64>().ok())
+        })
+        .map(|kib| kib << 10);
+    Ok(available.unwrap_or(8 << 30))
+}
+
+/// The process's peak resident memory (`VmHWM` of `/proc/self/status`), if known.
+pub fn peak_host_bytes() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/self/status").ok()?;
+    let kib = text
+        .lines()
+        .find_map(|l| l.strip_prefix("VmHWM:"))?
+        .trim()
+        .trim_end_matches("kB")
+        .trim()
+        .parse::<u64>()
+        .ok()?;
+    Some(kib << 10)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn level_dims_halve_rounding_up_and_stop_at_one() {
+        assert_eq!(level_dims([64, 40, 64], 0), [64, 40, 64]);
+        assert_eq!(level_dims([64, 40, 64], 1), [32, 20, 32]);
+        assert_eq!(level_dims([5, 3, 1], 2), [2, 1, 1]);
+        assert_eq!(level_dims([5, 3, 1], 16), [1, 1, 1]);
+    }
+}
