@@ -115,6 +115,7 @@ mod geometry;
 mod parse;
 mod procedural;
 mod types;
+mod vdb;
 mod vol_write;
 mod volume;
 
@@ -133,6 +134,10 @@ pub use geometry::MAX_GOBO_POINTS;
 pub use parse::{MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_LENGTH_M, MAX_SIGMA_T, RESTIR_KEYS};
 pub use procedural::procedural_cloud;
 pub use types::*;
+pub use vdb::{
+    list_grids, read_vdb_grid, GridClass, SparseGrid, ValueType, VdbGridInfo, VdbGridKind, VdbTile,
+    BRICK_VOXELS, LEAF_DIM, MAX_ACTIVE_VOXELS,
+};
 pub use vol_write::write_vol;
 pub use volume::{
     check_grid_memory, check_same_dims, load_grid, SuperVoxels, VoxelGrid, MAX_GRID_VALUES,
