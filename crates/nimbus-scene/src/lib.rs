@@ -107,6 +107,13 @@
 //!   σ* > 0 wherever the trilinear σ > 0 anywhere in the voxel.
 //! - [`VoxelGrid::super_voxels`]: per 8³ block, min / max bounding the trilinear
 //!   density over the block (one-voxel apron) and its exact mean.
+//!
+//! # OpenVDB files
+//! [`read_vdb_grid`] reads one grid of a `.vdb` file into a [`SparseGrid`]: the
+//! tree's 8³ leaf nodes as bricks plus constant tiles, the index-to-world transform
+//! as an affine matrix, the background and the active bounding box, so memory follows
+//! the active voxels. [`list_grids`] names a file's grids for messages. [`vdb`] lists
+//! what of the format is supported. The scene parser does not use it yet.
 
 mod envmap;
 mod fields;
@@ -115,7 +122,7 @@ mod geometry;
 mod parse;
 mod procedural;
 mod types;
-mod vdb;
+pub mod vdb;
 mod vol_write;
 mod volume;
 

@@ -15,7 +15,8 @@ const MAGIC: i64 = 0x5644_4220;
 /// `OPENVDB_FILE_VERSION_NODE_MASK_COMPRESSION`: per-grid compression flags and
 /// per-node mask-compression metadata (OpenVDB 3.0, 2014).
 pub const MIN_FILE_VERSION: u32 = 222;
-/// `OPENVDB_FILE_VERSION_HALF_GRID` (OpenVDB 12): the newest this reader knows.
+/// `OPENVDB_FILE_VERSION_HALF_GRID` (OpenVDB 13; 10 to 12 write 224): the newest this
+/// reader knows.
 pub const MAX_FILE_VERSION: u32 = 225;
 const HALF_FLOAT_SUFFIX: &str = "_HalfFloat";
 /// OpenVDB's separator between a grid name and the `[N]` suffix that makes
@@ -45,7 +46,7 @@ pub fn read_header<R: Read + Seek>(input: &mut Input<R>) -> Result<Header> {
     if file_version > MAX_FILE_VERSION {
         bail!(
             "VDB file format version {file_version} is newer than this reader knows \
-             ({MIN_FILE_VERSION}..={MAX_FILE_VERSION}, up to OpenVDB 12)"
+             ({MIN_FILE_VERSION}..={MAX_FILE_VERSION}, up to OpenVDB 13)"
         );
     }
     let major = input.u32("the library version")?;
@@ -124,7 +125,6 @@ impl Descriptor {
             "half" => Some(ValueType::Half),
             "double" => Some(ValueType::Double),
             "vec3s" => Some(ValueType::Vec3Float),
-            "vec3h" => Some(ValueType::Vec3Half),
             "vec3d" => Some(ValueType::Vec3Double),
             _ => None,
         }

@@ -4,14 +4,14 @@
 //! Written from OpenVDB's own sources (`io/Archive.cc`, `io/GridDescriptor.cc`,
 //! `io/Compression.{h,cc}`, `tree/{Root,Internal,Leaf}Node.h`, `math/Maps.h`) and c-blosc
 //! 1.x's `blosc.c` / `blosclz.c`, in safe Rust: zlib through `flate2`, lz4 through
-//! `lz4_flex`, Blosc's container and blosclz decoded here ([`blosc`]).
+//! `lz4_flex`, Blosc's container and blosclz decoded here (`vdb/blosc.rs`).
 //!
 //! # Supported
-//! - File format versions 222 (OpenVDB 3.0) to 225 (OpenVDB 12): Houdini, Blender,
-//!   EmberGen and OpenVDB's tools since 2014. Files with grid offsets (everything written
-//!   to a file rather than a pipe).
+//! - File format versions 222 (OpenVDB 3.0, 2014) to 225 (OpenVDB 13; 10 to 12 write
+//!   224): what Houdini, Blender, EmberGen and OpenVDB's tools write. Files with grid
+//!   offsets (everything written to a file rather than a pipe).
 //! - Grids `Tree_<T>_5_4_3` (the standard root → 32³ → 16³ → 8³ tree) with `T` one of
-//!   `float`, `double`, `half` (file version 225), `vec3s`, `vec3d`, `vec3h`; values are
+//!   `float`, `double`, `half` (OpenVDB 13's half grids), `vec3s`, `vec3d`; values are
 //!   widened or narrowed to f32 (a double beyond f32's range is an error, as inf).
 //! - The `_HalfFloat` option (float / vec3 node values stored as 16-bit halves).
 //! - Compression per grid: none, zip (zlib), Blosc (c-blosc 1.x with the blosclz, lz4,
@@ -22,6 +22,8 @@
 //!   `TranslationMap`, `ScaleTranslateMap`, `UniformScaleTranslateMap`, as an affine
 //!   [`glam::DMat4`]; tiles at every level; grid instancing (a grid sharing another's
 //!   tree); duplicate grid names (the first is taken).
+//! - Any grid class: level sets read like fog volumes ([`SparseGrid::grid_class`] tells
+//!   them apart). Of the grid metadata only `class` is read; the rest is skipped.
 //!
 //! # Not supported (each a clear error)
 //! File versions before 222 or after 225, streams without grid offsets,
@@ -53,6 +55,11 @@
 //! the voxel and its value. Every count and size in the file is checked against the
 //! bytes the file still has, so a truncated or corrupt file is an error, never a panic
 //! or a huge allocation.
+//!
+//! # Tests
+//! `tests/vdb.rs` compares the reader, voxel for voxel, with what OpenVDB 10 reads back
+//! from files it wrote (`tools/make_test_vdbs.py`); the unit tests here cover what
+//! OpenVDB 10's Python module cannot write, and truncate and byte-flip real files.
 
 mod blosc;
 mod file;
@@ -67,7 +74,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{anyhow, bail, Result};
 use glam::{DMat4, IVec3};
 
-pub use crate::volume::MAX_GRID_VALUES;
+use crate::volume::MAX_GRID_VALUES;
 use file::Descriptor;
 use input::Input;
 
@@ -85,7 +92,6 @@ pub enum ValueType {
     Half,
     Double,
     Vec3Float,
-    Vec3Half,
     Vec3Double,
 }
 
@@ -101,20 +107,19 @@ impl ValueType {
     /// Bytes of one channel of the native type.
     pub fn scalar_bytes(self) -> usize {
         match self {
-            Self::Half | Self::Vec3Half => 2,
+            Self::Half => 2,
             Self::Float | Self::Vec3Float => 4,
             Self::Double | Self::Vec3Double => 8,
         }
     }
 
-    /// OpenVDB's name: `float`, `half`, `double`, `vec3s`, `vec3h`, `vec3d`.
+    /// OpenVDB's name: `float`, `half`, `double`, `vec3s`, `vec3d`.
     pub fn name(self) -> &'static str {
         match self {
             Self::Float => "float",
             Self::Half => "half",
             Self::Double => "double",
             Self::Vec3Float => "vec3s",
-            Self::Vec3Half => "vec3h",
             Self::Vec3Double => "vec3d",
         }
     }
@@ -134,7 +139,7 @@ pub enum GridClass {
 pub enum VdbGridKind {
     /// `float`, `half` or `double` (density, scalar emission).
     Scalar,
-    /// `vec3s`, `vec3h` or `vec3d` (velocity, coloured emission).
+    /// `vec3s` or `vec3d` (velocity, coloured emission).
     Vec3,
     /// Either.
     Any,
@@ -152,7 +157,7 @@ impl VdbGridKind {
     fn describe(self) -> &'static str {
         match self {
             Self::Scalar => "scalar grid (float, half or double)",
-            Self::Vec3 => "vec3 grid (vec3s, vec3h or vec3d)",
+            Self::Vec3 => "vec3 grid (vec3s or vec3d)",
             Self::Any => "scalar or vec3 grid",
         }
     }
@@ -294,10 +299,11 @@ impl SparseGrid {
     }
 }
 
-fn open(path: &Path, what: &str) -> Result<Input<std::io::BufReader<File>>> {
+/// Opens `path`; errors read "{prefix}{path}: cannot open VDB file: ...".
+fn open(path: &Path, prefix: &str) -> Result<Input<std::io::BufReader<File>>> {
     let file = File::open(path)
-        .map_err(|e| anyhow!("{what}: {}: cannot open VDB file: {e}", path.display()))?;
-    Input::open(file).map_err(|e| anyhow!("{what}: {}: cannot read: {e}", path.display()))
+        .map_err(|e| anyhow!("{prefix}{}: cannot open VDB file: {e}", path.display()))?;
+    Input::open(file).map_err(|e| anyhow!("{prefix}{}: cannot read: {e}", path.display()))
 }
 
 /// Header, file metadata and grid descriptors.
@@ -326,7 +332,7 @@ fn grid_list(descs: &[Descriptor]) -> String {
 
 /// Lists the grids of a `.vdb` file (names and types) without reading their trees.
 pub fn list_grids(path: &Path) -> Result<Vec<VdbGridInfo>> {
-    let mut input = open(path, "VDB file")?;
+    let mut input = open(path, "")?;
     let descs = read_directory(&mut input).map_err(|e| anyhow!("{}: {e:#}", path.display()))?;
     Ok(descs.iter().map(info).collect())
 }
@@ -408,7 +414,7 @@ pub fn read_vdb_grid(
     kind: VdbGridKind,
     what: &str,
 ) -> Result<SparseGrid> {
-    let mut input = open(path, what)?;
+    let mut input = open(path, &format!("{what}: "))?;
     read_from(&mut input, path, grid, kind, what)
 }
 
