@@ -144,13 +144,13 @@ pub(super) fn check_limits(enc: &Encoding, leaves: usize, active: u64) -> Result
     let values = leaves as u64 * BRICK_VOXELS as u64 * enc.channels() as u64;
     if values > MAX_GRID_VALUES {
         bail!(
-            "the grid has more than {leaves} leaf nodes, {values} float32 values, over the \
-             limit of 2^31 values (8 GiB)"
+            "the grid has at least {leaves} leaf nodes ({values} float32 values), over \
+             the limit of 2^31 values (8 GiB)"
         );
     }
     if active > MAX_ACTIVE_VOXELS {
         bail!(
-            "the grid has more than {active} active voxels (tiles included), over the \
+            "the grid has at least {active} active voxels (tiles included), over the \
              limit of 2^31"
         );
     }
@@ -188,10 +188,11 @@ fn read_topology<R: Read + Seek>(input: &mut Input<R>, enc: &Encoding) -> Result
             add_tile(&mut topo, enc, ijk, ROOT_CHILD_LOG2, value)?;
         }
     }
+    let mut seen = std::collections::HashSet::new();
     for _ in 0..num_children {
         let origin = read_ijk(input, "a root child")?;
         align(origin, "a root child")?;
-        if topo.root_children.iter().any(|c| c.origin == origin) {
+        if !seen.insert(origin.to_array()) {
             bail!("corrupt file: two root children at {origin}");
         }
         let first = topo.leaves.len();
