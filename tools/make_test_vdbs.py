@@ -265,6 +265,7 @@ def main():
 
     # Several grids in one file, one of them a bool grid; one float grid instancing another.
     dens = small_grid("density", 0.5, (1, 2, 3))
+    dens.gridClass = vdb.GridClass.FOG_VOLUME  # as Houdini, Blender and EmberGen write density
     temp = small_grid("temperature", 300.0, (4, 5, 6))
     temp.transform = scale_transform()
     vel = vdb.Vec3SGrid()
