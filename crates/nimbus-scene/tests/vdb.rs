@@ -305,7 +305,13 @@ fn generated_vdb_files_read_as_openvdb_reads_them() {
         String::from_utf8_lossy(&out.stderr)
     );
     let n = check_dir(&dir);
-    assert!(n >= 18, "only {n} grids checked");
+    // Without vdb_tool (libopenvdb-tools) the zip / uncompressed variants are left out.
+    let have_vdb_tool = Command::new("vdb_tool").arg("-version").output().is_ok();
+    if !have_vdb_tool {
+        eprintln!("note: no vdb_tool; only the Blosc files were generated and checked");
+    }
+    let expected = if have_vdb_tool { 21 } else { 10 };
+    assert!(n >= expected, "only {n} grids checked");
 }
 
 #[test]
