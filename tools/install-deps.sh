@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Installs what Nimbus needs on Debian 12: the Vulkan loader, Mesa's lavapipe (a CPU
 # Vulkan device), the Khronos validation layers, the static shaderc / glslang /
-# SPIRV-Tools libraries that build.rs links (see .cargo/config.toml), and, when no
+# SPIRV-Tools libraries that build.rs links (see .cargo/config.toml), OpenVDB's Python
+# module and tools for the .vdb reader's tests (tools/make_test_vdbs.py), and, when no
 # `cargo` is on PATH, a stable Rust toolchain by rustup (Debian 12's own rustc 1.63 is
 # too old for the dependencies), linked into /usr/local/bin so the same shell finds it.
 set -euo pipefail
@@ -15,6 +16,8 @@ packages=(
     spirv-tools           # libSPIRV-Tools.a, libSPIRV-Tools-opt.a
     g++                   # the nv-flip test dependency builds C++
     pkg-config
+    python3-openvdb       # OpenVDB 10's pyopenvdb: the .vdb reader's tests write real files
+    libopenvdb-tools      # vdb_tool: re-encodes those files as zip / uncompressed
     ca-certificates       # rustup's download, when Rust is missing
     curl
 )

@@ -107,6 +107,13 @@
 //!   σ* > 0 wherever the trilinear σ > 0 anywhere in the voxel.
 //! - [`VoxelGrid::super_voxels`]: per 8³ block, min / max bounding the trilinear
 //!   density over the block (one-voxel apron) and its exact mean.
+//!
+//! # OpenVDB files
+//! [`read_vdb_grid`] reads one grid of a `.vdb` file into a [`SparseGrid`]: the
+//! tree's 8³ leaf nodes as bricks plus constant tiles, the index-to-world transform
+//! as an affine matrix, the background and the active bounding box, so memory follows
+//! the active voxels. [`list_grids`] names a file's grids for messages. [`vdb`] lists
+//! what of the format is supported. The scene parser does not use it yet.
 
 mod envmap;
 mod fields;
@@ -117,6 +124,7 @@ mod parse;
 pub mod precision;
 mod procedural;
 mod types;
+pub mod vdb;
 mod vol_write;
 mod volume;
 
@@ -139,6 +147,10 @@ pub use parse::{
 };
 pub use procedural::procedural_cloud;
 pub use types::*;
+pub use vdb::{
+    list_grids, read_vdb_grid, GridClass, SparseGrid, ValueType, VdbGridInfo, VdbGridKind, VdbTile,
+    BRICK_VOXELS, LEAF_DIM, MAX_ACTIVE_VOXELS,
+};
 pub use vol_write::write_vol;
 pub use volume::{
     check_grid_memory, check_same_dims, load_grid, SuperVoxels, VoxelGrid, MAX_GRID_VALUES,
