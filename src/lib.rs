@@ -5,6 +5,7 @@
 //! `shared/ARCHITECTURE.md` for the layering.
 
 pub mod bindings;
+pub mod features;
 pub mod gpu_scene;
 pub mod output;
 pub mod passes;

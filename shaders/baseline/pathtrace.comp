@@ -18,6 +18,7 @@
 
 #extension GL_GOOGLE_include_directive : require
 
+#include "features.glsl"
 #include "bindings.glsl"
 #include "constants.glsl"
 #include "scene.glsl"
@@ -27,17 +28,17 @@
 #include "geometry.glsl"
 #include "grid_types.glsl"
 
-layout(local_size_x = 8, local_size_y = 8) in;
+layout(local_size_x = GROUP_SIZE_X, local_size_y = GROUP_SIZE_Y) in;
 
-layout(constant_id = 0) const bool SC_HAS_SHAPES = true;
-layout(constant_id = 2) const bool SC_HAS_ENV = true;
+layout(constant_id = SC_ID_HAS_SHAPES) const bool SC_HAS_SHAPES = true;
+layout(constant_id = SC_ID_HAS_ENV) const bool SC_HAS_ENV = true;
 // Homogeneous box media beside the grid.
-layout(constant_id = 4) const bool SC_HAS_MEDIA = false;
-layout(constant_id = 5) const uint SC_MAX_BOUNCES = 1u;
-layout(constant_id = 6) const bool SC_PIXEL_JITTER = true;
-layout(constant_id = 7) const bool SC_HAS_EMISSION = false;
+layout(constant_id = SC_ID_HAS_MEDIA) const bool SC_HAS_MEDIA = false;
+layout(constant_id = SC_ID_MAX_BOUNCES) const uint SC_MAX_BOUNCES = 1u;
+layout(constant_id = SC_ID_PIXEL_JITTER) const bool SC_PIXEL_JITTER = true;
+layout(constant_id = SC_ID_HAS_EMISSION) const bool SC_HAS_EMISSION = false;
 // The environment is an importance-sampled map (else a constant radiance).
-layout(constant_id = 8) const bool SC_HAS_ENV_MAP = false;
+layout(constant_id = SC_ID_HAS_ENV_MAP) const bool SC_HAS_ENV_MAP = false;
 
 layout(std140, set = 0, binding = BINDING_FRAME_UNIFORMS) uniform FrameBlock {
     FrameUniforms u_frame;

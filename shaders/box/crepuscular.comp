@@ -23,6 +23,7 @@
 
 #extension GL_GOOGLE_include_directive : require
 
+#include "features.glsl"
 #include "bindings.glsl"
 #include "constants.glsl"
 #include "scene.glsl"
@@ -32,27 +33,17 @@
 #include "geometry.glsl"
 #include "box_analytic.glsl"
 
-layout(local_size_x = 8, local_size_y = 8) in;
+layout(local_size_x = GROUP_SIZE_X, local_size_y = GROUP_SIZE_Y) in;
 
 // Features the render plan switches per scene.
-layout(constant_id = 0) const bool SC_HAS_SHAPES = true;
-layout(constant_id = 1) const bool SC_HAS_GOBOS = true;
-layout(constant_id = 2) const bool SC_HAS_ENV = true;
-layout(constant_id = 3) const uint SC_ESTIMATOR = 0u;
-layout(constant_id = 4) const bool SC_HAS_MEDIA = true;
-layout(constant_id = 5) const uint SC_MAX_BOUNCES = 1u;
-layout(constant_id = 6) const bool SC_PIXEL_JITTER = true;
+layout(constant_id = SC_ID_HAS_SHAPES) const bool SC_HAS_SHAPES = true;
+layout(constant_id = SC_ID_HAS_GOBOS) const bool SC_HAS_GOBOS = true;
+layout(constant_id = SC_ID_HAS_ENV) const bool SC_HAS_ENV = true;
+layout(constant_id = SC_ID_ESTIMATOR) const uint SC_ESTIMATOR = 0u;
+layout(constant_id = SC_ID_HAS_MEDIA) const bool SC_HAS_MEDIA = true;
+layout(constant_id = SC_ID_MAX_BOUNCES) const uint SC_MAX_BOUNCES = 1u;
+layout(constant_id = SC_ID_PIXEL_JITTER) const bool SC_PIXEL_JITTER = true;
 
-#define ESTIMATOR_MCWVDS 0u
-#define ESTIMATOR_REDS 1u
-#define ESTIMATOR_REES 2u
-#define ESTIMATOR_RM 3u
-#define ESTIMATOR_MCDS 4u
-
-// Most directional lights a scene may have (the render plan checks).
-#define MAX_LIGHTS 16u
-// Most box media a scene may have (the render plan checks).
-#define MAX_MEDIA 16u
 #define NO_INDEX 0xffffffffu
 
 layout(std140, set = 0, binding = BINDING_FRAME_UNIFORMS) uniform FrameBlock {

@@ -23,12 +23,10 @@
 #define NIMBUS_GRID_GLSL
 
 #include "constants.glsl"
+#include "features.glsl"
 #include "rng.glsl"
 #include "grid_types.glsl"
 
-// Guard on loop trip counts of the estimators: far beyond any expected count
-// (sigma_max * length), it only stops a runaway loop from hanging the device.
-#define GRID_MAX_STEPS 1048576
 // Below this |direction component| (in voxels per metre) a ray counts as parallel to
 // that axis's planes.
 #define GRID_PARALLEL_EPS 1e-30

@@ -24,6 +24,7 @@
 
 #extension GL_GOOGLE_include_directive : require
 
+#include "features.glsl"
 #include "bindings.glsl"
 #include "constants.glsl"
 #include "scene.glsl"
@@ -33,19 +34,19 @@
 #include "geometry.glsl"
 #include "grid_types.glsl"
 
-layout(local_size_x = 8, local_size_y = 8) in;
+layout(local_size_x = GROUP_SIZE_X, local_size_y = GROUP_SIZE_Y) in;
 
-layout(constant_id = 2) const bool SC_HAS_ENV = true;
-layout(constant_id = 5) const uint SC_MAX_BOUNCES = 1u;
-layout(constant_id = 6) const bool SC_PIXEL_JITTER = true;
-layout(constant_id = 7) const bool SC_HAS_EMISSION = false;
-layout(constant_id = 8) const bool SC_HAS_ENV_MAP = false;
+layout(constant_id = SC_ID_HAS_ENV) const bool SC_HAS_ENV = true;
+layout(constant_id = SC_ID_MAX_BOUNCES) const uint SC_MAX_BOUNCES = 1u;
+layout(constant_id = SC_ID_PIXEL_JITTER) const bool SC_PIXEL_JITTER = true;
+layout(constant_id = SC_ID_HAS_EMISSION) const bool SC_HAS_EMISSION = false;
+layout(constant_id = SC_ID_HAS_ENV_MAP) const bool SC_HAS_ENV_MAP = false;
 // Vertex reuse (x_2 kept in world space) instead of direction reuse.
-layout(constant_id = 9) const bool SC_REUSE_VERTEX = false;
+layout(constant_id = SC_ID_REUSE_VERTEX) const bool SC_REUSE_VERTEX = false;
 // Final shading estimates transmittance by ratio tracking instead of the closed form.
-layout(constant_id = 10) const bool SC_FINAL_RATIO_TRACKING = false;
+layout(constant_id = SC_ID_FINAL_RATIO_TRACKING) const bool SC_FINAL_RATIO_TRACKING = false;
 // The medium has a velocity grid (temporal reprojection follows it).
-layout(constant_id = 11) const bool SC_HAS_VELOCITY = false;
+layout(constant_id = SC_ID_HAS_VELOCITY) const bool SC_HAS_VELOCITY = false;
 
 // Settings of the ReSTIR passes (std140). Mirrored by RestirUniformsGpu. 128 bytes.
 struct RestirUniforms {
@@ -327,9 +328,6 @@ float sigma_t_of(uint set, vec3 x) {
     return set == SET_CURRENT ? grid_sigma_t_in(u_density, x) : grid_sigma_t_in(u_density_prev, x);
 }
 
-// Most midpoint steps of one ray march (a cap against absurd lengths; the step grows).
-#define MARCH_MAX_STEPS 4096
-
 // T~ along o + t d, t in [t0, t1]: midpoint ray marching of the mip texture `tex` (dims
 // `dims`, blocks of `factor` voxels) with steps of at most `step` metres. Deterministic, so
 // a target function is a function of the path (needed by the MIS weights).
@@ -527,9 +525,6 @@ vec3 path_value(uint at, Reservoir r, CameraRay cam, CameraRay src, uint mode, i
 
 // ---------------------------------------------------------------------------------------
 // Combining reservoirs with Talbot MIS (Algorithm 5, with Algorithm 2's combineReservoir).
-
-// Spatial neighbours plus the pixel's own reservoir (the plan caps neighbours at 16).
-#define MAX_CANDIDATES 17
 
 // The reservoirs taking part in a combination, as small private arrays (the shader's
 // registers; passing structs of rays and headers by value costs far more): where each is

@@ -19,7 +19,7 @@ void main() {
 
     candidate_set(0u, res_at(u_push.src, pixel), pixel, SET_CURRENT);
     uint n = 1u;
-    uint neighbors = min(u_restir.settings.z, uint(MAX_CANDIDATES - 1));
+    uint neighbors = min(u_restir.settings.z, MAX_SPATIAL_NEIGHBORS);
     float radius = u_restir.spatial.x;
     // Random rotation of the sequence for this pixel, frame and round.
     float r0 = rng_next(rng);
