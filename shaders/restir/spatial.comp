@@ -8,11 +8,11 @@
 // One round: reads slot u_push.src, writes slot u_push.dst (u_push.aux = round).
 
 #extension GL_GOOGLE_include_directive : require
-#include "restir.glsl"
+#include "combine.glsl"
 
 void main() {
     uvec2 pixel = gl_GlobalInvocationID.xy;
-    if (pixel.x >= u_frame.image.x || pixel.y >= u_frame.image.y) {
+    if (!film_contains(pixel)) {
         return;
     }
     uint rng = rng_init(pixel, u_push.frame, 2u + u_push.aux, u_frame.image.w);
