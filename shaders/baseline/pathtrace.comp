@@ -27,6 +27,7 @@
 #include "sampling.glsl"
 #include "geometry.glsl"
 #include "grid_types.glsl"
+#include "path.glsl"
 
 layout(local_size_x = GROUP_SIZE_X, local_size_y = GROUP_SIZE_Y) in;
 
@@ -45,15 +46,6 @@ layout(std140, set = 0, binding = BINDING_FRAME_UNIFORMS) uniform FrameBlock {
 };
 layout(push_constant) uniform PushBlock {
     PassPush u_push;
-};
-layout(std430, set = 0, binding = BINDING_ACCUM) buffer AccumBlock {
-    vec4 accum[];
-};
-layout(std430, set = 0, binding = BINDING_ACCUM_SQ) buffer AccumSqBlock {
-    vec4 accum_sq[];
-};
-layout(std430, set = 0, binding = BINDING_STATS) buffer StatsBlock {
-    uint stats[];
 };
 layout(std430, set = 0, binding = BINDING_SHAPES) readonly buffer ShapesBlock {
     Shape shapes[];
@@ -88,27 +80,8 @@ layout(std430, set = 0, binding = BINDING_ENV_CDF) readonly buffer EnvCdfBlock {
 #include "grid_emission.glsl"
 #include "lights.glsl"
 #include "shapes.glsl"
-
-// Span of o + t d inside box medium m: (t_in, t_out), t_in > t_out for a miss.
-vec2 box_span(uint m, vec3 o, vec3 d) {
-    BoxMedium bm = media[m];
-    vec3 o_local;
-    vec3 d_local;
-    to_box_frame(bm.world_to_local, bm.center_sigma_t.xyz, o, d, o_local, d_local);
-    return intersect_slabs(o_local, d_local, bm.half_size_g.xyz);
-}
-
-// Optical depth of the box media along o + t d, t in [t0, t1] (closed form).
-float box_optical_depth(vec3 o, vec3 d, float t0, float t1) {
-    float tau = 0.0;
-    if (SC_HAS_MEDIA) {
-        uint count = u_frame.counts.x;
-        for (uint m = 0u; m < count; ++m) {
-            tau += media[m].center_sigma_t.w * overlap_length(box_span(m, o, d), t0, t1);
-        }
-    }
-    return tau;
-}
+#include "box_media.glsl"
+#include "film.glsl"
 
 // The first real collision along o + t d in [0, t_end) among the grid and the boxes:
 // the media are disjoint, so the first collision is the earliest of independent first
@@ -123,7 +96,7 @@ float sample_collision(vec3 o, vec3 d, float t_end, inout uint rng, out uint med
     if (SC_HAS_MEDIA) {
         uint count = u_frame.counts.x;
         for (uint m = 0u; m < count; ++m) {
-            vec2 s = box_span(m, o, d);
+            vec2 s = box_medium_span(m, o, d);
             float a = max(s.x, 0.0);
             float b = min(s.y, min(t_end, t_best));
             float sigma_t = media[m].center_sigma_t.w;
@@ -235,8 +208,7 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
             }
             vec3 x = o + t_surface * d;
             vec3 n = shape_normal(s, x, d);
-            float eps = 1e-4 * (1.0 + max(max(abs(x.x), abs(x.y)), abs(x.z)));
-            vec3 x_off = x + eps * n;
+            vec3 x_off = offset_ray_origin(x, n);
             vec3 wi;
             float dist;
             uint target;
@@ -260,13 +232,8 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
             break;
         }
         // Russian roulette from the fourth segment on, by the path's throughput.
-        if (bounce >= 3u) {
-            float survive = clamp(max(beta.r, max(beta.g, beta.b)), 0.05, 1.0);
-            if (rng_next(rng) >= survive) {
-                break;
-            }
-            // Domain: survive >= 0.05.
-            beta /= survive;
+        if (bounce >= 3u && !russian_roulette(beta, rng)) {
+            break;
         }
     }
     return L;
@@ -274,32 +241,8 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
 
 void main() {
     uvec2 pixel = gl_GlobalInvocationID.xy;
-    uint width = u_frame.image.x;
-    uint height = u_frame.image.y;
-    if (pixel.x >= width || pixel.y >= height) {
+    if (!film_contains(pixel)) {
         return;
     }
-    uint spp = u_frame.image.z;
-    vec3 sum = vec3(0.0);
-    uint kept = 0u;
-    for (uint s = 0u; s < spp; ++s) {
-        uint rng = rng_init(pixel, u_push.frame, u_push.sample_base + s, u_frame.image.w);
-        vec2 jitter = SC_PIXEL_JITTER ? vec2(rng_next(rng), rng_next(rng)) : vec2(0.5);
-        vec2 px = vec2(pixel) + jitter;
-        float sx = (2.0 * px.x / float(width) - 1.0) * u_frame.cam_position.w;
-        float sy = (1.0 - 2.0 * px.y / float(height)) * u_frame.cam_forward.w;
-        vec3 d = normalize(u_frame.cam_forward.xyz + sx * u_frame.cam_right.xyz + sy * u_frame.cam_up.xyz);
-        vec3 L = radiance(u_frame.cam_position.xyz, d, rng);
-        // Count non-finite samples instead of writing them.
-        if (any(isnan(L)) || any(isinf(L))) {
-            atomicAdd(stats[STAT_NON_FINITE], 1u);
-        } else {
-            sum += L;
-            kept += 1u;
-        }
-    }
-    uint index = pixel.y * width + pixel.x;
-    vec3 estimate = kept > 0u ? sum / float(kept) : vec3(0.0);
-    accum[index] += vec4(estimate, 1.0);
-    accum_sq[index] += vec4(estimate * estimate, 0.0);
+    film_accumulate(pixel, film_pixel_estimate(pixel, u_push.frame, u_push.sample_base));
 }

@@ -32,6 +32,7 @@
 #include "sampling.glsl"
 #include "geometry.glsl"
 #include "box_analytic.glsl"
+#include "path.glsl"
 
 layout(local_size_x = GROUP_SIZE_X, local_size_y = GROUP_SIZE_Y) in;
 
@@ -44,22 +45,11 @@ layout(constant_id = SC_ID_HAS_MEDIA) const bool SC_HAS_MEDIA = true;
 layout(constant_id = SC_ID_MAX_BOUNCES) const uint SC_MAX_BOUNCES = 1u;
 layout(constant_id = SC_ID_PIXEL_JITTER) const bool SC_PIXEL_JITTER = true;
 
-#define NO_INDEX 0xffffffffu
-
 layout(std140, set = 0, binding = BINDING_FRAME_UNIFORMS) uniform FrameBlock {
     FrameUniforms u_frame;
 };
 layout(push_constant) uniform PushBlock {
     PassPush u_push;
-};
-layout(std430, set = 0, binding = BINDING_ACCUM) buffer AccumBlock {
-    vec4 accum[]; // rgb: sum over frames of the frame's pixel estimate, a: frames
-};
-layout(std430, set = 0, binding = BINDING_ACCUM_SQ) buffer AccumSqBlock {
-    vec4 accum_sq[]; // rgb: sum of squares of the frame estimates
-};
-layout(std430, set = 0, binding = BINDING_STATS) buffer StatsBlock {
-    uint stats[];
 };
 layout(std430, set = 0, binding = BINDING_BOX_MEDIA) readonly buffer MediaBlock {
     BoxMedium media[];
@@ -74,35 +64,9 @@ layout(std430, set = 0, binding = BINDING_GOBO_PLANES) readonly buffer GoboBlock
     vec4 gobo_planes[]; // (a, b, c, 0): a point (u, v) is inside when a u + b v + c >= 0
 };
 
+#include "film.glsl"
 #include "shapes.glsl"
-
-// Span of o + t d inside box medium m: (t_in, t_out), t_in > t_out for a miss.
-vec2 medium_span(uint m, vec3 o, vec3 d) {
-    BoxMedium bm = media[m];
-    vec3 o_local;
-    vec3 d_local;
-    to_box_frame(bm.world_to_local, bm.center_sigma_t.xyz, o, d, o_local, d_local);
-    return intersect_slabs(o_local, d_local, bm.half_size_g.xyz);
-}
-
-// Optical depth of the box media other than `skip` along o + t d, t in [t_min, t_max].
-float optical_depth_except(vec3 o, vec3 d, float t_min, float t_max, uint skip) {
-    float tau = 0.0;
-    uint count = SC_HAS_MEDIA ? u_frame.counts.x : 0u;
-    for (uint m = 0u; m < count; ++m) {
-        if (m == skip) {
-            continue;
-        }
-        vec2 span = medium_span(m, o, d);
-        tau += media[m].center_sigma_t.w * overlap_length(span, t_min, t_max);
-    }
-    return tau;
-}
-
-// Optical depth of all box media along o + t d, t in [t_min, t_max].
-float optical_depth(vec3 o, vec3 d, float t_min, float t_max) {
-    return optical_depth_except(o, d, t_min, t_max, NO_INDEX);
-}
+#include "box_media.glsl"
 
 // Whether x lies inside light l's gobo prism (always true without a gobo).
 bool inside_gobo(Light l, vec3 x) {
@@ -132,7 +96,7 @@ vec3 light_arriving(Light l, vec3 x, float t_min) {
     if (occluded(x, -omega, t_min)) {
         return vec3(0.0);
     }
-    float tau = optical_depth(x, -omega, 0.0, FAR);
+    float tau = box_optical_depth(x, -omega, 0.0, FAR);
     return l.irradiance.rgb * exp(-tau);
 }
 
@@ -186,7 +150,7 @@ float light_visibility(vec3 x, vec3 omega, uint skip) {
     if (occluded(x, -omega, 0.0)) {
         return 0.0;
     }
-    return exp(-optical_depth_except(x, -omega, 0.0, FAR, skip));
+    return exp(-box_optical_depth_except(x, -omega, 0.0, FAR, skip));
 }
 
 // The part of [t_enter, t_b] light l can reach (its gobo interval), empty as a
@@ -341,9 +305,8 @@ vec3 single_scatter_box(uint m, vec3 o, vec3 d, float t_enter, float t_b, inout 
 
 // Direct light reflected by the Lambertian shape hit at x towards -d.
 vec3 surface_direct(Shape s, vec3 x, vec3 n) {
-    // Offset the shadow ray by a distance relative to the hit's magnitude.
-    float eps = 1e-4 * (1.0 + max(max(abs(x.x), abs(x.y)), abs(x.z)));
-    vec3 x_off = x + eps * n;
+    // Shadow rays leave from just off the surface.
+    vec3 x_off = offset_ray_origin(x, n);
     vec3 E = vec3(0.0);
     uint light_count = u_frame.counts.z;
     for (uint l = 0u; l < light_count; ++l) {
@@ -371,7 +334,7 @@ float sample_collision(vec3 o, vec3 d, float t_surface, inout uint rng, out uint
         uint next = NO_INDEX;
         vec2 next_span = vec2(FAR, -FAR);
         for (uint m = 0u; m < count; ++m) {
-            vec2 span = medium_span(m, o, d);
+            vec2 span = box_medium_span(m, o, d);
             float entry = max(span.x, 0.0);
             if (span.y > entry && entry > last_entry && entry < next_span.x) {
                 next = m;
@@ -410,11 +373,11 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
         // Add single scattering from every box medium the segment crosses.
         uint media_count = SC_HAS_MEDIA ? min(u_frame.counts.x, MAX_MEDIA) : 0u;
         for (uint m = 0u; m < media_count; ++m) {
-            vec2 span = medium_span(m, o, d);
+            vec2 span = box_medium_span(m, o, d);
             float t_enter = max(span.x, 0.0);
             float t_b = min(span.y, t_surface);
             if (t_b > t_enter && media[m].center_sigma_t.w > 0.0) {
-                float T_before = exp(-optical_depth_except(o, d, 0.0, t_enter, m));
+                float T_before = exp(-box_optical_depth_except(o, d, 0.0, t_enter, m));
                 L += beta * T_before * single_scatter_box(m, o, d, t_enter, t_b, rng);
             }
         }
@@ -426,11 +389,11 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
             vec3 x = o + t_surface * d;
             n = shape_normal(s, x, d);
             if (any(greaterThan(s.albedo_type.rgb, vec3(0.0)))) {
-                L += beta * exp(-optical_depth(o, d, 0.0, t_surface)) * surface_direct(s, x, n);
+                L += beta * exp(-box_optical_depth(o, d, 0.0, t_surface)) * surface_direct(s, x, n);
             }
         } else if (SC_HAS_ENV && bounce == 0u) {
             // Add the environment seen through the media by the camera ray.
-            L += exp(-optical_depth(o, d, 0.0, FAR)) * u_frame.env_radiance.rgb;
+            L += exp(-box_optical_depth(o, d, 0.0, FAR)) * u_frame.env_radiance.rgb;
         }
         if (bounce + 1u >= SC_MAX_BOUNCES) {
             break;
@@ -451,21 +414,14 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
                 break;
             }
             beta *= albedo;
-            vec3 x = o + t_surface * d;
-            float eps = 1e-4 * (1.0 + max(max(abs(x.x), abs(x.y)), abs(x.z)));
-            o = x + eps * n;
+            o = offset_ray_origin(o + t_surface * d, n);
             d = sample_cosine_hemisphere(n, vec2(rng_next(rng), rng_next(rng)));
         } else {
             break;
         }
         // Russian roulette from the fourth segment on, by the path's throughput.
-        if (bounce >= 3u) {
-            float survive = clamp(max(beta.r, max(beta.g, beta.b)), 0.05, 1.0);
-            if (rng_next(rng) >= survive) {
-                break;
-            }
-            // Domain: survive >= 0.05.
-            beta /= survive;
+        if (bounce >= 3u && !russian_roulette(beta, rng)) {
+            break;
         }
     }
     return L;
@@ -473,34 +429,8 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
 
 void main() {
     uvec2 pixel = gl_GlobalInvocationID.xy;
-    uint width = u_frame.image.x;
-    uint height = u_frame.image.y;
-    if (pixel.x >= width || pixel.y >= height) {
+    if (!film_contains(pixel)) {
         return;
     }
-    uint spp = u_frame.image.z;
-    uint frame = u_push.frame;
-    vec3 sum = vec3(0.0);
-    uint kept = 0u;
-    for (uint s = 0u; s < spp; ++s) {
-        uint rng = rng_init(pixel, frame, u_push.sample_base + s, u_frame.image.w);
-        // Jitter the ray over the pixel footprint (box filter), (0,0) top-left.
-        vec2 jitter = SC_PIXEL_JITTER ? vec2(rng_next(rng), rng_next(rng)) : vec2(0.5);
-        vec2 px = vec2(pixel) + jitter;
-        float sx = (2.0 * px.x / float(width) - 1.0) * u_frame.cam_position.w;
-        float sy = (1.0 - 2.0 * px.y / float(height)) * u_frame.cam_forward.w;
-        vec3 d = normalize(u_frame.cam_forward.xyz + sx * u_frame.cam_right.xyz + sy * u_frame.cam_up.xyz);
-        vec3 L = radiance(u_frame.cam_position.xyz, d, rng);
-        // Count non-finite samples instead of writing them.
-        if (any(isnan(L)) || any(isinf(L))) {
-            atomicAdd(stats[STAT_NON_FINITE], 1u);
-        } else {
-            sum += L;
-            kept += 1u;
-        }
-    }
-    uint index = pixel.y * width + pixel.x;
-    vec3 estimate = kept > 0u ? sum / float(kept) : vec3(0.0);
-    accum[index] += vec4(estimate, 1.0);
-    accum_sq[index] += vec4(estimate * estimate, 0.0);
+    film_accumulate(pixel, film_pixel_estimate(pixel, u_push.frame, u_push.sample_base));
 }

@@ -1,6 +1,7 @@
-// The film: per-pixel running sums over frames, and the count of non-finite samples.
-// Every pass that writes the image includes this file; it declares the three buffers.
-// The includer declares `u_frame` (FrameUniforms: image.x is the width).
+// The film: per-pixel running sums over frames, the count of non-finite samples, and
+// the pixel loop of the path-tracing integrators. Every pass that writes the image
+// includes this file; it declares the three buffers. The includer declares `u_frame`
+// (FrameUniforms: image = width, height, spp, seed) and the bool constant SC_PIXEL_JITTER.
 //
 // accum[p]    rgb: sum over frames of the frame's pixel estimate, a: frames
 // accum_sq[p] rgb: sum of squares of the frame estimates (the renderer's standard error)
@@ -10,6 +11,8 @@
 #define NIMBUS_FILM_GLSL
 
 #include "bindings.glsl"
+#include "camera.glsl"
+#include "rng.glsl"
 
 layout(std430, set = 0, binding = BINDING_ACCUM) buffer AccumBlock {
     vec4 accum[];
@@ -40,6 +43,32 @@ void film_accumulate(uvec2 pixel, vec3 estimate) {
     uint index = pixel.y * u_frame.image.x + pixel.x;
     accum[index] += vec4(estimate, 1.0);
     accum_sq[index] += vec4(estimate * estimate, 0.0);
+}
+
+// ---------------------------------------------------------------------------------------
+// The pixel loop of the path tracers (crepuscular, baseline): u_frame.image.z camera
+// samples per pixel per frame, each with its own random stream, jittered over the
+// pixel's footprint (box filter).
+
+// Radiance arriving at o from direction -d, estimated by the including pass; only a pass
+// that calls film_pixel_estimate defines it.
+vec3 radiance(vec3 o, vec3 d, inout uint rng);
+
+// The frame's estimate of `pixel`: the mean of its finite camera samples (0 if none).
+// Sample s of the frame draws from the stream (pixel, frame, sample_base + s, seed).
+vec3 film_pixel_estimate(uvec2 pixel, uint frame, uint sample_base) {
+    vec3 sum = vec3(0.0);
+    uint kept = 0u;
+    for (uint s = 0u; s < u_frame.image.z; ++s) {
+        uint rng = rng_init(pixel, frame, sample_base + s, u_frame.image.w);
+        vec2 px = vec2(pixel) + pixel_jitter(rng);
+        vec3 L = radiance(u_frame.cam_position.xyz, camera_direction(u_frame, px), rng);
+        if (film_sample_finite(L)) {
+            sum += L;
+            kept += 1u;
+        }
+    }
+    return kept > 0u ? sum / float(kept) : vec3(0.0);
 }
 
 #endif

@@ -29,7 +29,6 @@
 #define LIGHT_SPHERE 2u
 // The light index of the environment in a stored path.
 #define LIGHT_ENV 0xffu
-#define NO_INDEX 0xffffffffu
 
 // One next-event sample.
 struct LightSample {

@@ -58,7 +58,7 @@ vec3 shape_normal(Shape s, vec3 x, vec3 d) {
 // Nearest shape hit along o + t d in (t_min, t_max): distance (FAR if none) and index.
 float nearest_shape(vec3 o, vec3 d, float t_min, float t_max, out uint index) {
     float t_hit = t_max;
-    index = 0xffffffffu;
+    index = NO_INDEX;
     if (SC_HAS_SHAPES) {
         uint count = u_frame.counts.y;
         for (uint s = 0u; s < count; ++s) {
@@ -69,7 +69,7 @@ float nearest_shape(vec3 o, vec3 d, float t_min, float t_max, out uint index) {
             }
         }
     }
-    return index == 0xffffffffu ? FAR : t_hit;
+    return index == NO_INDEX ? FAR : t_hit;
 }
 
 // Whether any shape blocks o + t d for t in (t_min, t_max).

@@ -13,6 +13,8 @@
 
 #extension GL_GOOGLE_include_directive : require
 #include "path.glsl"
+// Russian roulette (not this folder's path.glsl).
+#include "../include/path.glsl"
 
 // The walk's vertices so far (z_i, omega_i), copied into the reservoir when one of its
 // candidates is selected.
@@ -136,14 +138,9 @@ void main() {
             // p *= rho(w_sampled). Domain: rho_sampled > 0 (HG is positive for |g| < 1).
             beta *= sigma_s * (rho_next / rho_sampled);
             w = w_next;
-            // Russian roulette after the third bounce, by beta = Fhat / p.
-            if (i >= 3u) {
-                float survive = clamp(max(beta.r, max(beta.g, beta.b)), 0.05, 1.0);
-                if (rng_next(rng) >= survive) {
-                    break;
-                }
-                // p *= survive. Domain: survive >= 0.05.
-                beta /= survive;
+            // Russian roulette after the third bounce, by beta = Fhat / p (p *= q).
+            if (i >= 3u && !russian_roulette(beta, rng)) {
+                break;
             }
         }
     }
