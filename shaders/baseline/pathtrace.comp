@@ -77,6 +77,7 @@ layout(std430, set = 0, binding = BINDING_ENV_CDF) readonly buffer EnvCdfBlock {
 #define u_grid u_base.grid
 #define ENV_SIZE u_base.env_size.xy
 #include "grid.glsl"
+#include "grid_blocks.glsl"
 #include "grid_emission.glsl"
 #include "lights.glsl"
 #include "shapes.glsl"
@@ -103,8 +104,8 @@ float sample_collision(vec3 o, vec3 d, float t_end, inout uint rng, out uint med
             if (b <= a || !(sigma_t > 0.0)) {
                 continue;
             }
-            // Domain: sigma_t > 0; 1 - u in (0, 1].
-            float t = a - log(1.0 - rng_next(rng)) / sigma_t;
+            // A first collision at rate sigma_t. Domain: sigma_t > 0.
+            float t = a + sample_exponential(rng_next(rng), sigma_t);
             if (t < b) {
                 t_best = t;
                 medium = m;

@@ -93,8 +93,8 @@ vec3 surface_direct(Shape s, vec3 x, vec3 n) {
 // FAR when the ray reaches t_surface (probability T(o -> t_surface)) unscattered.
 float sample_collision(vec3 o, vec3 d, float t_surface, inout uint rng, out uint medium) {
     medium = NO_INDEX;
-    // Domain: 1 - u in (0, 1].
-    float tau_target = -log(1.0 - rng_next(rng));
+    // The optical depth of the collision, exponential with rate 1.
+    float tau_target = sample_exponential(rng_next(rng), 1.0);
     float tau_acc = 0.0;
     uint count = min(u_frame.counts.x, MAX_MEDIA);
     float last_entry = -FAR;

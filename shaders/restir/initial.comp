@@ -73,9 +73,8 @@ void main() {
             // Where the segment ends without a collision: an emitting sphere or far away.
             uint sphere;
             float t_end = nearest_sphere_light(0u, x, w, 1e-6, FAR, sphere);
-            // Regular tracking: optical depth -ln(1 - u) through sigma_t*.
-            // Domain: 1 - u in (0, 1].
-            float tau_target = -log(1.0 - rng_next(rng));
+            // Regular tracking: an exponential optical depth through sigma_t*.
+            float tau_target = sample_exponential(rng_next(rng), 1.0);
             float sigma_star;
             float tau;
             float z = pc_track(i == 1u ? LEVEL_PRIMARY : LEVEL_INDIRECT, x, w, t_end, tau_target, sigma_star, tau);

@@ -98,6 +98,7 @@ layout(std430, set = 0, binding = BINDING_ENV_CDF) readonly buffer EnvCdfBlock {
 #define ENV_SIZE u_base.env_size.xy
 #include "film.glsl"
 #include "grid.glsl"
+#include "grid_blocks.glsl"
 #include "grid_emission.glsl"
 #include "lights.glsl"
 #include "reservoir.glsl"
