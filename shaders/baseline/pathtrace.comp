@@ -29,8 +29,6 @@
 #include "grid_types.glsl"
 #include "path.glsl"
 
-layout(local_size_x = GROUP_SIZE_X, local_size_y = GROUP_SIZE_Y) in;
-
 layout(constant_id = SC_ID_HAS_SHAPES) const bool SC_HAS_SHAPES = true;
 layout(constant_id = SC_ID_HAS_ENV) const bool SC_HAS_ENV = true;
 // Homogeneous box media beside the grid.
@@ -41,48 +39,15 @@ layout(constant_id = SC_ID_HAS_EMISSION) const bool SC_HAS_EMISSION = false;
 // The environment is an importance-sampled map (else a constant radiance).
 layout(constant_id = SC_ID_HAS_ENV_MAP) const bool SC_HAS_ENV_MAP = false;
 
-layout(std140, set = 0, binding = BINDING_FRAME_UNIFORMS) uniform FrameBlock {
-    FrameUniforms u_frame;
-};
+#include "film.glsl"
+
 layout(push_constant) uniform PushBlock {
     PassPush u_push;
 };
-layout(std430, set = 0, binding = BINDING_SHAPES) readonly buffer ShapesBlock {
-    Shape shapes[];
-};
-// Analytic lights: direction_type = (direction or position or centre, type),
-// irradiance = (E or I or L, sphere radius), gobo_v.w = selection CDF.
-layout(std430, set = 0, binding = BINDING_LIGHTS) readonly buffer LightsBlock {
-    Light lights[];
-};
-layout(std140, set = 0, binding = BINDING_BASELINE_UNIFORMS) uniform BaselineBlock {
-    BaselineUniforms u_base;
-};
-layout(std430, set = 0, binding = BINDING_BOX_MEDIA) readonly buffer MediaBlock {
-    BoxMedium media[];
-};
-layout(set = 0, binding = BINDING_GRID_DENSITY) uniform sampler3D u_density;
-layout(set = 0, binding = BINDING_GRID_EMISSION) uniform sampler3D u_emission;
-layout(std430, set = 0, binding = BINDING_SUPER_VOXELS) readonly buffer SuperVoxelBlock {
-    vec4 super_voxels[];
-};
 
-layout(std430, set = 0, binding = BINDING_ENV_TEXELS) readonly buffer EnvTexelBlock {
-    vec4 env_texels[];
-};
-layout(std430, set = 0, binding = BINDING_ENV_CDF) readonly buffer EnvCdfBlock {
-    float env_cdf[];
-};
-
-#define u_grid u_base.grid
-#define ENV_SIZE u_base.env_size.xy
-#include "grid.glsl"
-#include "grid_blocks.glsl"
-#include "grid_emission.glsl"
-#include "lights.glsl"
+#include "grid_resources.glsl"
 #include "shapes.glsl"
 #include "box_media.glsl"
-#include "film.glsl"
 
 // The first real collision along o + t d in [0, t_end) among the grid and the boxes:
 // the media are disjoint, so the first collision is the earliest of independent first

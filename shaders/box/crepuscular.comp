@@ -35,8 +35,6 @@
 #include "box_analytic.glsl"
 #include "path.glsl"
 
-layout(local_size_x = GROUP_SIZE_X, local_size_y = GROUP_SIZE_Y) in;
-
 // Features the render plan switches per scene.
 layout(constant_id = SC_ID_HAS_SHAPES) const bool SC_HAS_SHAPES = true;
 layout(constant_id = SC_ID_HAS_GOBOS) const bool SC_HAS_GOBOS = true;
@@ -46,18 +44,12 @@ layout(constant_id = SC_ID_HAS_MEDIA) const bool SC_HAS_MEDIA = true;
 layout(constant_id = SC_ID_MAX_BOUNCES) const uint SC_MAX_BOUNCES = 1u;
 layout(constant_id = SC_ID_PIXEL_JITTER) const bool SC_PIXEL_JITTER = true;
 
-layout(std140, set = 0, binding = BINDING_FRAME_UNIFORMS) uniform FrameBlock {
-    FrameUniforms u_frame;
-};
+#include "film.glsl"
+
 layout(push_constant) uniform PushBlock {
     PassPush u_push;
 };
-layout(std430, set = 0, binding = BINDING_BOX_MEDIA) readonly buffer MediaBlock {
-    BoxMedium media[];
-};
-layout(std430, set = 0, binding = BINDING_SHAPES) readonly buffer ShapesBlock {
-    Shape shapes[];
-};
+// Directional lights.
 layout(std430, set = 0, binding = BINDING_LIGHTS) readonly buffer LightsBlock {
     Light lights[];
 };
@@ -65,10 +57,8 @@ layout(std430, set = 0, binding = BINDING_GOBO_PLANES) readonly buffer GoboBlock
     vec4 gobo_planes[]; // (a, b, c, 0): a point (u, v) is inside when a u + b v + c >= 0
 };
 
-#include "film.glsl"
 #include "shapes.glsl"
 #include "box_media.glsl"
-
 #include "directional.glsl"
 #include "estimators.glsl"
 

@@ -1,13 +1,18 @@
-// Homogeneous box media (scene.glsl's BoxMedium): the span of a ray inside one, and the
-// closed-form optical depth of all of them along a ray. The includer declares
-// `BoxMedium media[]`, `u_frame` (counts.x = number of box media) and the bool constant
-// SC_HAS_MEDIA (without it there are no box media).
+// Homogeneous box media (scene.glsl's BoxMedium): their buffer `media`, the span of a ray
+// inside one, and the closed-form optical depth of all of them along a ray. The includer
+// declares `u_frame` (counts.x = number of box media) and the bool constant SC_HAS_MEDIA
+// (without it there are no box media).
 #ifndef NIMBUS_BOX_MEDIA_GLSL
 #define NIMBUS_BOX_MEDIA_GLSL
 
+#include "bindings.glsl"
 #include "constants.glsl"
 #include "geometry.glsl"
 #include "scene.glsl"
+
+layout(std430, set = 0, binding = BINDING_BOX_MEDIA) readonly buffer MediaBlock {
+    BoxMedium media[];
+};
 
 // Span of o + t d inside box medium m: (t_in, t_out), t_in > t_out for a miss.
 vec2 box_medium_span(uint m, vec3 o, vec3 d) {

@@ -1,7 +1,9 @@
 // The film: per-pixel running sums over frames, the count of non-finite samples, and
-// the pixel loop of the path-tracing integrators. Every pass that writes the image
-// includes this file; it declares the three buffers. The includer declares `u_frame`
-// (FrameUniforms: image = width, height, spp, seed) and the bool constant SC_PIXEL_JITTER.
+// the pixel loop of the path-tracing integrators. Every per-pixel pass includes this
+// file after its specialization constants (SC_PIXEL_JITTER at least): it sets the
+// workgroup (one invocation per pixel, GROUP_SIZE_X x GROUP_SIZE_Y) and declares the
+// frame's uniforms `u_frame` (FrameUniforms: image = width, height, spp, seed) and the
+// three film buffers.
 //
 // accum[p]    rgb: sum over frames of the frame's pixel estimate, a: frames
 // accum_sq[p] rgb: sum of squares of the frame estimates (the renderer's standard error)
@@ -10,10 +12,15 @@
 #ifndef NIMBUS_FILM_GLSL
 #define NIMBUS_FILM_GLSL
 
+#include "features.glsl"
 #include "bindings.glsl"
-#include "camera.glsl"
-#include "rng.glsl"
+#include "scene.glsl"
 
+layout(local_size_x = GROUP_SIZE_X, local_size_y = GROUP_SIZE_Y) in;
+
+layout(std140, set = 0, binding = BINDING_FRAME_UNIFORMS) uniform FrameBlock {
+    FrameUniforms u_frame;
+};
 layout(std430, set = 0, binding = BINDING_ACCUM) buffer AccumBlock {
     vec4 accum[];
 };
@@ -23,6 +30,9 @@ layout(std430, set = 0, binding = BINDING_ACCUM_SQ) buffer AccumSqBlock {
 layout(std430, set = 0, binding = BINDING_STATS) buffer StatsBlock {
     uint stats[];
 };
+
+#include "camera.glsl"
+#include "rng.glsl"
 
 // Whether `pixel` lies inside the image (dispatches round up to whole workgroups).
 bool film_contains(uvec2 pixel) {

@@ -38,13 +38,7 @@ vec3 sample_hg(vec3 d, float g, vec2 u) {
         float sq = (1.0 - g * g) / (1.0 + g - 2.0 * g * u.x);
         cos_theta = (1.0 + g * g - sq * sq) / (2.0 * g);
     }
-    cos_theta = clamp(cos_theta, -1.0, 1.0);
-    float sin_theta = sqrt(max(0.0, 1.0 - cos_theta * cos_theta));
-    float phi = 2.0 * PI * u.y;
-    vec3 t;
-    vec3 b;
-    orthonormal_basis(d, t, b);
-    return normalize(sin_theta * cos(phi) * t + sin_theta * sin(phi) * b + cos_theta * d);
+    return spherical_direction(d, clamp(cos_theta, -1.0, 1.0), 2.0 * PI * u.y);
 }
 
 // The solid-angle pdf of sample_hg at cos_theta = dot(d, w): the phase function itself,

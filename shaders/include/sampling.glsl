@@ -22,6 +22,16 @@ void orthonormal_basis(vec3 n, out vec3 t, out vec3 b) {
     b = vec3(c, s + n.y * n.y * a, -n.y);
 }
 
+// The unit direction at polar angle theta (given by its cosine) and azimuth phi about unit
+// `axis`, in the basis of orthonormal_basis(axis) (pbrt's SphericalDirection in a Frame).
+vec3 spherical_direction(vec3 axis, float cos_theta, float phi) {
+    float sin_theta = sqrt(max(0.0, 1.0 - cos_theta * cos_theta));
+    vec3 t;
+    vec3 b;
+    orthonormal_basis(axis, t, b);
+    return normalize(sin_theta * cos(phi) * t + sin_theta * sin(phi) * b + cos_theta * axis);
+}
+
 // The fraction of a turn of the azimuth atan2(y, x), in [0, 1); 0 for x = y = 0.
 float azimuth_fraction(float y, float x) {
     if (x == 0.0 && y == 0.0) {
@@ -186,13 +196,7 @@ vec2 invert_uniform_sphere(vec3 w) {
 // one_minus_cos_max = 1 - cos(theta_max) in (0, 2] (narrow cones keep their digits).
 
 vec3 sample_uniform_cone(vec3 axis, float one_minus_cos_max, vec2 u) {
-    float cos_theta = 1.0 - u.x * one_minus_cos_max;
-    float sin_theta = sqrt(max(0.0, 1.0 - cos_theta * cos_theta));
-    float phi = 2.0 * PI * u.y;
-    vec3 t;
-    vec3 b;
-    orthonormal_basis(axis, t, b);
-    return normalize(sin_theta * cos(phi) * t + sin_theta * sin(phi) * b + cos_theta * axis);
+    return spherical_direction(axis, 1.0 - u.x * one_minus_cos_max, 2.0 * PI * u.y);
 }
 
 // Density in solid angle inside the cone. Domain: one_minus_cos_max > 0.

@@ -1,11 +1,16 @@
-// Opaque shapes: nearest hit with normal, and occlusion queries. Needs the `shapes`
-// buffer, `u_frame` (counts.y = number of shapes) and the bool constant SC_HAS_SHAPES
-// to be declared by the including pass.
+// Opaque shapes: their buffer, nearest hit with normal, and occlusion queries. Needs
+// `u_frame` (counts.y = number of shapes) and the bool constant SC_HAS_SHAPES to be
+// declared by the including pass.
 #ifndef NIMBUS_SHAPES_GLSL
 #define NIMBUS_SHAPES_GLSL
 
+#include "bindings.glsl"
 #include "geometry.glsl"
 #include "scene.glsl"
+
+layout(std430, set = 0, binding = BINDING_SHAPES) readonly buffer ShapesBlock {
+    Shape shapes[];
+};
 
 // Hit distance of one shape along o + t d within (t_min, t_max); FAR if none.
 float intersect_shape(Shape s, vec3 o, vec3 d, float t_min, float t_max) {

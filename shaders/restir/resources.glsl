@@ -1,8 +1,9 @@
 // Volumetric ReSTIR (Lin, Wyman and Yuksel 2021): what the four passes bind. The
 // specialization constants, the settings and push-constant records (mirrored by
-// RestirUniformsGpu and RestirPush in src/passes/restir.rs), every descriptor of set 0,
-// and where a pixel's reservoir lives. The passes include path.glsl or combine.glsl,
-// which include this file.
+// RestirUniformsGpu and RestirPush in src/passes/restir.rs), the descriptors of set 0
+// (the film's and the grid medium's through film.glsl and grid_resources.glsl, the rest
+// here), and where a pixel's reservoir lives. The passes include path.glsl or
+// combine.glsl, which include this file.
 #ifndef NIMBUS_RESTIR_RESOURCES_GLSL
 #define NIMBUS_RESTIR_RESOURCES_GLSL
 
@@ -13,8 +14,6 @@
 #include "constants.glsl"
 #include "scene.glsl"
 #include "grid_types.glsl"
-
-layout(local_size_x = GROUP_SIZE_X, local_size_y = GROUP_SIZE_Y) in;
 
 layout(constant_id = SC_ID_HAS_ENV) const bool SC_HAS_ENV = true;
 layout(constant_id = SC_ID_MAX_BOUNCES) const uint SC_MAX_BOUNCES = 1u;
@@ -48,38 +47,25 @@ struct RestirPush {
     uint aux;    // temporal: slot of the previous frame; spatial: the round
 };
 
-layout(std140, set = 0, binding = BINDING_FRAME_UNIFORMS) uniform FrameBlock {
-    FrameUniforms u_frame;
-};
+#include "film.glsl"
+
 layout(std140, set = 0, binding = BINDING_PREV_FRAME_UNIFORMS) uniform PrevFrameBlock {
     FrameUniforms u_prev_frame;
 };
 layout(push_constant) uniform PushBlock {
     RestirPush u_push;
 };
-// The current frame's analytic lights, then the previous frame's (counts.z each).
-layout(std430, set = 0, binding = BINDING_LIGHTS) readonly buffer LightsBlock {
-    Light lights[];
-};
-layout(std140, set = 0, binding = BINDING_BASELINE_UNIFORMS) uniform BaselineBlock {
-    BaselineUniforms u_base;
-};
 layout(std140, set = 0, binding = BINDING_RESTIR_UNIFORMS) uniform RestirBlock {
     RestirUniforms u_restir;
 };
-// Full-resolution density (unscaled, R32, texelFetch): this frame and the previous one.
-layout(set = 0, binding = BINDING_GRID_DENSITY) uniform sampler3D u_density;
+// The previous frame's full-resolution density (the current one is grid_resources.glsl's).
 layout(set = 0, binding = BINDING_GRID_DENSITY_PREV) uniform sampler3D u_density_prev;
-layout(set = 0, binding = BINDING_GRID_EMISSION) uniform sampler3D u_emission;
 // Mip textures for ray marching (unscaled density, R16F, linear filtering).
 layout(set = 0, binding = BINDING_MARCH_REUSE) uniform sampler3D u_march_reuse;
 layout(set = 0, binding = BINDING_MARCH_REUSE_PREV) uniform sampler3D u_march_reuse_prev;
 layout(set = 0, binding = BINDING_MARCH_NEE) uniform sampler3D u_march_nee;
 // Velocity in metres per frame (RGBA16F, linear filtering).
 layout(set = 0, binding = BINDING_VELOCITY) uniform sampler3D u_velocity;
-layout(std430, set = 0, binding = BINDING_SUPER_VOXELS) readonly buffer SuperVoxelBlock {
-    vec4 super_voxels[];
-};
 // Conservative piecewise-constant sigma_t* (scaled) of the two tracking levels.
 layout(std430, set = 0, binding = BINDING_PC_GRID) readonly buffer PcGridBlock {
     float pc_grid[];
@@ -87,20 +73,8 @@ layout(std430, set = 0, binding = BINDING_PC_GRID) readonly buffer PcGridBlock {
 layout(std430, set = 0, binding = BINDING_RESERVOIRS) buffer ReservoirBlock {
     uint reservoirs[];
 };
-layout(std430, set = 0, binding = BINDING_ENV_TEXELS) readonly buffer EnvTexelBlock {
-    vec4 env_texels[];
-};
-layout(std430, set = 0, binding = BINDING_ENV_CDF) readonly buffer EnvCdfBlock {
-    float env_cdf[];
-};
 
-#define u_grid u_base.grid
-#define ENV_SIZE u_base.env_size.xy
-#include "film.glsl"
-#include "grid.glsl"
-#include "grid_blocks.glsl"
-#include "grid_emission.glsl"
-#include "lights.glsl"
+#include "grid_resources.glsl"
 #include "reservoir.glsl"
 
 // Which frame a camera ray, density or light set belongs to.
