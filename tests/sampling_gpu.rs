@@ -829,7 +829,8 @@ fn every_family_round_trips_through_its_inverse() {
                 let dx = (back_x - u0).abs();
                 assert!(
                     dx <= tol_x,
-                    "{what}: u.x {u0} comes back as {back_x} (|Δ| {dx:e} > {tol_x:e}); sample {s:?}"
+                    "{what}: u.x {u0} comes back as {back_x} (|Δ| {dx:e} > {tol_x:e}); \
+                     sample {s:?}"
                 );
                 worst_x = worst_x.max(dx / tol_x);
                 // The inverse agrees with the f64 CDF at the sample.
@@ -837,7 +838,8 @@ fn every_family_round_trips_through_its_inverse() {
                 let dref = (back_x - reference).abs();
                 assert!(
                     dref <= tol_x,
-                    "{what}: invert gives u.x {back_x} at {s:?}, the f64 CDF {reference} (|Δ| {dref:e} > {tol_x:e})"
+                    "{what}: invert gives u.x {back_x} at {s:?}, the f64 CDF {reference} \
+                     (|Δ| {dref:e} > {tol_x:e})"
                 );
                 worst_ref = worst_ref.max(dref / tol_x);
                 // The azimuth comes back too: a direction's rounding of a few spacings moves
@@ -849,7 +851,8 @@ fn every_family_round_trips_through_its_inverse() {
                     let dy = circular_distance(back_y, u1);
                     assert!(
                         dy <= tol_y,
-                        "{what}: u.y {u1} comes back as {back_y} (|Δ| {dy:e} > {tol_y:e}); sample {s:?}"
+                        "{what}: u.y {u1} comes back as {back_y} (|Δ| {dy:e} > {tol_y:e}); \
+                         sample {s:?}"
                     );
                     worst_y = worst_y.max(dy / tol_y);
                 }
@@ -862,13 +865,15 @@ fn every_family_round_trips_through_its_inverse() {
                 let dpdf = (pdf - reference_pdf).abs();
                 assert!(
                     dpdf <= tol_pdf,
-                    "{what}: pdf {pdf} at sample {s:?}, f64 formula {reference_pdf} (|Δ| {dpdf:e} > {tol_pdf:e})"
+                    "{what}: pdf {pdf} at sample {s:?}, f64 formula {reference_pdf} \
+                     (|Δ| {dpdf:e} > {tol_pdf:e})"
                 );
                 worst_pdf = worst_pdf.max(dpdf / tol_pdf);
             }
         }
         println!(
-            "  {:<40} worst |Δu.x| {worst_x:.2} of tol, |Δu.y| {worst_y:.2}, invert vs f64 CDF {worst_ref:.2}, pdf {worst_pdf:.2}",
+            "  {:<40} worst |Δu.x| {worst_x:.2} of tol, |Δu.y| {worst_y:.2}, invert vs f64 \
+             CDF {worst_ref:.2}, pdf {worst_pdf:.2}",
             family.name
         );
     }
