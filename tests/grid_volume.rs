@@ -1,6 +1,6 @@
-//! The heterogeneous grid-medium core (`shaders/include/grid.glsl`) run on the GPU through
-//! `shaders/tests/grid_volume.comp`, with validation layers on, against independent f64
-//! computations on the CPU:
+//! The heterogeneous grid-medium core (`shaders/include/grid.glsl` and `grid_blocks.glsl`)
+//! run on the GPU through `shaders/tests/grid_volume.comp`, with validation layers on,
+//! against independent f64 computations on the CPU:
 //!
 //! - closed-form optical depth (regular tracking, exact per-cell integration) against
 //!   5-point Gauss–Legendre quadrature of [`VoxelGrid::sample_trilinear`] between every

@@ -114,7 +114,7 @@ fn record_sizes_match_the_glsl_structs() {
     assert_eq!(grid["BaselineUniforms"], size_of::<BaselineUniformsGpu>());
     assert_eq!(size_of::<BaselineUniformsGpu>(), grid["GridParams"] + 80);
 
-    let restir = struct_sizes(&read("shaders/include/restir.glsl"));
+    let restir = struct_sizes(&read("shaders/restir/resources.glsl"));
     assert_eq!(restir["RestirUniforms"], size_of::<RestirUniformsGpu>());
     assert_eq!(restir["RestirPush"], size_of::<RestirPush>());
     assert!(size_of::<RestirPush>() <= 128);

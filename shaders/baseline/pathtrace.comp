@@ -18,6 +18,7 @@
 
 #extension GL_GOOGLE_include_directive : require
 
+#include "features.glsl"
 #include "bindings.glsl"
 #include "constants.glsl"
 #include "scene.glsl"
@@ -26,88 +27,27 @@
 #include "sampling.glsl"
 #include "geometry.glsl"
 #include "grid_types.glsl"
+#include "path.glsl"
 
-layout(local_size_x = 8, local_size_y = 8) in;
-
-layout(constant_id = 0) const bool SC_HAS_SHAPES = true;
-layout(constant_id = 2) const bool SC_HAS_ENV = true;
+layout(constant_id = SC_ID_HAS_SHAPES) const bool SC_HAS_SHAPES = true;
+layout(constant_id = SC_ID_HAS_ENV) const bool SC_HAS_ENV = true;
 // Homogeneous box media beside the grid.
-layout(constant_id = 4) const bool SC_HAS_MEDIA = false;
-layout(constant_id = 5) const uint SC_MAX_BOUNCES = 1u;
-layout(constant_id = 6) const bool SC_PIXEL_JITTER = true;
-layout(constant_id = 7) const bool SC_HAS_EMISSION = false;
+layout(constant_id = SC_ID_HAS_MEDIA) const bool SC_HAS_MEDIA = false;
+layout(constant_id = SC_ID_MAX_BOUNCES) const uint SC_MAX_BOUNCES = 1u;
+layout(constant_id = SC_ID_PIXEL_JITTER) const bool SC_PIXEL_JITTER = true;
+layout(constant_id = SC_ID_HAS_EMISSION) const bool SC_HAS_EMISSION = false;
 // The environment is an importance-sampled map (else a constant radiance).
-layout(constant_id = 8) const bool SC_HAS_ENV_MAP = false;
+layout(constant_id = SC_ID_HAS_ENV_MAP) const bool SC_HAS_ENV_MAP = false;
 
-layout(std140, set = 0, binding = BINDING_FRAME_UNIFORMS) uniform FrameBlock {
-    FrameUniforms u_frame;
-};
+#include "film.glsl"
+
 layout(push_constant) uniform PushBlock {
     PassPush u_push;
 };
-layout(std430, set = 0, binding = BINDING_ACCUM) buffer AccumBlock {
-    vec4 accum[];
-};
-layout(std430, set = 0, binding = BINDING_ACCUM_SQ) buffer AccumSqBlock {
-    vec4 accum_sq[];
-};
-layout(std430, set = 0, binding = BINDING_STATS) buffer StatsBlock {
-    uint stats[];
-};
-layout(std430, set = 0, binding = BINDING_SHAPES) readonly buffer ShapesBlock {
-    Shape shapes[];
-};
-// Analytic lights: direction_type = (direction or position or centre, type),
-// irradiance = (E or I or L, sphere radius), gobo_v.w = selection CDF.
-layout(std430, set = 0, binding = BINDING_LIGHTS) readonly buffer LightsBlock {
-    Light lights[];
-};
-layout(std140, set = 0, binding = BINDING_BASELINE_UNIFORMS) uniform BaselineBlock {
-    BaselineUniforms u_base;
-};
-layout(std430, set = 0, binding = BINDING_BOX_MEDIA) readonly buffer MediaBlock {
-    BoxMedium media[];
-};
-layout(set = 0, binding = BINDING_GRID_DENSITY) uniform sampler3D u_density;
-layout(set = 0, binding = BINDING_GRID_EMISSION) uniform sampler3D u_emission;
-layout(std430, set = 0, binding = BINDING_SUPER_VOXELS) readonly buffer SuperVoxelBlock {
-    vec4 super_voxels[];
-};
 
-layout(std430, set = 0, binding = BINDING_ENV_TEXELS) readonly buffer EnvTexelBlock {
-    vec4 env_texels[];
-};
-layout(std430, set = 0, binding = BINDING_ENV_CDF) readonly buffer EnvCdfBlock {
-    float env_cdf[];
-};
-
-#define u_grid u_base.grid
-#define ENV_SIZE u_base.env_size.xy
-#include "grid.glsl"
-#include "grid_emission.glsl"
-#include "lights.glsl"
+#include "grid_resources.glsl"
 #include "shapes.glsl"
-
-// Span of o + t d inside box medium m: (t_in, t_out), t_in > t_out for a miss.
-vec2 box_span(uint m, vec3 o, vec3 d) {
-    BoxMedium bm = media[m];
-    vec3 o_local;
-    vec3 d_local;
-    to_box_frame(bm.world_to_local, bm.center_sigma_t.xyz, o, d, o_local, d_local);
-    return intersect_slabs(o_local, d_local, bm.half_size_g.xyz);
-}
-
-// Optical depth of the box media along o + t d, t in [t0, t1] (closed form).
-float box_optical_depth(vec3 o, vec3 d, float t0, float t1) {
-    float tau = 0.0;
-    if (SC_HAS_MEDIA) {
-        uint count = u_frame.counts.x;
-        for (uint m = 0u; m < count; ++m) {
-            tau += media[m].center_sigma_t.w * overlap_length(box_span(m, o, d), t0, t1);
-        }
-    }
-    return tau;
-}
+#include "box_media.glsl"
 
 // The first real collision along o + t d in [0, t_end) among the grid and the boxes:
 // the media are disjoint, so the first collision is the earliest of independent first
@@ -122,15 +62,15 @@ float sample_collision(vec3 o, vec3 d, float t_end, inout uint rng, out uint med
     if (SC_HAS_MEDIA) {
         uint count = u_frame.counts.x;
         for (uint m = 0u; m < count; ++m) {
-            vec2 s = box_span(m, o, d);
+            vec2 s = box_medium_span(m, o, d);
             float a = max(s.x, 0.0);
             float b = min(s.y, min(t_end, t_best));
             float sigma_t = media[m].center_sigma_t.w;
             if (b <= a || !(sigma_t > 0.0)) {
                 continue;
             }
-            // Domain: sigma_t > 0; 1 - u in (0, 1].
-            float t = a - log(1.0 - rng_next(rng)) / sigma_t;
+            // A first collision at rate sigma_t. Domain: sigma_t > 0.
+            float t = a + sample_exponential(rng_next(rng), sigma_t);
             if (t < b) {
                 t_best = t;
                 medium = m;
@@ -234,8 +174,7 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
             }
             vec3 x = o + t_surface * d;
             vec3 n = shape_normal(s, x, d);
-            float eps = 1e-4 * (1.0 + max(max(abs(x.x), abs(x.y)), abs(x.z)));
-            vec3 x_off = x + eps * n;
+            vec3 x_off = offset_ray_origin(x, n);
             vec3 wi;
             float dist;
             uint target;
@@ -259,13 +198,8 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
             break;
         }
         // Russian roulette from the fourth segment on, by the path's throughput.
-        if (bounce >= 3u) {
-            float survive = clamp(max(beta.r, max(beta.g, beta.b)), 0.05, 1.0);
-            if (rng_next(rng) >= survive) {
-                break;
-            }
-            // Domain: survive >= 0.05.
-            beta /= survive;
+        if (bounce >= 3u && !russian_roulette(beta, rng)) {
+            break;
         }
     }
     return L;
@@ -273,32 +207,8 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
 
 void main() {
     uvec2 pixel = gl_GlobalInvocationID.xy;
-    uint width = u_frame.image.x;
-    uint height = u_frame.image.y;
-    if (pixel.x >= width || pixel.y >= height) {
+    if (!film_contains(pixel)) {
         return;
     }
-    uint spp = u_frame.image.z;
-    vec3 sum = vec3(0.0);
-    uint kept = 0u;
-    for (uint s = 0u; s < spp; ++s) {
-        uint rng = rng_init(pixel, u_push.frame, u_push.sample_base + s, u_frame.image.w);
-        vec2 jitter = SC_PIXEL_JITTER ? vec2(rng_next(rng), rng_next(rng)) : vec2(0.5);
-        vec2 px = vec2(pixel) + jitter;
-        float sx = (2.0 * px.x / float(width) - 1.0) * u_frame.cam_position.w;
-        float sy = (1.0 - 2.0 * px.y / float(height)) * u_frame.cam_forward.w;
-        vec3 d = normalize(u_frame.cam_forward.xyz + sx * u_frame.cam_right.xyz + sy * u_frame.cam_up.xyz);
-        vec3 L = radiance(u_frame.cam_position.xyz, d, rng);
-        // Count non-finite samples instead of writing them.
-        if (any(isnan(L)) || any(isinf(L))) {
-            atomicAdd(stats[STAT_NON_FINITE], 1u);
-        } else {
-            sum += L;
-            kept += 1u;
-        }
-    }
-    uint index = pixel.y * width + pixel.x;
-    vec3 estimate = kept > 0u ? sum / float(kept) : vec3(0.0);
-    accum[index] += vec4(estimate, 1.0);
-    accum_sq[index] += vec4(estimate * estimate, 0.0);
+    film_accumulate(pixel, film_pixel_estimate(pixel, u_push.frame, u_push.sample_base));
 }

@@ -4,7 +4,8 @@
 // jittered over the pixel footprint, accumulate into the running sums.
 //
 // Along every path segment inside a box the single-scattered light is estimated with
-// N = `box_samples` samples by one of the paper's estimators (SC_ESTIMATOR):
+// N = `box_samples` samples by one of the paper's estimators (SC_ESTIMATOR), each a
+// distance sampler times a combiner (estimators.glsl):
 //   MCWVDS  Monte Carlo with whole-volume distance sampling (Sec. 5-6): distances
 //           drawn in proportion to the unoccluded integrand, so the estimate is the
 //           analytic unoccluded radiance times the mean visibility.
@@ -23,6 +24,7 @@
 
 #extension GL_GOOGLE_include_directive : require
 
+#include "features.glsl"
 #include "bindings.glsl"
 #include "constants.glsl"
 #include "scene.glsl"
@@ -31,51 +33,23 @@
 #include "sampling.glsl"
 #include "geometry.glsl"
 #include "box_analytic.glsl"
-
-layout(local_size_x = 8, local_size_y = 8) in;
+#include "path.glsl"
 
 // Features the render plan switches per scene.
-layout(constant_id = 0) const bool SC_HAS_SHAPES = true;
-layout(constant_id = 1) const bool SC_HAS_GOBOS = true;
-layout(constant_id = 2) const bool SC_HAS_ENV = true;
-layout(constant_id = 3) const uint SC_ESTIMATOR = 0u;
-layout(constant_id = 4) const bool SC_HAS_MEDIA = true;
-layout(constant_id = 5) const uint SC_MAX_BOUNCES = 1u;
-layout(constant_id = 6) const bool SC_PIXEL_JITTER = true;
+layout(constant_id = SC_ID_HAS_SHAPES) const bool SC_HAS_SHAPES = true;
+layout(constant_id = SC_ID_HAS_GOBOS) const bool SC_HAS_GOBOS = true;
+layout(constant_id = SC_ID_HAS_ENV) const bool SC_HAS_ENV = true;
+layout(constant_id = SC_ID_ESTIMATOR) const uint SC_ESTIMATOR = 0u;
+layout(constant_id = SC_ID_HAS_MEDIA) const bool SC_HAS_MEDIA = true;
+layout(constant_id = SC_ID_MAX_BOUNCES) const uint SC_MAX_BOUNCES = 1u;
+layout(constant_id = SC_ID_PIXEL_JITTER) const bool SC_PIXEL_JITTER = true;
 
-#define ESTIMATOR_MCWVDS 0u
-#define ESTIMATOR_REDS 1u
-#define ESTIMATOR_REES 2u
-#define ESTIMATOR_RM 3u
-#define ESTIMATOR_MCDS 4u
+#include "film.glsl"
 
-// Most directional lights a scene may have (the render plan checks).
-#define MAX_LIGHTS 16u
-// Most box media a scene may have (the render plan checks).
-#define MAX_MEDIA 16u
-#define NO_INDEX 0xffffffffu
-
-layout(std140, set = 0, binding = BINDING_FRAME_UNIFORMS) uniform FrameBlock {
-    FrameUniforms u_frame;
-};
 layout(push_constant) uniform PushBlock {
     PassPush u_push;
 };
-layout(std430, set = 0, binding = BINDING_ACCUM) buffer AccumBlock {
-    vec4 accum[]; // rgb: sum over frames of the frame's pixel estimate, a: frames
-};
-layout(std430, set = 0, binding = BINDING_ACCUM_SQ) buffer AccumSqBlock {
-    vec4 accum_sq[]; // rgb: sum of squares of the frame estimates
-};
-layout(std430, set = 0, binding = BINDING_STATS) buffer StatsBlock {
-    uint stats[];
-};
-layout(std430, set = 0, binding = BINDING_BOX_MEDIA) readonly buffer MediaBlock {
-    BoxMedium media[];
-};
-layout(std430, set = 0, binding = BINDING_SHAPES) readonly buffer ShapesBlock {
-    Shape shapes[];
-};
+// Directional lights.
 layout(std430, set = 0, binding = BINDING_LIGHTS) readonly buffer LightsBlock {
     Light lights[];
 };
@@ -84,275 +58,14 @@ layout(std430, set = 0, binding = BINDING_GOBO_PLANES) readonly buffer GoboBlock
 };
 
 #include "shapes.glsl"
-
-// Span of o + t d inside box medium m: (t_in, t_out), t_in > t_out for a miss.
-vec2 medium_span(uint m, vec3 o, vec3 d) {
-    BoxMedium bm = media[m];
-    vec3 o_local;
-    vec3 d_local;
-    to_box_frame(bm.world_to_local, bm.center_sigma_t.xyz, o, d, o_local, d_local);
-    return intersect_slabs(o_local, d_local, bm.half_size_g.xyz);
-}
-
-// Optical depth of the box media other than `skip` along o + t d, t in [t_min, t_max].
-float optical_depth_except(vec3 o, vec3 d, float t_min, float t_max, uint skip) {
-    float tau = 0.0;
-    uint count = SC_HAS_MEDIA ? u_frame.counts.x : 0u;
-    for (uint m = 0u; m < count; ++m) {
-        if (m == skip) {
-            continue;
-        }
-        vec2 span = medium_span(m, o, d);
-        tau += media[m].center_sigma_t.w * overlap_length(span, t_min, t_max);
-    }
-    return tau;
-}
-
-// Optical depth of all box media along o + t d, t in [t_min, t_max].
-float optical_depth(vec3 o, vec3 d, float t_min, float t_max) {
-    return optical_depth_except(o, d, t_min, t_max, NO_INDEX);
-}
-
-// Whether x lies inside light l's gobo prism (always true without a gobo).
-bool inside_gobo(Light l, vec3 x) {
-    if (!SC_HAS_GOBOS) {
-        return true;
-    }
-    uint count = uint(l.gobo_origin.w);
-    uint first = uint(l.gobo_u.w);
-    vec3 p = x - l.gobo_origin.xyz;
-    vec2 uv = vec2(dot(p, l.gobo_u.xyz), dot(p, l.gobo_v.xyz));
-    for (uint i = 0u; i < count; ++i) {
-        vec4 plane = gobo_planes[first + i];
-        if (plane.x * uv.x + plane.y * uv.y + plane.z < 0.0) {
-            return false;
-        }
-    }
-    return true;
-}
-
-// Irradiance from light l arriving unscattered at x: E · gobo · visibility · T to the
-// light. `t_min` offsets the shadow ray's start (0 inside media, > 0 on surfaces).
-vec3 light_arriving(Light l, vec3 x, float t_min) {
-    vec3 omega = l.direction_type.xyz;
-    if (!inside_gobo(l, x)) {
-        return vec3(0.0);
-    }
-    if (occluded(x, -omega, t_min)) {
-        return vec3(0.0);
-    }
-    float tau = optical_depth(x, -omega, 0.0, FAR);
-    return l.irradiance.rgb * exp(-tau);
-}
-
-
-// A direction in the frame of box medium bm.
-vec3 to_local_dir(BoxMedium bm, vec3 v) {
-    return vec3(dot(bm.world_to_local[0].xyz, v), dot(bm.world_to_local[1].xyz, v), dot(bm.world_to_local[2].xyz, v));
-}
-
-// A point in the frame of box medium bm.
-vec3 to_local_point(BoxMedium bm, vec3 x) {
-    return to_local_dir(bm, x - bm.center_sigma_t.xyz);
-}
-
-// The part of [t_a, t_b] where o + t d lies inside light l's gobo prism: each gobo
-// half-plane is linear in t, alpha + beta t >= 0. Empty intervals have x > y.
-vec2 gobo_interval(Light l, vec3 o, vec3 d, float t_a, float t_b) {
-    if (!SC_HAS_GOBOS) {
-        return vec2(t_a, t_b);
-    }
-    uint count = uint(l.gobo_origin.w);
-    uint first = uint(l.gobo_u.w);
-    vec3 p = o - l.gobo_origin.xyz;
-    vec2 uv0 = vec2(dot(p, l.gobo_u.xyz), dot(p, l.gobo_v.xyz));
-    vec2 uv_d = vec2(dot(d, l.gobo_u.xyz), dot(d, l.gobo_v.xyz));
-    for (uint i = 0u; i < count; ++i) {
-        vec4 plane = gobo_planes[first + i];
-        float alpha = plane.x * uv0.x + plane.y * uv0.y + plane.z;
-        float beta = plane.x * uv_d.x + plane.y * uv_d.y;
-        if (abs(beta) < 1e-12) {
-            // Parallel to this edge: wholly inside or wholly outside.
-            if (alpha < 0.0) {
-                return vec2(FAR, -FAR);
-            }
-            continue;
-        }
-        // Domain: |beta| >= 1e-12.
-        float t_edge = -alpha / beta;
-        if (beta > 0.0) {
-            t_a = max(t_a, t_edge);
-        } else {
-            t_b = min(t_b, t_edge);
-        }
-    }
-    return vec2(t_a, t_b);
-}
-
-// Shadow-ray factor at x towards light direction -omega: 0 behind a shape, else the
-// transmittance of the box media other than `skip` (medium `skip` is analytic).
-float light_visibility(vec3 x, vec3 omega, uint skip) {
-    if (occluded(x, -omega, 0.0)) {
-        return 0.0;
-    }
-    return exp(-optical_depth_except(x, -omega, 0.0, FAR, skip));
-}
-
-// The part of [t_enter, t_b] light l can reach (its gobo interval), empty as a
-// zero-length interval at t_enter.
-vec2 light_interval(Light l, vec3 o, vec3 d, float t_enter, float t_b) {
-    vec2 iv = gobo_interval(l, o, d, t_enter, t_b);
-    return iv.y > iv.x ? iv : vec2(t_enter, t_enter);
-}
-
-// The trapezoid pieces of light l along o + t d in box medium bm over the interval iv
-// (camera transmittance from t_enter).
-BoxPieces light_pieces(BoxMedium bm, Light l, vec3 o_local, vec3 d_local, float t_enter, vec2 iv) {
-    vec3 omega_local = to_local_dir(bm, l.direction_type.xyz);
-    return box_pieces(o_local, d_local, omega_local, bm.half_size_g.xyz, bm.center_sigma_t.w, t_enter, iv.x, iv.y);
-}
-
-// Pick a light in proportion to the weights `w` (sum `w_sum` > 0) with u in [0, 1).
-uint select_light(float u, float w[MAX_LIGHTS], uint count, float w_sum, out float prob) {
-    float target = u * w_sum;
-    float acc = 0.0;
-    uint chosen = NO_INDEX;
-    for (uint l = 0u; l < count; ++l) {
-        if (w[l] <= 0.0) {
-            continue;
-        }
-        chosen = l;
-        acc += w[l];
-        if (target < acc) {
-            break;
-        }
-    }
-    // Domain: w_sum > 0, and the chosen light has w > 0.
-    prob = w[chosen] / w_sum;
-    return chosen;
-}
-
-// Single-scattered radiance towards o from box medium m along o + t d, t in
-// [t_enter, t_b], by the estimator SC_ESTIMATOR with `box_samples` samples. Excludes
-// the transmittance of other media between o and t_enter.
-vec3 single_scatter_box(uint m, vec3 o, vec3 d, float t_enter, float t_b, inout uint rng) {
-    BoxMedium bm = media[m];
-    float sigma_t = bm.center_sigma_t.w;
-    float g = bm.half_size_g.w;
-    vec3 o_local = to_local_point(bm, o);
-    vec3 d_local = to_local_dir(bm, d);
-
-    // Analytic unoccluded radiance of every light (Eq. 6), the light-selection weights.
-    uint light_count = min(u_frame.counts.z, MAX_LIGHTS);
-    vec3 U[MAX_LIGHTS];
-    float w[MAX_LIGHTS];
-    vec2 interval[MAX_LIGHTS];
-    vec3 U_total = vec3(0.0);
-    float w_sum = 0.0;
-    // MCWVDS keeps the pieces of the light it last sampled; start with the first.
-    uint cached = NO_INDEX;
-    BoxPieces pieces;
-    for (uint l = 0u; l < light_count; ++l) {
-        Light light = lights[l];
-        interval[l] = light_interval(light, o, d, t_enter, t_b);
-        BoxPieces p = light_pieces(bm, light, o_local, d_local, t_enter, interval[l]);
-        if (l == 0u) {
-            pieces = p;
-            cached = 0u;
-        }
-        float phase = hg_phase(dot(light.direction_type.xyz, -d), g);
-        U[l] = bm.sigma_s.rgb * phase * light.irradiance.rgb * p.total;
-        w[l] = U[l].r + U[l].g + U[l].b;
-        U_total += U[l];
-        w_sum += w[l];
-    }
-    if (!(w_sum > 0.0)) {
-        return vec3(0.0);
-    }
-
-    uint n = max(u_frame.counts.w, 1u);
-    vec3 sum = vec3(0.0);
-    vec3 num = vec3(0.0);
-    vec3 den = vec3(0.0);
-    for (uint k = 0u; k < n; ++k) {
-        float prob;
-        uint l = select_light(rng_next(rng), w, light_count, w_sum, prob);
-        Light light = lights[l];
-        vec3 omega = light.direction_type.xyz;
-        // Stratified sample number k of n.
-        float r = (float(k) + rng_next(rng)) / float(n);
-
-        if (SC_ESTIMATOR == ESTIMATOR_MCWVDS) {
-            // Whole-volume distance sampling: f / pdf = U_l, only visibility remains.
-            if (l != cached) {
-                pieces = light_pieces(bm, light, o_local, d_local, t_enter, interval[l]);
-                cached = l;
-            }
-            // Domain: U[l] > 0 for a chosen light, so its pieces have total > 0; prob > 0.
-            float t = sample_wvds_distance(pieces, r);
-            sum += U[l] / prob * light_visibility(o + t * d, omega, m);
-            continue;
-        }
-
-        // Draw t within the light's interval (the gobo offsets and limits the
-        // integration) by equidistant strata (RM, REES) or by distance sampling (MCDS,
-        // REDS). A selected light has U > 0, so its interval is not empty.
-        float t_start = interval[l].x;
-        float span = interval[l].y - interval[l].x;
-        float t;
-        float pdf;
-        if (SC_ESTIMATOR == ESTIMATOR_RM || SC_ESTIMATOR == ESTIMATOR_REES) {
-            t = t_start + r * span;
-            // Domain: span > 0 for a selected light.
-            pdf = 1.0 / span;
-        } else {
-            // Truncated exponential on [0, span]: pdf = sigma_t e^{-sigma_t s} / (1 - e^{-sigma_t span}).
-            float x = sigma_t * span;
-            if (x < 1e-6) {
-                t = t_start + r * span;
-                pdf = 1.0 / span;
-            } else {
-                float norm = x * one_minus_exp_over_x(x); // 1 - e^{-x}, in (0, 1]
-                // Domain: 1 - r norm in [e^{-x}, 1], > 0 unless e^{-x} underflows and r -> 1.
-                float s = -log(max(1.0 - r * norm, 1e-37)) / sigma_t;
-                s = min(s, span);
-                t = t_start + s;
-                pdf = sigma_t * exp(-sigma_t * s) / norm;
-            }
-        }
-        if (!(pdf > 0.0)) {
-            continue;
-        }
-        vec3 x_world = o + t * d;
-        // Unoccluded integrand of the chosen light: sigma_s p E T_cam T_light, gobo-masked.
-        float gobo = (SC_HAS_GOBOS && !inside_gobo(light, x_world)) ? 0.0 : 1.0;
-        float d_light = box_light_distance(o_local + t * d_local, to_local_dir(bm, omega), bm.half_size_g.xyz);
-        float T = exp(-sigma_t * ((t - t_enter) + d_light));
-        vec3 f = bm.sigma_s.rgb * hg_phase(dot(omega, -d), g) * light.irradiance.rgb * T * gobo;
-        // Domain: pdf > 0 (checked) and prob > 0.
-        vec3 f_over_pdf = f / (pdf * prob);
-        float v = gobo > 0.0 ? light_visibility(x_world, omega, m) : 0.0;
-        if (SC_ESTIMATOR == ESTIMATOR_RM || SC_ESTIMATOR == ESTIMATOR_MCDS) {
-            sum += f_over_pdf * v;
-        } else {
-            num += f_over_pdf * v;
-            den += f_over_pdf;
-        }
-    }
-    if (SC_ESTIMATOR == ESTIMATOR_REES || SC_ESTIMATOR == ESTIMATOR_REDS) {
-        // Ratio estimator: analytic unoccluded term times occluded / unoccluded
-        // estimates; a channel whose unoccluded estimate is zero contributes zero.
-        vec3 ratio = vec3(den.r > 0.0 ? num.r / den.r : 0.0, den.g > 0.0 ? num.g / den.g : 0.0, den.b > 0.0 ? num.b / den.b : 0.0);
-        return U_total * ratio;
-    }
-    return sum / float(n);
-}
+#include "box_media.glsl"
+#include "directional.glsl"
+#include "estimators.glsl"
 
 // Direct light reflected by the Lambertian shape hit at x towards -d.
 vec3 surface_direct(Shape s, vec3 x, vec3 n) {
-    // Offset the shadow ray by a distance relative to the hit's magnitude.
-    float eps = 1e-4 * (1.0 + max(max(abs(x.x), abs(x.y)), abs(x.z)));
-    vec3 x_off = x + eps * n;
+    // Shadow rays leave from just off the surface.
+    vec3 x_off = offset_ray_origin(x, n);
     vec3 E = vec3(0.0);
     uint light_count = u_frame.counts.z;
     for (uint l = 0u; l < light_count; ++l) {
@@ -370,8 +83,8 @@ vec3 surface_direct(Shape s, vec3 x, vec3 n) {
 // FAR when the ray reaches t_surface (probability T(o -> t_surface)) unscattered.
 float sample_collision(vec3 o, vec3 d, float t_surface, inout uint rng, out uint medium) {
     medium = NO_INDEX;
-    // Domain: 1 - u in (0, 1].
-    float tau_target = -log(1.0 - rng_next(rng));
+    // The optical depth of the collision, exponential with rate 1.
+    float tau_target = sample_exponential(rng_next(rng), 1.0);
     float tau_acc = 0.0;
     uint count = min(u_frame.counts.x, MAX_MEDIA);
     float last_entry = -FAR;
@@ -380,7 +93,7 @@ float sample_collision(vec3 o, vec3 d, float t_surface, inout uint rng, out uint
         uint next = NO_INDEX;
         vec2 next_span = vec2(FAR, -FAR);
         for (uint m = 0u; m < count; ++m) {
-            vec2 span = medium_span(m, o, d);
+            vec2 span = box_medium_span(m, o, d);
             float entry = max(span.x, 0.0);
             if (span.y > entry && entry > last_entry && entry < next_span.x) {
                 next = m;
@@ -419,11 +132,11 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
         // Add single scattering from every box medium the segment crosses.
         uint media_count = SC_HAS_MEDIA ? min(u_frame.counts.x, MAX_MEDIA) : 0u;
         for (uint m = 0u; m < media_count; ++m) {
-            vec2 span = medium_span(m, o, d);
+            vec2 span = box_medium_span(m, o, d);
             float t_enter = max(span.x, 0.0);
             float t_b = min(span.y, t_surface);
             if (t_b > t_enter && media[m].center_sigma_t.w > 0.0) {
-                float T_before = exp(-optical_depth_except(o, d, 0.0, t_enter, m));
+                float T_before = exp(-box_optical_depth_except(o, d, 0.0, t_enter, m));
                 L += beta * T_before * single_scatter_box(m, o, d, t_enter, t_b, rng);
             }
         }
@@ -435,11 +148,11 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
             vec3 x = o + t_surface * d;
             n = shape_normal(s, x, d);
             if (any(greaterThan(s.albedo_type.rgb, vec3(0.0)))) {
-                L += beta * exp(-optical_depth(o, d, 0.0, t_surface)) * surface_direct(s, x, n);
+                L += beta * exp(-box_optical_depth(o, d, 0.0, t_surface)) * surface_direct(s, x, n);
             }
         } else if (SC_HAS_ENV && bounce == 0u) {
             // Add the environment seen through the media by the camera ray.
-            L += exp(-optical_depth(o, d, 0.0, FAR)) * u_frame.env_radiance.rgb;
+            L += exp(-box_optical_depth(o, d, 0.0, FAR)) * u_frame.env_radiance.rgb;
         }
         if (bounce + 1u >= SC_MAX_BOUNCES) {
             break;
@@ -460,21 +173,14 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
                 break;
             }
             beta *= albedo;
-            vec3 x = o + t_surface * d;
-            float eps = 1e-4 * (1.0 + max(max(abs(x.x), abs(x.y)), abs(x.z)));
-            o = x + eps * n;
+            o = offset_ray_origin(o + t_surface * d, n);
             d = sample_cosine_hemisphere(n, vec2(rng_next(rng), rng_next(rng)));
         } else {
             break;
         }
         // Russian roulette from the fourth segment on, by the path's throughput.
-        if (bounce >= 3u) {
-            float survive = clamp(max(beta.r, max(beta.g, beta.b)), 0.05, 1.0);
-            if (rng_next(rng) >= survive) {
-                break;
-            }
-            // Domain: survive >= 0.05.
-            beta /= survive;
+        if (bounce >= 3u && !russian_roulette(beta, rng)) {
+            break;
         }
     }
     return L;
@@ -482,34 +188,8 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
 
 void main() {
     uvec2 pixel = gl_GlobalInvocationID.xy;
-    uint width = u_frame.image.x;
-    uint height = u_frame.image.y;
-    if (pixel.x >= width || pixel.y >= height) {
+    if (!film_contains(pixel)) {
         return;
     }
-    uint spp = u_frame.image.z;
-    uint frame = u_push.frame;
-    vec3 sum = vec3(0.0);
-    uint kept = 0u;
-    for (uint s = 0u; s < spp; ++s) {
-        uint rng = rng_init(pixel, frame, u_push.sample_base + s, u_frame.image.w);
-        // Jitter the ray over the pixel footprint (box filter), (0,0) top-left.
-        vec2 jitter = SC_PIXEL_JITTER ? vec2(rng_next(rng), rng_next(rng)) : vec2(0.5);
-        vec2 px = vec2(pixel) + jitter;
-        float sx = (2.0 * px.x / float(width) - 1.0) * u_frame.cam_position.w;
-        float sy = (1.0 - 2.0 * px.y / float(height)) * u_frame.cam_forward.w;
-        vec3 d = normalize(u_frame.cam_forward.xyz + sx * u_frame.cam_right.xyz + sy * u_frame.cam_up.xyz);
-        vec3 L = radiance(u_frame.cam_position.xyz, d, rng);
-        // Count non-finite samples instead of writing them.
-        if (any(isnan(L)) || any(isinf(L))) {
-            atomicAdd(stats[STAT_NON_FINITE], 1u);
-        } else {
-            sum += L;
-            kept += 1u;
-        }
-    }
-    uint index = pixel.y * width + pixel.x;
-    vec3 estimate = kept > 0u ? sum / float(kept) : vec3(0.0);
-    accum[index] += vec4(estimate, 1.0);
-    accum_sq[index] += vec4(estimate * estimate, 0.0);
+    film_accumulate(pixel, film_pixel_estimate(pixel, u_push.frame, u_push.sample_base));
 }

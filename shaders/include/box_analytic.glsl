@@ -57,6 +57,7 @@
 #define NIMBUS_BOX_ANALYTIC_GLSL
 
 #include "constants.glsl"
+#include "sampling.glsl"
 
 #define BOX_MAX_PIECES 3
 // A light component at or below this magnitude makes the light parallel to that slab.
@@ -73,63 +74,6 @@ struct BoxPieces {
     float integral[BOX_MAX_PIECES];  // Eq. 6 for the piece
     float total;                     // sum of integral[]: the unoccluded transmittance integral T_box over [t_a, t_b]
 };
-
-// Stable (1 - exp(-x)) / x for any finite x (x -> 0 gives 1). For x < -88 the true value
-// exceeds e^88 / 88 and the result saturates there (finite); callers here pass x >= 0.
-float one_minus_exp_over_x(float x) {
-    // Sum the Taylor series sum_n (-x)^n / (n + 1)! near 0: truncation < 1e-9 relative
-    // for |x| <= 0.5, where 1 - exp(-x) would lose up to -log2(x) bits (and GPU exp may
-    // be off by a few ulp of 1, i.e. 2e-4 relative at x = 1e-3).
-    if (abs(x) <= 0.5) {
-        return 1.0 + x * (-1.0 / 2.0 + x * (1.0 / 6.0 + x * (-1.0 / 24.0 + x * (1.0 / 120.0
-            + x * (-1.0 / 720.0 + x * (1.0 / 5040.0 + x * (-1.0 / 40320.0 + x * (1.0 / 362880.0))))))));
-    }
-    // Domain: x > 0.5, so the division is safe and 1 - exp(-x) >= 0.39 keeps its digits.
-    if (x > 0.0) {
-        return (1.0 - exp(-x)) / x;
-    }
-    // Domain: x < -0.5; exp's argument is clamped to 88 (e^88 < FLT_MAX).
-    return (exp(min(-x, 88.0)) - 1.0) / -x;
-}
-
-// -log(1 - a) for a in [0, 1): the atanh series near 0, log elsewhere.
-float box_neg_log1m(float a) {
-    // Sum 2 atanh(z) = 2 (z + z^3/3 + ... + z^17/17) with z = a / (2 - a) <= 1/3 for
-    // a <= 0.5 (truncation < 2e-10 relative); GPU log has only absolute accuracy near 1.
-    if (a <= 0.5) {
-        // Domain: 2 - a >= 1.5.
-        float z = a / (2.0 - a);
-        float z2 = z * z;
-        float series = 1.0 + z2 * (1.0 / 3.0 + z2 * (1.0 / 5.0 + z2 * (1.0 / 7.0 + z2 * (1.0 / 9.0
-            + z2 * (1.0 / 11.0 + z2 * (1.0 / 13.0 + z2 * (1.0 / 15.0 + z2 * (1.0 / 17.0))))))));
-        return 2.0 * z * series;
-    }
-    // Domain: 1 - a in (0, 0.5] (a < 1), where log is accurate to a few ulp.
-    return -log(max(1.0 - a, 1.17549435e-38));
-}
-
-// Sample v in [0, 1] with density proportional to exp(-x v), x >= 0 (a truncated
-// exponential over a unit interval), from r in [0, 1): the inverse of its CDF.
-float box_sample_truncated_exp(float x, float r) {
-    // Handle a nearly flat density: v = r (1 + x (r - 1) / 2), error O(x^2) < 1e-12.
-    if (x < 1e-6) {
-        return r * (1.0 + 0.5 * x * (r - 1.0));
-    }
-    float e = exp(-x); // Domain: x >= 1e-6 (+inf gives 0).
-    // Invert CDF(v) = (1 - exp(-x v)) / (1 - exp(-x)): v = -log(1 - a) / x with
-    // a = r (1 - exp(-x)).
-    float neg_log;
-    float a = r * ((x <= 0.5) ? x * one_minus_exp_over_x(x) : 1.0 - e);
-    if (a <= 0.5) {
-        neg_log = box_neg_log1m(a);
-    } else {
-        // Form 1 - a = (1 - r) + r exp(-x) without cancellation (1 - r is exact for
-        // r >= 0.5, which a > 0.5 implies); Domain: it is >= 1 - r > 0 for r < 1.
-        neg_log = -log(max((1.0 - r) + r * e, 1.17549435e-38));
-    }
-    // Domain: x >= 1e-6.
-    return clamp(neg_log / x, 0.0, 1.0);
-}
 
 // Distance to the box boundary towards the light (along -omega) from local point x inside
 // the box; 0 if no component of omega exceeds BOX_PARALLEL_EPS (omega not unit).
@@ -299,8 +243,8 @@ void box_sample_piece(BoxPieces p, float u, out uint k, out float v) {
     // Invert the piece's truncated exponential from its low-depth end.
     float x = abs(slope_k) * len_k;
     v = (slope_k >= 0.0)
-        ? box_sample_truncated_exp(x, r)
-        : 1.0 - box_sample_truncated_exp(x, min(1.0 - r, BOX_ONE_MINUS_EPSILON));
+        ? sample_truncated_exponential(x, r)
+        : 1.0 - sample_truncated_exponential(x, min(1.0 - r, BOX_ONE_MINUS_EPSILON));
 }
 
 // Whole-volume distance sampling: t in [t_a, t_b] with pdf = integrand / total; u in [0,1).

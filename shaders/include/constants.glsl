@@ -7,5 +7,7 @@
 // A distance larger than any scene extent (scenes are validated to sizes <= 1e7 m);
 // finite, so that 0 * FAR stays 0 instead of NaN.
 #define FAR 1.0e30
+// No index: no light, medium or shape.
+#define NO_INDEX 0xffffffffu
 
 #endif

@@ -1,11 +1,9 @@
 // Heterogeneous grid media: trilinear density lookup, closed-form transmittance by regular
-// tracking, and the baseline's unbiased estimators (Volumetric ReSTIR secs. 2.1 and 5.1):
-// ratio tracking with the global majorant, residual ratio tracking [Novák et al. 2014]
-// and decomposition tracking [Kutz et al. 2017] on super-voxels.
+// tracking, and ratio tracking with the global majorant (Volumetric ReSTIR secs. 2.1 and
+// 5.1). The block walk and the super-voxel estimators are in grid_blocks.glsl.
 //
 // The includer declares, before including this file:
 //   layout(...) uniform sampler3D u_density;   // R32_SFLOAT density (unscaled), texelFetch only
-//   layout(std430, ...) readonly buffer ... { vec4 super_voxels[]; };  // (min, max, avg, 0) of sigma_t
 //   GridParams u_grid;  (or a #define making `u_grid` name one; GridParams is in grid_types.glsl)
 //
 // Index space (SCENE_FORMAT.md): a world point x maps to p = (x - bounds_min) / size * dims;
@@ -23,12 +21,11 @@
 #define NIMBUS_GRID_GLSL
 
 #include "constants.glsl"
+#include "features.glsl"
 #include "rng.glsl"
+#include "sampling.glsl"
 #include "grid_types.glsl"
 
-// Guard on loop trip counts of the estimators: far beyond any expected count
-// (sigma_max * length), it only stops a runaway loop from hanging the device.
-#define GRID_MAX_STEPS 1048576
 // Below this |direction component| (in voxels per metre) a ray counts as parallel to
 // that axis's planes.
 #define GRID_PARALLEL_EPS 1e-30
@@ -232,8 +229,8 @@ float grid_ratio_tracking(vec3 o, vec3 d, float t0, float t1, inout uint rng) {
     float T = 1.0;
     float s = 0.0;
     for (int it = 0; it < GRID_MAX_STEPS; ++it) {
-        // Exponential step with rate sigma_maj. Domain: 1 - u in (0, 1], sigma_maj > 0.
-        s -= log(1.0 - rng_next(rng)) / sigma_maj;
+        // Exponential step with rate sigma_maj. Domain: sigma_maj > 0.
+        s += sample_exponential(rng_next(rng), sigma_maj);
         if (s >= len || T == 0.0) {
             break;
         }
@@ -241,185 +238,6 @@ float grid_ratio_tracking(vec3 o, vec3 d, float t0, float t1, inout uint rng) {
         T *= 1.0 - grid_sigma_index(p0 + dp * s) / sigma_maj;
     }
     return T;
-}
-
-// ---------------------------------------------------------------------------------------
-// Block DDA: block (I, J, K) of edge f voxels covers index-space [I f, min((I+1) f, n)] per
-// axis (`count` = ceil(n / f) blocks per axis, the last one possibly narrower). Super-voxels
-// (f = dims.w, 8) and the coarse piecewise-constant levels of ReSTIR (f = 2^mip) use it.
-
-struct GridSuperDda {
-    vec3 p0;        // index-space point at s = 0 (t = t_a)
-    vec3 dp;        // index-space direction per unit t
-    ivec3 cell;     // current block
-    ivec3 step_dir; // +-1 per axis
-    vec3 s_next;    // s at which each axis leaves the current block
-    float s;        // start of the current span
-    float len;      // t_b - t_a
-    float t_a;      // t at s = 0
-    int f;          // block edge in voxels (>= 1)
-    ivec3 count;    // blocks per axis
-};
-
-// Crossing of block `c` along one axis (f voxels each, last one ends at n).
-float grid_super_crossing(float p0, float dp, int c, int f, int count, float s_now) {
-    return grid_next_crossing(p0, dp, float(c * f), float((c + 1) * f), c >= 1, c + 1 <= count - 1, s_now);
-}
-
-// Starts a walk over blocks of edge f (count per axis) along [t0, t1] clipped to the
-// bounds; false if that is empty.
-bool grid_blocks_begin(vec3 o, vec3 d, float t0, float t1, int f, ivec3 count, out GridSuperDda it) {
-    vec2 span = grid_span(o, d);
-    it.t_a = max(t0, span.x);
-    it.len = min(t1, span.y) - it.t_a;
-    it.s = 0.0;
-    it.f = max(f, 1);
-    it.count = count;
-    // Empty, reversed or missed interval (also NaN): nothing to walk.
-    if (!(it.len > 0.0)) {
-        it.len = 0.0;
-        return false;
-    }
-    vec3 scale = grid_index_scale();
-    it.p0 = (o + it.t_a * d - u_grid.bounds_min.xyz) * scale;
-    it.dp = d * scale;
-    for (int a = 0; a < 3; ++a) {
-        // Domain: f >= 1.
-        float fl = floor(it.p0[a] / float(it.f));
-        int c = int(fl);
-        if (it.dp[a] < -GRID_PARALLEL_EPS && it.p0[a] == fl * float(it.f)) {
-            c -= 1;
-        }
-        it.cell[a] = clamp(c, 0, count[a] - 1);
-        it.step_dir[a] = it.dp[a] > 0.0 ? 1 : -1;
-        it.s_next[a] = grid_super_crossing(it.p0[a], it.dp[a], it.cell[a], it.f, count[a], 0.0);
-    }
-    return true;
-}
-
-// The current span [s0, s1) and its block's linear index (x fastest); advances to the
-// next block. Returns false when the walk is over (nothing returned).
-bool grid_blocks_next(inout GridSuperDda it, out float s0, out float s1, out uint index) {
-    if (!(it.s < it.len)) {
-        return false;
-    }
-    int a = it.s_next.x <= it.s_next.y ? (it.s_next.x <= it.s_next.z ? 0 : 2)
-                                       : (it.s_next.y <= it.s_next.z ? 1 : 2);
-    s0 = it.s;
-    s1 = min(it.s_next[a], it.len);
-    index = uint((it.cell.z * it.count.y + it.cell.y) * it.count.x + it.cell.x);
-    // Advance: the walk ends at the span's end or when leaving the grid.
-    it.s = s1;
-    if (it.s_next[a] >= it.len) {
-        it.s = it.len;
-    } else {
-        it.cell[a] += it.step_dir[a];
-        if (it.cell[a] < 0 || it.cell[a] > it.count[a] - 1) {
-            it.s = it.len;
-        } else {
-            it.s_next[a] = grid_super_crossing(it.p0[a], it.dp[a], it.cell[a], it.f, it.count[a], it.s);
-        }
-    }
-    return true;
-}
-
-// Super-voxel walk (f = dims.w) over [t0, t1]; false if empty.
-bool grid_super_begin(vec3 o, vec3 d, float t0, float t1, out GridSuperDda it) {
-    return grid_blocks_begin(o, d, t0, t1, int(u_grid.dims.w), ivec3(u_grid.super_dims.xyz), it);
-}
-
-// The current span and its super-voxel's (min, max, avg, 0) of sigma_t; advances.
-bool grid_super_next(inout GridSuperDda it, out float s0, out float s1, out vec4 bounds) {
-    uint index;
-    if (!grid_blocks_next(it, s0, s1, index)) {
-        return false;
-    }
-    bounds = super_voxels[index];
-    return true;
-}
-
-// Unbiased T estimate by residual ratio tracking [Novák et al. 2014] per super-voxel:
-// control sigma_c = min, residual majorant sigma_r = max - min,
-// T = prod over spans of exp(-sigma_c len) prod_i (1 - (sigma_t(x_i) - sigma_c) / sigma_r).
-float grid_residual_ratio_tracking(vec3 o, vec3 d, float t0, float t1, inout uint rng) {
-    GridSuperDda it;
-    if (!grid_super_begin(o, d, t0, t1, it)) {
-        return 1.0;
-    }
-    float T = 1.0;
-    float s0;
-    float s1;
-    vec4 bounds;
-    int steps = 0;
-    while (grid_super_next(it, s0, s1, bounds) && T > 0.0 && steps < GRID_MAX_STEPS) {
-        // Empty super-voxel: sigma_t = 0 throughout.
-        if (!(bounds.y > 0.0) || !(s1 > s0)) {
-            continue;
-        }
-        float sigma_c = bounds.x;
-        float sigma_r = bounds.y - bounds.x;
-        // Control part analytically. Domain: sigma_c (s1 - s0) >= 0.
-        T *= exp(-sigma_c * (s1 - s0));
-        if (!(sigma_r > 0.0)) {
-            continue;
-        }
-        // Residual part by ratio tracking with majorant sigma_r.
-        float s = s0;
-        for (; steps < GRID_MAX_STEPS; ++steps) {
-            // Domain: 1 - u in (0, 1], sigma_r > 0.
-            s -= log(1.0 - rng_next(rng)) / sigma_r;
-            if (s >= s1 || T == 0.0) {
-                break;
-            }
-            // Domain: sigma_r > 0.
-            T *= 1.0 - (grid_sigma_index(it.p0 + it.dp * s) - sigma_c) / sigma_r;
-        }
-    }
-    return T;
-}
-
-// Decomposition tracking [Kutz et al. 2017] per super-voxel: the collision with the
-// homogeneous control sigma_c = min is sampled in closed form, the residual
-// sigma_t - sigma_c by delta tracking with majorant max - min; the first of the two is the
-// real collision. Returns its t in [t0, t1), or FAR if the ray passes (probability T).
-float grid_sample_collision(vec3 o, vec3 d, float t0, float t1, inout uint rng) {
-    GridSuperDda it;
-    if (!grid_super_begin(o, d, t0, t1, it)) {
-        return FAR;
-    }
-    float s0;
-    float s1;
-    vec4 bounds;
-    int steps = 0;
-    while (grid_super_next(it, s0, s1, bounds) && steps < GRID_MAX_STEPS) {
-        // Empty super-voxel: no collision possible.
-        if (!(bounds.y > 0.0) || !(s1 > s0)) {
-            continue;
-        }
-        float sigma_c = bounds.x;
-        float sigma_r = bounds.y - bounds.x;
-        // Control collision. Domain: 1 - u in (0, 1], sigma_c > 0.
-        float s_control = sigma_c > 0.0 ? s0 - log(1.0 - rng_next(rng)) / sigma_c : FAR;
-        float s_limit = min(s_control, s1);
-        // Residual collisions before it, by delta tracking.
-        if (sigma_r > 0.0) {
-            float s = s0;
-            for (; steps < GRID_MAX_STEPS; ++steps) {
-                // Domain: 1 - u in (0, 1], sigma_r > 0.
-                s -= log(1.0 - rng_next(rng)) / sigma_r;
-                if (s >= s_limit) {
-                    break;
-                }
-                if (rng_next(rng) * sigma_r < grid_sigma_index(it.p0 + it.dp * s) - sigma_c) {
-                    return it.t_a + s;
-                }
-            }
-        }
-        if (s_control < s1) {
-            return it.t_a + s_control;
-        }
-    }
-    return FAR;
 }
 
 #endif

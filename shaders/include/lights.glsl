@@ -29,7 +29,6 @@
 #define LIGHT_SPHERE 2u
 // The light index of the environment in a stored path.
 #define LIGHT_ENV 0xffu
-#define NO_INDEX 0xffffffffu
 
 // One next-event sample.
 struct LightSample {
@@ -95,13 +94,10 @@ LightSample light_sample(uint base, vec3 x, float u, vec2 u2) {
             s.L = env_sample(u2, s.wi, pdf_sa);
             s.pdf = p_env * pdf_sa;
         } else {
-            // Uniform direction, pdf 1 / (4 pi).
-            float z = 1.0 - 2.0 * u2.x;
-            float r = sqrt(max(0.0, 1.0 - z * z));
-            float phi = 2.0 * PI * u2.y;
-            s.wi = vec3(r * cos(phi), z, r * sin(phi));
+            // Uniform direction.
+            s.wi = sample_uniform_sphere(u2);
             s.L = u_frame.env_radiance.rgb;
-            s.pdf = p_env * INV_4PI;
+            s.pdf = p_env * uniform_sphere_pdf();
         }
         // Domain: pdf > 0 for a usable sample (0 at the map's poles or black texels).
         s.L_over_pdf = s.pdf > 0.0 ? s.L / s.pdf : vec3(0.0);
@@ -164,13 +160,7 @@ LightSample light_sample(uint base, vec3 x, float u, vec2 u2) {
     float cos_max = sqrt(max(0.0, 1.0 - sin2_max));
     // 1 - cos_max without cancellation: sin2 / (1 + cos).
     float one_minus_cos_max = sin2_max / (1.0 + cos_max);
-    float cos_theta = 1.0 - u2.x * one_minus_cos_max;
-    float sin_theta = sqrt(max(0.0, 1.0 - cos_theta * cos_theta));
-    float phi = 2.0 * PI * u2.y;
-    vec3 t;
-    vec3 b;
-    orthonormal_basis(axis, t, b);
-    s.wi = normalize(sin_theta * cos(phi) * t + sin_theta * sin(phi) * b + cos_theta * axis);
+    s.wi = sample_uniform_cone(axis, one_minus_cos_max, u2);
     float t_hit = intersect_sphere(light.direction_type.xyz, radius, x, s.wi, 0.0, FAR);
     if (t_hit >= FAR) {
         return light_sample_none();

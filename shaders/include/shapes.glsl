@@ -1,11 +1,16 @@
-// Opaque shapes: nearest hit with normal, and occlusion queries. Needs the `shapes`
-// buffer, `u_frame` (counts.y = number of shapes) and the bool constant SC_HAS_SHAPES
-// to be declared by the including pass.
+// Opaque shapes: their buffer, nearest hit with normal, and occlusion queries. Needs
+// `u_frame` (counts.y = number of shapes) and the bool constant SC_HAS_SHAPES to be
+// declared by the including pass.
 #ifndef NIMBUS_SHAPES_GLSL
 #define NIMBUS_SHAPES_GLSL
 
+#include "bindings.glsl"
 #include "geometry.glsl"
 #include "scene.glsl"
+
+layout(std430, set = 0, binding = BINDING_SHAPES) readonly buffer ShapesBlock {
+    Shape shapes[];
+};
 
 // Hit distance of one shape along o + t d within (t_min, t_max); FAR if none.
 float intersect_shape(Shape s, vec3 o, vec3 d, float t_min, float t_max) {
@@ -58,7 +63,7 @@ vec3 shape_normal(Shape s, vec3 x, vec3 d) {
 // Nearest shape hit along o + t d in (t_min, t_max): distance (FAR if none) and index.
 float nearest_shape(vec3 o, vec3 d, float t_min, float t_max, out uint index) {
     float t_hit = t_max;
-    index = 0xffffffffu;
+    index = NO_INDEX;
     if (SC_HAS_SHAPES) {
         uint count = u_frame.counts.y;
         for (uint s = 0u; s < count; ++s) {
@@ -69,7 +74,7 @@ float nearest_shape(vec3 o, vec3 d, float t_min, float t_max, out uint index) {
             }
         }
     }
-    return index == 0xffffffffu ? FAR : t_hit;
+    return index == NO_INDEX ? FAR : t_hit;
 }
 
 // Whether any shape blocks o + t d for t in (t_min, t_max).

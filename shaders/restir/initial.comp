@@ -12,33 +12,36 @@
 // Writes slot u_push.dst.
 
 #extension GL_GOOGLE_include_directive : require
-#include "restir.glsl"
+#include "path.glsl"
+// Russian roulette (not this folder's path.glsl).
+#include "../include/path.glsl"
 
 // The walk's vertices so far (z_i, omega_i), copied into the reservoir when one of its
 // candidates is selected.
 float walk_z[SC_MAX_BOUNCES + 1u];
 uint walk_omega[SC_MAX_BOUNCES + 1u];
 
-// Stream candidate (w, p_hat) for the path of the first `kp` walk vertices.
-void update(uint at, inout Reservoir r, inout uint rng, float w, float p_hat, uint kp, uint info_bits,
-            vec3 light_point, uint light_dir) {
-    // A candidate whose weight or target is not a positive finite number is a null sample.
-    if (!(w > 0.0) || isinf(w) || !(p_hat > 0.0) || isinf(p_hat)) {
+// Stream candidate (w, p_hat) for the path of the first `kp` walk vertices into r (the
+// reservoir at `at`), copying the walk's vertices there when it is selected.
+void add_candidate(uint at, inout Reservoir r, inout uint rng, float w, float p_hat, uint kp, uint info_bits,
+                   vec3 light_point, uint light_dir) {
+    // A candidate whose target is not a positive finite number is a null sample (so is
+    // one whose weight is not: res_update skips it).
+    if (!(p_hat > 0.0) || isinf(p_hat)) {
         return;
     }
+    Reservoir c = res_empty();
+    c.p_hat = p_hat;
     // Vertex reuse measures x_2 by volume: p_hat and F both carry G = 1 / z_2^2 (p too,
     // so w is unchanged).
     if (SC_REUSE_VERTEX && kp >= 2u) {
         // Domain: z_2 > 0 (a collision strictly after x_1).
-        p_hat /= walk_z[1] * walk_z[1];
+        c.p_hat /= walk_z[1] * walk_z[1];
     }
-    r.w_sum += w;
-    // Domain: r.w_sum >= w > 0.
-    if (rng_next(rng) * r.w_sum < w) {
-        r.p_hat = p_hat;
-        r.info = kp | INFO_VALID | info_bits;
-        r.light_point = light_point;
-        r.light_dir = light_dir;
+    c.info = kp | INFO_VALID | info_bits;
+    c.light_point = light_point;
+    c.light_dir = light_dir;
+    if (res_update(r, c, w, rng)) {
         for (uint i = 1u; i <= kp; ++i) {
             res_store_vertex(at, i, walk_z[i - 1u], walk_omega[i - 1u]);
         }
@@ -47,7 +50,7 @@ void update(uint at, inout Reservoir r, inout uint rng, float w, float p_hat, ui
 
 void main() {
     uvec2 pixel = gl_GlobalInvocationID.xy;
-    if (pixel.x >= u_frame.image.x || pixel.y >= u_frame.image.y) {
+    if (!film_contains(pixel)) {
         return;
     }
     uint at = res_at(u_push.dst, pixel);
@@ -59,7 +62,7 @@ void main() {
     Reservoir r = res_empty();
     for (uint m = 0u; m < candidates; ++m) {
         // Each walk starts at its own sub-pixel position, which its paths keep.
-        uint code = SC_PIXEL_JITTER ? jitter_sample(rng) : 0u;
+        uint code = SC_PIXEL_JITTER ? jitter_code_sample(rng) : 0u;
         uint jitter_bits = code << 16u;
         CameraRay cam = camera_ray(pixel, code, SET_CURRENT);
         vec3 x = cam.o;
@@ -70,9 +73,8 @@ void main() {
             // Where the segment ends without a collision: an emitting sphere or far away.
             uint sphere;
             float t_end = nearest_sphere_light(0u, x, w, 1e-6, FAR, sphere);
-            // Regular tracking: optical depth -ln(1 - u) through sigma_t*.
-            // Domain: 1 - u in (0, 1].
-            float tau_target = -log(1.0 - rng_next(rng));
+            // Regular tracking: an exponential optical depth through sigma_t*.
+            float tau_target = sample_exponential(rng_next(rng), 1.0);
             float sigma_star;
             float tau;
             float z = pc_track(i == 1u ? LEVEL_PRIMARY : LEVEL_INDIRECT, x, w, t_end, tau_target, sigma_star, tau);
@@ -85,8 +87,8 @@ void main() {
                     vec3 L = light_seen(0u, x, w, t_seen);
                     // Domain: tau >= 0, so exp(-tau) in (0, 1].
                     float T_star = exp(-tau);
-                    update(at, r, rng, luminance(L), luminance(L * T_star), 0u,
-                           jitter_bits | (sphere == NO_INDEX ? (LIGHT_ENV << 8u) : (sphere << 8u)), vec3(0.0), 0u);
+                    add_candidate(at, r, rng, luminance(L), luminance(L * T_star), 0u,
+                                  jitter_bits | (sphere == NO_INDEX ? (LIGHT_ENV << 8u) : (sphere << 8u)), vec3(0.0), 0u);
                 }
                 break;
             }
@@ -103,8 +105,8 @@ void main() {
             if (SC_HAS_EMISSION) {
                 // Emission candidate: sigma_a Le at x_i (eq. 25, emission case).
                 vec3 emitted = (vec3(1.0) - albedo) * sigma_t * grid_emission(x);
-                update(at, r, rng, luminance(beta * emitted), luminance(Fhat * emitted), i, jitter_bits | INFO_EMISSION,
-                       vec3(0.0), 0u);
+                add_candidate(at, r, rng, luminance(beta * emitted), luminance(Fhat * emitted), i,
+                              jitter_bits | INFO_EMISSION, vec3(0.0), 0u);
             }
 
             // Scattering candidate by next-event estimation.
@@ -117,8 +119,8 @@ void main() {
                 float T_nee = nee_transmittance(x, ls.wi, ls.dist);
                 vec3 Fs = Fhat * sigma_s * rho * ls.L * T_nee;
                 vec3 bs = beta * sigma_s * rho * ls.L_over_pdf * T_nee;
-                update(at, r, rng, luminance(bs), luminance(Fs), i, jitter_bits | (ls.index << 8u), ls.point,
-                       oct_encode(ls.wi));
+                add_candidate(at, r, rng, luminance(bs), luminance(Fs), i, jitter_bits | (ls.index << 8u),
+                              ls.point, oct_encode(ls.wi));
             }
             if (i == SC_MAX_BOUNCES) {
                 break;
@@ -135,14 +137,9 @@ void main() {
             // p *= rho(w_sampled). Domain: rho_sampled > 0 (HG is positive for |g| < 1).
             beta *= sigma_s * (rho_next / rho_sampled);
             w = w_next;
-            // Russian roulette after the third bounce, by beta = Fhat / p.
-            if (i >= 3u) {
-                float survive = clamp(max(beta.r, max(beta.g, beta.b)), 0.05, 1.0);
-                if (rng_next(rng) >= survive) {
-                    break;
-                }
-                // p *= survive. Domain: survive >= 0.05.
-                beta /= survive;
+            // Russian roulette after the third bounce, by beta = Fhat / p (p *= q).
+            if (i >= 3u && !russian_roulette(beta, rng)) {
+                break;
             }
         }
     }

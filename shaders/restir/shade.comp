@@ -5,11 +5,11 @@
 // values are counted and dropped, never written. Reads slot u_push.src.
 
 #extension GL_GOOGLE_include_directive : require
-#include "restir.glsl"
+#include "path.glsl"
 
 void main() {
     uvec2 pixel = gl_GlobalInvocationID.xy;
-    if (pixel.x >= u_frame.image.x || pixel.y >= u_frame.image.y) {
+    if (!film_contains(pixel)) {
         return;
     }
     uint at = res_at(u_push.src, pixel);
@@ -23,12 +23,9 @@ void main() {
         // Domain: p_hat > 0 and M > 0 (checked).
         L = f * (r.w_sum / (r.p_hat * r.M));
     }
-    uint index = pixel.y * u_frame.image.x + pixel.x;
-    if (any(isnan(L)) || any(isinf(L))) {
-        atomicAdd(stats[STAT_NON_FINITE], 1u);
+    // A non-finite estimate counts as 0: the frame still counts (uniform mean weights).
+    if (!film_sample_finite(L)) {
         L = vec3(0.0);
-        // The frame still counts (an estimate of 0 keeps the mean's weights uniform).
     }
-    accum[index] += vec4(L, 1.0);
-    accum_sq[index] += vec4(L * L, 0.0);
+    film_accumulate(pixel, L);
 }

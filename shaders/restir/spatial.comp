@@ -8,18 +8,18 @@
 // One round: reads slot u_push.src, writes slot u_push.dst (u_push.aux = round).
 
 #extension GL_GOOGLE_include_directive : require
-#include "restir.glsl"
+#include "combine.glsl"
 
 void main() {
     uvec2 pixel = gl_GlobalInvocationID.xy;
-    if (pixel.x >= u_frame.image.x || pixel.y >= u_frame.image.y) {
+    if (!film_contains(pixel)) {
         return;
     }
     uint rng = rng_init(pixel, u_push.frame, 2u + u_push.aux, u_frame.image.w);
 
     candidate_set(0u, res_at(u_push.src, pixel), pixel, SET_CURRENT);
     uint n = 1u;
-    uint neighbors = min(u_restir.settings.z, uint(MAX_CANDIDATES - 1));
+    uint neighbors = min(u_restir.settings.z, MAX_SPATIAL_NEIGHBORS);
     float radius = u_restir.spatial.x;
     // Random rotation of the sequence for this pixel, frame and round.
     float r0 = rng_next(rng);

@@ -11,7 +11,7 @@
 // entry there) and reads the previous frame's slot u_push.aux.
 
 #extension GL_GOOGLE_include_directive : require
-#include "restir.glsl"
+#include "combine.glsl"
 
 // Velocity (m per frame) at world x, linearly filtered.
 vec3 velocity_at(vec3 x) {
@@ -21,7 +21,7 @@ vec3 velocity_at(vec3 x) {
 
 void main() {
     uvec2 pixel = gl_GlobalInvocationID.xy;
-    if (pixel.x >= u_frame.image.x || pixel.y >= u_frame.image.y) {
+    if (!film_contains(pixel)) {
         return;
     }
     uint at = res_at(u_push.src, pixel);

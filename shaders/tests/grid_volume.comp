@@ -54,8 +54,10 @@ layout(std430, set = 0, binding = 3) writeonly buffer ResultBlock {
 };
 
 #include "grid.glsl"
-// Included twice on purpose: the include guard must make the second one a no-op.
+#include "grid_blocks.glsl"
+// Included twice on purpose: the include guards must make the second one a no-op.
 #include "grid.glsl"
+#include "grid_blocks.glsl"
 
 #define MODE_CLOSED_FORM 0u
 #define MODE_ESTIMATORS 1u

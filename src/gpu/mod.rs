@@ -7,6 +7,7 @@
 //!   lights with their selection CDF, grids with their super-voxels, environment maps).
 
 pub mod bindings;
+pub mod features;
 pub mod records;
 pub mod scene;
 

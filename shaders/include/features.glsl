@@ -1,0 +1,71 @@
+// The numbers the shaders and the Rust side must agree on: specialization-constant IDs,
+// the box estimator IDs and the limits the shaders hard-code. Mirrored by
+// src/features.rs, whose unit test parses every `#define NAME <integer>` line here and
+// checks both sides name the same constants with the same values; keep every value a
+// plain integer literal (a `u` suffix is allowed).
+#ifndef NIMBUS_FEATURES_GLSL
+#define NIMBUS_FEATURES_GLSL
+
+// ---------------------------------------------------------------------------------------
+// Specialization-constant IDs: `layout(constant_id = SC_ID_X) const ... SC_X`. One ID
+// means one feature in every pass that declares it.
+
+#define SC_ID_HAS_SHAPES 0
+#define SC_ID_HAS_GOBOS 1
+#define SC_ID_HAS_ENV 2
+#define SC_ID_ESTIMATOR 3
+#define SC_ID_HAS_MEDIA 4
+#define SC_ID_MAX_BOUNCES 5
+#define SC_ID_PIXEL_JITTER 6
+#define SC_ID_HAS_EMISSION 7
+#define SC_ID_HAS_ENV_MAP 8
+// ReSTIR: vertex reuse (x_2 kept in world space) instead of direction reuse.
+#define SC_ID_REUSE_VERTEX 9
+// ReSTIR: final shading estimates transmittance by ratio tracking.
+#define SC_ID_FINAL_RATIO_TRACKING 10
+// ReSTIR: the medium has a velocity grid (temporal reprojection follows it).
+#define SC_ID_HAS_VELOCITY 11
+
+// ---------------------------------------------------------------------------------------
+// Values of SC_ESTIMATOR: the box-medium estimators of Velinov & Mitchell.
+
+#define ESTIMATOR_MCWVDS 0u
+#define ESTIMATOR_REDS 1u
+#define ESTIMATOR_REES 2u
+#define ESTIMATOR_RM 3u
+#define ESTIMATOR_MCDS 4u
+
+// ---------------------------------------------------------------------------------------
+// Limits.
+
+// Workgroup size of every per-pixel pass (the dispatch is ceil(image / group) groups).
+#define GROUP_SIZE_X 8
+#define GROUP_SIZE_Y 8
+
+// Most directional lights the crepuscular pass takes (its light-selection arrays).
+#define MAX_LIGHTS 16u
+// Most box media the crepuscular pass takes.
+#define MAX_MEDIA 16u
+
+// Most scattering events a ReSTIR path stores (k' has 5 bits in a reservoir's info word,
+// see reservoir.glsl, so at most 31 would fit).
+#define MAX_RESTIR_BOUNCES 16u
+// Most analytic lights a ReSTIR path can name: a reservoir keeps the light index in 8
+// bits, and 0xff names the environment.
+#define MAX_RESTIR_LIGHTS 255u
+// Most spatial neighbours of a ReSTIR spatial round.
+#define MAX_SPATIAL_NEIGHBORS 16u
+// Reservoirs combined at once: the spatial neighbours plus the pixel's own.
+#define MAX_CANDIDATES 17
+// A reservoir is RESERVOIR_HEADER_UINTS + RESERVOIR_VERTEX_UINTS K uints (K = max bounces).
+#define RESERVOIR_HEADER_UINTS 8u
+#define RESERVOIR_VERTEX_UINTS 2u
+
+// Most midpoint steps of one ReSTIR ray march (a cap against absurd lengths; the step
+// grows instead).
+#define MARCH_MAX_STEPS 4096
+// Guard on loop trip counts of the grid estimators: far beyond any expected count
+// (sigma_max * length), it only stops a runaway loop from hanging the device.
+#define GRID_MAX_STEPS 1048576
+
+#endif

@@ -1,0 +1,143 @@
+// Volumetric ReSTIR (Lin, Wyman and Yuksel 2021): combining reservoirs with Talbot MIS
+// (Algorithm 5, with Algorithm 2's combineReservoir), for temporal and spatial reuse.
+#ifndef NIMBUS_RESTIR_COMBINE_GLSL
+#define NIMBUS_RESTIR_COMBINE_GLSL
+
+#extension GL_GOOGLE_include_directive : require
+
+#include "path.glsl"
+
+// The reservoirs taking part in a combination, as small private arrays (the shader's
+// registers; passing structs of rays and headers by value costs far more): where each is
+// stored, its pixel and frame (its owner: the representation is relative to that camera
+// ray), and its M (the temporal limit may lower it, scaling w_sum by the same factor).
+uint cand_at[MAX_CANDIDATES];
+uvec2 cand_pixel[MAX_CANDIDATES];
+uint cand_set[MAX_CANDIDATES];
+float cand_M[MAX_CANDIDATES];
+float cand_w_scale[MAX_CANDIDATES];
+
+// Registers candidate `i` (its header's M unless clamped later).
+void candidate_set(uint i, uint at, uvec2 pixel, uint set) {
+    cand_at[i] = at;
+    cand_pixel[i] = pixel;
+    cand_set[i] = set;
+    cand_M[i] = res_load_M(at);
+    cand_w_scale[i] = 1.0;
+}
+
+// The camera ray of candidate i's pixel and frame at jitter `code`.
+CameraRay candidate_ray(uint i, uint code) {
+    return camera_ray(cand_pixel[i], code, cand_set[i]);
+}
+
+// Streams candidates 0..n-1 into one reservoir for the pixel of candidate 0. Each
+// candidate i's sample lambda_i gets the Talbot weight
+//   m_i = M_i p_i(lambda_i) / sum_s M_s p_s(lambda_i)
+// with p_s the target function at candidate s's pixel and frame (ray-marched T~), and the
+// resampling weight w_i = m_i p_0(lambda_i) W_i, W_i = w_sum_i / (M_i p_hat_i) its
+// unbiased contribution weight. Stored as in Algorithm 2: w_sum = sum_i w_i M and M =
+// sum_i M_i, so f / p_hat * w_sum / M stays the estimator. Returns the index of the chosen
+// candidate (n if none) and the combined header (its p_hat = p_0 of the chosen sample).
+uint combine_candidates(uint n, inout uint rng, out Reservoir s) {
+    s = res_empty();
+    float k = 0.0;
+    for (uint i = 0u; i < n; ++i) {
+        k += cand_M[i];
+    }
+    uint chosen = n;
+    for (uint i = 0u; i < n; ++i) {
+        Reservoir ri = res_load(cand_at[i]);
+        ri.M = cand_M[i];
+        ri.w_sum *= cand_w_scale[i];
+        if (!res_valid(ri) || !(ri.p_hat > 0.0) || !(ri.w_sum > 0.0) || !(ri.M > 0.0)) {
+            continue;
+        }
+        uint code = res_jitter(ri);
+        CameraRay owner = candidate_ray(i, code);
+        // The target here (j = 0) first, then at the sample's own pixel (j = i): if either
+        // is 0, w_i = 0 whatever the other pixels give, and they are not evaluated.
+        float p_sum = 0.0;
+        float p_own = 0.0;
+        float p_here = 0.0;
+        bool dead = false;
+        for (uint step = 0u; step < n && !dead; ++step) {
+            // Visit order: 0, i, then the others ascending (0, 1, 2, ... when i = 0).
+            uint j = i == 0u ? step : (step == 0u ? 0u : (step == 1u ? i : (step <= i ? step - 1u : step)));
+            if (!(cand_M[j] > 0.0)) {
+                continue;
+            }
+            // The sample's own pixel: a combined reservoir already holds that target
+            // (computed by the same function for the same ray, frame and path).
+            bool stored = j == i && (ri.info & INFO_REUSE_TARGET) != 0u;
+            float p = stored ? ri.p_hat
+                             : luminance(path_value(cand_at[i], ri, candidate_ray(j, code), owner, MODE_TARGET, rng));
+            p_sum += p * cand_M[j];
+            if (j == i) {
+                p_own = p;
+                dead = !(p > 0.0);
+            }
+            if (j == 0u) {
+                p_here = p;
+                dead = dead || !(p > 0.0);
+            }
+        }
+        // Domain: p_sum > 0 (else no pixel could have produced lambda_i: weight 0).
+        if (!(p_sum > 0.0) || !(p_here > 0.0)) {
+            continue;
+        }
+        float m = p_own * k / p_sum;
+        // Domain: p_hat_i > 0 (checked above).
+        float w = p_here / ri.p_hat * ri.w_sum * m;
+        // The sample keeps its light vertex; its target is now p_0, the target here.
+        Reservoir c = ri;
+        c.p_hat = p_here;
+        c.info = ri.info | INFO_REUSE_TARGET;
+        if (res_update(s, c, w, rng)) {
+            chosen = i;
+        }
+    }
+    s.M = k;
+    if (chosen == n) {
+        s.w_sum = 0.0;
+        s.p_hat = 0.0;
+        s.info = 0u;
+    }
+    return chosen;
+}
+
+// Writes the combined reservoir to `dst` for the pixel whose camera ray is `here`, copying
+// the chosen candidate's path (from `src_at`, owned by camera ray `owner`). Vertex reuse
+// re-expresses segment 2 relative to the new x_1 (x_2 stays in world space).
+void store_combined(uint dst, Reservoir s, uint src_at, CameraRay owner, CameraRay here) {
+    res_store_header(dst, s);
+    if (!res_valid(s)) {
+        return;
+    }
+    uint kp = res_vertices(s);
+    bool shift_x2 = SC_REUSE_VERTEX && kp >= 2u;
+    if (src_at == dst && !shift_x2) {
+        return;
+    }
+    float z2 = 0.0;
+    uint omega1 = 0u;
+    if (shift_x2) {
+        vec3 x2 = owner.o + res_z(src_at, 1u) * owner.d + res_z(src_at, 2u) * oct_decode(res_omega(src_at, 1u));
+        vec3 x1 = here.o + res_z(src_at, 1u) * here.d;
+        z2 = length(x2 - x1);
+        omega1 = z2 > 0.0 ? oct_encode((x2 - x1) / z2) : res_omega(src_at, 1u);
+    }
+    for (uint i = 1u; i <= kp; ++i) {
+        float z = res_z(src_at, i);
+        uint omega = res_omega(src_at, i);
+        if (shift_x2 && i == 1u) {
+            omega = omega1;
+        }
+        if (shift_x2 && i == 2u) {
+            z = z2;
+        }
+        res_store_vertex(dst, i, z, omega);
+    }
+}
+
+#endif

@@ -1,0 +1,265 @@
+// Volumetric ReSTIR (Lin, Wyman and Yuksel 2021): a stored path and its value.
+//
+//   - camera rays of a pixel and frame, at the sub-pixel position the path keeps;
+//   - regular tracking through the conservative piecewise-constant grid at a mip level
+//     (candidate generation, sec. 4.1, eq. 27-28);
+//   - ray-marched trilinear transmittance T~ on a mip texture (target functions, sec. 5.1);
+//   - path_value: the path's contribution for a camera ray, either the target function
+//     p_hat (Algorithm 4) or the integrand F with unbiased transmittance (Algorithm 6).
+//
+// Paths. A stored path has k' medium vertices x_1..x_k' (k' = 0: the camera ray itself
+// ends on a light, "direct"). x_1 = x_0 + z_1 omega_0 where omega_0 is the camera ray of
+// the pixel that EVALUATES the path, so a path moves between pixels by keeping z_1
+// (sec. 4.2). Then x_i = x_{i-1} + z_i omega_{i-1}, with omega_i stored (direction reuse);
+// with vertex reuse x_2 is kept in world space instead (see path_value). A scattering path
+// ends in a light vertex (a light index with a stored direction or point); an emission
+// path ends at x_k', where the medium emits. Measures: (z, omega) per segment, solid angle
+// for the environment, area for sphere lights, delta for directional and point lights.
+//
+// (Not to be confused with include/path.glsl, the path bookkeeping of every integrator;
+// an #include "path.glsl" from this folder finds this file first.)
+#ifndef NIMBUS_RESTIR_PATH_GLSL
+#define NIMBUS_RESTIR_PATH_GLSL
+
+#extension GL_GOOGLE_include_directive : require
+
+#include "resources.glsl"
+#include "camera.glsl"
+#include "phase.glsl"
+
+// Scalar target from an RGB contribution: luminance (positive weights, so > 0 exactly
+// when some channel is > 0 for non-negative colours).
+float luminance(vec3 c) {
+    return dot(c, vec3(0.2126, 0.7152, 0.0722));
+}
+
+// ---------------------------------------------------------------------------------------
+// Camera rays. The sub-pixel position is part of the path: each random walk draws its
+// own jitter code (camera.glsl), the reservoir keeps it (`info` bits 16-31), and a path
+// moving to another pixel or frame keeps it, so temporal reuse re-evaluates a path on the
+// same ray it was found on.
+
+struct CameraRay {
+    vec3 o;
+    vec3 d;
+    uint set;
+};
+
+// The camera ray through `pixel` at sub-pixel jitter `code`, in a frame's set.
+CameraRay camera_ray(uvec2 pixel, uint code, uint set) {
+    CameraRay r;
+    r.set = set;
+    vec2 px = vec2(pixel) + jitter_code_offset(code);
+    if (set == SET_CURRENT) {
+        r.o = u_frame.cam_position.xyz;
+        r.d = camera_direction(u_frame, px);
+    } else {
+        r.o = u_prev_frame.cam_position.xyz;
+        r.d = camera_direction(u_prev_frame, px);
+    }
+    return r;
+}
+
+// ---------------------------------------------------------------------------------------
+// Media lookups for a frame's set.
+
+float sigma_t_of(uint set, vec3 x) {
+    return set == SET_CURRENT ? grid_sigma_t_in(u_density, x) : grid_sigma_t_in(u_density_prev, x);
+}
+
+// T~ along o + t d, t in [t0, t1]: midpoint ray marching of the mip texture `tex` (dims
+// `dims`, blocks of `factor` voxels) with steps of at most `step` metres. Deterministic, so
+// a target function is a function of the path (needed by the MIS weights).
+float march_transmittance(sampler3D tex, uvec3 dims, uint factor, float step, vec3 o, vec3 d, float t0,
+                          float t1) {
+    vec2 span = grid_span(o, d);
+    float a = max(t0, span.x);
+    float b = min(t1, span.y);
+    if (!(a < b)) {
+        return 1.0;
+    }
+    // Domain: step > 0 (a voxel diagonal).
+    int n = int(clamp(ceil((b - a) / step), 1.0, float(MARCH_MAX_STEPS)));
+    float dt = (b - a) / float(n);
+    // Texture coordinates: index space over the blocks' extent (dims * factor voxels).
+    vec3 to_uvw = grid_index_scale() / (vec3(dims) * float(factor));
+    vec3 uvw0 = (o + a * d - u_grid.bounds_min.xyz) * to_uvw;
+    vec3 duvw = d * to_uvw;
+    float sum = 0.0;
+    for (int j = 0; j < n; ++j) {
+        sum += textureLod(tex, uvw0 + duvw * ((float(j) + 0.5) * dt), 0.0).r;
+    }
+    // Domain: density_scale * sum * dt >= 0.
+    return exp(-u_grid.bounds_min.w * sum * dt);
+}
+
+// T~ for target functions of reuse (mip_reuse) in a frame's set.
+float reuse_transmittance(uint set, vec3 o, vec3 d, float t1) {
+    uvec3 dims = u_restir.march_dims.xyz;
+    uint factor = u_restir.factors.z;
+    float step = u_restir.spatial.y;
+    if (set == SET_CURRENT) {
+        return march_transmittance(u_march_reuse, dims, factor, step, o, d, 0.0, t1);
+    }
+    return march_transmittance(u_march_reuse_prev, dims, factor, step, o, d, 0.0, t1);
+}
+
+// T~ of NEE segments of initial candidates (mip_indirect).
+float nee_transmittance(vec3 o, vec3 d, float t1) {
+    return march_transmittance(u_march_nee, u_restir.nee_dims.xyz, u_restir.factors.w, u_restir.spatial.z, o,
+                               d, 0.0, t1);
+}
+
+// Unbiased T for final shading: the closed form through the trilinear grid, or ratio
+// tracking with the global majorant.
+float final_transmittance(vec3 o, vec3 d, float t1, inout uint rng) {
+    if (SC_FINAL_RATIO_TRACKING) {
+        return grid_ratio_tracking(o, d, 0.0, t1, rng);
+    }
+    return grid_transmittance(o, d, 0.0, t1);
+}
+
+// ---------------------------------------------------------------------------------------
+// Regular tracking through the conservative piecewise-constant grid (eq. 27-28).
+
+#define LEVEL_PRIMARY 0u
+#define LEVEL_INDIRECT 1u
+
+// Walks [0, t_end) from o along d through level `level` until the optical depth reaches
+// tau_target. Returns the collision distance (FAR if the ray leaves first), sigma_t* there
+// and tau = the optical depth walked (tau_target at a collision, the total otherwise).
+float pc_track(uint level, vec3 o, vec3 d, float t_end, float tau_target, out float sigma_star, out float tau) {
+    uvec4 lv = level == LEVEL_PRIMARY ? u_restir.pc_primary : u_restir.pc_indirect;
+    int f = int(level == LEVEL_PRIMARY ? u_restir.factors.x : u_restir.factors.y);
+    sigma_star = 0.0;
+    tau = 0.0;
+    GridSuperDda it;
+    if (!grid_blocks_begin(o, d, 0.0, t_end, f, ivec3(lv.xyz), it)) {
+        return FAR;
+    }
+    float s0;
+    float s1;
+    uint index;
+    int steps = 0;
+    while (grid_blocks_next(it, s0, s1, index) && steps < GRID_MAX_STEPS) {
+        ++steps;
+        float sigma = pc_grid[lv.w + index];
+        float dtau = sigma * (s1 - s0);
+        if (sigma > 0.0 && tau + dtau >= tau_target) {
+            sigma_star = sigma;
+            // Domain: sigma > 0; the result lies in [s0, s1].
+            float s = min(s0 + (tau_target - tau) / sigma, s1);
+            tau = tau_target;
+            return it.t_a + s;
+        }
+        tau += dtau;
+    }
+    return FAR;
+}
+
+// ---------------------------------------------------------------------------------------
+// Path values (Algorithm 4 for targets, Algorithm 6's F for final shading).
+
+#define MODE_TARGET 0u
+#define MODE_FINAL 1u
+
+// True if an emitting sphere of the set cuts o + t d for t in (0, t1).
+bool segment_hits_light(uint set, vec3 o, vec3 d, float t1) {
+    uint index;
+    return nearest_sphere_light(light_base(set), o, d, 1e-6, t1, index) < FAR;
+}
+
+// The RGB value of the path stored at `at` (header r) for camera ray `cam`:
+//   MODE_TARGET: the target function with T~ ray marched on mip_reuse, in cam.set's frame;
+//   MODE_FINAL:  the integrand F with unbiased transmittance (current frame).
+// `src` is the camera ray of the pixel that owns the stored representation; only vertex
+// reuse needs it, to rebuild x_2 in world space.
+vec3 path_value(uint at, Reservoir r, CameraRay cam, CameraRay src, uint mode, inout uint rng) {
+    if (!res_valid(r)) {
+        return vec3(0.0);
+    }
+    uint set = cam.set;
+    uint lbase = light_base(set);
+    uint kp = res_vertices(r);
+    if (kp == 0u) {
+        // The camera ray ends on a light: L^s times the transmittance of the whole ray.
+        float t_end;
+        vec3 L = light_seen(lbase, cam.o, cam.d, t_end);
+        float T = mode == MODE_FINAL ? final_transmittance(cam.o, cam.d, t_end, rng)
+                                     : reuse_transmittance(set, cam.o, cam.d, t_end);
+        return L * T;
+    }
+    vec3 albedo = u_base.albedo_g.rgb;
+    float g = u_base.albedo_g.w;
+    // Vertex reuse: x_2 of the owner's path, in world space.
+    bool keep_x2 = SC_REUSE_VERTEX && kp >= 2u;
+    vec3 x2_world = vec3(0.0);
+    if (keep_x2) {
+        vec3 x1_src = src.o + res_z(at, 1u) * src.d;
+        x2_world = x1_src + res_z(at, 2u) * oct_decode(res_omega(at, 1u));
+    }
+    vec3 f = vec3(1.0);
+    vec3 x = cam.o;
+    vec3 w = cam.d;
+    // The volume-measure geometry term of x_2 under vertex reuse, else 1.
+    float geometry = 1.0;
+    for (uint i = 1u; i <= kp; ++i) {
+        float z = res_z(at, i);
+        if (i >= 2u) {
+            vec3 w_next;
+            if (i == 2u && keep_x2) {
+                vec3 to = x2_world - x;
+                float z2 = dot(to, to);
+                // Domain: x_2 != x_1 (G = 1 / z_2^2 is unbounded there).
+                if (!(z2 > 0.0)) {
+                    return vec3(0.0);
+                }
+                z = sqrt(z2);
+                w_next = to / z;
+                geometry = 1.0 / z2;
+            } else {
+                w_next = oct_decode(res_omega(at, i - 1u));
+            }
+            // Phase at x_{i-1}: from the travel direction w to w_next.
+            f *= hg_phase(dot(w, w_next), g);
+            w = w_next;
+        }
+        if (!(z >= 0.0 && z < FAR)) {
+            return vec3(0.0);
+        }
+        if (segment_hits_light(set, x, w, z)) {
+            return vec3(0.0);
+        }
+        float T = mode == MODE_FINAL ? final_transmittance(x, w, z, rng) : reuse_transmittance(set, x, w, z);
+        x += z * w;
+        float sigma_t = mode == MODE_FINAL ? grid_sigma_t_in(u_density, x) : sigma_t_of(set, x);
+        f *= T;
+        if (i == kp && res_emission(r)) {
+            if (!SC_HAS_EMISSION) {
+                return vec3(0.0);
+            }
+            // Emission path: sigma_a Le at x_k' (absorbed-emission convention).
+            return f * (vec3(1.0) - albedo) * sigma_t * grid_emission(x) * geometry;
+        }
+        // Scattering at x_i: sigma_s = albedo sigma_t.
+        f *= albedo * sigma_t;
+        if (!any(greaterThan(f, vec3(0.0)))) {
+            return vec3(0.0);
+        }
+    }
+    // The light vertex, re-evaluated from x_k'.
+    vec3 wi;
+    float dist;
+    vec3 L = light_eval(lbase, res_light(r), oct_decode(r.light_dir), r.light_point, x, wi, dist);
+    if (!any(greaterThan(L, vec3(0.0)))) {
+        return vec3(0.0);
+    }
+    if (light_blocked(lbase, x, wi, dist)) {
+        return vec3(0.0);
+    }
+    f *= hg_phase(dot(w, wi), g) * L;
+    float T = mode == MODE_FINAL ? final_transmittance(x, wi, dist, rng) : reuse_transmittance(set, x, wi, dist);
+    return f * T * geometry;
+}
+
+#endif
