@@ -107,11 +107,19 @@
 //!   σ* > 0 wherever the trilinear σ > 0 anywhere in the voxel.
 //! - [`VoxelGrid::super_voxels`]: per 8³ block, min / max bounding the trilinear
 //!   density over the block (one-voxel apron) and its exact mean.
+//!
+//! # Triangle meshes
+//! The [`mesh`] module (re-exported here) loads `.obj` / `.ply` files into a
+//! [`TriangleMesh`] ([`load_mesh`], placed by a [`ToWorld`]), builds a [`Bvh`] of
+//! 32-byte [`BvhNode`]s for the GPU, and answers rays on the CPU
+//! ([`Bvh::closest_hit`], [`Bvh::any_hit`]) as the reference for the GPU traversal.
+//! It is not yet wired into the scene's `[[shape]] type = "mesh"`.
 
 mod envmap;
 mod fields;
 mod files;
 mod geometry;
+pub mod mesh;
 mod parse;
 mod procedural;
 mod types;
@@ -130,6 +138,12 @@ pub use files::{
     check_grid_dims, read_vol_header, VolHeader, MAX_GRID_DIM, MAX_GRID_VOXELS, VOL_HEADER_BYTES,
 };
 pub use geometry::MAX_GOBO_POINTS;
+pub use mesh::{
+    intersect_triangle, load_mesh, read_mesh, Bvh, BvhNode, Hit, LoadedMesh, MeshFormat, Ray,
+    ToWorld, TriangleMesh, BVH_MAX_DEPTH, BVH_MAX_LEAF_TRIANGLES, BVH_STACK_SIZE,
+    MAX_FACE_NONPLANARITY, MAX_FACE_VERTICES, MAX_LINE_BYTES, MAX_MESH_TRIANGLES,
+    MAX_MESH_VERTICES,
+};
 pub use parse::{MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_LENGTH_M, MAX_SIGMA_T, RESTIR_KEYS};
 pub use procedural::procedural_cloud;
 pub use types::*;
