@@ -25,6 +25,14 @@ impl<'a> LineReader<'a> {
         }
     }
 
+    /// A reader whose first line is numbered `lines_before + 1` (the rest of a file).
+    pub fn starting_after(inner: &'a mut dyn BufRead, lines_before: u64) -> Self {
+        Self {
+            line: lines_before,
+            ..Self::new(inner)
+        }
+    }
+
     /// The next line's 1-based number and text without its terminator, or `None` at
     /// the end of the input. Errors name the line but not the file: callers add it.
     pub fn next_line(&mut self) -> Result<Option<(u64, &[u8])>> {

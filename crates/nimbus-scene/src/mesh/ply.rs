@@ -109,11 +109,11 @@ struct Element {
 
 /// Reads a PLY mesh.
 pub(crate) fn read_ply(reader: &mut dyn BufRead, name: &str) -> Result<Polygons> {
-    let (format, elements) = read_header(reader, name)?;
+    let (format, elements, header_lines) = read_header(reader, name)?;
     let mut out = Polygons::default();
     let mut body = match format {
         Format::Ascii => Body::Ascii {
-            lines: LineReader::new(reader),
+            lines: LineReader::starting_after(reader, header_lines),
             pos: 0,
             have_line: false,
         },
@@ -127,7 +127,7 @@ pub(crate) fn read_ply(reader: &mut dyn BufRead, name: &str) -> Result<Polygons>
         match element.name.as_str() {
             "vertex" if !vertices_read => {
                 vertices_read = true;
-                out.positions.reserve_exact(element.count as usize);
+                out.positions.reserve_exact(initial_capacity(element.count));
                 for i in 0..element.count {
                     let p = read_vertex(&mut body, element)
                         .map_err(|e| anyhow!("{name}: vertex {i}: {e}"))?;
@@ -135,8 +135,8 @@ pub(crate) fn read_ply(reader: &mut dyn BufRead, name: &str) -> Result<Polygons>
                 }
             }
             "face" if out.arities.is_empty() => {
-                out.arities.reserve_exact(element.count as usize);
-                out.corners.reserve(3 * element.count as usize);
+                out.arities.reserve_exact(initial_capacity(element.count));
+                out.corners.reserve(3 * initial_capacity(element.count));
                 for i in 0..element.count {
                     read_face(&mut body, element, &mut out)
                         .map_err(|e| anyhow!("{name}: face #{}: {e}", i + 1))?;
@@ -159,6 +159,12 @@ pub(crate) fn read_ply(reader: &mut dyn BufRead, name: &str) -> Result<Polygons>
         }
     }
     Ok(out)
+}
+
+/// Room reserved up front for `count` elements: the header's count, but at most 2^20,
+/// so a header that promises more data than follows costs no memory.
+fn initial_capacity(count: u64) -> usize {
+    count.min(1 << 20) as usize
 }
 
 fn read_vertex(body: &mut Body, element: &Element) -> Result<Vec3> {
@@ -323,8 +329,8 @@ impl Body<'_> {
     }
 }
 
-/// Reads the header up to and including `end_header`.
-fn read_header(reader: &mut dyn BufRead, name: &str) -> Result<(Format, Vec<Element>)> {
+/// Reads the header up to and including `end_header`; returns its line count too.
+fn read_header(reader: &mut dyn BufRead, name: &str) -> Result<(Format, Vec<Element>, u64)> {
     let mut lines = LineReader::new(reader);
     match lines.next_line().map_err(|e| anyhow!("{name}: {e}"))? {
         Some((_, b"ply")) => {}
@@ -427,7 +433,7 @@ fn read_header(reader: &mut dyn BufRead, name: &str) -> Result<(Format, Vec<Elem
         bail!("{name}: the header has no `format` line");
     };
     check_elements(&elements, name)?;
-    Ok((format, elements))
+    Ok((format, elements, lines.line))
 }
 
 /// The vertex element has x, y, z; the face element has its index list.

@@ -55,9 +55,18 @@ fn check_fan(positions: &[Vec3], corners: &[u32]) -> Result<(), String> {
     let lo = p.iter().fold(DVec3::INFINITY, |m, q| m.min(*q));
     let hi = p.iter().fold(DVec3::NEG_INFINITY, |m, q| m.max(*q));
     let diameter = (hi - lo).length();
-    if normal.length() <= 1e-12 * diameter * diameter {
-        // Zero area: the fan is degenerate and dropped later.
-        return Ok(());
+    let negligible = 1e-12 * diameter * diameter;
+    if normal.length() <= negligible {
+        // Zero net area: fine when every fan triangle is degenerate (all corners on a
+        // line: dropped later), a bow tie whose lobes cancel otherwise.
+        let flat = (1..n - 1).all(|i| (p[i] - p[0]).cross(p[i + 1] - p[0]).length() <= negligible);
+        if flat {
+            return Ok(());
+        }
+        return Err(
+            "face outline crosses itself (its signed area is zero, its triangles' is not); triangulate it in the modelling tool"
+                .to_string(),
+        );
     }
     let axis = normal.normalize();
 
@@ -157,6 +166,12 @@ mod tests {
             .collect();
         let e = fan_of(&star).err().unwrap_or_default();
         assert!(e.contains("crosses itself"), "{e}");
+    }
+
+    #[test]
+    fn bow_tie_is_refused() {
+        let e = fan_of(&[[0., 0., 0.], [1., 1., 0.], [1., 0., 0.], [0., 1., 0.]]);
+        assert!(e.err().unwrap_or_default().contains("crosses itself"));
     }
 
     #[test]
