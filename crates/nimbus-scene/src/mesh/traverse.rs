@@ -2,7 +2,7 @@
 //! 2013, as in pbrt-v4), a conservative ray–box test, BVH traversal and the
 //! brute-force references.
 
-use glam::{DVec3, Vec3};
+use glam::Vec3;
 
 use super::bvh::{Bvh, BVH_STACK_SIZE};
 use super::{max_axis, TriangleMesh};
@@ -44,69 +44,103 @@ fn gamma(n: f32) -> f32 {
 /// counts for both. Degenerate triangles (zero area) are never hit. Hits on either
 /// side count (no back-face culling).
 pub fn intersect_triangle(ray: &Ray, p: [Vec3; 3], t_max: f32) -> Option<(f32, f32, f32)> {
-    let d = ray.dir;
-    if !d.is_finite() || d == Vec3::ZERO {
-        return None;
+    TriangleRay::new(ray)?.intersect(p, t_max)
+}
+
+/// A ray prepared for the watertight test: the axis permutation and the shear,
+/// computed once per ray.
+pub(crate) struct TriangleRay {
+    origin: Vec3,
+    /// Axes that become x, y, z (z: the largest |dir| component).
+    k: [usize; 3],
+    /// Shear: x += sx·z, y += sy·z, z *= sz.
+    sx: f32,
+    sy: f32,
+    sz: f32,
+}
+
+impl TriangleRay {
+    /// `None` for a zero or non-finite direction or a non-finite origin.
+    pub fn new(ray: &Ray) -> Option<Self> {
+        let d = ray.dir;
+        if !d.is_finite() || d == Vec3::ZERO || !ray.origin.is_finite() {
+            return None;
+        }
+        // Permute so z is the largest |dir| axis, then shear the ray onto +z.
+        let kz = max_axis(d.abs());
+        let kx = (kz + 1) % 3;
+        let ky = (kx + 1) % 3;
+        let d = d.to_array();
+        let (dx, dy, dz) = (d[kx], d[ky], d[kz]);
+        Some(Self {
+            origin: ray.origin,
+            k: [kx, ky, kz],
+            sx: -dx / dz,
+            sy: -dy / dz,
+            sz: 1.0 / dz,
+        })
     }
-    // Translate to the ray origin, permute so z is the largest |dir| axis.
-    let kz = max_axis(d.abs());
-    let kx = (kz + 1) % 3;
-    let ky = (kx + 1) % 3;
-    let permute = |v: Vec3| Vec3::new(v[kx], v[ky], v[kz]);
-    let d = permute(d);
-    let [mut p0, mut p1, mut p2] = p.map(|q| permute(q - ray.origin));
-    // Shear so the ray points along +z.
-    let sx = -d.x / d.z;
-    let sy = -d.y / d.z;
-    let sz = 1.0 / d.z;
-    for q in [&mut p0, &mut p1, &mut p2] {
-        q.x += sx * q.z;
-        q.y += sy * q.z;
+
+    /// See [`intersect_triangle`].
+    pub fn intersect(&self, p: [Vec3; 3], t_max: f32) -> Option<(f32, f32, f32)> {
+        // Translate to the ray origin, permute, shear x and y (f32, as a GPU would).
+        let [kx, ky, kz] = self.k;
+        let sheared = |q: Vec3| {
+            let q = (q - self.origin).to_array();
+            let z = q[kz];
+            (q[kx] + self.sx * z, q[ky] + self.sy * z, z)
+        };
+        let (x0, y0, z0) = sheared(p[0]);
+        let (x1, y1, z1) = sheared(p[1]);
+        let (x2, y2, z2) = sheared(p[2]);
+        // Edge functions in f64 (exact products, one rounding each).
+        let edge = |ax: f32, ay: f32, bx: f32, by: f32| {
+            f64::from(ax) * f64::from(by) - f64::from(ay) * f64::from(bx)
+        };
+        let e0 = edge(x1, y1, x2, y2);
+        let e1 = edge(x2, y2, x0, y0);
+        let e2 = edge(x0, y0, x1, y1);
+        if (e0 < 0.0 || e1 < 0.0 || e2 < 0.0) && (e0 > 0.0 || e1 > 0.0 || e2 > 0.0) {
+            return None;
+        }
+        let det = e0 + e1 + e2;
+        if det == 0.0 {
+            return None;
+        }
+        // Scaled distance, compared with the range before the division.
+        let sz = f64::from(self.sz);
+        let (z0, z1, z2) = (f64::from(z0) * sz, f64::from(z1) * sz, f64::from(z2) * sz);
+        let t_scaled = e0 * z0 + e1 * z1 + e2 * z2;
+        let t_max = f64::from(t_max);
+        if det < 0.0 && (t_scaled >= 0.0 || t_scaled < t_max * det) {
+            return None;
+        }
+        if det > 0.0 && (t_scaled <= 0.0 || t_scaled > t_max * det) {
+            return None;
+        }
+        let inv_det = 1.0 / det;
+        let t = t_scaled * inv_det;
+        // t conservatively > 0 (pbrt-v4 sec. 6.8.4 bounds, with the f32 shear's error).
+        let max_zt = z0.abs().max(z1.abs()).max(z2.abs());
+        let max_xt = f64::from(x0.abs().max(x1.abs()).max(x2.abs()));
+        let max_yt = f64::from(y0.abs().max(y1.abs()).max(y2.abs()));
+        let g = |n: f32| f64::from(gamma(n));
+        let delta_z = g(3.0) * max_zt;
+        let delta_x = g(5.0) * (max_xt + max_zt);
+        let delta_y = g(5.0) * (max_yt + max_zt);
+        let delta_e = 2.0 * (g(2.0) * max_xt * max_yt + delta_y * max_xt + delta_x * max_yt);
+        let max_e = e0.abs().max(e1.abs()).max(e2.abs());
+        let delta_t =
+            3.0 * (g(3.0) * max_e * max_zt + delta_e * max_zt + delta_z * max_e) * inv_det.abs();
+        if t <= delta_t {
+            return None;
+        }
+        let t = t as f32;
+        if !(t > 0.0 && t < t_max as f32) {
+            return None;
+        }
+        Some((t, (e1 * inv_det) as f32, (e2 * inv_det) as f32))
     }
-    // Edge functions in f64 (exact products, one rounding each).
-    let edge = |a: Vec3, b: Vec3| f64::from(a.x) * f64::from(b.y) - f64::from(a.y) * f64::from(b.x);
-    let e0 = edge(p1, p2);
-    let e1 = edge(p2, p0);
-    let e2 = edge(p0, p1);
-    if (e0 < 0.0 || e1 < 0.0 || e2 < 0.0) && (e0 > 0.0 || e1 > 0.0 || e2 > 0.0) {
-        return None;
-    }
-    let det = e0 + e1 + e2;
-    if det == 0.0 {
-        return None;
-    }
-    // Scaled distance, compared with the range before the division.
-    let z = DVec3::new(f64::from(p0.z), f64::from(p1.z), f64::from(p2.z)) * f64::from(sz);
-    let t_scaled = e0 * z.x + e1 * z.y + e2 * z.z;
-    let t_max = f64::from(t_max);
-    if det < 0.0 && (t_scaled >= 0.0 || t_scaled < t_max * det) {
-        return None;
-    }
-    if det > 0.0 && (t_scaled <= 0.0 || t_scaled > t_max * det) {
-        return None;
-    }
-    let inv_det = 1.0 / det;
-    let t = t_scaled * inv_det;
-    // t conservatively > 0 (pbrt-v4 sec. 6.8.4 bounds, with the f32 shear's error).
-    let max_zt = z.abs().max_element();
-    let max_xt = f64::from(p0.x.abs().max(p1.x.abs()).max(p2.x.abs()));
-    let max_yt = f64::from(p0.y.abs().max(p1.y.abs()).max(p2.y.abs()));
-    let g = |n: f32| f64::from(gamma(n));
-    let delta_z = g(3.0) * max_zt;
-    let delta_x = g(5.0) * (max_xt + max_zt);
-    let delta_y = g(5.0) * (max_yt + max_zt);
-    let delta_e = 2.0 * (g(2.0) * max_xt * max_yt + delta_y * max_xt + delta_x * max_yt);
-    let max_e = e0.abs().max(e1.abs()).max(e2.abs());
-    let delta_t =
-        3.0 * (g(3.0) * max_e * max_zt + delta_e * max_zt + delta_z * max_e) * inv_det.abs();
-    if t <= delta_t {
-        return None;
-    }
-    let t = t as f32;
-    if !(t > 0.0 && t < t_max as f32) {
-        return None;
-    }
-    Some((t, (e1 * inv_det) as f32, (e2 * inv_det) as f32))
 }
 
 /// A ray prepared for box tests.
@@ -160,10 +194,11 @@ impl Bvh {
     /// The closest hit at 0 < t < `t_max` (use `f32::INFINITY` for no limit), or
     /// `None`. Ties between triangles at the same t go to the one met first.
     pub fn closest_hit(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
+        let tri_ray = TriangleRay::new(ray)?;
         let mut best: Option<Hit> = None;
         let mut t_best = t_max;
         self.traverse(ray, t_max, |slot, tri| {
-            if let Some((t, u, v)) = intersect_triangle(ray, tri, t_best) {
+            if let Some((t, u, v)) = tri_ray.intersect(tri, t_best) {
                 t_best = t;
                 best = Some(Hit {
                     t,
@@ -179,9 +214,12 @@ impl Bvh {
 
     /// Whether anything is hit at 0 < t < `t_max` (a shadow ray).
     pub fn any_hit(&self, ray: &Ray, t_max: f32) -> bool {
+        let Some(tri_ray) = TriangleRay::new(ray) else {
+            return false;
+        };
         let mut hit = false;
         self.traverse(ray, t_max, |_, tri| {
-            hit = intersect_triangle(ray, tri, t_max).is_some();
+            hit = tri_ray.intersect(tri, t_max).is_some();
             (hit, t_max)
         });
         hit
@@ -284,13 +322,14 @@ impl TriangleMesh {
     /// [`Bvh::closest_hit`] (same test, same tie rule: the lowest triangle index among
     /// equal t). Triangles with out-of-range indices are skipped.
     pub fn closest_hit_brute_force(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
+        let tri_ray = TriangleRay::new(ray)?;
         let mut best: Option<Hit> = None;
         let mut t_best = t_max;
         for i in 0..self.indices.len() {
             let Some(tri) = self.triangle(i) else {
                 continue;
             };
-            if let Some((t, u, v)) = intersect_triangle(ray, tri, t_best) {
+            if let Some((t, u, v)) = tri_ray.intersect(tri, t_best) {
                 t_best = t;
                 best = Some(Hit {
                     t,
@@ -305,9 +344,12 @@ impl TriangleMesh {
 
     /// Whether any triangle is hit at 0 < t < `t_max`, one by one.
     pub fn any_hit_brute_force(&self, ray: &Ray, t_max: f32) -> bool {
+        let Some(tri_ray) = TriangleRay::new(ray) else {
+            return false;
+        };
         (0..self.indices.len()).any(|i| {
             self.triangle(i)
-                .is_some_and(|tri| intersect_triangle(ray, tri, t_max).is_some())
+                .is_some_and(|tri| tri_ray.intersect(tri, t_max).is_some())
         })
     }
 }
