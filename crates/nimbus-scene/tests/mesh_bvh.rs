@@ -54,8 +54,9 @@ impl Rng {
     }
 }
 
-/// `n` random triangles in [-1, 1]³, of very mixed sizes, some sharing vertices.
-fn random_soup(n: usize, rng: &mut Rng) -> TriangleMesh {
+/// `n` random triangles in [-1, 1]³, of very mixed sizes, a quarter of them long
+/// slivers to an older vertex when `slivers`.
+fn random_soup(n: usize, rng: &mut Rng, slivers: bool) -> TriangleMesh {
     let mut mesh = TriangleMesh::default();
     for _ in 0..n {
         let centre = rng.vec3(-1.0, 1.0);
@@ -64,7 +65,7 @@ fn random_soup(n: usize, rng: &mut Rng) -> TriangleMesh {
         for _ in 0..3 {
             mesh.positions.push(centre + rng.vec3(-size, size));
         }
-        let third = if base >= 3 && rng.below(4) == 0 {
+        let third = if slivers && base >= 3 && rng.below(4) == 0 {
             rng.below(base as usize) as u32 // reuse an older vertex: a long sliver
         } else {
             base + 2
@@ -289,7 +290,7 @@ fn node_is_32_bytes_and_pod() {
 #[test]
 fn random_soup_agrees_with_brute_force() {
     let mut rng = Rng(1);
-    let mesh = random_soup(3000, &mut rng);
+    let mesh = random_soup(3000, &mut rng, true);
     let bvh = build(&mesh);
     check_invariants(&mesh, &bvh);
     let hits = check_agreement(&mesh, &bvh, 5000, &mut rng);
@@ -527,8 +528,26 @@ fn triangle_test_basics() {
     assert!(intersect_triangle(&corner, tri, f32::INFINITY).is_some());
 }
 
+/// Seconds this thread has run on a CPU (Linux: /proc/thread-self/schedstat), so
+/// timings on a shared, loaded machine count only our own work; `None` elsewhere.
+fn thread_cpu_seconds() -> Option<f64> {
+    let text = std::fs::read_to_string("/proc/thread-self/schedstat").ok()?;
+    let ns: f64 = text.split_whitespace().next()?.parse().ok()?;
+    Some(ns * 1e-9)
+}
+
+/// Wall and CPU seconds of `f`.
+fn timed<T>(f: impl FnOnce() -> T) -> (T, f64, Option<f64>) {
+    let cpu = thread_cpu_seconds();
+    let wall = std::time::Instant::now();
+    let value = f();
+    let wall = wall.elapsed().as_secs_f64();
+    let cpu = cpu.zip(thread_cpu_seconds()).map(|(a, b)| b - a);
+    (value, wall, cpu)
+}
+
 /// Build times for the final report: `cargo test --release -p nimbus-scene --test
-/// mesh_bvh -- --ignored --nocapture build_times`.
+/// mesh_bvh -- --ignored --nocapture build_times` (one thread).
 #[test]
 #[ignore = "timing, run in release by hand"]
 fn build_times() {
@@ -549,26 +568,31 @@ fn build_times() {
             "uv sphere 1M",
             TriangleMesh::uv_sphere(Vec3::ZERO, 1.0, 1000, 501),
         ),
-        ("random soup 1M", random_soup(1_000_000, &mut Rng(6))),
+        ("random soup 1M", random_soup(1_000_000, &mut Rng(6), false)),
+        // A quarter are slivers across the cube: every box overlaps every ray, the
+        // worst case for a BVH without spatial splits.
+        (
+            "random soup with slivers 100k",
+            random_soup(100_000, &mut Rng(6), true),
+        ),
     ];
+    let show = |cpu: Option<f64>| cpu.map_or("?".to_string(), |c| format!("{c:.3}"));
     for (name, mesh) in &meshes {
-        let start = std::time::Instant::now();
-        let bvh = build(mesh);
-        let build_s = start.elapsed().as_secs_f64();
+        let (bvh, build_wall, build_cpu) = timed(|| build(mesh));
         let rays = rays(mesh, 100_000, &mut Rng(7));
-        let start = std::time::Instant::now();
-        let hits = rays
-            .iter()
-            .filter(|r| bvh.closest_hit(r, f32::INFINITY).is_some())
-            .count();
-        let trace_s = start.elapsed().as_secs_f64();
+        let (hits, trace_wall, trace_cpu) = timed(|| {
+            rays.iter()
+                .filter(|r| bvh.closest_hit(r, f32::INFINITY).is_some())
+                .count()
+        });
         println!(
-            "{name}: {} triangles, build {:.3} s, {} nodes, depth {}; 100k closest-hit rays {:.3} s ({hits} hits)",
+            "{name}: {} triangles, build {build_wall:.3} s wall / {} s CPU, {} nodes, depth {}; \
+             100k closest-hit rays {trace_wall:.3} s wall / {} s CPU ({hits} hits)",
             mesh.triangle_count(),
-            build_s,
+            show(build_cpu),
             bvh.nodes().len(),
             bvh.depth(),
-            trace_s
+            show(trace_cpu),
         );
     }
 }

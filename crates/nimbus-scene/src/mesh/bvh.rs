@@ -65,12 +65,14 @@ pub struct Bvh {
     depth: u32,
 }
 
-/// A triangle's bounds and centroid while building.
+/// A triangle's bounds, centroid and index while building. The builder reorders
+/// these in place (not indices into them), so its passes read memory in order.
 #[derive(Clone, Copy)]
 struct Prim {
     lo: Vec3,
     hi: Vec3,
     centroid: Vec3,
+    id: u32,
 }
 
 #[derive(Clone, Copy)]
@@ -104,9 +106,9 @@ fn levels_needed(n: usize) -> u32 {
     leaves.next_power_of_two().trailing_zeros()
 }
 
-struct Builder<'a> {
-    prims: &'a [Prim],
-    ids: Vec<u32>,
+struct Builder {
+    /// In slot order: a node's triangles are a contiguous range.
+    prims: Vec<Prim>,
     nodes: Vec<BvhNode>,
     depth: u32,
 }
@@ -134,6 +136,7 @@ impl Bvh {
                 lo,
                 hi,
                 centroid: (lo + hi) * 0.5,
+                id: i as u32,
             });
         }
         let n = prims.len();
@@ -141,16 +144,18 @@ impl Bvh {
             bail!("BVH build: {n} triangles need more than {BVH_MAX_DEPTH} levels");
         }
         let mut builder = Builder {
-            prims: &prims,
-            ids: (0..n as u32).collect(),
+            prims,
             nodes: Vec::with_capacity(2 * n.div_ceil(2) + 1),
             depth: 0,
         };
         builder.nodes.push(BvhNode::default());
         builder.build(0, 0, n, 0);
         let Builder {
-            ids, nodes, depth, ..
+            prims,
+            nodes,
+            depth,
         } = builder;
+        let ids: Vec<u32> = prims.iter().map(|p| p.id).collect();
         let leaf_triangles = ids
             .iter()
             .map(|&i| mesh.triangle(i as usize).unwrap_or([Vec3::ZERO; 3]))
@@ -192,14 +197,10 @@ impl Bvh {
     }
 }
 
-impl Builder<'_> {
-    fn prim(&self, slot: usize) -> Prim {
-        let id = self.ids.get(slot).copied().unwrap_or(0) as usize;
-        self.prims.get(id).copied().unwrap_or(Prim {
-            lo: Vec3::ZERO,
-            hi: Vec3::ZERO,
-            centroid: Vec3::ZERO,
-        })
+impl Builder {
+    /// The triangles in slots `start..end`.
+    fn slots(&self, start: usize, end: usize) -> &[Prim] {
+        self.prims.get(start..end).unwrap_or(&[])
     }
 
     /// Fills node `node` with the triangles in slots `start..end` at `depth`.
@@ -207,8 +208,7 @@ impl Builder<'_> {
         let n = end - start;
         let mut bounds = Bounds::EMPTY;
         let mut centroids = Bounds::EMPTY;
-        for slot in start..end {
-            let p = self.prim(slot);
+        for p in self.slots(start, end) {
             bounds.grow(p.lo, p.hi);
             centroids.grow(p.centroid, p.centroid);
         }
@@ -283,8 +283,7 @@ impl Builder<'_> {
         let extent = centroids.hi - centroids.lo;
         let scale = Vec3::splat(BINS as f32) / extent;
         let mut bins = [[(Bounds::EMPTY, 0u32); BINS]; 3];
-        for slot in start..end {
-            let p = self.prim(slot);
+        for p in self.slots(start, end) {
             for (axis, axis_bins) in bins.iter_mut().enumerate() {
                 if extent[axis] <= 0.0 {
                     continue;
@@ -349,11 +348,12 @@ impl Builder<'_> {
         let mut i = start;
         let mut j = end;
         while i < j {
-            if Self::bin(self.prim(i).centroid[axis], lo, scale) <= bin {
+            let c = self.prims.get(i).map_or(0.0, |p| p.centroid[axis]);
+            if Self::bin(c, lo, scale) <= bin {
                 i += 1;
             } else {
                 j -= 1;
-                self.ids.swap(i, j);
+                self.prims.swap(i, j);
             }
         }
         i
@@ -364,12 +364,9 @@ impl Builder<'_> {
     fn median_split(&mut self, start: usize, end: usize, centroids: &Bounds) -> usize {
         let axis = max_axis(centroids.hi - centroids.lo);
         let mid = start + (end - start) / 2;
-        let prims = self.prims;
-        if let Some(slots) = self.ids.get_mut(start..end) {
-            slots.select_nth_unstable_by(mid - start, |&a, &b| {
-                let ca: f32 = prims.get(a as usize).map_or(0.0, |p| p.centroid[axis]);
-                let cb: f32 = prims.get(b as usize).map_or(0.0, |p| p.centroid[axis]);
-                ca.total_cmp(&cb)
+        if let Some(slots) = self.prims.get_mut(start..end) {
+            slots.select_nth_unstable_by(mid - start, |a, b| {
+                a.centroid[axis].total_cmp(&b.centroid[axis])
             });
         }
         mid

@@ -192,20 +192,17 @@ impl BoxRay {
 
 impl Bvh {
     /// The closest hit at 0 < t < `t_max` (use `f32::INFINITY` for no limit), or
-    /// `None`. Ties between triangles at the same t go to the one met first.
+    /// `None`. Between triangles at exactly the same t (a ray through a shared edge)
+    /// the one visited first wins, which may differ from brute force's choice; t is
+    /// bit-identical to brute force's either way.
     pub fn closest_hit(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
         let tri_ray = TriangleRay::new(ray)?;
         let mut best: Option<Hit> = None;
         let mut t_best = t_max;
-        self.traverse(ray, t_max, |slot, tri| {
+        self.traverse(ray, t_max, |triangle, tri| {
             if let Some((t, u, v)) = tri_ray.intersect(tri, t_best) {
                 t_best = t;
-                best = Some(Hit {
-                    t,
-                    triangle: slot,
-                    u,
-                    v,
-                });
+                best = Some(Hit { t, triangle, u, v });
             }
             (false, t_best)
         });
@@ -227,7 +224,8 @@ impl Bvh {
 
     /// Visits the leaves the ray may hit, nearer child first, with a fixed stack of
     /// [`BVH_STACK_SIZE`] entries (the GPU's discipline: descend into the nearer child,
-    /// push the farther). `visit(triangle, corners)` returns (stop, new t_max).
+    /// push the farther). `visit(mesh triangle index, corners)` returns (stop, new
+    /// t_max).
     fn traverse(
         &self,
         ray: &Ray,
@@ -319,8 +317,9 @@ impl Bvh {
 
 impl TriangleMesh {
     /// The closest hit over all triangles, one by one: the reference for
-    /// [`Bvh::closest_hit`] (same test, same tie rule: the lowest triangle index among
-    /// equal t). Triangles with out-of-range indices are skipped.
+    /// [`Bvh::closest_hit`] (the same test, so the same t for the same triangle; among
+    /// equal t the lowest triangle index wins). Triangles with out-of-range indices
+    /// are skipped.
     pub fn closest_hit_brute_force(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
         let tri_ray = TriangleRay::new(ray)?;
         let mut best: Option<Hit> = None;
