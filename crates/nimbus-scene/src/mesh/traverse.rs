@@ -281,6 +281,7 @@ impl Bvh {
                             (left + 1, left, ta)
                         };
                         // Cannot overflow: the build bounds the depth (see `Bvh`).
+                        debug_assert!(sp < BVH_STACK_SIZE, "BVH deeper than its bound");
                         if let Some(entry) = stack.get_mut(sp) {
                             *entry = (far as u32, t_far);
                             sp += 1;
