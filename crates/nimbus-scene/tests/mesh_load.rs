@@ -143,6 +143,14 @@ const PLY_ASCII: &str = "ply\n\
 fn ply_ascii_reads_vertices_faces_and_skips_the_rest() {
     let loaded = ok(ply(PLY_ASCII.as_bytes()));
     assert_eq!(loaded.mesh, square_and_triangle());
+    // An element without properties holds no data, whatever its count (read at once,
+    // not counted through); a second `face` element is skipped like any other.
+    let text = PLY_ASCII.replace(
+        "end_header\n",
+        "element nothing 4294967296\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n",
+    );
+    let text = format!("{text}3 0 1 2\n");
+    assert_eq!(ok(ply(text.as_bytes())).mesh, square_and_triangle());
 }
 
 /// A PLY value to write in binary.

@@ -122,7 +122,8 @@ pub(crate) fn read_ply(reader: &mut dyn BufRead, name: &str) -> Result<Polygons>
             big_endian: format == Format::BinaryBig,
         },
     };
-    let mut vertices_read = false;
+    // Only the first `vertex` and `face` elements count; later ones are skipped.
+    let (mut vertices_read, mut faces_read) = (false, false);
     for element in &elements {
         match element.name.as_str() {
             "vertex" if !vertices_read => {
@@ -134,7 +135,8 @@ pub(crate) fn read_ply(reader: &mut dyn BufRead, name: &str) -> Result<Polygons>
                     out.positions.push(p);
                 }
             }
-            "face" if out.arities.is_empty() => {
+            "face" if !faces_read => {
+                faces_read = true;
                 out.arities.reserve_exact(initial_capacity(element.count));
                 out.corners.reserve(3 * initial_capacity(element.count));
                 for i in 0..element.count {
@@ -142,6 +144,8 @@ pub(crate) fn read_ply(reader: &mut dyn BufRead, name: &str) -> Result<Polygons>
                         .map_err(|e| anyhow!("{name}: face #{}: {e}", i + 1))?;
                 }
             }
+            // An element without properties has no data, whatever its count.
+            _ if element.properties.is_empty() => {}
             _ => {
                 for i in 0..element.count {
                     for property in &element.properties {
