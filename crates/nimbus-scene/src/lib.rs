@@ -114,11 +114,19 @@
 //! as an affine matrix, the background and the active bounding box, so memory follows
 //! the active voxels. [`list_grids`] names a file's grids for messages. [`vdb`] lists
 //! what of the format is supported. The scene parser does not use it yet.
+//!
+//! # Triangle meshes
+//! The [`mesh`] module (re-exported here) loads `.obj` / `.ply` files into a
+//! [`TriangleMesh`] ([`load_mesh`], placed by a [`ToWorld`]), builds a [`Bvh`] of
+//! 32-byte [`BvhNode`]s for the GPU, and answers rays on the CPU
+//! ([`Bvh::closest_hit`], [`Bvh::any_hit`]) as the reference for the GPU traversal.
+//! It is not yet wired into the scene's `[[shape]] type = "mesh"`.
 
 mod envmap;
 mod fields;
 mod files;
 mod geometry;
+pub mod mesh;
 mod overrides;
 mod parse;
 pub mod precision;
@@ -141,6 +149,12 @@ pub use files::{
     check_grid_dims, read_vol_header, VolHeader, MAX_GRID_DIM, MAX_GRID_VOXELS, VOL_HEADER_BYTES,
 };
 pub use geometry::MAX_GOBO_POINTS;
+pub use mesh::{
+    intersect_triangle, load_mesh, read_mesh, Bvh, BvhNode, Hit, LoadedMesh, MeshFormat, Ray,
+    ToWorld, TriangleMesh, BVH_MAX_DEPTH, BVH_MAX_LEAF_TRIANGLES, BVH_STACK_SIZE,
+    MAX_FACE_NONPLANARITY, MAX_FACE_VERTICES, MAX_LINE_BYTES, MAX_MESH_TRIANGLES,
+    MAX_MESH_VERTICES,
+};
 pub use overrides::FieldOverride;
 pub use parse::{
     MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_LENGTH_M, MAX_SIGMA_T, MAX_SPATIAL_NEIGHBORS, RESTIR_KEYS,
