@@ -96,6 +96,8 @@ pub const ALL: [(&str, u32); 29] = [
 
 // The limits that depend on each other.
 const _: () = assert!(MAX_CANDIDATES == MAX_SPATIAL_NEIGHBORS + 1);
+// The scene loader validates `spatial_neighbors` against its own copy of the limit.
+const _: () = assert!(MAX_SPATIAL_NEIGHBORS == nimbus_scene::MAX_SPATIAL_NEIGHBORS);
 // k' has 5 bits in a reservoir's info word.
 const _: () = assert!(MAX_RESTIR_BOUNCES <= 31);
 

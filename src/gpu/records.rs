@@ -75,7 +75,7 @@ pub struct GridParamsGpu {
     pub super_dims: [u32; 4],
 }
 
-/// `BaselineUniforms` in baseline/pathtrace.comp (std140).
+/// `BaselineUniforms` in grid_types.glsl (std140).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
 pub struct BaselineUniformsGpu {
@@ -95,7 +95,7 @@ pub struct BaselineUniformsGpu {
 pub const LIGHT_POINT: u32 = 1;
 pub const LIGHT_SPHERE: u32 = 2;
 
-/// `RestirUniforms` in restir.glsl (std140).
+/// `RestirUniforms` in restir/resources.glsl (std140).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
 pub struct RestirUniformsGpu {
@@ -109,7 +109,7 @@ pub struct RestirUniformsGpu {
     pub velocity_dims: [u32; 4],
 }
 
-/// `RestirPush` in restir.glsl.
+/// `RestirPush` in restir/resources.glsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
 pub struct RestirPush {
@@ -120,9 +120,10 @@ pub struct RestirPush {
 }
 
 /// Bytes per pixel of one reservoir slot for K = `max_bounces` (`Reservoir` in
-/// restir.glsl): a 32-byte header (w_sum, M, p_hat, packed info, light point,
+/// reservoir.glsl): a 32-byte header (w_sum, M, p_hat, packed info, light point,
 /// octahedral light direction) and per vertex z (f32) plus an octahedral direction
 /// (2 × 16 bits).
 pub fn reservoir_bytes(max_bounces: u32) -> u64 {
-    4 * u64::from(8 + 2 * max_bounces)
+    use super::features::{RESERVOIR_HEADER_UINTS, RESERVOIR_VERTEX_UINTS};
+    4 * u64::from(RESERVOIR_HEADER_UINTS + RESERVOIR_VERTEX_UINTS * max_bounces)
 }

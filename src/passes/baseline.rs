@@ -16,19 +16,20 @@ use super::{
 use crate::gpu::{
     bindings, box_records, non_empty, shape_records, FrameUniforms, GpuGrid, PassPush,
 };
+use crate::gpu::features::*;
 use crate::plan::BaselinePlan;
 use crate::shaders;
 
 /// The specialization constants of `pathtrace.comp` for a plan.
 pub fn specialization(plan: &BaselinePlan) -> [(u32, SpecValue); 7] {
     [
-        (8, SpecValue::Bool(plan.has_env_map)),
-        (4, SpecValue::Bool(plan.has_boxes)),
-        (0, SpecValue::Bool(plan.has_shapes)),
-        (2, SpecValue::Bool(plan.has_env)),
-        (5, SpecValue::U32(plan.max_bounces)),
-        (6, SpecValue::Bool(plan.pixel_jitter)),
-        (7, SpecValue::Bool(plan.has_emission)),
+        (SC_ID_HAS_ENV_MAP, SpecValue::Bool(plan.has_env_map)),
+        (SC_ID_HAS_MEDIA, SpecValue::Bool(plan.has_boxes)),
+        (SC_ID_HAS_SHAPES, SpecValue::Bool(plan.has_shapes)),
+        (SC_ID_HAS_ENV, SpecValue::Bool(plan.has_env)),
+        (SC_ID_MAX_BOUNCES, SpecValue::U32(plan.max_bounces)),
+        (SC_ID_PIXEL_JITTER, SpecValue::Bool(plan.pixel_jitter)),
+        (SC_ID_HAS_EMISSION, SpecValue::Bool(plan.has_emission)),
     ]
 }
 

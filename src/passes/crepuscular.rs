@@ -10,6 +10,7 @@ use nimbus_gpu::{
 use nimbus_scene::{CameraFrame, Scene};
 
 use super::{compute_pipeline, image_groups, upload_records, FrameConstants, Pass, Targets};
+use crate::gpu::features::*;
 use crate::gpu::{bindings, non_empty, FrameUniforms, GpuScene, PassPush};
 use crate::plan::{estimator_id, CrepuscularPlan};
 use crate::shaders;
@@ -18,13 +19,13 @@ use crate::shaders;
 pub fn specialization(plan: &CrepuscularPlan) -> [(u32, SpecValue); 7] {
     let f = plan.features;
     [
-        (0, SpecValue::Bool(f.has_shapes)),
-        (1, SpecValue::Bool(f.has_gobos)),
-        (2, SpecValue::Bool(f.has_env)),
-        (3, SpecValue::U32(estimator_id(plan.estimator))),
-        (4, SpecValue::Bool(f.has_media)),
-        (5, SpecValue::U32(plan.max_bounces)),
-        (6, SpecValue::Bool(f.pixel_jitter)),
+        (SC_ID_HAS_SHAPES, SpecValue::Bool(f.has_shapes)),
+        (SC_ID_HAS_GOBOS, SpecValue::Bool(f.has_gobos)),
+        (SC_ID_HAS_ENV, SpecValue::Bool(f.has_env)),
+        (SC_ID_ESTIMATOR, SpecValue::U32(estimator_id(plan.estimator))),
+        (SC_ID_HAS_MEDIA, SpecValue::Bool(f.has_media)),
+        (SC_ID_MAX_BOUNCES, SpecValue::U32(plan.max_bounces)),
+        (SC_ID_PIXEL_JITTER, SpecValue::Bool(f.pixel_jitter)),
     ]
 }
 

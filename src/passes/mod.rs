@@ -42,7 +42,10 @@ use crate::gpu::{bindings, frame_uniforms, FrameUniforms, GpuGrid};
 use crate::plan::{Integrator, RenderPlan};
 
 /// Workgroup size of every image-space shader (`local_size_x`, `local_size_y`).
-pub const GROUP_SIZE: [u32; 2] = [8, 8];
+pub const GROUP_SIZE: [u32; 2] = [
+    crate::gpu::features::GROUP_SIZE_X,
+    crate::gpu::features::GROUP_SIZE_Y,
+];
 
 /// A render pass: created once per render from its plan, then recorded once per frame.
 pub trait Pass {

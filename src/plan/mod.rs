@@ -18,12 +18,14 @@ use std::fmt::Write as _;
 use anyhow::Result;
 use nimbus_scene::{BoxEstimator, Medium, Scene};
 
+use crate::gpu::features;
+
 pub use volume::{MAX_BASELINE_LIGHTS, MAX_RESTIR_BOUNCES, MAX_SPATIAL_NEIGHBORS};
 
-/// Most box media the crepuscular pass takes (`MAX_MEDIA` in crepuscular.comp).
-pub const MAX_BOX_MEDIA: usize = 16;
-/// Most directional lights the crepuscular pass takes (`MAX_LIGHTS` in crepuscular.comp).
-pub const MAX_DIRECTIONAL_LIGHTS: usize = 16;
+/// Most box media the crepuscular pass takes (`MAX_MEDIA` in features.glsl).
+pub const MAX_BOX_MEDIA: usize = features::MAX_MEDIA as usize;
+/// Most directional lights the crepuscular pass takes (`MAX_LIGHTS` in features.glsl).
+pub const MAX_DIRECTIONAL_LIGHTS: usize = features::MAX_LIGHTS as usize;
 
 /// The passes and features for one scene.
 #[derive(Clone, Debug, PartialEq)]
@@ -160,11 +162,11 @@ impl Decision {
 /// The estimator ids of `SC_ESTIMATOR` in `shaders/box/crepuscular.comp`.
 pub fn estimator_id(estimator: BoxEstimator) -> u32 {
     match estimator {
-        BoxEstimator::Mcwvds => 0,
-        BoxEstimator::Reds => 1,
-        BoxEstimator::Rees => 2,
-        BoxEstimator::Rm => 3,
-        BoxEstimator::Mcds => 4,
+        BoxEstimator::Mcwvds => features::ESTIMATOR_MCWVDS,
+        BoxEstimator::Reds => features::ESTIMATOR_REDS,
+        BoxEstimator::Rees => features::ESTIMATOR_REES,
+        BoxEstimator::Rm => features::ESTIMATOR_RM,
+        BoxEstimator::Mcds => features::ESTIMATOR_MCDS,
     }
 }
 

@@ -7,12 +7,15 @@ use nimbus_scene::{Light, Medium, Scene};
 use super::{BaselinePlan, Decision, Integrator, RestirPlan, MAX_BOX_MEDIA};
 
 /// Most scattering events per path ReSTIR stores (reservoirs hold K vertices).
-pub const MAX_RESTIR_BOUNCES: u32 = 16;
+pub const MAX_RESTIR_BOUNCES: u32 = crate::gpu::features::MAX_RESTIR_BOUNCES;
 /// Most spatial neighbours (validated by the scene loader).
 pub use nimbus_scene::MAX_SPATIAL_NEIGHBORS;
 
-/// Most lights the baseline path tracer takes (`MAX_LIGHTS` in pathtrace.comp).
+/// Most analytic lights of a grid scene. ReSTIR names a light by an 8-bit index
+/// (`MAX_RESTIR_LIGHTS`, 255); 16 keeps the per-frame light records and their power CDF
+/// small for both grid integrators.
 pub const MAX_BASELINE_LIGHTS: usize = 16;
+const _: () = assert!(MAX_BASELINE_LIGHTS <= crate::gpu::features::MAX_RESTIR_LIGHTS as usize);
 
 /// The plan of a scene with a grid medium and its decision rows.
 pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {

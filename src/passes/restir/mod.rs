@@ -8,7 +8,8 @@
 //! - [`resources`]: the GPU objects, by name.
 //!
 //! Reservoirs live in one storage buffer of three slots of `pixels × stride` u32 each
-//! (`stride = 8 + 2K`: a 32-byte header and 8 bytes per path vertex, see restir.glsl).
+//! (`stride = 8 + 2K`: a 32-byte header and 8 bytes per path vertex, see
+//! `shaders/include/reservoir.glsl`).
 
 pub mod resources;
 pub mod schedule;
@@ -26,6 +27,7 @@ use crate::gpu::{
     frame_uniforms, non_empty, BaselineUniformsGpu, FrameUniforms, GpuGrid, LightGpu, LightSet,
     RestirPush, RestirUniformsGpu,
 };
+use crate::gpu::features::*;
 use crate::plan::RestirPlan;
 
 pub use crate::gpu::reservoir_bytes;
@@ -33,14 +35,14 @@ pub use crate::gpu::reservoir_bytes;
 /// The specialization constants of the ReSTIR shaders for a plan.
 pub fn specialization(plan: &RestirPlan) -> [(u32, SpecValue); 8] {
     [
-        (2, SpecValue::Bool(plan.has_env)),
-        (5, SpecValue::U32(plan.max_bounces)),
-        (6, SpecValue::Bool(plan.pixel_jitter)),
-        (7, SpecValue::Bool(plan.has_emission)),
-        (8, SpecValue::Bool(plan.has_env_map)),
-        (9, SpecValue::Bool(plan.vertex_reuse)),
-        (10, SpecValue::Bool(plan.final_ratio_tracking)),
-        (11, SpecValue::Bool(plan.has_velocity)),
+        (SC_ID_HAS_ENV, SpecValue::Bool(plan.has_env)),
+        (SC_ID_MAX_BOUNCES, SpecValue::U32(plan.max_bounces)),
+        (SC_ID_PIXEL_JITTER, SpecValue::Bool(plan.pixel_jitter)),
+        (SC_ID_HAS_EMISSION, SpecValue::Bool(plan.has_emission)),
+        (SC_ID_HAS_ENV_MAP, SpecValue::Bool(plan.has_env_map)),
+        (SC_ID_REUSE_VERTEX, SpecValue::Bool(plan.vertex_reuse)),
+        (SC_ID_FINAL_RATIO_TRACKING, SpecValue::Bool(plan.final_ratio_tracking)),
+        (SC_ID_HAS_VELOCITY, SpecValue::Bool(plan.has_velocity)),
     ]
 }
 
