@@ -169,7 +169,7 @@ mod tests {
     /// `pub const NAME: u32 = value;` lines of this file (every constant, whether or
     /// not `ALL` lists it).
     fn rust_consts() -> BTreeMap<String, u64> {
-        let path = format!("{ROOT}/src/features.rs");
+        let path = format!("{ROOT}/src/gpu/features.rs");
         let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
         text.lines()
             .filter_map(|line| {
@@ -197,19 +197,19 @@ mod tests {
         assert_eq!(
             rust_consts(),
             listed,
-            "ALL must list every `pub const` of src/features.rs under its own name"
+            "ALL must list every `pub const` of src/gpu/features.rs under its own name"
         );
         for (name, value) in &listed {
             assert_eq!(
                 glsl.get(name),
                 Some(value),
-                "{name}: src/features.rs has {value}, features.glsl differs or lacks it"
+                "{name}: src/gpu/features.rs has {value}, features.glsl differs or lacks it"
             );
         }
         let extra: Vec<&String> = glsl.keys().filter(|k| !listed.contains_key(*k)).collect();
         assert!(
             extra.is_empty(),
-            "features.glsl defines what src/features.rs lacks: {extra:?}"
+            "features.glsl defines what src/gpu/features.rs lacks: {extra:?}"
         );
     }
 
