@@ -1,6 +1,6 @@
 // The numbers the shaders and the Rust side must agree on: specialization-constant IDs,
 // the box estimator IDs and the limits the shaders hard-code. Mirrored by
-// src/features.rs, whose unit test parses every `#define NAME <integer>` line here and
+// src/gpu/features.rs, whose unit test parses every `#define NAME <integer>` line here and
 // checks both sides name the same constants with the same values; keep every value a
 // plain integer literal (a `u` suffix is allowed).
 #ifndef NIMBUS_FEATURES_GLSL
