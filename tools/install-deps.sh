@@ -34,9 +34,14 @@ export DEBIAN_FRONTEND=noninteractive
 if ! command -v cargo >/dev/null 2>&1; then
     echo "install-deps: no cargo on PATH; installing stable Rust with rustup" >&2
     curl --proto '=https' --tlsv1.2 -sSf https://sh.rustup.rs \
-        | sh -s -- -y --profile minimal --default-toolchain stable
+        | sh -s -- -y --profile minimal --default-toolchain stable --component clippy,rustfmt
     for tool in cargo rustc rustup; do
         "${sudo[@]}" ln -sf "$HOME/.cargo/bin/$tool" "/usr/local/bin/$tool"
     done
     cargo --version
+fi
+
+# The checks the tests run with: formatting and lints.
+if command -v rustup >/dev/null 2>&1; then
+    rustup component add clippy rustfmt >/dev/null
 fi

@@ -111,8 +111,8 @@ impl VoxelGrid {
     /// 1 + ceil(log2(max dim)) levels (13 at most for dims up to 4096).
     pub fn mip_chain(&self) -> Vec<VoxelGrid> {
         let mut chain = vec![self.clone()];
-        while chain.last().is_some_and(|g| g.dims != [1, 1, 1]) {
-            let next = downsample(chain.last().expect("chain is non-empty"));
+        while let Some(last) = chain.last().filter(|g| g.dims != [1, 1, 1]) {
+            let next = downsample(last);
             chain.push(next);
         }
         chain

@@ -2,12 +2,10 @@
 //! bad input. Runs the real binary with validation layers on (NIMBUS_VALIDATION=1),
 //! under which any validation error makes the command fail.
 
-mod common;
-
-use common::cli::{nimbus, text};
+use crate::common::cli::{nimbus, text};
 
 fn scratch(name: &str) -> std::path::PathBuf {
-    common::cli::scratch("cli", name)
+    crate::common::cli::scratch("cli", name)
 }
 
 #[test]

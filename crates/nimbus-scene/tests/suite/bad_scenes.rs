@@ -1,9 +1,7 @@
 //! Scene files that must be rejected, each with a message naming the file, the table
 //! and the field.
 
-mod common;
-
-use common::*;
+use crate::common::*;
 use nimbus_scene::{load, parse_str};
 
 const BOX: &str = "[[medium]]\ntype = \"box\"\ncenter = [0, 0, 0]\nsize = [1, 1, 1]\n";

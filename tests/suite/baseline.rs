@@ -2,10 +2,8 @@
 //! with the independent CPU delta-tracking oracle, and a golden image. Validation
 //! layers are on.
 
-mod common;
-
-use common::gpu::{context, render_checked, scene, se_of_mean};
-use common::{compare_with_golden, SAME_DEVICE};
+use crate::common::gpu::{context, render_checked, scene, se_of_mean};
+use crate::common::{compare_with_golden, SAME_DEVICE};
 
 /// A procedural cloud; `{albedo}`, `{g}`, `{bounces}`, `{scale}`, `{lights}` and the
 /// camera position are filled in per test.
@@ -230,7 +228,7 @@ fn box_beside_grid_matches_the_cpu_oracle() {
 /// matches the CPU oracle at K = 1 and 3.
 #[test]
 fn environment_map_matches_the_cpu_oracle() {
-    let dir = common::cli::scratch("baseline", "envmap");
+    let dir = crate::common::cli::scratch("baseline", "envmap");
     let (w, h) = (32u32, 16u32);
     let mut sky = nimbus::output::ImageRgb::new(w, h);
     for y in 0..h {

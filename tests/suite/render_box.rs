@@ -2,9 +2,7 @@
 //! the independent f64 reference, and finiteness on degenerate inputs. Validation
 //! layers are on; any validation error fails the test.
 
-mod common;
-
-use common::{compare_with_golden, SAME_DEVICE};
+use crate::common::{compare_with_golden, SAME_DEVICE};
 use nimbus::output::ImageRgb;
 use nimbus::renderer::RenderResult;
 use nimbus::DEFAULT_SCENE;
@@ -12,10 +10,10 @@ use nimbus_gpu::Context;
 use nimbus_reference::quadrature::{self, ReferenceOptions};
 use nimbus_scene::{BoxEstimator, Scene};
 
-use common::gpu::{context, scene};
+use crate::common::gpu::{context, scene};
 
 fn render_scene(ctx: &Context, scene: &Scene, box_samples: Option<u32>) -> RenderResult {
-    common::gpu::render_checked(ctx, scene, box_samples)
+    crate::common::gpu::render_checked(ctx, scene, box_samples)
 }
 
 /// An unoccluded rotated box seen from outside, under one directional light.
@@ -363,7 +361,7 @@ box_estimator = "rm"
             scene.integrator.box_estimator = estimator;
             let gpu = render_scene(&ctx, &scene, Some(32));
             let g_mean = gpu.image.mean()[0];
-            let se_mean = common::gpu::se_of_mean(&gpu.std_error);
+            let se_mean = crate::common::gpu::se_of_mean(&gpu.std_error);
             let e = estimator.name();
             println!("{name} / {e}: gpu {g_mean:.6e} ± {se_mean:.2e}, reference {r_mean:.6e}");
             assert!(

@@ -1,11 +1,9 @@
 //! Animation: `[[light.keyframe]]` (parsing, interpolation, errors), the density frame
 //! in effect at a frame, and the dims checks for animated grids.
 
-mod common;
-
 use std::path::PathBuf;
 
-use common::*;
+use crate::common::*;
 use glam::Vec3;
 use nimbus_scene::*;
 

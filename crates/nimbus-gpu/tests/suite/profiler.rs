@@ -1,7 +1,5 @@
 //! Timestamp scopes around real dispatches on the device.
 
-mod common;
-
 use nimbus_gpu::{
     compute_barrier, summarize, vk, write_chrome_trace, BindingDesc, BufferDesc, ComputePipeline,
     ComputePipelineDesc, Context, DescriptorSet, DescriptorWrite, Profiler, ScopeResult,
@@ -30,7 +28,7 @@ struct Work {
 }
 
 fn work(ctx: &Context) -> Work {
-    let spirv = common::compile_compute(SHADER, "busy.comp");
+    let spirv = crate::common::compile_compute(SHADER, "busy.comp");
     let bindings = [BindingDesc::storage_buffer(0)];
     let pipeline = ctx
         .create_compute_pipeline(
@@ -96,7 +94,7 @@ fn record_frame(ctx: &Context, profiler: &mut Profiler, work: &Work) -> Vec<Scop
 
 #[test]
 fn nested_scopes_resolve_into_a_consistent_tree() {
-    let ctx = common::validated_context();
+    let ctx = crate::common::validated_context();
     let work = work(&ctx);
     let mut profiler = Profiler::new(&ctx, 8, "test profiler").expect("profiler");
 
@@ -141,12 +139,12 @@ fn nested_scopes_resolve_into_a_consistent_tree() {
 
     profiler.destroy(&ctx);
     destroy(&ctx, work);
-    common::assert_no_validation_errors(&ctx);
+    crate::common::assert_no_validation_errors(&ctx);
 }
 
 #[test]
 fn misuse_is_reported_not_dropped() {
-    let ctx = common::validated_context();
+    let ctx = crate::common::validated_context();
     let mut profiler = Profiler::new(&ctx, 2, "small profiler").expect("profiler");
     assert_eq!(profiler.capacity(), 4);
 
@@ -184,5 +182,5 @@ fn misuse_is_reported_not_dropped() {
     assert_eq!(frame[0].children[0].label, "two");
 
     profiler.destroy(&ctx);
-    common::assert_no_validation_errors(&ctx);
+    crate::common::assert_no_validation_errors(&ctx);
 }

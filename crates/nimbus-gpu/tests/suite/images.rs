@@ -1,12 +1,10 @@
 //! 3D image round trip and a 2D storage image written by a shader that samples a 3D image.
 
-mod common;
-
 use nimbus_gpu::{vk, BindingDesc, ComputePipelineDesc, DescriptorWrite, ImageDesc, SamplerDesc};
 
 #[test]
 fn volume_image_round_trips() {
-    let ctx = common::validated_context();
+    let ctx = crate::common::validated_context();
     let desc = ImageDesc::sampled_3d(8, 4, 2, vk::Format::R32_SFLOAT);
     let image = ctx.create_image(&desc, "volume 8x4x2").expect("image");
     let texels: Vec<f32> = (0..8 * 4 * 2).map(|i| i as f32 * 0.5 - 3.0).collect();
@@ -22,7 +20,7 @@ fn volume_image_round_trips() {
     );
 
     ctx.destroy_image(image);
-    common::assert_no_validation_errors(&ctx);
+    crate::common::assert_no_validation_errors(&ctx);
 }
 
 const SHADER: &str = r#"
@@ -43,7 +41,7 @@ void main() {
 
 #[test]
 fn storage_image_written_by_a_shader() {
-    let ctx = common::validated_context();
+    let ctx = crate::common::validated_context();
     let (width, height) = (20u32, 12u32);
     let target = ctx
         .create_image(
@@ -64,7 +62,7 @@ fn storage_image_written_by_a_shader() {
         .create_sampler(&SamplerDesc::nearest(), "nearest")
         .expect("sampler");
 
-    let spirv = common::compile_compute(SHADER, "storage_image.comp");
+    let spirv = crate::common::compile_compute(SHADER, "storage_image.comp");
     let bindings = [BindingDesc::storage_image(0), BindingDesc::sampled_image(1)];
     let pipeline = ctx
         .create_compute_pipeline(
@@ -126,15 +124,15 @@ fn storage_image_written_by_a_shader() {
     ctx.destroy_sampler(sampler);
     ctx.destroy_image(target);
     ctx.destroy_image(volume);
-    common::assert_no_validation_errors(&ctx);
+    crate::common::assert_no_validation_errors(&ctx);
 }
 
 #[test]
 fn unsupported_image_requests_are_errors() {
-    let ctx = common::validated_context();
+    let ctx = crate::common::validated_context();
     let mut desc = ImageDesc::storage_2d(4, 4, vk::Format::R32_SFLOAT);
     desc.extent.depth = 2;
     let err = ctx.create_image(&desc, "deep 2d").unwrap_err();
     assert!(format!("{err:#}").contains("'deep 2d'"), "{err:#}");
-    common::assert_no_validation_errors(&ctx);
+    crate::common::assert_no_validation_errors(&ctx);
 }

@@ -1,9 +1,7 @@
 //! The geometric conventions of the loaded types: camera frames and rays, rotations,
 //! gobo bases.
 
-mod common;
-
-use common::*;
+use crate::common::*;
 use glam::{Mat3, Vec3};
 use nimbus_scene::*;
 

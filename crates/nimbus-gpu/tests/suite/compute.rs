@@ -1,7 +1,5 @@
 //! A specialized compute pipeline with push constants, checked on the CPU.
 
-mod common;
-
 use nimbus_gpu::{
     compute_barrier, vk, BindingDesc, BufferDesc, ComputePipelineDesc, DescriptorWrite, SpecValue,
 };
@@ -25,8 +23,8 @@ void main() {
 
 #[test]
 fn specialization_and_push_constants_reach_the_shader() {
-    let ctx = common::validated_context();
-    let spirv = common::compile_compute(SHADER, "spec_push.comp");
+    let ctx = crate::common::validated_context();
+    let spirv = crate::common::compile_compute(SHADER, "spec_push.comp");
     let count: u32 = 1000;
     let (spec, add, bias) = (7u32, 11u32, 3.0f32);
 
@@ -101,12 +99,12 @@ fn specialization_and_push_constants_reach_the_shader() {
     ctx.destroy_descriptor_set(set);
     ctx.destroy_buffer(out);
     ctx.destroy_compute_pipeline(pipeline);
-    common::assert_no_validation_errors(&ctx);
+    crate::common::assert_no_validation_errors(&ctx);
 }
 
 #[test]
 fn bad_pipeline_descriptions_are_errors() {
-    let ctx = common::validated_context();
+    let ctx = crate::common::validated_context();
     let not_spirv = [0u32, 1, 2, 3];
     let err = ctx
         .create_compute_pipeline(
@@ -122,7 +120,7 @@ fn bad_pipeline_descriptions_are_errors() {
         .unwrap_err();
     assert!(format!("{err:#}").contains("not SPIR-V"), "{err:#}");
 
-    let spirv = common::compile_compute(SHADER, "spec_push.comp");
+    let spirv = crate::common::compile_compute(SHADER, "spec_push.comp");
     let err = ctx
         .create_compute_pipeline(
             &ComputePipelineDesc {
@@ -136,13 +134,13 @@ fn bad_pipeline_descriptions_are_errors() {
         )
         .unwrap_err();
     assert!(format!("{err:#}").contains("multiple of 4"), "{err:#}");
-    common::assert_no_validation_errors(&ctx);
+    crate::common::assert_no_validation_errors(&ctx);
 }
 
 #[test]
 fn synchronization_validation_catches_a_missing_barrier() {
-    let ctx = common::validated_context();
-    let spirv = common::compile_compute(SHADER, "spec_push.comp");
+    let ctx = crate::common::validated_context();
+    let spirv = crate::common::compile_compute(SHADER, "spec_push.comp");
     let pipeline = ctx
         .create_compute_pipeline(
             &ComputePipelineDesc {
@@ -190,5 +188,5 @@ fn synchronization_validation_catches_a_missing_barrier() {
     ctx.destroy_descriptor_set(set);
     ctx.destroy_buffer(out);
     ctx.destroy_compute_pipeline(pipeline);
-    common::assert_no_validation_errors(&ctx);
+    crate::common::assert_no_validation_errors(&ctx);
 }

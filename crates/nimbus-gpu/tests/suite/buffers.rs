@@ -1,15 +1,13 @@
 //! Upload and readback round trips through staging and mapped buffers.
 
-mod common;
-
 use nimbus_gpu::{vk, BufferDesc};
 
 const MIB: usize = 1 << 20;
 
 #[test]
 fn gpu_only_buffer_round_trips_through_staging() {
-    let ctx = common::validated_context();
-    let data = common::pattern(MIB, 0x5eed);
+    let ctx = crate::common::validated_context();
+    let data = crate::common::pattern(MIB, 0x5eed);
     let buffer = ctx
         .create_buffer(
             &BufferDesc::gpu_only(MIB as u64, vk::BufferUsageFlags::STORAGE_BUFFER),
@@ -25,7 +23,7 @@ fn gpu_only_buffer_round_trips_through_staging() {
     assert!(back == data, "1 MiB round trip differs");
 
     // Overwrite a window at an offset and read a range around it.
-    let patch = common::pattern(4096, 7);
+    let patch = crate::common::pattern(4096, 7);
     ctx.upload_buffer(&buffer, 12_288, &patch)
         .expect("upload at offset");
     let window = ctx
@@ -50,13 +48,13 @@ fn gpu_only_buffer_round_trips_through_staging() {
     assert_eq!(filled, 0xdead_beef_u32.to_ne_bytes().repeat(4));
 
     ctx.destroy_buffer(buffer);
-    common::assert_no_validation_errors(&ctx);
+    crate::common::assert_no_validation_errors(&ctx);
 }
 
 #[test]
 fn mapped_buffers_round_trip_without_staging() {
-    let ctx = common::validated_context();
-    let data = common::pattern(64 * 1024, 42);
+    let ctx = crate::common::validated_context();
+    let data = crate::common::pattern(64 * 1024, 42);
     let upload = ctx
         .create_buffer(
             &BufferDesc::host_to_gpu(data.len() as u64, vk::BufferUsageFlags::STORAGE_BUFFER),
@@ -91,12 +89,12 @@ fn mapped_buffers_round_trip_without_staging() {
 
     ctx.destroy_buffer(upload);
     ctx.destroy_buffer(readback);
-    common::assert_no_validation_errors(&ctx);
+    crate::common::assert_no_validation_errors(&ctx);
 }
 
 #[test]
 fn zero_sized_buffer_is_an_error() {
-    let ctx = common::validated_context();
+    let ctx = crate::common::validated_context();
     let err = ctx
         .create_buffer(
             &BufferDesc::gpu_only(0, vk::BufferUsageFlags::STORAGE_BUFFER),
@@ -104,5 +102,5 @@ fn zero_sized_buffer_is_an_error() {
         )
         .unwrap_err();
     assert!(format!("{err:#}").contains("'empty'"), "{err:#}");
-    common::assert_no_validation_errors(&ctx);
+    crate::common::assert_no_validation_errors(&ctx);
 }

@@ -1,7 +1,5 @@
 //! Context creation and device listing on the validated device.
 
-mod common;
-
 use nimbus_gpu::{enumerate_devices, vk, Context, ContextDesc};
 
 #[test]
@@ -23,7 +21,7 @@ fn lists_devices_and_creates_a_validated_context() {
         );
     }
 
-    let ctx = common::validated_context();
+    let ctx = crate::common::validated_context();
     let info = ctx.info();
     eprintln!("{info:#?}");
     assert!(ctx.validation_enabled());
@@ -31,7 +29,7 @@ fn lists_devices_and_creates_a_validated_context() {
     assert!(info.compute_queue_family.is_some());
     assert!(info.timestamp_period_ns > 0.0);
     assert!(info.max_push_constants_size >= 128);
-    common::assert_no_validation_errors(&ctx);
+    crate::common::assert_no_validation_errors(&ctx);
 }
 
 #[test]
@@ -52,7 +50,7 @@ fn unknown_device_filter_lists_available_names() {
 
 #[test]
 fn validation_messages_are_collected() {
-    let ctx = common::validated_context();
+    let ctx = crate::common::validated_context();
     // Provoke one error: a zero-sized storage-buffer range is invalid usage.
     let info = vk::BufferCreateInfo::default()
         .size(0)

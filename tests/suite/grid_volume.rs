@@ -19,14 +19,10 @@
 //!   degenerate rays (zero-length and reversed intervals, misses, rays in face planes,
 //!   along voxel edges, parallel to voxel planes).
 
-mod common;
-
+use crate::common::kernel::{records, Arg, Kernel};
+use crate::common::rng::Pcg32;
 use bytemuck::{Pod, Zeroable};
-use common::rng::Pcg32;
-use nimbus_gpu::{
-    vk, BindingDesc, Buffer, BufferDesc, ComputePipeline, ComputePipelineDesc, Context,
-    DescriptorWrite, Image, ImageDesc, SamplerDesc,
-};
+use nimbus_gpu::{vk, BindingDesc, SamplerDesc};
 use nimbus_scene::{procedural_cloud, VoxelGrid, SUPER_VOXEL_FACTOR};
 
 /// Relative tolerance on the closed-form optical depth.
@@ -255,169 +251,80 @@ impl Ray {
     }
 }
 
-/// A validated context, the test pipeline and a sampler.
+/// The test kernel `shaders/tests/grid_volume.comp`.
 struct Gpu {
-    ctx: Context,
-    /// Always `Some` until dropped.
-    pipeline: Option<ComputePipeline>,
-    sampler: vk::Sampler,
+    kernel: Kernel,
 }
 
-/// A medium's GPU resources.
+/// What a run binds for a medium: its parameters, density texels and super-voxels.
 struct GpuMedium {
     params: GpuGridParams,
-    image: Image,
-    super_voxels: Buffer,
+    dims: [u32; 3],
+    density: Vec<f32>,
+    super_voxels: Vec<[f32; 4]>,
 }
 
 impl Gpu {
     fn new() -> Self {
-        let ctx = common::gpu::context();
-        let spirv = common::gpu::spirv(nimbus::shaders::TESTS_GRID_VOLUME);
-        let bindings = [
+        let layout = [
             BindingDesc::sampled_image(0),
             BindingDesc::storage_buffer(1),
             BindingDesc::storage_buffer(2),
             BindingDesc::storage_buffer(3),
         ];
-        let pipeline = ctx
-            .create_compute_pipeline(
-                &ComputePipelineDesc {
-                    spirv: &spirv,
-                    entry: "main",
-                    bindings: &bindings,
-                    push_constant_size: std::mem::size_of::<GpuPush>() as u32,
-                    specialization: &[],
-                },
-                "grid volume test",
-            )
-            .expect("pipeline");
-        let sampler = ctx
-            .create_sampler(&SamplerDesc::nearest(), "grid volume sampler")
-            .expect("sampler");
         Self {
-            ctx,
-            pipeline: Some(pipeline),
-            sampler,
+            kernel: Kernel::new(
+                nimbus::shaders::TESTS_GRID_VOLUME,
+                &layout,
+                std::mem::size_of::<GpuPush>() as u32,
+                &[],
+                "grid volume test",
+            ),
         }
-    }
-
-    fn storage(&self, bytes: usize, name: &str) -> Buffer {
-        self.ctx
-            .create_buffer(
-                &BufferDesc::gpu_only(bytes.max(16) as u64, vk::BufferUsageFlags::STORAGE_BUFFER),
-                name,
-            )
-            .expect("buffer")
     }
 
     fn upload(&self, medium: &Medium) -> GpuMedium {
-        let [nx, ny, nz] = medium.grid.dims;
-        let image = self
-            .ctx
-            .create_image(
-                &ImageDesc::sampled_3d(nx, ny, nz, vk::Format::R32_SFLOAT),
-                "grid density",
-            )
-            .expect("image");
-        self.ctx
-            .upload_image(&image, bytemuck::cast_slice(&medium.grid.data))
-            .expect("upload density");
-        let sv = medium.super_voxel_data();
-        let super_voxels = self.storage(std::mem::size_of_val(sv.as_slice()), "super-voxels");
-        self.ctx
-            .upload_buffer(&super_voxels, 0, bytemuck::cast_slice(&sv))
-            .expect("upload super-voxels");
         GpuMedium {
             params: medium.params(),
-            image,
-            super_voxels,
+            dims: medium.grid.dims,
+            density: medium.grid.data.clone(),
+            super_voxels: medium.super_voxel_data(),
         }
-    }
-
-    fn release(&self, medium: GpuMedium) {
-        self.ctx.destroy_image(medium.image);
-        self.ctx.destroy_buffer(medium.super_voxels);
     }
 
     /// Runs every query against `medium`; one result per query.
     fn run(&self, medium: &GpuMedium, queries: &[GpuQuery]) -> Vec<GpuResult> {
-        let ctx = &self.ctx;
         let count = u32::try_from(queries.len()).expect("query count fits u32");
-        let groups = count.div_ceil(LOCAL_SIZE);
-        assert!(groups <= ctx.info().max_compute_work_group_count[0]);
-        let query_buf = self.storage(std::mem::size_of_val(queries), "grid queries");
-        let result_buf = self.storage(
-            queries.len() * std::mem::size_of::<GpuResult>(),
-            "grid results",
-        );
-        ctx.upload_buffer(&query_buf, 0, bytemuck::cast_slice(queries))
-            .expect("upload queries");
-        let set = ctx
-            .create_descriptor_set(
-                self.pipeline(),
-                &[
-                    DescriptorWrite::SampledImage {
-                        binding: 0,
-                        image: &medium.image,
-                        sampler: self.sampler,
-                    },
-                    DescriptorWrite::StorageBuffer {
-                        binding: 1,
-                        buffer: &medium.super_voxels,
-                    },
-                    DescriptorWrite::StorageBuffer {
-                        binding: 2,
-                        buffer: &query_buf,
-                    },
-                    DescriptorWrite::StorageBuffer {
-                        binding: 3,
-                        buffer: &result_buf,
-                    },
-                ],
-                "grid volume set",
-            )
-            .expect("descriptor set");
         let push = GpuPush {
             grid: medium.params,
             query_count: count,
             pad: [0; 3],
         };
-        if groups > 0 {
-            ctx.submit_one_shot("grid volume dispatch", |cmd| {
-                self.pipeline()
-                    .dispatch(ctx, cmd, &set, bytemuck::bytes_of(&push), [groups, 1, 1])
-            })
-            .expect("dispatch");
-        }
-        let results: Vec<GpuResult> = bytemuck::pod_collect_to_vec(
-            &ctx.readback_buffer(&result_buf).expect("readback results")
-                [..queries.len() * std::mem::size_of::<GpuResult>()],
+        let out = self.kernel.run(
+            &[
+                Arg::Image3d {
+                    binding: 0,
+                    dims: medium.dims,
+                    format: vk::Format::R32_SFLOAT,
+                    data: bytemuck::cast_slice(&medium.density),
+                    sampler: SamplerDesc::nearest(),
+                },
+                Arg::Storage(1, bytemuck::cast_slice(&medium.super_voxels)),
+                Arg::Storage(2, bytemuck::cast_slice(queries)),
+                Arg::Zeroed(3, queries.len() * std::mem::size_of::<GpuResult>()),
+            ],
+            bytemuck::bytes_of(&push),
+            [count.div_ceil(LOCAL_SIZE), 1, 1],
         );
-        ctx.destroy_descriptor_set(set);
-        ctx.destroy_buffer(query_buf);
-        ctx.destroy_buffer(result_buf);
+        let results: Vec<GpuResult> = records(&out[3], queries.len());
         let non_finite: u32 = results.iter().map(|r| r.non_finite).sum();
         assert_eq!(non_finite, 0, "non-finite values in the grid shader");
         results
     }
 
-    fn pipeline(&self) -> &ComputePipeline {
-        self.pipeline.as_ref().expect("pipeline lives until drop")
-    }
-
     /// Fails on any validation error so far.
     fn finish(self) {
-        common::gpu::assert_no_validation_errors(&self.ctx);
-    }
-}
-
-impl Drop for Gpu {
-    fn drop(&mut self) {
-        if let Some(pipeline) = self.pipeline.take() {
-            self.ctx.destroy_compute_pipeline(pipeline);
-        }
-        self.ctx.destroy_sampler(self.sampler);
+        self.kernel.finish();
     }
 }
 
@@ -657,7 +564,6 @@ fn closed_form_optical_depth_matches_f64_quadrature() {
             .map(|r| r.query(MODE_CLOSED_FORM, 0, 0))
             .collect();
         let results = gpu.run(&handle, &queries);
-        gpu.release(handle);
         let (mut worst_rel, mut worst_abs, mut max_depth) = (0.0f64, 0.0f64, 0.0f64);
         for (ray, result) in rays.iter().zip(&results) {
             let reference = medium.optical_depth(ray);
@@ -758,7 +664,6 @@ fn sigma_t_equals_voxel_values_at_centres_and_zero_outside() {
             })
             .collect();
         let results = gpu.run(&handle, &queries);
-        gpu.release(handle);
         let sigma_max = f64::from(medium.params().bounds_max[3]);
         let mut worst = 0.0f64;
         for ((x, want), result) in points.iter().zip(&expected).zip(&results) {
@@ -822,7 +727,6 @@ fn ratio_and_residual_ratio_tracking_are_unbiased() {
             }
         }
         let results = gpu.run(&handle, &queries);
-        gpu.release(handle);
         let n = (INVOCATIONS as u32 * SAMPLES_PER_INVOCATION) as f64;
         let (mut var_ratio_sum, mut var_residual_sum, mut worst_z) = (0.0, 0.0, 0.0f64);
         for (ray, chunk) in rays.iter().zip(results.chunks(INVOCATIONS)) {
@@ -904,7 +808,6 @@ fn decomposition_tracking_collisions_follow_transmittance() {
             })
             .collect();
         let results = gpu.run(&handle, &queries);
-        gpu.release(handle);
         for (ray, chunk) in rays.iter().zip(results.chunks(SAMPLES)) {
             let (t_in, t_out) = medium.span(ray.o.map(f64::from), ray.d.map(f64::from));
             let (ta, tb) = (f64::from(ray.t0).max(t_in), f64::from(ray.t1).min(t_out));

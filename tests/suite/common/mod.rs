@@ -24,6 +24,7 @@
 
 pub mod cli;
 pub mod gpu;
+pub mod kernel;
 pub mod rng;
 
 use std::path::{Path, PathBuf};

@@ -1,11 +1,9 @@
 //! `nimbus study` end to end: the real binary on a tiny box scene with validation layers
 //! on (NIMBUS_VALIDATION=1), its files, the reference cache, and clear errors.
 
-mod common;
-
 use std::path::Path;
 
-use common::cli::{nimbus, text};
+use crate::common::cli::{nimbus, text};
 
 /// A 16x16 unoccluded box under one directional light, rendered by ray marching.
 const TINY_BOX: &str = r#"
@@ -41,7 +39,7 @@ box_samples = 8
 "#;
 
 fn scratch(name: &str) -> std::path::PathBuf {
-    common::cli::scratch("study", name)
+    crate::common::cli::scratch("study", name)
 }
 
 /// The CSV as (header, rows).

@@ -3,10 +3,8 @@
 //! references, multiple scattering against the CPU Monte Carlo reference, and golden
 //! images at low sample counts. Validation layers are on.
 
-mod common;
-
-use common::gpu::{context, render_checked, scene, se_of_mean};
-use common::{compare_with_golden, SAME_DEVICE};
+use crate::common::gpu::{context, render_checked, scene, se_of_mean};
+use crate::common::{compare_with_golden, SAME_DEVICE};
 use nimbus::output::ImageRgb;
 use nimbus::DEFAULT_SCENE;
 use nimbus_reference::quadrature::{self, ReferenceOptions};

@@ -69,14 +69,10 @@
 //! All seeds are fixed, so each outcome is deterministic; at significance 1e-3 the 58
 //! χ² checks all pass with probability 0.94 under the null.
 
-mod common;
-
+use crate::common::kernel::{records, Arg, Kernel};
+use crate::common::rng::Pcg32;
 use bytemuck::{Pod, Zeroable};
-use common::rng::Pcg32;
-use nimbus_gpu::{
-    vk, BindingDesc, Buffer, BufferDesc, ComputePipeline, ComputePipelineDesc, Context,
-    DescriptorWrite,
-};
+use nimbus_gpu::BindingDesc;
 
 /// The HG asymmetries tested (as f32, which the GPU and the reference both use).
 const G_VALUES: [f32; 6] = [-0.99, -0.5, 0.0, 0.3, 0.8, 0.99];
@@ -120,46 +116,26 @@ struct GpuPush {
 
 const _: () = assert!(std::mem::size_of::<GpuPush>() == 32);
 
-/// A validated context and the test pipeline.
+/// The test kernel `shaders/tests/sampling.comp`.
 struct Gpu {
-    ctx: Context,
-    /// Always `Some` until dropped.
-    pipeline: Option<ComputePipeline>,
+    kernel: Kernel,
 }
 
 impl Gpu {
     fn new() -> Self {
-        let ctx = common::gpu::context();
-        let spirv = common::gpu::spirv(nimbus::shaders::TESTS_SAMPLING);
-        let bindings = [
+        let layout = [
             BindingDesc::storage_buffer(0),
             BindingDesc::storage_buffer(1),
         ];
-        let pipeline = ctx
-            .create_compute_pipeline(
-                &ComputePipelineDesc {
-                    spirv: &spirv,
-                    entry: "main",
-                    bindings: &bindings,
-                    push_constant_size: std::mem::size_of::<GpuPush>() as u32,
-                    specialization: &[],
-                },
-                "sampling test",
-            )
-            .expect("pipeline");
         Self {
-            ctx,
-            pipeline: Some(pipeline),
+            kernel: Kernel::new(
+                nimbus::shaders::TESTS_SAMPLING,
+                &layout,
+                std::mem::size_of::<GpuPush>() as u32,
+                &[],
+                "sampling test",
+            ),
         }
-    }
-
-    fn storage(&self, bytes: usize, name: &str) -> Buffer {
-        self.ctx
-            .create_buffer(
-                &BufferDesc::gpu_only(bytes.max(16) as u64, vk::BufferUsageFlags::STORAGE_BUFFER),
-                name,
-            )
-            .expect("buffer")
     }
 
     /// One invocation per input; one output (xyz direction, w phase value) per input.
@@ -176,69 +152,28 @@ impl Gpu {
         param: f32,
         inputs: &[[f32; 2]],
     ) -> Vec<[f32; 4]> {
-        let g = param;
-        let ctx = &self.ctx;
         let count = u32::try_from(inputs.len()).expect("input count fits u32");
-        let groups = count.div_ceil(LOCAL_SIZE);
-        assert!(groups <= ctx.info().max_compute_work_group_count[0]);
-        let input_buf = self.storage(std::mem::size_of_val(inputs), "sampling inputs");
-        let output_buf = self.storage(inputs.len() * 16, "sampling outputs");
-        ctx.upload_buffer(&input_buf, 0, bytemuck::cast_slice(inputs))
-            .expect("upload inputs");
-        let set = ctx
-            .create_descriptor_set(
-                self.pipeline(),
-                &[
-                    DescriptorWrite::StorageBuffer {
-                        binding: 0,
-                        buffer: &input_buf,
-                    },
-                    DescriptorWrite::StorageBuffer {
-                        binding: 1,
-                        buffer: &output_buf,
-                    },
-                ],
-                "sampling set",
-            )
-            .expect("descriptor set");
         let push = GpuPush {
-            axis_g: [axis[0], axis[1], axis[2], g],
+            axis_g: [axis[0], axis[1], axis[2], param],
             mode,
             count,
             family,
             pad: 0,
         };
-        if groups > 0 {
-            ctx.submit_one_shot("sampling dispatch", |cmd| {
-                self.pipeline()
-                    .dispatch(ctx, cmd, &set, bytemuck::bytes_of(&push), [groups, 1, 1])
-            })
-            .expect("dispatch");
-        }
-        let outputs: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(
-            &ctx.readback_buffer(&output_buf).expect("readback outputs")[..inputs.len() * 16],
+        let out = self.kernel.run(
+            &[
+                Arg::Storage(0, bytemuck::cast_slice(inputs)),
+                Arg::Zeroed(1, inputs.len() * 16),
+            ],
+            bytemuck::bytes_of(&push),
+            [count.div_ceil(LOCAL_SIZE), 1, 1],
         );
-        ctx.destroy_descriptor_set(set);
-        ctx.destroy_buffer(input_buf);
-        ctx.destroy_buffer(output_buf);
-        outputs
-    }
-
-    fn pipeline(&self) -> &ComputePipeline {
-        self.pipeline.as_ref().expect("pipeline lives until drop")
+        records(&out[1], inputs.len())
     }
 
     /// Fails on any validation error so far.
     fn finish(self) {
-        common::gpu::assert_no_validation_errors(&self.ctx);
-    }
-}
-
-impl Drop for Gpu {
-    fn drop(&mut self) {
-        if let Some(pipeline) = self.pipeline.take() {
-            self.ctx.destroy_compute_pipeline(pipeline);
-        }
+        self.kernel.finish();
     }
 }
 

@@ -4,11 +4,9 @@
 //! `SAME_DEVICE` (same seed, same scene, same device → the same image up to the
 //! floating-point reassociation lavapipe's JIT may do). Validation layers are on.
 
-mod common;
-
-use common::cli::{nimbus, scratch, text};
-use common::gpu::{assert_no_validation_errors, context, scene};
-use common::{compare_with_golden, SAME_DEVICE};
+use crate::common::cli::{nimbus, scratch, text};
+use crate::common::gpu::{assert_no_validation_errors, context, scene};
+use crate::common::{compare_with_golden, SAME_DEVICE};
 use nimbus::renderer::{render, RenderOptions};
 
 fn asset(name: &str) -> String {

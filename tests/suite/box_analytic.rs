@@ -30,17 +30,13 @@
 //! how many configurations κ loosens beyond 1e-4, the largest error there as a fraction
 //! of κ, and the largest error everywhere else.
 
-mod common;
-
 use std::f64::consts::FRAC_1_SQRT_2;
 
+use crate::common::kernel::{records, Arg, Kernel};
+use crate::common::rng::Pcg32;
 use bytemuck::{Pod, Zeroable};
-use common::rng::Pcg32;
 use glam::{DVec3, Vec3};
-use nimbus_gpu::{
-    vk, BindingDesc, Buffer, BufferDesc, ComputePipeline, ComputePipelineDesc, Context,
-    DescriptorWrite,
-};
+use nimbus_gpu::BindingDesc;
 use nimbus_reference::quadrature::unoccluded_single_scatter;
 use nimbus_scene::BoxMedium;
 
@@ -110,120 +106,43 @@ const _: () = assert!(std::mem::size_of::<GpuPieces>() == 80);
 const LOCAL_SIZE: u32 = 64;
 const FLAG_WRITE_PIECES: u32 = 1;
 
-/// A validated context and the test pipeline.
+/// The test kernel `shaders/tests/box_analytic.comp`.
 struct Gpu {
-    ctx: Context,
-    /// Always `Some` until dropped.
-    pipeline: Option<ComputePipeline>,
+    kernel: Kernel,
 }
 
 impl Gpu {
     fn new() -> Self {
-        let ctx = common::gpu::context();
-        let spirv = common::gpu::spirv(nimbus::shaders::TESTS_BOX_ANALYTIC);
-        let bindings = [0, 1, 2, 3].map(BindingDesc::storage_buffer);
-        let pipeline = ctx
-            .create_compute_pipeline(
-                &ComputePipelineDesc {
-                    spirv: &spirv,
-                    entry: "main",
-                    bindings: &bindings,
-                    push_constant_size: 16,
-                    specialization: &[],
-                },
-                "box analytic test",
-            )
-            .expect("pipeline");
+        let layout = [0, 1, 2, 3].map(BindingDesc::storage_buffer);
         Self {
-            ctx,
-            pipeline: Some(pipeline),
+            kernel: Kernel::new(
+                nimbus::shaders::TESTS_BOX_ANALYTIC,
+                &layout,
+                16,
+                &[],
+                "box analytic test",
+            ),
         }
-    }
-
-    fn storage(&self, bytes: usize, name: &str) -> Buffer {
-        self.ctx
-            .create_buffer(
-                &BufferDesc::gpu_only(bytes.max(16) as u64, vk::BufferUsageFlags::STORAGE_BUFFER),
-                name,
-            )
-            .expect("buffer")
     }
 
     /// Runs every query; returns one result per query and one pieces record per config
     /// (zero unless some query of that config set `FLAG_WRITE_PIECES`).
     fn run(&self, configs: &[GpuConfig], queries: &[GpuQuery]) -> (Vec<GpuResult>, Vec<GpuPieces>) {
         let count = u32::try_from(queries.len()).expect("query count fits u32");
-        let groups = count.div_ceil(LOCAL_SIZE);
-        assert!(
-            groups <= self.ctx.info().max_compute_work_group_count[0],
-            "{count} queries need more workgroups than the device allows"
+        let out = self.kernel.run(
+            &[
+                Arg::Storage(0, bytemuck::cast_slice(configs)),
+                Arg::Storage(1, bytemuck::cast_slice(queries)),
+                Arg::Zeroed(2, queries.len() * std::mem::size_of::<GpuResult>()),
+                Arg::Zeroed(3, configs.len() * std::mem::size_of::<GpuPieces>()),
+            ],
+            bytemuck::cast_slice(&[count, 0, 0, 0]),
+            [count.div_ceil(LOCAL_SIZE), 1, 1],
         );
-        let ctx = &self.ctx;
-        let config_buf = self.storage(std::mem::size_of_val(configs), "box analytic configs");
-        let query_buf = self.storage(std::mem::size_of_val(queries), "box analytic queries");
-        let result_buf = self.storage(
-            queries.len() * std::mem::size_of::<GpuResult>(),
-            "box analytic results",
-        );
-        let pieces_buf = self.storage(
-            configs.len() * std::mem::size_of::<GpuPieces>(),
-            "box analytic pieces",
-        );
-        ctx.upload_buffer(&config_buf, 0, bytemuck::cast_slice(configs))
-            .expect("upload configs");
-        ctx.upload_buffer(&query_buf, 0, bytemuck::cast_slice(queries))
-            .expect("upload queries");
-        ctx.fill_buffer(&pieces_buf, 0).expect("clear pieces");
-        let set = ctx
-            .create_descriptor_set(
-                self.pipeline(),
-                &[
-                    DescriptorWrite::StorageBuffer {
-                        binding: 0,
-                        buffer: &config_buf,
-                    },
-                    DescriptorWrite::StorageBuffer {
-                        binding: 1,
-                        buffer: &query_buf,
-                    },
-                    DescriptorWrite::StorageBuffer {
-                        binding: 2,
-                        buffer: &result_buf,
-                    },
-                    DescriptorWrite::StorageBuffer {
-                        binding: 3,
-                        buffer: &pieces_buf,
-                    },
-                ],
-                "box analytic set",
-            )
-            .expect("descriptor set");
-        let push = [count, 0, 0, 0];
-        if groups > 0 {
-            ctx.submit_one_shot("box analytic dispatch", |cmd| {
-                self.pipeline().dispatch(
-                    ctx,
-                    cmd,
-                    &set,
-                    bytemuck::cast_slice(&push),
-                    [groups, 1, 1],
-                )
-            })
-            .expect("dispatch");
-        }
-        let results: Vec<GpuResult> = bytemuck::pod_collect_to_vec(
-            &ctx.readback_buffer(&result_buf).expect("readback results")
-                [..queries.len() * std::mem::size_of::<GpuResult>()],
-        );
-        let pieces: Vec<GpuPieces> = bytemuck::pod_collect_to_vec(
-            &ctx.readback_buffer(&pieces_buf).expect("readback pieces")
-                [..configs.len() * std::mem::size_of::<GpuPieces>()],
-        );
-        ctx.destroy_descriptor_set(set);
-        for buffer in [config_buf, query_buf, result_buf, pieces_buf] {
-            ctx.destroy_buffer(buffer);
-        }
-        (results, pieces)
+        (
+            records(&out[2], queries.len()),
+            records(&out[3], configs.len()),
+        )
     }
 
     /// One query per configuration, with its pieces: (result, pieces) for each.
@@ -241,21 +160,9 @@ impl Gpu {
         results.into_iter().zip(pieces).collect()
     }
 
-    fn pipeline(&self) -> &ComputePipeline {
-        self.pipeline.as_ref().expect("pipeline lives until drop")
-    }
-
     /// Fails on any validation error so far.
     fn finish(self) {
-        common::gpu::assert_no_validation_errors(&self.ctx);
-    }
-}
-
-impl Drop for Gpu {
-    fn drop(&mut self) {
-        if let Some(pipeline) = self.pipeline.take() {
-            self.ctx.destroy_compute_pipeline(pipeline);
-        }
+        self.kernel.finish();
     }
 }
 

@@ -1,9 +1,7 @@
 //! Voxel grids: loading, validation, procedural cloud, trilinear lookup and the derived
 //! structures (mip chain, conservative piecewise-constant grid, super-voxels).
 
-mod common;
-
-use common::{assert_contains, TempDir};
+use crate::common::{assert_contains, TempDir};
 use nimbus_scene::{load_grid, procedural_cloud, GridSource, VoxelGrid, MAX_GRID_VALUES};
 
 /// A small deterministic PRNG (SplitMix64) for the property tests.

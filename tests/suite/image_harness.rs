@@ -1,11 +1,9 @@
 //! Tests of the golden-image harness itself (`tests/common`). They keep their goldens in
 //! cargo's temporary directory and never touch `assets/golden`.
 
-mod common;
-
 use std::path::PathBuf;
 
-use common::{Harness, Tolerance};
+use crate::common::{Harness, Tolerance};
 use nimbus::output::ImageRgb;
 
 /// Strict limits: these tests compare exact copies or deliberately broken images.
@@ -113,7 +111,7 @@ fn relative_mse_has_the_documented_form() {
         data: vec![[1.1; 3]; 4],
         ..golden.clone()
     };
-    let (metrics, _) = common::measure(&actual, &golden).unwrap();
+    let (metrics, _) = crate::common::measure(&actual, &golden).unwrap();
     let expected = (1.1f32 as f64 - 1.0).powi(2) / 1.01;
     assert!((metrics.rel_mse - expected).abs() < 1e-12, "{metrics:?}");
 }
@@ -159,7 +157,7 @@ fn missing_golden_fails_with_instructions() {
 
     // The public entry point behaves the same unless someone asked for an update.
     if !Harness::from_env().update {
-        let result = common::compare_with_golden(name, &pattern(), STRICT);
+        let result = crate::common::compare_with_golden(name, &pattern(), STRICT);
         assert!(result.is_err());
         assert!(!golden.exists());
     }
@@ -179,7 +177,7 @@ fn bad_names_are_rejected() {
 #[test]
 fn adapter_check_prints_outside_ci() {
     if std::env::var("CI").is_err() {
-        common::check_adapter("SomeVendor GPU");
+        crate::common::check_adapter("SomeVendor GPU");
     }
-    common::check_adapter("llvmpipe (LLVM 15.0.6, 256 bits)");
+    crate::common::check_adapter("llvmpipe (LLVM 15.0.6, 256 bits)");
 }

@@ -55,10 +55,8 @@
 //!
 //! The seeds are fixed, so the outcome is deterministic on a given device.
 
-mod common;
-
-use common::cli::{nimbus, scratch, text};
-use common::gpu::{assert_no_validation_errors, context, render_checked, scene};
+use crate::common::cli::{nimbus, scratch, text};
+use crate::common::gpu::{assert_no_validation_errors, context, render_checked, scene};
 use nimbus::output::ImageRgb;
 use nimbus_gpu::Context;
 

@@ -20,17 +20,13 @@
 //! The map's texel probabilities are all >= ~1e-3 relative to their CDF's range, so f32
 //! rounding of the tables (~6e-8 absolute) changes no pdf by more than ~1e-4 relative.
 
-mod common;
-
 use std::f64::consts::PI;
 
+use crate::common::kernel::{records, Arg, Kernel};
+use crate::common::rng::Pcg32;
 use bytemuck::{Pod, Zeroable};
-use common::rng::Pcg32;
 use glam::DVec3;
-use nimbus_gpu::{
-    vk, BindingDesc, Buffer, BufferDesc, ComputePipeline, ComputePipelineDesc, Context,
-    DescriptorWrite,
-};
+use nimbus_gpu::BindingDesc;
 use nimbus_scene::{direction_to_uv, uv_to_direction, EnvMap, EnvSampler};
 
 const W: u32 = 64;
@@ -110,155 +106,65 @@ fn test_map() -> EnvMap {
     }
 }
 
-/// A validated context, the test pipeline and the map's buffers.
+/// The test kernel `shaders/tests/envmap_sampling.comp` and the map it samples.
 struct Gpu {
-    ctx: Context,
-    /// Always `Some` until dropped.
-    pipeline: Option<ComputePipeline>,
-    /// Texels and CDF tables; always `Some` until dropped.
-    buffers: Option<(Buffer, Buffer)>,
+    kernel: Kernel,
+    /// Texels (rgb, w unused) and the marginal then conditional CDF tables.
+    texels: Vec<[f32; 4]>,
+    cdf: Vec<f32>,
 }
 
 impl Gpu {
     fn new(map: &EnvMap, sampler: &EnvSampler) -> Self {
-        let ctx = common::gpu::context();
-        let spirv = common::gpu::spirv(nimbus::shaders::TESTS_ENVMAP_SAMPLING);
-        let bindings = [0, 1, 2, 3, 4].map(BindingDesc::storage_buffer);
-        let pipeline = ctx
-            .create_compute_pipeline(
-                &ComputePipelineDesc {
-                    spirv: &spirv,
-                    entry: "main",
-                    bindings: &bindings,
-                    push_constant_size: std::mem::size_of::<GpuPush>() as u32,
-                    specialization: &[],
-                },
-                "envmap test",
-            )
-            .expect("pipeline");
+        let layout = [0, 1, 2, 3, 4].map(BindingDesc::storage_buffer);
+        let kernel = Kernel::new(
+            nimbus::shaders::TESTS_ENVMAP_SAMPLING,
+            &layout,
+            std::mem::size_of::<GpuPush>() as u32,
+            &[],
+            "envmap test",
+        );
         let texels: Vec<[f32; 4]> = map.texels.iter().map(|t| [t[0], t[1], t[2], 0.0]).collect();
         let (marginal, conditional) = sampler.to_gpu_tables();
         assert_eq!(marginal.len(), (H + 1) as usize);
         assert_eq!(conditional.len(), (H * (W + 1)) as usize);
         let cdf: Vec<f32> = marginal.into_iter().chain(conditional).collect();
-        let mut gpu = Self {
-            ctx,
-            pipeline: Some(pipeline),
-            buffers: None,
-        };
-        let texel_buf = gpu.storage(std::mem::size_of_val(texels.as_slice()), "env texels");
-        let cdf_buf = gpu.storage(std::mem::size_of_val(cdf.as_slice()), "env cdf");
-        gpu.ctx
-            .upload_buffer(&texel_buf, 0, bytemuck::cast_slice(&texels))
-            .expect("upload texels");
-        gpu.ctx
-            .upload_buffer(&cdf_buf, 0, bytemuck::cast_slice(&cdf))
-            .expect("upload cdf");
-        gpu.buffers = Some((texel_buf, cdf_buf));
-        gpu
-    }
-
-    fn storage(&self, bytes: usize, name: &str) -> Buffer {
-        self.ctx
-            .create_buffer(
-                &BufferDesc::gpu_only(bytes.max(16) as u64, vk::BufferUsageFlags::STORAGE_BUFFER),
-                name,
-            )
-            .expect("buffer")
+        Self {
+            kernel,
+            texels,
+            cdf,
+        }
     }
 
     /// Runs every query; one result per query, and the histogram (HIST_W·HIST_H bins plus
     /// the discarded-sample count).
     fn run(&self, queries: &[GpuQuery]) -> (Vec<GpuResult>, Vec<u32>) {
-        let ctx = &self.ctx;
-        let (texel_buf, cdf_buf) = self.buffers.as_ref().expect("buffers live until drop");
         let count = u32::try_from(queries.len()).expect("query count fits u32");
-        let groups = count.div_ceil(LOCAL_SIZE);
-        assert!(groups <= ctx.info().max_compute_work_group_count[0]);
         let bins = (HIST_W * HIST_H + 1) as usize;
-        let query_buf = self.storage(std::mem::size_of_val(queries), "env queries");
-        let result_buf = self.storage(
-            queries.len() * std::mem::size_of::<GpuResult>(),
-            "env results",
-        );
-        let hist_buf = self.storage(bins * 4, "env histogram");
-        ctx.upload_buffer(&query_buf, 0, bytemuck::cast_slice(queries))
-            .expect("upload queries");
-        ctx.upload_buffer(&hist_buf, 0, bytemuck::cast_slice(&vec![0u32; bins]))
-            .expect("clear histogram");
-        let set = ctx
-            .create_descriptor_set(
-                self.pipeline(),
-                &[
-                    DescriptorWrite::StorageBuffer {
-                        binding: 0,
-                        buffer: texel_buf,
-                    },
-                    DescriptorWrite::StorageBuffer {
-                        binding: 1,
-                        buffer: cdf_buf,
-                    },
-                    DescriptorWrite::StorageBuffer {
-                        binding: 2,
-                        buffer: &query_buf,
-                    },
-                    DescriptorWrite::StorageBuffer {
-                        binding: 3,
-                        buffer: &result_buf,
-                    },
-                    DescriptorWrite::StorageBuffer {
-                        binding: 4,
-                        buffer: &hist_buf,
-                    },
-                ],
-                "envmap test set",
-            )
-            .expect("descriptor set");
         let push = GpuPush {
             size: [W, H, count, 0],
         };
-        if groups > 0 {
-            ctx.submit_one_shot("envmap test dispatch", |cmd| {
-                self.pipeline()
-                    .dispatch(ctx, cmd, &set, bytemuck::bytes_of(&push), [groups, 1, 1])
-            })
-            .expect("dispatch");
-        }
-        let results: Vec<GpuResult> = bytemuck::pod_collect_to_vec(
-            &ctx.readback_buffer(&result_buf).expect("readback results")
-                [..queries.len() * std::mem::size_of::<GpuResult>()],
+        let out = self.kernel.run(
+            &[
+                Arg::Storage(0, bytemuck::cast_slice(&self.texels)),
+                Arg::Storage(1, bytemuck::cast_slice(&self.cdf)),
+                Arg::Storage(2, bytemuck::cast_slice(queries)),
+                Arg::Zeroed(3, queries.len() * std::mem::size_of::<GpuResult>()),
+                Arg::Zeroed(4, bins * 4),
+            ],
+            bytemuck::bytes_of(&push),
+            [count.div_ceil(LOCAL_SIZE), 1, 1],
         );
-        let histogram: Vec<u32> = bytemuck::pod_collect_to_vec(
-            &ctx.readback_buffer(&hist_buf).expect("readback histogram")[..bins * 4],
-        );
-        ctx.destroy_descriptor_set(set);
-        ctx.destroy_buffer(query_buf);
-        ctx.destroy_buffer(result_buf);
-        ctx.destroy_buffer(hist_buf);
+        let results: Vec<GpuResult> = records(&out[3], queries.len());
+        let histogram: Vec<u32> = records(&out[4], bins);
         let non_finite: u32 = results.iter().map(|r| r.non_finite).sum();
         assert_eq!(non_finite, 0, "non-finite values in the envmap shader");
         (results, histogram)
     }
 
-    fn pipeline(&self) -> &ComputePipeline {
-        self.pipeline.as_ref().expect("pipeline lives until drop")
-    }
-
     /// Fails on any validation error so far.
     fn finish(self) {
-        common::gpu::assert_no_validation_errors(&self.ctx);
-    }
-}
-
-impl Drop for Gpu {
-    fn drop(&mut self) {
-        if let Some(pipeline) = self.pipeline.take() {
-            self.ctx.destroy_compute_pipeline(pipeline);
-        }
-        if let Some((a, b)) = self.buffers.take() {
-            self.ctx.destroy_buffer(a);
-            self.ctx.destroy_buffer(b);
-        }
+        self.kernel.finish();
     }
 }
 

@@ -1,8 +1,6 @@
 //! Scene files that must load, and what they load as.
 
-mod common;
-
-use common::*;
+use crate::common::*;
 use glam::{Vec2, Vec3};
 use nimbus_scene::*;
 

@@ -6,12 +6,10 @@
 //! generated into the target directory when `python3 -c "import pyopenvdb"` works
 //! (`tools/install-deps.sh` installs it), skipped with a message otherwise.
 
-mod common;
-
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use common::assert_contains;
+use crate::common::assert_contains;
 use glam::IVec3;
 use nimbus_scene::{list_grids, read_vdb_grid, GridClass, SparseGrid, VdbGridKind, BRICK_VOXELS};
 use serde_json::Value;

@@ -1,0 +1,17 @@
+//! The nimbus-scene crate's integration tests, one binary of modules.
+
+// Test code: a panic is how a test reports a failure.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+mod common;
+
+mod animation;
+mod assets;
+mod bad_scenes;
+mod conventions;
+mod envmap;
+mod good_scenes;
+mod mesh_bvh;
+mod mesh_load;
+mod vdb;
+mod volume;

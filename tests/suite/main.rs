@@ -1,0 +1,24 @@
+//! Nimbus's integration tests: one binary of modules, sharing one harness (`common`:
+//! golden images, the validated lavapipe context, the command-line runner, a PCG32 and
+//! the compute-kernel scaffold of the GPU unit tests).
+//!
+//! Run one module with `cargo test --test suite restir::`, one test by its full name.
+
+// Test code: a panic is how a test reports a failure.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+mod common;
+
+mod baseline;
+mod box_analytic;
+mod box_estimators;
+mod cli;
+mod envmap_gpu;
+mod grid_volume;
+mod image_harness;
+mod layout;
+mod render_box;
+mod restir;
+mod restir_golden;
+mod sampling_gpu;
+mod study;
