@@ -12,10 +12,10 @@ use std::fmt::Write as _;
 
 use anyhow::{bail, Result};
 use nimbus_gpu::DeviceInfo;
-use nimbus_scene::{GridSource, Light, Medium, Scene};
+use nimbus_scene::{Light, Medium, Scene};
 
-use crate::gpu::{reservoir_bytes, FrameUniforms};
-use crate::plan::{Integrator, RenderPlan};
+use crate::gpu::FrameUniforms;
+use crate::plan::RenderPlan;
 
 /// How a GPU allocation is bound, which decides the limits it must meet.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -44,7 +44,7 @@ pub struct Footprint {
 }
 
 /// Bytes of a `dims` grid of `bytes_per_voxel`.
-fn grid_bytes(dims: [u32; 3], bytes_per_voxel: u64) -> u64 {
+pub fn grid_bytes(dims: [u32; 3], bytes_per_voxel: u64) -> u64 {
     dims.iter().map(|&d| u64::from(d)).product::<u64>() * bytes_per_voxel
 }
 
@@ -82,7 +82,8 @@ fn env_map_size(scene: &Scene) -> Result<Option<(String, [u32; 2])>> {
 }
 
 impl Footprint {
-    fn add(&mut self, what: impl Into<String>, binding: Binding, bytes: u64) {
+    /// Adds one GPU allocation.
+    pub fn add(&mut self, what: impl Into<String>, binding: Binding, bytes: u64) {
         self.device.push(Need {
             what: what.into(),
             binding,
@@ -107,110 +108,66 @@ impl Footprint {
         // Per-pixel readback of both sums.
         f.host_peak += 2 * pixels * 16 + pixels * 12 * 2;
 
-        let grid = scene.media.iter().enumerate().find_map(|(i, m)| match m {
-            Medium::Grid(g) => Some((i, g)),
-            Medium::Box(_) => None,
-        });
-        let env = env_map_size(scene)?;
-        if let Some((what, [w, h])) = &env {
-            let texels = u64::from(*w) * u64::from(*h);
-            f.add(format!("{what}: texels"), Binding::Storage, texels * 16);
-            f.add(
+        crate::passes::footprint(scene, plan, &mut f)?;
+        Ok(f)
+    }
+
+    /// The environment map's texels and sampling tables, if the scene has a map.
+    pub fn add_env_map(&mut self, scene: &Scene) -> Result<()> {
+        if let Some((what, [w, h])) = env_map_size(scene)? {
+            let texels = u64::from(w) * u64::from(h);
+            self.add(format!("{what}: texels"), Binding::Storage, texels * 16);
+            self.add(
                 format!("{what}: sampling tables"),
                 Binding::Storage,
-                (texels + u64::from(*h) * 2 + 1) * 4,
+                (texels + u64::from(h) * 2 + 1) * 4,
             );
             // Texels (f32 RGB) + sampler (f64 weights and CDF) + the GPU copies.
-            f.host_peak += texels * (12 + 8 + 8 + 16 + 4);
+            self.host_peak += texels * (12 + 8 + 8 + 16 + 4);
         }
+        Ok(())
+    }
 
-        let (index, g) = match (&plan.integrator, grid) {
-            (Integrator::Crepuscular(_), _) | (_, None) => return Ok(f),
-            (_, Some(grid)) => grid,
+    /// The scene's grid medium as the grid integrators upload it: the density texture,
+    /// its super-voxels, emission and the host copies. Returns the medium, its table name
+    /// and its density dims for what a pass adds on top.
+    pub fn add_grid<'s>(
+        &mut self,
+        scene: &'s Scene,
+    ) -> Result<Option<(&'s nimbus_scene::GridMedium, String, [u32; 3])>> {
+        let file = scene.source.display();
+        let Some((index, g)) = scene.media.iter().enumerate().find_map(|(i, m)| match m {
+            Medium::Grid(g) => Some((i, g)),
+            Medium::Box(_) => None,
+        }) else {
+            return Ok(None);
         };
         let table = format!("{file}: [[medium]] #{} (type = \"grid\")", index + 1);
         let dims = g.density.dims()?;
         let voxels = grid_bytes(dims, 1);
-        let density = format!("{table} field `density`");
         let sv = dims.map(|n| n.div_ceil(nimbus_scene::SUPER_VOXEL_FACTOR));
-        f.add(&density, Binding::Image3d(dims), voxels * 4);
-        f.add(
+        self.add(
+            format!("{table} field `density`"),
+            Binding::Image3d(dims),
+            voxels * 4,
+        );
+        self.add(
             format!("{table} field `density` (super-voxels)"),
             Binding::Storage,
             grid_bytes(sv, 16),
         );
         // The grid as read, plus its staging copy.
-        f.host_peak += 2 * voxels * 4;
+        self.host_peak += 2 * voxels * 4;
         if let Some(emission) = &g.emission {
             let e = emission.dims()?;
-            f.add(
+            self.add(
                 format!("{table} field `emission`"),
                 Binding::Image3d(e),
                 grid_bytes(e, 4),
             );
-            f.host_peak += 2 * grid_bytes(e, 4);
+            self.host_peak += 2 * grid_bytes(e, 4);
         }
-        let Integrator::Restir(p) = &plan.integrator else {
-            return Ok(f);
-        };
-        let reservoirs = 3 * pixels * reservoir_bytes(p.max_bounces);
-        f.add(
-            format!("{file}: [render] `width` x `height` with [integrator] `max_bounces` = {} (ReSTIR reservoirs)", p.max_bounces),
-            Binding::Storage,
-            reservoirs,
-        );
-        let primary = level_dims(dims, p.mip_candidates);
-        let indirect = level_dims(dims, p.mip_indirect);
-        let reuse = level_dims(dims, p.mip_reuse);
-        f.add(
-            format!("{table} (piecewise-constant levels)"),
-            Binding::Storage,
-            grid_bytes(primary, 4) + grid_bytes(indirect, 4),
-        );
-        // Previous-frame density and the ray-march mips (f16, or f32 for densities f16
-        // cannot hold: counted as f32).
-        f.add(
-            format!("{table} (previous density)"),
-            Binding::Image3d(dims),
-            voxels * 4,
-        );
-        for (name, d) in [
-            ("reuse", reuse),
-            ("reuse, previous", reuse),
-            ("NEE", indirect),
-        ] {
-            f.add(
-                format!("{table} (ray-march mip, {name})"),
-                Binding::Image3d(d),
-                grid_bytes(d, 4),
-            );
-        }
-        if let Some(v) = &g.velocity {
-            let vd = v.dims()?;
-            f.add(
-                format!("{table} field `velocity`"),
-                Binding::Image3d(vd),
-                grid_bytes(vd, 8),
-            );
-            f.host_peak += grid_bytes(vd, 12 + 8);
-        }
-        // Every density frame is derived and kept: the grid, its levels and mips; while
-        // one is built, its conservative copy and one mip level are alive too.
-        let derived = |d: [u32; 3]| {
-            grid_bytes(d, 4)
-                + grid_bytes(primary, 4)
-                + grid_bytes(indirect, 4)
-                + grid_bytes(reuse, 4)
-                + grid_bytes(indirect, 4)
-        };
-        let frames: Vec<&GridSource> = g.density_sources().collect();
-        let kept: u64 = frames
-            .iter()
-            .map(|s| s.dims().map(derived))
-            .sum::<Result<u64>>()?;
-        let building = grid_bytes(dims, 4) + grid_bytes(level_dims(dims, 1), 4);
-        f.host_peak += kept + building;
-        Ok(f)
+        Ok(Some((g, table, dims)))
     }
 
     /// Total device bytes.

@@ -109,18 +109,7 @@ impl ImageRgb {
 /// Fails, naming the file, on an unknown extension, a pixel count that does not match
 /// the size, or any non-finite pixel.
 pub fn write_image(path: &Path, img: &ImageRgb, exposure: f32) -> anyhow::Result<()> {
-    let extension = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase)
-        .unwrap_or_default();
-    ensure!(
-        SUPPORTED_EXTENSIONS.contains(&extension.as_str()),
-        "cannot write {}: unknown image extension {:?} (supported: .{})",
-        path.display(),
-        extension,
-        SUPPORTED_EXTENSIONS.join(", .")
-    );
+    let extension = image_extension(path).context("cannot write")?;
     ensure!(
         img.data.len() == img.width as usize * img.height as usize,
         "cannot write {}: {} pixels for a {}x{} image",
@@ -140,6 +129,22 @@ pub fn write_image(path: &Path, img: &ImageRgb, exposure: f32) -> anyhow::Result
         "exr" => write_exr(tmp, img),
         _ => write_png(tmp, img, exposure),
     })
+}
+
+/// The lower-case extension of an image path, if Nimbus writes that format.
+fn image_extension(path: &Path) -> anyhow::Result<String> {
+    let extension = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        .unwrap_or_default();
+    ensure!(
+        SUPPORTED_EXTENSIONS.contains(&extension.as_str()),
+        "{}: unsupported image type {extension:?}; use .exr (linear radiance) or .png \
+         (tonemapped)",
+        path.display()
+    );
+    Ok(extension)
 }
 
 /// The temporary file beside `path` that [`write_atomically`] writes first: hidden,
@@ -182,16 +187,7 @@ pub fn write_atomically(
 /// extension, an existing directory, and permission to create a file in it (tried by
 /// creating and removing the temporary file [`write_atomically`] would use).
 pub fn check_writable(path: &Path) -> anyhow::Result<()> {
-    let extension = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase)
-        .unwrap_or_default();
-    ensure!(
-        SUPPORTED_EXTENSIONS.contains(&extension.as_str()),
-        "{}: unsupported image type; use .exr (linear radiance) or .png (tonemapped)",
-        path.display()
-    );
+    image_extension(path)?;
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
         _ => PathBuf::from("."),

@@ -3,20 +3,16 @@
 //! ratio tracking on 8x super-voxels.
 
 use anyhow::Result;
-use nimbus_gpu::{
-    vk, BindingDesc, ComputePipeline, Context, DescriptorSet, DescriptorWrite, GpuObjects, Handle,
-    Profiler, SamplerDesc, SpecValue,
-};
-use nimbus_scene::{CameraFrame, Scene};
+use nimbus_gpu::{vk, BindingDesc, Context, DescriptorWrite, GpuObjects, SamplerDesc, SpecValue};
+use nimbus_scene::Scene;
 
 use super::{
-    compute_pipeline, image_3d, image_groups, upload_env_map, upload_records, upload_uniform,
-    FrameConstants, Pass, Targets,
+    compute_pipeline, image_3d, upload_env_map, upload_records, upload_uniform, FrameConstants,
+    ImagePass, Targets,
 };
+use crate::budget::Footprint;
 use crate::gpu::features::*;
-use crate::gpu::{
-    bindings, box_records, non_empty, shape_records, FrameUniforms, GpuGrid, PassPush,
-};
+use crate::gpu::{bindings, box_records, non_empty, shape_records, GpuGrid, PassPush};
 use crate::plan::BaselinePlan;
 use crate::shaders;
 
@@ -33,172 +29,128 @@ pub fn specialization(plan: &BaselinePlan) -> [(u32, SpecValue); 7] {
     ]
 }
 
-/// The pipeline, the grid's density texture and the buffers the pass reads.
-pub struct BaselinePass {
-    objects: GpuObjects,
-    pipeline: Handle<ComputePipeline>,
-    set: Handle<DescriptorSet>,
-    constants: FrameConstants,
-}
-
-impl BaselinePass {
-    pub fn new(
-        ctx: &Context,
-        plan: &BaselinePlan,
-        scene: &Scene,
-        grid: GpuGrid,
-        targets: &Targets,
-    ) -> Result<Self> {
-        let shapes = shape_records(scene);
-        let boxes = box_records(scene);
-        let constants = FrameConstants {
-            env_radiance: grid.env_radiance,
-            counts: [
-                boxes.len() as u32,
-                shapes.len() as u32,
-                grid.lights.len() as u32,
-                0,
-            ],
-        };
-        let (objects, (pipeline, set)) = GpuObjects::build(ctx, |o| {
-            let mut layout = Vec::from(Targets::layout());
-            layout.extend([
-                BindingDesc::storage_buffer(bindings::SHAPES),
-                BindingDesc::storage_buffer(bindings::LIGHTS),
-                BindingDesc::uniform_buffer(bindings::BASELINE_UNIFORMS),
-                BindingDesc::sampled_image(bindings::GRID_DENSITY),
-                BindingDesc::storage_buffer(bindings::SUPER_VOXELS),
-                BindingDesc::sampled_image(bindings::GRID_EMISSION),
-                BindingDesc::storage_buffer(bindings::BOX_MEDIA),
-                BindingDesc::storage_buffer(bindings::ENV_TEXELS),
-                BindingDesc::storage_buffer(bindings::ENV_CDF),
-            ]);
-            let pipeline = compute_pipeline::<PassPush>(
-                ctx,
-                o,
-                shaders::BASELINE_PATHTRACE,
-                &layout,
-                &specialization(plan),
-                "baseline path tracer",
-            )?;
-            let shapes = upload_records(ctx, o, &non_empty(&shapes), "shapes")?;
-            let lights = upload_records(ctx, o, &non_empty(&grid.lights), "lights")?;
-            let super_voxels = upload_records(ctx, o, &grid.super_voxels, "super-voxels")?;
-            let boxes = upload_records(ctx, o, &non_empty(&boxes), "box media")?;
-            let (env_texels, env_tables) = upload_env_map(ctx, o, &grid)?;
-            let uniforms = upload_uniform(ctx, o, &grid.uniforms, "baseline uniforms")?;
-            let r32 = vk::Format::R32_SFLOAT;
-            let density = image_3d(
-                ctx,
-                o,
-                grid.density.dims,
-                r32,
-                bytemuck::cast_slice(&grid.density.data),
-                "grid density",
-            )?;
-            // Without emission the (compiled-out) emission binding sees the density.
-            let emission = match &grid.emission {
-                Some(e) => image_3d(
-                    ctx,
-                    o,
-                    e.dims,
-                    r32,
-                    bytemuck::cast_slice(&e.data),
-                    "grid emission",
-                )?,
-                None => density,
-            };
-            let sampler = ctx.create_sampler(&SamplerDesc::nearest(), "grid density")?;
-            o.add(sampler);
-
-            let mut writes = Vec::from(targets.writes());
-            writes.extend([
-                DescriptorWrite::StorageBuffer {
-                    binding: bindings::SHAPES,
-                    buffer: &o[shapes],
-                },
-                DescriptorWrite::StorageBuffer {
-                    binding: bindings::LIGHTS,
-                    buffer: &o[lights],
-                },
-                DescriptorWrite::StorageBuffer {
-                    binding: bindings::SUPER_VOXELS,
-                    buffer: &o[super_voxels],
-                },
-                DescriptorWrite::UniformBuffer {
-                    binding: bindings::BASELINE_UNIFORMS,
-                    buffer: &o[uniforms],
-                },
-                DescriptorWrite::StorageBuffer {
-                    binding: bindings::BOX_MEDIA,
-                    buffer: &o[boxes],
-                },
-                DescriptorWrite::StorageBuffer {
-                    binding: bindings::ENV_TEXELS,
-                    buffer: &o[env_texels],
-                },
-                DescriptorWrite::StorageBuffer {
-                    binding: bindings::ENV_CDF,
-                    buffer: &o[env_tables],
-                },
-                DescriptorWrite::SampledImage {
-                    binding: bindings::GRID_DENSITY,
-                    image: &o[density],
-                    sampler,
-                },
-                DescriptorWrite::SampledImage {
-                    binding: bindings::GRID_EMISSION,
-                    image: &o[emission],
-                    sampler,
-                },
-            ]);
-            let set = ctx.create_descriptor_set(&o[pipeline], &writes, "baseline set")?;
-            Ok((pipeline, o.add(set)))
-        })?;
-        Ok(Self {
-            objects,
-            pipeline,
-            set,
-            constants,
-        })
-    }
-}
-
-impl Pass for BaselinePass {
-    fn label(&self) -> &'static str {
-        "baseline"
-    }
-
-    fn frame_uniforms(&self, scene: &Scene, camera: &CameraFrame) -> FrameUniforms {
-        self.constants.uniforms(scene, camera)
-    }
-
-    fn record(
-        &mut self,
-        ctx: &Context,
-        cmd: vk::CommandBuffer,
-        uniforms: &FrameUniforms,
-        dispatch_index: u32,
-        _profiler: Option<&mut Profiler>,
-    ) -> Result<()> {
-        let push = PassPush {
-            frame: dispatch_index,
-            ..Default::default()
-        };
-        self.objects[self.pipeline].dispatch(
+/// Creates the pass of `plan`.
+pub fn create(
+    ctx: &Context,
+    plan: &BaselinePlan,
+    scene: &Scene,
+    grid: GpuGrid,
+    targets: &Targets,
+) -> Result<ImagePass> {
+    let shapes = shape_records(scene);
+    let boxes = box_records(scene);
+    let constants = FrameConstants {
+        env_radiance: grid.env_radiance,
+        counts: [
+            boxes.len() as u32,
+            shapes.len() as u32,
+            grid.lights.len() as u32,
+            0,
+        ],
+    };
+    let (objects, (pipeline, set)) = GpuObjects::build(ctx, |o| {
+        let mut layout = Vec::from(Targets::layout());
+        layout.extend([
+            BindingDesc::storage_buffer(bindings::SHAPES),
+            BindingDesc::storage_buffer(bindings::LIGHTS),
+            BindingDesc::uniform_buffer(bindings::BASELINE_UNIFORMS),
+            BindingDesc::sampled_image(bindings::GRID_DENSITY),
+            BindingDesc::storage_buffer(bindings::SUPER_VOXELS),
+            BindingDesc::sampled_image(bindings::GRID_EMISSION),
+            BindingDesc::storage_buffer(bindings::BOX_MEDIA),
+            BindingDesc::storage_buffer(bindings::ENV_TEXELS),
+            BindingDesc::storage_buffer(bindings::ENV_CDF),
+        ]);
+        let pipeline = compute_pipeline::<PassPush>(
             ctx,
-            cmd,
-            &self.objects[self.set],
-            bytemuck::bytes_of(&push),
-            image_groups(uniforms),
-        )
-    }
+            o,
+            shaders::BASELINE_PATHTRACE,
+            &layout,
+            &specialization(plan),
+            "baseline path tracer",
+        )?;
+        let shapes = upload_records(ctx, o, &non_empty(&shapes), "shapes")?;
+        let lights = upload_records(ctx, o, &non_empty(&grid.lights), "lights")?;
+        let super_voxels = upload_records(ctx, o, &grid.super_voxels, "super-voxels")?;
+        let boxes = upload_records(ctx, o, &non_empty(&boxes), "box media")?;
+        let (env_texels, env_tables) = upload_env_map(ctx, o, &grid)?;
+        let uniforms = upload_uniform(ctx, o, &grid.uniforms, "baseline uniforms")?;
+        let r32 = vk::Format::R32_SFLOAT;
+        let density = image_3d(
+            ctx,
+            o,
+            grid.density.dims,
+            r32,
+            bytemuck::cast_slice(&grid.density.data),
+            "grid density",
+        )?;
+        // Without emission the (compiled-out) emission binding sees the density.
+        let emission = match &grid.emission {
+            Some(e) => image_3d(
+                ctx,
+                o,
+                e.dims,
+                r32,
+                bytemuck::cast_slice(&e.data),
+                "grid emission",
+            )?,
+            None => density,
+        };
+        let sampler = ctx.create_sampler(&SamplerDesc::nearest(), "grid density")?;
+        o.add(sampler);
 
-    fn device_bytes(&self) -> u64 {
-        self.objects.bytes()
-    }
+        let mut writes = Vec::from(targets.writes());
+        writes.extend([
+            DescriptorWrite::StorageBuffer {
+                binding: bindings::SHAPES,
+                buffer: &o[shapes],
+            },
+            DescriptorWrite::StorageBuffer {
+                binding: bindings::LIGHTS,
+                buffer: &o[lights],
+            },
+            DescriptorWrite::StorageBuffer {
+                binding: bindings::SUPER_VOXELS,
+                buffer: &o[super_voxels],
+            },
+            DescriptorWrite::UniformBuffer {
+                binding: bindings::BASELINE_UNIFORMS,
+                buffer: &o[uniforms],
+            },
+            DescriptorWrite::StorageBuffer {
+                binding: bindings::BOX_MEDIA,
+                buffer: &o[boxes],
+            },
+            DescriptorWrite::StorageBuffer {
+                binding: bindings::ENV_TEXELS,
+                buffer: &o[env_texels],
+            },
+            DescriptorWrite::StorageBuffer {
+                binding: bindings::ENV_CDF,
+                buffer: &o[env_tables],
+            },
+            DescriptorWrite::SampledImage {
+                binding: bindings::GRID_DENSITY,
+                image: &o[density],
+                sampler,
+            },
+            DescriptorWrite::SampledImage {
+                binding: bindings::GRID_EMISSION,
+                image: &o[emission],
+                sampler,
+            },
+        ]);
+        let set = ctx.create_descriptor_set(&o[pipeline], &writes, "baseline set")?;
+        Ok((pipeline, o.add(set)))
+    })?;
+    Ok(ImagePass::new(
+        "baseline", objects, pipeline, set, constants,
+    ))
+}
 
-    fn destroy(self: Box<Self>, ctx: &Context) {
-        self.objects.destroy(ctx);
-    }
+/// What the baseline pass allocates (see [`crate::budget`]).
+pub fn footprint(scene: &Scene, f: &mut Footprint) -> Result<()> {
+    f.add_env_map(scene)?;
+    f.add_grid(scene)?;
+    Ok(())
 }

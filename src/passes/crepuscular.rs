@@ -3,15 +3,13 @@
 //! background, accumulated per pixel.
 
 use anyhow::Result;
-use nimbus_gpu::{
-    vk, BindingDesc, ComputePipeline, Context, DescriptorSet, DescriptorWrite, GpuObjects, Handle,
-    Profiler, SpecValue,
-};
-use nimbus_scene::{CameraFrame, Scene};
+use nimbus_gpu::{BindingDesc, Context, DescriptorWrite, GpuObjects, SpecValue};
+use nimbus_scene::Scene;
 
-use super::{compute_pipeline, image_groups, upload_records, FrameConstants, Pass, Targets};
+use super::{compute_pipeline, upload_records, FrameConstants, ImagePass, Targets};
+use crate::budget::{Binding, Footprint};
 use crate::gpu::features::*;
-use crate::gpu::{bindings, non_empty, FrameUniforms, GpuScene, PassPush};
+use crate::gpu::{bindings, non_empty, GpuScene, PassPush};
 use crate::plan::{estimator_id, CrepuscularPlan};
 use crate::shaders;
 
@@ -32,118 +30,89 @@ pub fn specialization(plan: &CrepuscularPlan) -> [(u32, SpecValue); 7] {
     ]
 }
 
-/// The pass's pipeline and the scene records it reads.
-pub struct CrepuscularPass {
-    objects: GpuObjects,
-    pipeline: Handle<ComputePipeline>,
-    set: Handle<DescriptorSet>,
-    constants: FrameConstants,
-}
-
-impl CrepuscularPass {
-    pub fn new(
-        ctx: &Context,
-        plan: &CrepuscularPlan,
-        scene: &Scene,
-        targets: &Targets,
-    ) -> Result<Self> {
-        let records = GpuScene::build(scene)?;
-        let constants = FrameConstants {
-            env_radiance: records.env_radiance,
-            counts: [
-                records.media.len() as u32,
-                records.shapes.len() as u32,
-                records.lights.len() as u32,
-                plan.samples_along_ray,
-            ],
-        };
-        let (objects, (pipeline, set)) = GpuObjects::build(ctx, |o| {
-            let mut layout = Vec::from(Targets::layout());
-            layout.extend([
-                BindingDesc::storage_buffer(bindings::BOX_MEDIA),
-                BindingDesc::storage_buffer(bindings::SHAPES),
-                BindingDesc::storage_buffer(bindings::LIGHTS),
-                BindingDesc::storage_buffer(bindings::GOBO_PLANES),
-            ]);
-            let pipeline = compute_pipeline::<PassPush>(
-                ctx,
-                o,
-                shaders::BOX_CREPUSCULAR,
-                &layout,
-                &specialization(plan),
-                "crepuscular",
-            )?;
-            let media = upload_records(ctx, o, &non_empty(&records.media), "box media")?;
-            let shapes = upload_records(ctx, o, &non_empty(&records.shapes), "shapes")?;
-            let lights = upload_records(ctx, o, &non_empty(&records.lights), "lights")?;
-            let gobo_planes =
-                upload_records(ctx, o, &non_empty(&records.gobo_planes), "gobo planes")?;
-            let mut writes = Vec::from(targets.writes());
-            writes.extend([
-                DescriptorWrite::StorageBuffer {
-                    binding: bindings::BOX_MEDIA,
-                    buffer: &o[media],
-                },
-                DescriptorWrite::StorageBuffer {
-                    binding: bindings::SHAPES,
-                    buffer: &o[shapes],
-                },
-                DescriptorWrite::StorageBuffer {
-                    binding: bindings::LIGHTS,
-                    buffer: &o[lights],
-                },
-                DescriptorWrite::StorageBuffer {
-                    binding: bindings::GOBO_PLANES,
-                    buffer: &o[gobo_planes],
-                },
-            ]);
-            let set = ctx.create_descriptor_set(&o[pipeline], &writes, "crepuscular set")?;
-            Ok((pipeline, o.add(set)))
-        })?;
-        Ok(Self {
-            objects,
-            pipeline,
-            set,
-            constants,
-        })
-    }
-}
-
-impl Pass for CrepuscularPass {
-    fn label(&self) -> &'static str {
-        "crepuscular"
-    }
-
-    fn frame_uniforms(&self, scene: &Scene, camera: &CameraFrame) -> FrameUniforms {
-        self.constants.uniforms(scene, camera)
-    }
-
-    fn record(
-        &mut self,
-        ctx: &Context,
-        cmd: vk::CommandBuffer,
-        uniforms: &FrameUniforms,
-        dispatch_index: u32,
-        _profiler: Option<&mut Profiler>,
-    ) -> Result<()> {
-        let push = PassPush {
-            frame: dispatch_index,
-            ..Default::default()
-        };
-        self.objects[self.pipeline].dispatch(
+/// Creates the pass of `plan`.
+pub fn create(
+    ctx: &Context,
+    plan: &CrepuscularPlan,
+    scene: &Scene,
+    targets: &Targets,
+) -> Result<ImagePass> {
+    let records = GpuScene::build(scene)?;
+    let constants = FrameConstants {
+        env_radiance: records.env_radiance,
+        counts: [
+            records.media.len() as u32,
+            records.shapes.len() as u32,
+            records.lights.len() as u32,
+            plan.samples_along_ray,
+        ],
+    };
+    let (objects, (pipeline, set)) = GpuObjects::build(ctx, |o| {
+        let mut layout = Vec::from(Targets::layout());
+        layout.extend([
+            BindingDesc::storage_buffer(bindings::BOX_MEDIA),
+            BindingDesc::storage_buffer(bindings::SHAPES),
+            BindingDesc::storage_buffer(bindings::LIGHTS),
+            BindingDesc::storage_buffer(bindings::GOBO_PLANES),
+        ]);
+        let pipeline = compute_pipeline::<PassPush>(
             ctx,
-            cmd,
-            &self.objects[self.set],
-            bytemuck::bytes_of(&push),
-            image_groups(uniforms),
-        )
-    }
+            o,
+            shaders::BOX_CREPUSCULAR,
+            &layout,
+            &specialization(plan),
+            "crepuscular",
+        )?;
+        let media = upload_records(ctx, o, &non_empty(&records.media), "box media")?;
+        let shapes = upload_records(ctx, o, &non_empty(&records.shapes), "shapes")?;
+        let lights = upload_records(ctx, o, &non_empty(&records.lights), "lights")?;
+        let gobo_planes = upload_records(ctx, o, &non_empty(&records.gobo_planes), "gobo planes")?;
+        let mut writes = Vec::from(targets.writes());
+        writes.extend([
+            DescriptorWrite::StorageBuffer {
+                binding: bindings::BOX_MEDIA,
+                buffer: &o[media],
+            },
+            DescriptorWrite::StorageBuffer {
+                binding: bindings::SHAPES,
+                buffer: &o[shapes],
+            },
+            DescriptorWrite::StorageBuffer {
+                binding: bindings::LIGHTS,
+                buffer: &o[lights],
+            },
+            DescriptorWrite::StorageBuffer {
+                binding: bindings::GOBO_PLANES,
+                buffer: &o[gobo_planes],
+            },
+        ]);
+        let set = ctx.create_descriptor_set(&o[pipeline], &writes, "crepuscular set")?;
+        Ok((pipeline, o.add(set)))
+    })?;
+    Ok(ImagePass::new(
+        "crepuscular",
+        objects,
+        pipeline,
+        set,
+        constants,
+    ))
+}
 
-    fn device_bytes(&self) -> u64 {
-        self.objects.bytes()
-    }
-
-    fn destroy(self: Box<Self>, ctx: &Context) {
-        self.objects.destroy(ctx);
-    }
+/// What the crepuscular pass allocates besides the render targets: its scene records
+/// (a few KiB; counted so that every pass reports its footprint).
+pub fn footprint(scene: &Scene, f: &mut Footprint) -> Result<()> {
+    let records = GpuScene::build(scene)?;
+    let bytes = std::mem::size_of_val(records.media.as_slice())
+        + std::mem::size_of_val(records.shapes.as_slice())
+        + std::mem::size_of_val(records.lights.as_slice())
+        + std::mem::size_of_val(records.gobo_planes.as_slice());
+    f.add(
+        format!(
+            "{}: box media, shapes, lights, gobos",
+            scene.source.display()
+        ),
+        Binding::Storage,
+        bytes as u64,
+    );
+    Ok(())
 }

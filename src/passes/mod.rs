@@ -34,11 +34,12 @@ use anyhow::{bail, Context as _, Result};
 use glam::Vec3;
 use nimbus_gpu::{
     vk, BindingDesc, Buffer, BufferDesc, ComputePipeline, ComputePipelineDesc, Context,
-    DescriptorWrite, GpuObjects, Handle, Image, ImageDesc, Profiler, SpecValue,
+    DescriptorSet, DescriptorWrite, GpuObjects, Handle, Image, ImageDesc, Profiler, SpecValue,
 };
 use nimbus_scene::{CameraFrame, GridMedium, Medium, Scene};
 
-use crate::gpu::{bindings, frame_uniforms, FrameUniforms, GpuGrid};
+use crate::budget::Footprint;
+use crate::gpu::{bindings, frame_uniforms, FrameUniforms, GpuGrid, PassPush};
 use crate::plan::{Integrator, RenderPlan};
 
 /// Workgroup size of every image-space shader (`local_size_x`, `local_size_y`).
@@ -89,10 +90,8 @@ pub fn create(
     targets: &Targets,
 ) -> Result<Box<dyn Pass>> {
     Ok(match &plan.integrator {
-        Integrator::Crepuscular(p) => {
-            Box::new(crepuscular::CrepuscularPass::new(ctx, p, scene, targets)?)
-        }
-        Integrator::Baseline(p) => Box::new(baseline::BaselinePass::new(
+        Integrator::Crepuscular(p) => Box::new(crepuscular::create(ctx, p, scene, targets)?),
+        Integrator::Baseline(p) => Box::new(baseline::create(
             ctx,
             p,
             scene,
@@ -107,6 +106,16 @@ pub fn create(
             targets,
         )?),
     })
+}
+
+/// Adds what the pass of `plan` will allocate to `footprint`, from the scene and file
+/// headers only (checked before anything is allocated, see [`crate::budget`]).
+pub fn footprint(scene: &Scene, plan: &RenderPlan, footprint: &mut Footprint) -> Result<()> {
+    match &plan.integrator {
+        Integrator::Crepuscular(_) => crepuscular::footprint(scene, footprint),
+        Integrator::Baseline(_) => baseline::footprint(scene, footprint),
+        Integrator::Restir(p) => restir::footprint(scene, p, footprint),
+    }
 }
 
 /// Buffers shared with the renderer: written by the pass, read back by the renderer.
@@ -163,6 +172,74 @@ pub struct FrameConstants {
 impl FrameConstants {
     pub fn uniforms(&self, scene: &Scene, camera: &CameraFrame) -> FrameUniforms {
         frame_uniforms(scene, camera, self.env_radiance, self.counts)
+    }
+}
+
+/// A pass of one pipeline dispatched once per frame, one invocation per pixel, with
+/// [`PassPush`] push constants: what the crepuscular and baseline passes are once
+/// created. It owns their objects.
+pub struct ImagePass {
+    label: &'static str,
+    objects: GpuObjects,
+    pipeline: Handle<ComputePipeline>,
+    set: Handle<DescriptorSet>,
+    constants: FrameConstants,
+}
+
+impl ImagePass {
+    pub fn new(
+        label: &'static str,
+        objects: GpuObjects,
+        pipeline: Handle<ComputePipeline>,
+        set: Handle<DescriptorSet>,
+        constants: FrameConstants,
+    ) -> ImagePass {
+        ImagePass {
+            label,
+            objects,
+            pipeline,
+            set,
+            constants,
+        }
+    }
+}
+
+impl Pass for ImagePass {
+    fn label(&self) -> &'static str {
+        self.label
+    }
+
+    fn frame_uniforms(&self, scene: &Scene, camera: &CameraFrame) -> FrameUniforms {
+        self.constants.uniforms(scene, camera)
+    }
+
+    fn record(
+        &mut self,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        uniforms: &FrameUniforms,
+        dispatch_index: u32,
+        _profiler: Option<&mut Profiler>,
+    ) -> Result<()> {
+        let push = PassPush {
+            frame: dispatch_index,
+            ..Default::default()
+        };
+        self.objects[self.pipeline].dispatch(
+            ctx,
+            cmd,
+            &self.objects[self.set],
+            bytemuck::bytes_of(&push),
+            image_groups(uniforms),
+        )
+    }
+
+    fn device_bytes(&self) -> u64 {
+        self.objects.bytes()
+    }
+
+    fn destroy(self: Box<Self>, ctx: &Context) {
+        self.objects.destroy(ctx);
     }
 }
 

@@ -12,6 +12,7 @@ mod common;
 mod baseline;
 mod box_analytic;
 mod box_estimators;
+mod budget;
 mod cli;
 mod envmap_gpu;
 mod grid_volume;

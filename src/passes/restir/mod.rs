@@ -23,6 +23,7 @@ use self::resources::{Inputs, Resources};
 use self::schedule::{schedule, ScheduleSettings, Stage, SLOTS};
 use self::volumes::{last_level, march_step, Volumes};
 use super::{image_groups, scene_grid, FrameConstants, Pass, Targets};
+use crate::budget::{grid_bytes, level_dims, Binding, Footprint};
 use crate::gpu::features::*;
 use crate::gpu::{
     frame_uniforms, non_empty, BaselineUniformsGpu, FrameUniforms, GpuGrid, LightGpu, LightSet,
@@ -307,4 +308,74 @@ impl Pass for RestirPass {
     fn destroy(self: Box<Self>, ctx: &Context) {
         self.objects.destroy(ctx);
     }
+}
+
+/// What the ReSTIR passes allocate (see [`crate::budget`]).
+pub fn footprint(scene: &Scene, p: &RestirPlan, f: &mut Footprint) -> Result<()> {
+    f.add_env_map(scene)?;
+    let Some((g, table, dims)) = f.add_grid(scene)? else {
+        return Ok(());
+    };
+    let file = scene.source.display();
+    let r = &scene.render;
+    let pixels = u64::from(r.width) * u64::from(r.height);
+    let voxels = grid_bytes(dims, 1);
+    let reservoirs = 3 * pixels * reservoir_bytes(p.max_bounces);
+    f.add(
+        format!("{file}: [render] `width` x `height` with [integrator] `max_bounces` = {} (ReSTIR reservoirs)", p.max_bounces),
+        Binding::Storage,
+        reservoirs,
+    );
+    let primary = level_dims(dims, p.mip_candidates);
+    let indirect = level_dims(dims, p.mip_indirect);
+    let reuse = level_dims(dims, p.mip_reuse);
+    f.add(
+        format!("{table} (piecewise-constant levels)"),
+        Binding::Storage,
+        grid_bytes(primary, 4) + grid_bytes(indirect, 4),
+    );
+    // Previous-frame density and the ray-march mips (f16, or f32 for densities f16
+    // cannot hold: counted as f32).
+    f.add(
+        format!("{table} (previous density)"),
+        Binding::Image3d(dims),
+        voxels * 4,
+    );
+    for (name, d) in [
+        ("reuse", reuse),
+        ("reuse, previous", reuse),
+        ("NEE", indirect),
+    ] {
+        f.add(
+            format!("{table} (ray-march mip, {name})"),
+            Binding::Image3d(d),
+            grid_bytes(d, 4),
+        );
+    }
+    if let Some(v) = &g.velocity {
+        let vd = v.dims()?;
+        f.add(
+            format!("{table} field `velocity`"),
+            Binding::Image3d(vd),
+            grid_bytes(vd, 8),
+        );
+        f.host_peak += grid_bytes(vd, 12 + 8);
+    }
+    // Every density frame is derived and kept: the grid, its levels and mips; while
+    // one is built, its conservative copy and one mip level are alive too.
+    let derived = |d: [u32; 3]| {
+        grid_bytes(d, 4)
+            + grid_bytes(primary, 4)
+            + grid_bytes(indirect, 4)
+            + grid_bytes(reuse, 4)
+            + grid_bytes(indirect, 4)
+    };
+    let frames: Vec<&nimbus_scene::GridSource> = g.density_sources().collect();
+    let kept: u64 = frames
+        .iter()
+        .map(|s| s.dims().map(derived))
+        .sum::<Result<u64>>()?;
+    let building = grid_bytes(dims, 4) + grid_bytes(level_dims(dims, 1), 4);
+    f.host_peak += kept + building;
+    Ok(())
 }

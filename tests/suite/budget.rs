@@ -1,0 +1,86 @@
+//! The footprint a render is checked against before it allocates anything
+//! (`nimbus::budget`) is what the passes really create, and what does not fit is refused
+//! with a message naming the scene field, before any allocation.
+
+use std::path::PathBuf;
+
+use nimbus::budget::Footprint;
+use nimbus::plan;
+use nimbus_scene::FieldOverride;
+
+use crate::common::gpu::{context, render_checked};
+
+fn asset(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("assets/scenes")
+        .join(name)
+}
+
+/// For every integrator (the box pass, the baseline, ReSTIR static and animated), the
+/// estimate bounds the bytes the render created from above, and is not loose: at least
+/// half of it is really allocated. (It counts ReSTIR's half-float ray-march mips as f32,
+/// which a density beyond f16's range needs, and leaves out records of a few bytes.)
+#[test]
+fn footprint_matches_what_the_passes_create() {
+    let ctx = context();
+    for name in [
+        "window.toml",
+        "cloud.toml",
+        "cloud-restir.toml",
+        "plume-anim.toml",
+    ] {
+        let overrides = [
+            FieldOverride::new("render.width", 40),
+            FieldOverride::new("render.height", 30),
+            FieldOverride::new("render.frames", 1),
+        ];
+        let scene = nimbus_scene::load_with(&asset(name), &overrides).unwrap();
+        let plan = plan::build(&scene, None).unwrap();
+        let estimate = Footprint::of(&scene, &plan).unwrap().device_bytes();
+        let actual = render_checked(&ctx, &scene, None).device_bytes;
+        // Records the estimate leaves out: lights, uniforms, stats (< 64 KiB).
+        let slack = 64 << 10;
+        assert!(
+            actual <= estimate + slack && 2 * actual >= estimate,
+            "{name}: {actual} bytes allocated, {estimate} estimated"
+        );
+    }
+}
+
+/// A render that exceeds the device's storage-buffer range is refused before any
+/// allocation, naming the scene file and the field that sets the size.
+#[test]
+fn oversized_buffers_are_refused_naming_the_field() {
+    let ctx = context();
+    let limit = u64::from(ctx.info().max_storage_buffer_range);
+    // ReSTIR's reservoirs: 3 slots x (32 + 8 K) bytes per pixel; pick K and a size that
+    // exceed the range while the accumulation buffers still fit.
+    let side = 2048u32;
+    let pixels = u64::from(side) * u64::from(side);
+    assert!(
+        pixels * 16 <= limit,
+        "the accumulation buffers must fit for this test"
+    );
+    assert!(
+        3 * pixels * (32 + 8 * 16) > limit,
+        "the reservoirs must not"
+    );
+    let overrides = [
+        FieldOverride::new("render.width", i64::from(side)),
+        FieldOverride::new("render.height", i64::from(side)),
+        FieldOverride::new("integrator.max_bounces", 16),
+    ];
+    let scene = nimbus_scene::load_with(&asset("cloud-restir.toml"), &overrides).unwrap();
+    let plan = plan::build(&scene, None).unwrap();
+    let err = nimbus::renderer::render(&ctx, &scene, &plan, &Default::default())
+        .err()
+        .expect("refused")
+        .to_string();
+    assert!(
+        err.contains("cloud-restir.toml")
+            && err.contains("max_bounces")
+            && err.contains("maxStorageBufferRange"),
+        "{err}"
+    );
+    crate::common::gpu::assert_no_validation_errors(&ctx);
+}
