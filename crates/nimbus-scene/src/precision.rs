@@ -231,6 +231,85 @@ pub fn grid_effective_sigma_t(grid: &VoxelGrid, scale: f64, voxel: [f64; 3]) -> 
     best
 }
 
+/// Refuses features and extinctions that 32-bit positions cannot resolve at the
+/// scene's extent (see [`crate::precision`]). Grid densities are checked when the grid
+/// is read ([`GridMedium::check_density`]).
+pub(crate) fn check_scene(source: &crate::fields::Source, scene: &Scene) -> anyhow::Result<()> {
+    let scale = scene.position_scale();
+    let fail = |table: String, field: &str, problem: String| {
+        source.error(format!("{table}: field `{field}`: {problem}"))
+    };
+    for (i, medium) in scene.media.iter().enumerate() {
+        match medium {
+            Medium::Box(b) => {
+                let table = format!("[[medium]] #{} (type = \"box\")", i + 1);
+                if let Some(p) = scale.feature_problem(f64::from(b.size.min_element())) {
+                    return Err(fail(table, "size", p));
+                }
+                if let Some(p) = scale.sigma_t_problem(f64::from(b.sigma_t), "sigma_t") {
+                    return Err(fail(table, "sigma_t", p));
+                }
+            }
+            Medium::Grid(g) => {
+                let table = format!("[[medium]] #{} (type = \"grid\")", i + 1);
+                for source_grid in g.density_sources() {
+                    let Ok(dims) = source_grid.dims() else {
+                        continue;
+                    };
+                    let voxel = (g.bounds_max - g.bounds_min) / Vec3::from(dims.map(|d| d as f32));
+                    if let Some(p) = scale.feature_problem(f64::from(voxel.min_element())) {
+                        return Err(fail(table, "density", format!("a voxel of {p}")));
+                    }
+                }
+            }
+        }
+    }
+    for (i, shape) in scene.shapes.iter().enumerate() {
+        let (kind, field, size) = match shape {
+            Shape::Quad { edge_u, edge_v, .. } => {
+                let (field, len) = if edge_u.length() <= edge_v.length() {
+                    ("edge_u", edge_u.length())
+                } else {
+                    ("edge_v", edge_v.length())
+                };
+                ("quad", field, len)
+            }
+            Shape::Box { size, .. } => ("box", "size", size.min_element()),
+            Shape::Sphere { radius, .. } => ("sphere", "radius", *radius),
+        };
+        if let Some(p) = scale.feature_problem(f64::from(size)) {
+            return Err(fail(
+                format!("[[shape]] #{} (type = \"{kind}\")", i + 1),
+                field,
+                p,
+            ));
+        }
+    }
+    for (i, light) in scene.lights.iter().enumerate() {
+        let (kind, field, size) = match light {
+            Light::Sphere { radius, .. } => ("sphere", "radius", *radius),
+            Light::Directional {
+                gobo: Some(gobo), ..
+            } => {
+                let n = gobo.polygon.len();
+                let shortest = (0..n)
+                    .map(|k| (gobo.polygon[(k + 1) % n] - gobo.polygon[k]).length())
+                    .fold(f32::INFINITY, f32::min);
+                ("directional", "gobo", shortest)
+            }
+            _ => continue,
+        };
+        if let Some(p) = scale.feature_problem(f64::from(size)) {
+            return Err(fail(
+                format!("[[light]] #{} (type = \"{kind}\")", i + 1),
+                field,
+                p,
+            ));
+        }
+    }
+    Ok(())
+}
+
 impl crate::types::GridMedium {
     /// Checks a loaded density grid of this medium before the renderer uses it:
     /// σt = `density_scale` × voxel must stay within [`crate::MAX_SIGMA_T`] (so it is

@@ -1,0 +1,301 @@
+//! `[[medium]]` tables and the grid sources they name.
+
+use anyhow::Result;
+use glam::Vec3;
+use toml::Value;
+
+use super::*;
+use crate::fields::{
+    open_interval, positive_up_to, radiometric, type_name, unit_interval, Fields, Source,
+};
+use crate::files::{check_grid_dims, file_size, read_vol_header};
+use crate::geometry::OrientedBox;
+
+const MEDIUM_TYPES: &[(&str, &[&str])] = &[
+    (
+        "box",
+        &[
+            "type",
+            "center",
+            "size",
+            "rotation_deg",
+            "sigma_t",
+            "albedo",
+            "g",
+        ],
+    ),
+    (
+        "grid",
+        &[
+            "type",
+            "bounds_min",
+            "bounds_max",
+            "density",
+            "density_scale",
+            "albedo",
+            "g",
+            "emission",
+            "emission_scale",
+            "velocity",
+            "frame",
+        ],
+    ),
+];
+const GRID_KEYS: &[&str] = &["file", "dims", "procedural", "noise_seed"];
+const GRID_FRAME_KEYS: &[&str] = &["frame", "density"];
+
+pub(super) fn parse_medium(
+    source: &Source,
+    index: usize,
+    table: &toml::Table,
+) -> Result<(Medium, String, OrientedBox)> {
+    let (kind, f) = typed_fields(source, "medium", index, table, MEDIUM_TYPES)?;
+    let albedo = f.color("albedo", Some(Vec3::ONE), unit_interval)?;
+    let g = f.f32_with("g", Some(0.0), open_interval(-1.0, 1.0))?;
+    if kind == "box" {
+        let medium = BoxMedium {
+            center: f.vec3("center", None)?,
+            size: size3(&f, "size")?,
+            rotation_deg: f.vec3("rotation_deg", Some(Vec3::ZERO))?,
+            sigma_t: f.f32_in("sigma_t", None, 0.0..=MAX_SIGMA_T)?,
+            albedo,
+            g,
+        };
+        let bounds = OrientedBox::new(
+            medium.center.as_dvec3(),
+            medium.size.as_dvec3(),
+            medium.rotation_deg.as_dvec3(),
+        );
+        return Ok((Medium::Box(medium), f.name, bounds));
+    }
+
+    let bounds_min = f.vec3("bounds_min", None)?;
+    let bounds_max = f.vec3("bounds_max", None)?;
+    for axis in 0..3 {
+        let extent = f64::from(bounds_max[axis]) - f64::from(bounds_min[axis]);
+        if let Some(message) = positive_up_to(MAX_LENGTH_M)(extent) {
+            return Err(f.error(
+                "bounds_max",
+                format!(
+                    "component {axis}: bounds_max - bounds_min = {extent}, {message} \
+                     (bounds_min must be < bounds_max componentwise)"
+                ),
+            ));
+        }
+    }
+    let density_table = f
+        .opt_table("density")?
+        .ok_or_else(|| f.error("density", "missing required field"))?;
+    let density = parse_grid_source(&f, "density", density_table, GridChannels::Scalar)?;
+    let emission = match f.opt_table("emission")? {
+        Some(table) => Some(parse_grid_source(
+            &f,
+            "emission",
+            table,
+            GridChannels::Scalar,
+        )?),
+        None if f.has("emission_scale") => {
+            return Err(f.error("emission_scale", "has no effect without `emission`"));
+        }
+        None => None,
+    };
+    let velocity = match f.opt_table("velocity")? {
+        Some(table) => Some(parse_grid_source(
+            &f,
+            "velocity",
+            table,
+            GridChannels::Vector,
+        )?),
+        None => None,
+    };
+
+    let mut frames: Vec<(GridFrame, String)> = Vec::new();
+    for (i, frame_table) in f.tables("frame")?.into_iter().enumerate() {
+        let name = format!("{} > [[medium.frame]] #{}", f.name, i + 1);
+        let frame_fields = Fields::new(source, name.clone(), frame_table, GRID_FRAME_KEYS)?;
+        let frame = frame_fields.u32_in("frame", None, 0..=u32::MAX)?;
+        let density_table = frame_fields
+            .opt_table("density")?
+            .ok_or_else(|| frame_fields.error("density", "missing required field"))?;
+        let density = parse_grid_source(
+            &frame_fields,
+            "density",
+            density_table,
+            GridChannels::Scalar,
+        )?;
+        frames.push((GridFrame { frame, density }, name));
+    }
+    frames.sort_by_key(|(frame, _)| frame.frame);
+    for pair in frames.windows(2) {
+        if pair[0].0.frame == pair[1].0.frame {
+            return Err(source.error(format!(
+                "{} and {}: field `frame`: both are frame {}; medium frames must be unique",
+                pair[0].1, pair[1].1, pair[0].0.frame
+            )));
+        }
+    }
+
+    let medium = GridMedium {
+        bounds_min,
+        bounds_max,
+        density,
+        density_scale: f.f32_in("density_scale", Some(1.0), 0.0..=MAX_SIGMA_T)?,
+        albedo,
+        g,
+        emission,
+        emission_scale: f.color("emission_scale", Some(Vec3::ONE), radiometric)?,
+        velocity,
+        frames: frames.into_iter().map(|(frame, _)| frame).collect(),
+    };
+    let bounds = OrientedBox::aabb(bounds_min.as_dvec3(), bounds_max.as_dvec3());
+    Ok((Medium::Grid(medium), f.name, bounds))
+}
+
+/// What a grid holds per voxel.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum GridChannels {
+    /// One float (density, emission); procedural grids allowed.
+    Scalar,
+    /// Three floats (velocity); files only.
+    Vector,
+}
+
+impl GridChannels {
+    fn count(self) -> u32 {
+        match self {
+            Self::Scalar => 1,
+            Self::Vector => 3,
+        }
+    }
+}
+
+/// A grid table (`density`, `emission`, `velocity`) found as field `key` of `parent`.
+fn parse_grid_source(
+    parent: &Fields,
+    key: &str,
+    table: &toml::Table,
+    channels: GridChannels,
+) -> Result<GridSource> {
+    let f = Fields::new(
+        parent.source,
+        format!("{} > {key}", parent.name),
+        table,
+        GRID_KEYS,
+    )?;
+    let dims = match f.value("dims") {
+        Some(value) => Some(parse_dims(&f, value)?),
+        None => None,
+    };
+    let file = f.opt_str("file")?;
+    let procedural = f.opt_str("procedural")?;
+    match (file, procedural) {
+        (Some(_), Some(_)) => {
+            Err(f.error("procedural", "give either `file` or `procedural`, not both"))
+        }
+        (None, None) => Err(f.error(
+            "file",
+            "missing: a grid needs `file` (raw float32 with `dims`, or .vol) or `procedural`",
+        )),
+        (None, Some(_)) => {
+            if channels == GridChannels::Vector {
+                return Err(f.error(
+                    "procedural",
+                    "a velocity grid must come from a file (3 float32 channels)",
+                ));
+            }
+            f.choice("procedural", None, &[("cloud", ())])?;
+            let dims = dims.ok_or_else(|| {
+                f.error(
+                    "dims",
+                    "missing required field (procedural grids need `dims`)",
+                )
+            })?;
+            let noise_seed = f.int_in("noise_seed", Some(0), 0..=i64::MAX)? as u64;
+            Ok(GridSource::ProceduralCloud { dims, noise_seed })
+        }
+        (Some(name), None) => {
+            if f.has("noise_seed") {
+                return Err(f.error("noise_seed", "only procedural grids take a `noise_seed`"));
+            }
+            let path = f.source.resolve(name);
+            if name.to_ascii_lowercase().ends_with(".vol") {
+                let header = read_vol_header(&path).map_err(|e| f.error("file", e))?;
+                if header.channels != channels.count() {
+                    return Err(f.error(
+                        "file",
+                        format!(
+                            "{}: .vol file has {} channels, expected {}",
+                            path.display(),
+                            header.channels,
+                            channels.count()
+                        ),
+                    ));
+                }
+                if let Some(dims) = dims {
+                    if dims != header.dims {
+                        return Err(f.error(
+                            "dims",
+                            format!(
+                                "{dims:?} differs from the .vol header's {:?} (dims may be left out for .vol files)",
+                                header.dims
+                            ),
+                        ));
+                    }
+                }
+                return Ok(GridSource::MitsubaVol { file: path });
+            }
+            let dims = dims.ok_or_else(|| {
+                f.error(
+                    "dims",
+                    "missing required field (raw float32 grid files need `dims`)",
+                )
+            })?;
+            let size = file_size(&path).map_err(|message| f.error("file", message))?;
+            let voxels: u64 = dims.iter().map(|&d| u64::from(d)).product();
+            let expected = voxels * u64::from(channels.count()) * 4;
+            if size != expected {
+                return Err(f.error(
+                    "file",
+                    format!(
+                        "{}: expected {expected} bytes ({} x {} x {} voxels x {} channel(s) x 4 \
+                         bytes of float32), found {size} bytes",
+                        path.display(),
+                        dims[0],
+                        dims[1],
+                        dims[2],
+                        channels.count()
+                    ),
+                ));
+            }
+            Ok(GridSource::Raw { file: path, dims })
+        }
+    }
+}
+
+/// `dims = [nx, ny, nz]`.
+fn parse_dims(f: &Fields, value: &Value) -> Result<[u32; 3]> {
+    let expected = "expected an array of 3 integers [nx, ny, nz]";
+    let items = match value {
+        Value::Array(items) if items.len() == 3 => items,
+        Value::Array(items) => {
+            return Err(f.error(
+                "dims",
+                format!("{expected}, found {} elements", items.len()),
+            ))
+        }
+        other => return Err(f.error("dims", format!("{expected}, found {}", type_name(other)))),
+    };
+    let mut dims = [0i64; 3];
+    for (axis, item) in items.iter().enumerate() {
+        dims[axis] = match item {
+            Value::Integer(i) => *i,
+            other => {
+                return Err(f.error(
+                    "dims",
+                    format!("{expected}, element {axis} is {}", type_name(other)),
+                ))
+            }
+        };
+    }
+    check_grid_dims(dims).map_err(|message| f.error("dims", message))
+}

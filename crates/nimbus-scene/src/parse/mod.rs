@@ -1,0 +1,425 @@
+//! Scene file → validated [`Scene`]: one function per table of `SCENE_FORMAT.md`.
+
+use std::path::Path;
+
+use anyhow::Result;
+use glam::{DVec3, Vec3};
+use toml::Value;
+
+use crate::fields::{open_interval, positive_up_to, type_name, unit_interval, Fields, Source};
+use crate::files::file_size;
+use crate::geometry::{convex_ccw_polygon, OrientedBox};
+use crate::overrides::FieldOverride;
+use crate::types::*;
+
+mod lights;
+mod media;
+
+use lights::parse_light;
+use media::parse_medium;
+
+/// Largest size, extent or radius in metres.
+pub const MAX_LENGTH_M: f64 = 1e7;
+/// Largest `sigma_t` / `density_scale` in 1/m.
+pub const MAX_SIGMA_T: f64 = 1e9;
+/// Most ReSTIR spatial neighbours: the shaders combine at most 17 candidates (the
+/// pixel's own and 16 neighbours' reservoirs), and Talbot MIS costs (N + 1)² path
+/// evaluations per pixel.
+pub const MAX_SPATIAL_NEIGHBORS: u32 = 16;
+/// Largest image side in pixels.
+pub const MAX_IMAGE_SIDE: u32 = 16384;
+/// Most pixels in an image (64 Mi).
+pub const MAX_IMAGE_PIXELS: u64 = 64 << 20;
+
+const TOP_KEYS: &[&str] = &["render", "camera", "light", "medium", "shape", "integrator"];
+const RENDER_KEYS: &[&str] = &["width", "height", "frames", "spp", "seed", "pixel_jitter"];
+const CAMERA_KEYS: &[&str] = &[
+    "position",
+    "look_at",
+    "up",
+    "horizontal_fov_deg",
+    "keyframe",
+];
+const KEYFRAME_KEYS: &[&str] = &["frame", "position", "look_at"];
+const SHAPE_TYPES: &[(&str, &[&str])] = &[
+    ("quad", &["type", "corner", "edge_u", "edge_v", "albedo"]),
+    ("box", &["type", "center", "size", "rotation_deg", "albedo"]),
+    ("sphere", &["type", "center", "radius", "albedo"]),
+];
+const INTEGRATOR_KEYS: &[&str] = &[
+    "max_bounces",
+    "volume",
+    "box_estimator",
+    "box_samples",
+    "restir",
+];
+/// The fields of `[integrator.restir]`.
+pub const RESTIR_KEYS: &[&str] = &[
+    "candidates",
+    "temporal",
+    "temporal_limit",
+    "spatial_neighbors",
+    "spatial_radius_px",
+    "spatial_rounds",
+    "reuse",
+    "mip_candidates",
+    "mip_indirect",
+    "mip_reuse",
+    "final_transmittance",
+];
+
+/// Parses and validates the scene in `text`; `file` names it in errors and anchors
+/// relative paths.
+pub(crate) fn parse_scene(text: &str, file: &Path, overrides: &[FieldOverride]) -> Result<Scene> {
+    let source = Source { file };
+    let mut root: toml::Table = toml::from_str(text)
+        .map_err(|e| source.error(format!("TOML syntax error: {}", e.to_string().trim_end())))?;
+    crate::overrides::apply(&mut root, overrides).map_err(|e| source.error(e))?;
+    let top = Fields::new(&source, "top level".into(), &root, TOP_KEYS)?;
+
+    let render = match top.opt_table("render")? {
+        Some(table) => parse_render(&source, table)?,
+        None => RenderSettings::default(),
+    };
+    let camera_table = top
+        .opt_table("camera")?
+        .ok_or_else(|| source.error("missing required table [camera]"))?;
+    let camera = parse_camera(&source, camera_table, render.frames)?;
+
+    let (lights, light_keyframes) = top
+        .tables("light")?
+        .into_iter()
+        .enumerate()
+        .map(|(i, table)| parse_light(&source, i + 1, table))
+        .collect::<Result<(Vec<_>, Vec<_>)>>()?;
+
+    let mut media = Vec::new();
+    let mut medium_bounds: Vec<(String, OrientedBox)> = Vec::new();
+    for (i, table) in top.tables("medium")?.into_iter().enumerate() {
+        let (medium, name, bounds) = parse_medium(&source, i + 1, table)?;
+        media.push(medium);
+        medium_bounds.push((name, bounds));
+    }
+    // Media must not share volume (touching is fine).
+    for (i, (name_a, a)) in medium_bounds.iter().enumerate() {
+        for (name_b, b) in &medium_bounds[i + 1..] {
+            if a.overlaps(b) {
+                return Err(source.error(format!(
+                    "{name_a} and {name_b} overlap; media must not overlap"
+                )));
+            }
+        }
+    }
+
+    let shapes = top
+        .tables("shape")?
+        .into_iter()
+        .enumerate()
+        .map(|(i, table)| parse_shape(&source, i + 1, table))
+        .collect::<Result<Vec<_>>>()?;
+
+    let integrator = match top.opt_table("integrator")? {
+        Some(table) => parse_integrator(&source, table)?,
+        None => Integrator::default(),
+    };
+
+    let scene = Scene {
+        source: file.to_path_buf(),
+        render,
+        camera,
+        lights,
+        light_keyframes,
+        media,
+        shapes,
+        integrator,
+    };
+    crate::precision::check_scene(&source, &scene)?;
+    Ok(scene)
+}
+
+fn parse_render(source: &Source, table: &toml::Table) -> Result<RenderSettings> {
+    let f = Fields::new(source, "[render]".into(), table, RENDER_KEYS)?;
+    let defaults = RenderSettings::default();
+    let width = f.u32_in("width", Some(defaults.width), 1..=MAX_IMAGE_SIDE)?;
+    let height = f.u32_in("height", Some(defaults.height), 1..=MAX_IMAGE_SIDE)?;
+    let pixels = u64::from(width) * u64::from(height);
+    if pixels > MAX_IMAGE_PIXELS {
+        return Err(f.error(
+            "height",
+            format!("width x height = {pixels} pixels, at most {MAX_IMAGE_PIXELS} are allowed"),
+        ));
+    }
+    Ok(RenderSettings {
+        width,
+        height,
+        frames: f.u32_in("frames", Some(defaults.frames), 1..=1_000_000)?,
+        spp: f.u32_in("spp", Some(defaults.spp), 1..=65536)?,
+        seed: f.int_in("seed", Some(0), 0..=i64::MAX)? as u64,
+        pixel_jitter: f.opt_bool("pixel_jitter")?.unwrap_or(defaults.pixel_jitter),
+    })
+}
+
+/// Why a camera looking from `position` at `look_at` with `up` has no frame, if it
+/// has none.
+fn view_problem(position: Vec3, look_at: Vec3, up: Vec3) -> Option<String> {
+    let view = (look_at - position).as_dvec3();
+    let scale = position
+        .abs()
+        .max_element()
+        .max(look_at.abs().max_element()) as f64;
+    if view.length() <= (1e-6 * scale).max(1e-12) {
+        // Points far from the origin may differ in the file and still coincide as f32.
+        let resolution = scale * crate::precision::F32_EPSILON;
+        return Some(if resolution > 1e-6 {
+            format!(
+                "`position` and `look_at` coincide or nearly so: {scale:e} m from the origin, \
+                 32-bit positions are only known to {resolution:.2e} m"
+            )
+        } else {
+            "`position` and `look_at` coincide".to_string()
+        });
+    }
+    if view.normalize().cross(up.as_dvec3()).length() < 1e-4 {
+        return Some("`up` is parallel to the view direction (look_at - position)".to_string());
+    }
+    None
+}
+
+fn parse_camera(source: &Source, table: &toml::Table, frames: u32) -> Result<Camera> {
+    let f = Fields::new(source, "[camera]".into(), table, CAMERA_KEYS)?;
+    let up = f.direction("up", Some(DVec3::Y))?.as_vec3();
+    let horizontal_fov_deg =
+        f.f32_with("horizontal_fov_deg", Some(60.0), open_interval(0.0, 180.0))?;
+
+    let mut keyframes: Vec<(CameraKeyframe, String)> = Vec::new();
+    for (i, key_table) in f.tables("keyframe")?.into_iter().enumerate() {
+        let name = format!("[[camera.keyframe]] #{}", i + 1);
+        let k = Fields::new(source, name.clone(), key_table, KEYFRAME_KEYS)?;
+        let keyframe = CameraKeyframe {
+            frame: k.u32_in("frame", None, 0..=u32::MAX)?,
+            position: k.vec3("position", None)?,
+            look_at: k.vec3("look_at", None)?,
+        };
+        if let Some(problem) = view_problem(keyframe.position, keyframe.look_at, up) {
+            return Err(k.error("look_at", problem));
+        }
+        keyframes.push((keyframe, name));
+    }
+    keyframes.sort_by_key(|(k, _)| k.frame);
+    for pair in keyframes.windows(2) {
+        if pair[0].0.frame == pair[1].0.frame {
+            return Err(source.error(format!(
+                "{} and {}: field `frame`: both are frame {}; keyframe frames must be unique",
+                pair[0].1, pair[1].1, pair[0].0.frame
+            )));
+        }
+    }
+    let keyframes: Vec<CameraKeyframe> = keyframes.into_iter().map(|(k, _)| k).collect();
+
+    // With keyframes the static pose is optional: it defaults to the first keyframe's.
+    let first = keyframes.first();
+    let position = f.vec3("position", first.map(|k| k.position))?;
+    let look_at = f.vec3("look_at", first.map(|k| k.look_at))?;
+    if let Some(problem) = view_problem(position, look_at, up) {
+        let field = if problem.contains("`up`") {
+            "up"
+        } else {
+            "look_at"
+        };
+        return Err(f.error(field, problem));
+    }
+    let camera = Camera {
+        position,
+        look_at,
+        up,
+        horizontal_fov_deg,
+        keyframes,
+    };
+    // Interpolated poses between keyframes must also be valid for every rendered frame.
+    if let (Some(first), Some(last)) = (camera.keyframes.first(), camera.keyframes.last()) {
+        let end = last.frame.min(frames.saturating_sub(1));
+        for frame in first.frame..=end {
+            let (position, look_at) = camera.pose_at(frame);
+            if let Some(problem) = view_problem(position, look_at, up) {
+                return Err(f.error(
+                    "keyframe",
+                    format!("at frame {frame} (interpolated): {problem}"),
+                ));
+            }
+        }
+    }
+    Ok(camera)
+}
+
+/// Reads `type` and wraps `table` with the keys that type allows. Returns the type
+/// and the fields, named like `[[light]] #2 (type = "point")`.
+pub(super) fn typed_fields<'a>(
+    source: &'a Source<'a>,
+    array: &str,
+    index: usize,
+    table: &'a toml::Table,
+    types: &[(&'static str, &[&str])],
+) -> Result<(&'static str, Fields<'a>)> {
+    let bare = format!("[[{array}]] #{index}");
+    let valid: Vec<String> = types.iter().map(|(t, _)| format!("\"{t}\"")).collect();
+    let valid = valid.join(", ");
+    let error = |message: String| {
+        source.error(format!(
+            "{bare}: field `type`: {message}; valid types: {valid}"
+        ))
+    };
+    let kind = match table.get("type") {
+        Some(Value::String(kind)) => kind.as_str(),
+        Some(other) => {
+            return Err(error(format!(
+                "expected a string, found {}",
+                type_name(other)
+            )))
+        }
+        None => return Err(error("missing required field".into())),
+    };
+    let (kind, allowed) = types
+        .iter()
+        .find(|(t, _)| *t == kind)
+        .ok_or_else(|| error(format!("unknown type \"{kind}\"")))?;
+    let fields = Fields::new(
+        source,
+        format!("{bare} (type = \"{kind}\")"),
+        table,
+        allowed,
+    )?;
+    Ok((kind, fields))
+}
+
+/// Resolves `name` (field `key`) against the scene's directory and checks that it is
+/// an existing file, with extension `extension` (case-insensitive) when given.
+pub(super) fn existing_file(
+    f: &Fields,
+    key: &str,
+    name: &str,
+    extension: Option<&str>,
+) -> Result<std::path::PathBuf> {
+    if let Some(extension) = extension {
+        if !name.to_ascii_lowercase().ends_with(extension) {
+            return Err(f.error(key, format!("\"{name}\" must be a {extension} file")));
+        }
+    }
+    let path = f.source.resolve(name);
+    file_size(&path).map_err(|message| f.error(key, message))?;
+    Ok(path)
+}
+
+/// Three lengths in (0, [`MAX_LENGTH_M`]].
+pub(super) fn size3(f: &Fields, key: &str) -> Result<Vec3> {
+    let size = f.vec3_f64(key, None)?;
+    for axis in 0..3 {
+        if let Some(message) = positive_up_to(MAX_LENGTH_M)(size[axis]) {
+            return Err(f.error(
+                key,
+                format!("component {axis} is {}, {message}", size[axis]),
+            ));
+        }
+    }
+    Ok(size.as_vec3())
+}
+
+fn parse_shape(source: &Source, index: usize, table: &toml::Table) -> Result<Shape> {
+    let (kind, f) = typed_fields(source, "shape", index, table, SHAPE_TYPES)?;
+    let albedo = f.color("albedo", Some(Vec3::ZERO), unit_interval)?;
+    Ok(match kind {
+        "quad" => {
+            let edge = |key: &str| -> Result<DVec3> {
+                let v = f.vec3_f64(key, None)?;
+                if v.length() == 0.0 {
+                    return Err(f.error(key, "must not be the zero vector"));
+                }
+                if v.length() > MAX_LENGTH_M {
+                    return Err(f.error(key, format!("is longer than {MAX_LENGTH_M} m")));
+                }
+                Ok(v)
+            };
+            let (edge_u, edge_v) = (edge("edge_u")?, edge("edge_v")?);
+            if edge_u.cross(edge_v).length() <= 1e-6 * edge_u.length() * edge_v.length() {
+                return Err(f.error("edge_v", "is parallel to `edge_u`"));
+            }
+            Shape::Quad {
+                corner: f.vec3("corner", None)?,
+                edge_u: edge_u.as_vec3(),
+                edge_v: edge_v.as_vec3(),
+                albedo,
+            }
+        }
+        "box" => Shape::Box {
+            center: f.vec3("center", None)?,
+            size: size3(&f, "size")?,
+            rotation_deg: f.vec3("rotation_deg", Some(Vec3::ZERO))?,
+            albedo,
+        },
+        _ => Shape::Sphere {
+            center: f.vec3("center", None)?,
+            radius: f.f32_with("radius", None, positive_up_to(MAX_LENGTH_M))?,
+            albedo,
+        },
+    })
+}
+
+fn parse_integrator(source: &Source, table: &toml::Table) -> Result<Integrator> {
+    let f = Fields::new(source, "[integrator]".into(), table, INTEGRATOR_KEYS)?;
+    let defaults = Integrator::default();
+    let estimators: Vec<(&str, BoxEstimator)> =
+        BoxEstimator::ALL.iter().map(|e| (e.name(), *e)).collect();
+    Ok(Integrator {
+        max_bounces: f.u32_in("max_bounces", Some(defaults.max_bounces), 1..=1024)?,
+        volume: f.choice(
+            "volume",
+            Some(defaults.volume),
+            &[
+                ("restir", VolumeIntegrator::Restir),
+                ("baseline", VolumeIntegrator::Baseline),
+            ],
+        )?,
+        box_estimator: f.choice("box_estimator", Some(defaults.box_estimator), &estimators)?,
+        box_samples: f.u32_in("box_samples", Some(defaults.box_samples), 1..=65536)?,
+        restir: match f.opt_table("restir")? {
+            Some(table) => parse_restir(source, table)?,
+            None => defaults.restir,
+        },
+    })
+}
+
+fn parse_restir(source: &Source, table: &toml::Table) -> Result<RestirSettings> {
+    let f = Fields::new(source, "[integrator.restir]".into(), table, RESTIR_KEYS)?;
+    let d = RestirSettings::default();
+    Ok(RestirSettings {
+        candidates: f.u32_in("candidates", Some(d.candidates), 1..=4096)?,
+        temporal: f.opt_bool("temporal")?.unwrap_or(d.temporal),
+        temporal_limit: f.u32_in("temporal_limit", Some(d.temporal_limit), 1..=1024)?,
+        spatial_neighbors: f.u32_in(
+            "spatial_neighbors",
+            Some(d.spatial_neighbors),
+            0..=MAX_SPATIAL_NEIGHBORS,
+        )?,
+        spatial_radius_px: f.f32_in(
+            "spatial_radius_px",
+            Some(d.spatial_radius_px),
+            0.0..=f64::from(MAX_IMAGE_SIDE),
+        )?,
+        spatial_rounds: f.u32_in("spatial_rounds", Some(d.spatial_rounds), 0..=16)?,
+        reuse: f.choice(
+            "reuse",
+            Some(d.reuse),
+            &[
+                ("direction", ReuseMode::Direction),
+                ("vertex", ReuseMode::Vertex),
+            ],
+        )?,
+        mip_candidates: f.u32_in("mip_candidates", Some(d.mip_candidates), 0..=16)?,
+        mip_indirect: f.u32_in("mip_indirect", Some(d.mip_indirect), 0..=16)?,
+        mip_reuse: f.u32_in("mip_reuse", Some(d.mip_reuse), 0..=16)?,
+        final_ratio_tracking: f.choice(
+            "final_transmittance",
+            Some(d.final_ratio_tracking),
+            &[("analytic", false), ("ratio", true)],
+        )?,
+    })
+}
