@@ -118,6 +118,20 @@ impl VoxelGrid {
         chain
     }
 
+    /// Level `level` of [`VoxelGrid::mip_chain`] (level 0 is `self`, borrowed), clamped
+    /// at the 1×1×1 level, without keeping the levels in between: peak memory is this
+    /// grid plus two levels below it.
+    pub fn mip_level(&self, level: u32) -> std::borrow::Cow<'_, VoxelGrid> {
+        let mut current = std::borrow::Cow::Borrowed(self);
+        for _ in 0..level {
+            if current.dims == [1, 1, 1] {
+                break;
+            }
+            current = std::borrow::Cow::Owned(downsample(&current));
+        }
+        current
+    }
+
     /// The conservative piecewise-constant grid of Volumetric ReSTIR sec. 4.1, for
     /// regular tracking: each voxel keeps its own (nearest) density, and a voxel whose
     /// density is 0 takes the average density of its neighbours — all 26 voxels of

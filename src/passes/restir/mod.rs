@@ -107,15 +107,15 @@ impl RestirPass {
             ]
             .map(|level| 1 << level.min(last_level(dims))),
             march_dims: [
-                first.march_reuse.1[0],
-                first.march_reuse.1[1],
-                first.march_reuse.1[2],
+                first.march_reuse.dims[0],
+                first.march_reuse.dims[1],
+                first.march_reuse.dims[2],
                 0,
             ],
             nee_dims: [
-                first.march_nee.1[0],
-                first.march_nee.1[1],
-                first.march_nee.1[2],
+                first.march_nee.dims[0],
+                first.march_nee.dims[1],
+                first.march_nee.dims[2],
                 0,
             ],
             settings: [
@@ -140,6 +140,7 @@ impl RestirPass {
             velocity: velocity.as_ref(),
             uniforms: &restir_uniforms,
             reservoir_bytes: reservoir_total,
+            march_format: volumes.format,
         };
         let spec = specialization(plan);
         let (objects, res) =
@@ -210,14 +211,11 @@ impl RestirPass {
         let o = &self.objects;
         let r = &self.res;
         ctx.upload_image(&o[r.density], bytemuck::cast_slice(&cur.density.data))?;
-        ctx.upload_image(&o[r.march_reuse], bytemuck::cast_slice(&cur.march_reuse.0))?;
-        ctx.upload_image(&o[r.march_nee], bytemuck::cast_slice(&cur.march_nee.0))?;
+        ctx.upload_image(&o[r.march_reuse], &cur.march_reuse.texels)?;
+        ctx.upload_image(&o[r.march_nee], &cur.march_nee.texels)?;
         ctx.upload_buffer(&o[r.pc_grid], 0, bytemuck::cast_slice(&cur.pc))?;
         ctx.upload_image(&o[r.density_prev], bytemuck::cast_slice(&prev.density.data))?;
-        ctx.upload_image(
-            &o[r.march_reuse_prev],
-            bytemuck::cast_slice(&prev.march_reuse.0),
-        )?;
+        ctx.upload_image(&o[r.march_reuse_prev], &prev.march_reuse.texels)?;
         self.loaded = want;
         Ok(())
     }

@@ -44,6 +44,7 @@ pub struct Inputs<'a> {
     pub velocity: Option<&'a VoxelGrid>,
     pub uniforms: &'a RestirUniformsGpu,
     pub reservoir_bytes: u64,
+    pub march_format: super::volumes::MarchFormat,
 }
 
 /// The descriptor layout all four stages share.
@@ -94,6 +95,7 @@ impl Resources {
             velocity,
             uniforms,
             reservoir_bytes,
+            march_format,
         } = *inputs;
         let layout = layout();
         let mut pipelines = Vec::with_capacity(4);
@@ -132,18 +134,25 @@ impl Resources {
 
         // Density images: the previous frame starts as a copy of the first.
         let density: &[u8] = bytemuck::cast_slice(&first.density.data);
-        let reuse: &[u8] = bytemuck::cast_slice(&first.march_reuse.0);
-        let nee: &[u8] = bytemuck::cast_slice(&first.march_nee.0);
-        let (r32, r16) = (vk::Format::R32_SFLOAT, vk::Format::R16_SFLOAT);
+        let reuse: &[u8] = &first.march_reuse.texels;
+        let nee: &[u8] = &first.march_nee.texels;
+        let (r32, march) = (vk::Format::R32_SFLOAT, march_format.vk());
         let density_image = image_3d(ctx, o, first.density.dims, r32, density, "density")?;
-        let march_reuse = image_3d(ctx, o, first.march_reuse.1, r16, reuse, "march (reuse)")?;
-        let march_nee = image_3d(ctx, o, first.march_nee.1, r16, nee, "march (NEE)")?;
+        let march_reuse = image_3d(
+            ctx,
+            o,
+            first.march_reuse.dims,
+            march,
+            reuse,
+            "march (reuse)",
+        )?;
+        let march_nee = image_3d(ctx, o, first.march_nee.dims, march, nee, "march (NEE)")?;
         let density_prev = image_3d(ctx, o, first.density.dims, r32, density, "previous density")?;
         let march_reuse_prev = image_3d(
             ctx,
             o,
-            first.march_reuse.1,
-            r16,
+            first.march_reuse.dims,
+            march,
             reuse,
             "previous march (reuse)",
         )?;

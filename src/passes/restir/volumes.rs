@@ -5,10 +5,66 @@
 use std::collections::HashMap;
 
 use anyhow::{bail, Result};
+use nimbus_gpu::vk;
 use nimbus_scene::precision::PositionScale;
 use nimbus_scene::{GridMedium, VoxelGrid};
 
 use crate::plan::RestirPlan;
+
+/// The texel format of the ray-march mips: half floats where every density of the
+/// animation fits f16 (the paper's choice, half the bandwidth), f32 otherwise. An f16
+/// texel above 65504 reads as infinity, which makes the target function 0 where the path
+/// contribution is not: a biased image (one voxel of 1e6 darkened half a cloud).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MarchFormat {
+    Half,
+    Float,
+}
+
+impl MarchFormat {
+    /// The format that holds densities up to `max_density` (unscaled).
+    pub fn for_max(max_density: f32) -> MarchFormat {
+        if max_density <= f32::from(half::f16::MAX) {
+            MarchFormat::Half
+        } else {
+            MarchFormat::Float
+        }
+    }
+
+    pub fn vk(self) -> vk::Format {
+        match self {
+            MarchFormat::Half => vk::Format::R16_SFLOAT,
+            MarchFormat::Float => vk::Format::R32_SFLOAT,
+        }
+    }
+
+    /// `grid`'s texels in this format.
+    fn texels(self, grid: &VoxelGrid) -> Vec<u8> {
+        match self {
+            MarchFormat::Half => grid
+                .data
+                .iter()
+                .flat_map(|v| half::f16::from_f32(*v).to_bits().to_le_bytes())
+                .collect(),
+            MarchFormat::Float => bytemuck::cast_slice(&grid.data).to_vec(),
+        }
+    }
+}
+
+/// A ray-march mip level as uploaded.
+pub struct MarchLevel {
+    pub texels: Vec<u8>,
+    pub dims: [u32; 3],
+}
+
+impl MarchLevel {
+    fn of(grid: &VoxelGrid, format: MarchFormat) -> MarchLevel {
+        MarchLevel {
+            texels: format.texels(grid),
+            dims: grid.dims,
+        }
+    }
+}
 
 /// What the passes read for one density grid.
 pub struct DerivedVolume {
@@ -16,45 +72,37 @@ pub struct DerivedVolume {
     pub pc: Vec<f32>,
     pub pc_primary: [u32; 4],
     pub pc_indirect: [u32; 4],
-    /// Unscaled density, half floats, at mip_reuse and mip_indirect.
-    pub march_reuse: (Vec<u16>, [u32; 3]),
-    pub march_nee: (Vec<u16>, [u32; 3]),
+    /// Unscaled density at mip_reuse and mip_indirect.
+    pub march_reuse: MarchLevel,
+    pub march_nee: MarchLevel,
     pub density: VoxelGrid,
 }
 
-/// Mip level `level` of a chain, clamped to the last (1×1×1) one.
-fn level_of(chain: &[VoxelGrid], level: u32) -> &VoxelGrid {
-    let l = (level as usize).min(chain.len().saturating_sub(1));
-    &chain[l]
-}
-
-fn to_half(grid: &VoxelGrid) -> (Vec<u16>, [u32; 3]) {
-    (
-        grid.data
-            .iter()
-            .map(|v| half::f16::from_f32(*v).to_bits())
-            .collect(),
-        grid.dims,
-    )
-}
-
 impl DerivedVolume {
-    pub fn build(density: VoxelGrid, scale: f32, plan: &RestirPlan) -> DerivedVolume {
-        let conservative = density.conservative_piecewise_constant().mip_chain();
-        let primary = level_of(&conservative, plan.mip_candidates);
-        let indirect = level_of(&conservative, plan.mip_indirect);
-        let mut pc: Vec<f32> = primary.data.iter().map(|v| v * scale).collect();
-        let offset = pc.len() as u32;
-        pc.extend(indirect.data.iter().map(|v| v * scale));
-        let d = primary.dims;
-        let e = indirect.dims;
-        let mips = density.mip_chain();
-        let march_reuse = to_half(level_of(&mips, plan.mip_reuse));
-        let march_nee = to_half(level_of(&mips, plan.mip_indirect));
+    /// Derives the levels of `density` (moved in, not copied); peak memory is the grid,
+    /// its conservative copy and two mip levels.
+    pub fn build(
+        density: VoxelGrid,
+        scale: f32,
+        plan: &RestirPlan,
+        format: MarchFormat,
+    ) -> DerivedVolume {
+        let (pc, pc_primary, pc_indirect) = {
+            let conservative = density.conservative_piecewise_constant();
+            let primary = conservative.mip_level(plan.mip_candidates);
+            let indirect = conservative.mip_level(plan.mip_indirect);
+            let mut pc: Vec<f32> = primary.data.iter().map(|v| v * scale).collect();
+            let offset = pc.len() as u32;
+            pc.extend(indirect.data.iter().map(|v| v * scale));
+            let (d, e) = (primary.dims, indirect.dims);
+            (pc, [d[0], d[1], d[2], 0], [e[0], e[1], e[2], offset])
+        };
+        let march_reuse = MarchLevel::of(&density.mip_level(plan.mip_reuse), format);
+        let march_nee = MarchLevel::of(&density.mip_level(plan.mip_indirect), format);
         DerivedVolume {
             pc,
-            pc_primary: [d[0], d[1], d[2], 0],
-            pc_indirect: [e[0], e[1], e[2], offset],
+            pc_primary,
+            pc_indirect,
             march_reuse,
             march_nee,
             density,
@@ -66,12 +114,13 @@ impl DerivedVolume {
 /// (0 = the medium's `density`, i + 1 = `[[medium.frame]]` i).
 pub struct Volumes {
     by_index: HashMap<usize, DerivedVolume>,
+    pub format: MarchFormat,
 }
 
 impl Volumes {
-    /// Derives the base grid, then loads and derives every `[[medium.frame]]` (checked
-    /// to have the base grid's dims), so frames only upload. `label` names the medium
-    /// in errors.
+    /// Loads every `[[medium.frame]]` (checked to have the base grid's dims and
+    /// resolvable densities), picks the march format all of them fit, and derives each,
+    /// so frames only upload. `label` names the medium in errors.
     pub fn load(
         base: VoxelGrid,
         grid: &GridMedium,
@@ -80,8 +129,7 @@ impl Volumes {
         label: &str,
     ) -> Result<Volumes> {
         let dims = base.dims;
-        let mut by_index = HashMap::new();
-        by_index.insert(0, DerivedVolume::build(base, grid.density_scale, plan));
+        let mut grids = vec![base];
         for (i, frame) in grid.frames.iter().enumerate() {
             let what = format!(
                 "{label} > [[medium.frame]] #{} (frame {})",
@@ -97,12 +145,19 @@ impl Volumes {
                     dims
                 );
             }
-            by_index.insert(
-                i + 1,
-                DerivedVolume::build(density, grid.density_scale, plan),
-            );
+            grids.push(density);
         }
-        Ok(Volumes { by_index })
+        let max = grids
+            .iter()
+            .flat_map(|g| g.data.iter())
+            .fold(0.0f32, |m, v| m.max(*v));
+        let format = MarchFormat::for_max(max);
+        let by_index = grids
+            .into_iter()
+            .enumerate()
+            .map(|(i, g)| (i, DerivedVolume::build(g, grid.density_scale, plan, format)))
+            .collect();
+        Ok(Volumes { by_index, format })
     }
 
     /// The base grid's derived volume.
@@ -147,5 +202,24 @@ mod tests {
         assert_eq!(last_level([2, 1, 1]), 1);
         assert_eq!(last_level([64, 48, 64]), 6);
         assert_eq!(last_level([65, 1, 1]), 7);
+    }
+}
+
+#[cfg(test)]
+mod format_tests {
+    use super::*;
+
+    #[test]
+    fn densities_beyond_f16_use_f32_texels() {
+        assert_eq!(MarchFormat::for_max(65504.0), MarchFormat::Half);
+        assert_eq!(MarchFormat::for_max(65505.0), MarchFormat::Float);
+        let grid = VoxelGrid {
+            dims: [2, 1, 1],
+            channels: 1,
+            data: vec![0.5, 1e6],
+        };
+        assert_eq!(MarchFormat::Half.texels(&grid).len(), 4);
+        let f32_texels = MarchFormat::Float.texels(&grid);
+        assert_eq!(bytemuck::cast_slice::<u8, f32>(&f32_texels), &[0.5, 1e6]);
     }
 }
