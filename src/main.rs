@@ -244,6 +244,13 @@ fn render(args: RenderArgs) -> Result<()> {
     let plan = plan::build(&scene, None)?;
     if args.explain {
         print!("{}", plan.explain(&scene));
+        let f = nimbus::budget::Footprint::of(&scene, &plan)?;
+        let mib = |b: u64| b as f64 / f64::from(1u32 << 20);
+        println!(
+            "  memory: {:.1} MiB of GPU buffers and images, about {:.1} MiB of host memory at the peak for the scene's data",
+            mib(f.device_bytes()),
+            mib(f.host_peak)
+        );
         return Ok(());
     }
     let Some(out) = args.out else {

@@ -16,6 +16,7 @@ mod budget;
 mod cli;
 mod envmap_gpu;
 mod grid_volume;
+mod hard_cases;
 mod image_harness;
 mod layout;
 mod render_box;
