@@ -13,10 +13,10 @@ use super::{
     compute_pipeline, image_3d, image_groups, upload_env_map, upload_records, upload_uniform,
     FrameConstants, Pass, Targets,
 };
+use crate::gpu::features::*;
 use crate::gpu::{
     bindings, box_records, non_empty, shape_records, FrameUniforms, GpuGrid, PassPush,
 };
-use crate::gpu::features::*;
 use crate::plan::BaselinePlan;
 use crate::shaders;
 

@@ -22,7 +22,10 @@ pub fn specialization(plan: &CrepuscularPlan) -> [(u32, SpecValue); 7] {
         (SC_ID_HAS_SHAPES, SpecValue::Bool(f.has_shapes)),
         (SC_ID_HAS_GOBOS, SpecValue::Bool(f.has_gobos)),
         (SC_ID_HAS_ENV, SpecValue::Bool(f.has_env)),
-        (SC_ID_ESTIMATOR, SpecValue::U32(estimator_id(plan.estimator))),
+        (
+            SC_ID_ESTIMATOR,
+            SpecValue::U32(estimator_id(plan.estimator)),
+        ),
         (SC_ID_HAS_MEDIA, SpecValue::Bool(f.has_media)),
         (SC_ID_MAX_BOUNCES, SpecValue::U32(plan.max_bounces)),
         (SC_ID_PIXEL_JITTER, SpecValue::Bool(f.pixel_jitter)),

@@ -23,11 +23,11 @@ use self::resources::{Inputs, Resources};
 use self::schedule::{schedule, ScheduleSettings, Stage, SLOTS};
 use self::volumes::{last_level, march_step, Volumes};
 use super::{image_groups, scene_grid, FrameConstants, Pass, Targets};
+use crate::gpu::features::*;
 use crate::gpu::{
     frame_uniforms, non_empty, BaselineUniformsGpu, FrameUniforms, GpuGrid, LightGpu, LightSet,
     RestirPush, RestirUniformsGpu,
 };
-use crate::gpu::features::*;
 use crate::plan::RestirPlan;
 
 pub use crate::gpu::reservoir_bytes;
@@ -41,7 +41,10 @@ pub fn specialization(plan: &RestirPlan) -> [(u32, SpecValue); 8] {
         (SC_ID_HAS_EMISSION, SpecValue::Bool(plan.has_emission)),
         (SC_ID_HAS_ENV_MAP, SpecValue::Bool(plan.has_env_map)),
         (SC_ID_REUSE_VERTEX, SpecValue::Bool(plan.vertex_reuse)),
-        (SC_ID_FINAL_RATIO_TRACKING, SpecValue::Bool(plan.final_ratio_tracking)),
+        (
+            SC_ID_FINAL_RATIO_TRACKING,
+            SpecValue::Bool(plan.final_ratio_tracking),
+        ),
         (SC_ID_HAS_VELOCITY, SpecValue::Bool(plan.has_velocity)),
     ]
 }
