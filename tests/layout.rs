@@ -1,9 +1,9 @@
 //! The Rust mirrors of GPU data agree with the GLSL declarations: binding numbers with
 //! `shaders/include/bindings.glsl`, and every record, uniform and push-constant struct
 //! of `shaders/include/scene.glsl`, `shaders/include/grid_types.glsl` and
-//! `shaders/restir/resources.glsl` member by member: the same member names in the same
-//! order, each with the same type and the offset and size that the GLSL std140 / std430
-//! rules give it, and the same struct size.
+//! `shaders/restir/resources.glsl` member by member: the same member names, each with
+//! the same type and the offset and size that the GLSL std140 / std430 rules give it,
+//! and the same struct size.
 
 use std::collections::HashMap;
 use std::mem::size_of;
@@ -332,9 +332,12 @@ fn mirrors() -> Vec<Mirror> {
             size: size_of::<BoxMediumGpu>(),
             fields: rust_fields!(BoxMediumGpu {
                 world_to_local,
-                center_sigma_t,
-                half_size_g,
+                center,
+                sigma_t,
+                half_size,
+                g,
                 sigma_s,
+                _pad0,
             }),
         },
         Mirror {
@@ -342,7 +345,7 @@ fn mirrors() -> Vec<Mirror> {
             rust: "ShapeGpu",
             rules: &[Std430],
             size: size_of::<ShapeGpu>(),
-            fields: rust_fields!(ShapeGpu { p, albedo_type }),
+            fields: rust_fields!(ShapeGpu { p, albedo, r#type }),
         },
         Mirror {
             glsl: "Light",
@@ -350,11 +353,16 @@ fn mirrors() -> Vec<Mirror> {
             rules: &[Std430],
             size: size_of::<LightGpu>(),
             fields: rust_fields!(LightGpu {
-                direction_type,
+                direction_or_position,
+                r#type,
                 irradiance,
+                radius,
                 gobo_origin,
+                gobo_plane_count,
                 gobo_u,
+                gobo_first_plane,
                 gobo_v,
+                select_cdf,
             }),
         },
         Mirror {
@@ -364,13 +372,24 @@ fn mirrors() -> Vec<Mirror> {
             size: size_of::<FrameUniforms>(),
             fields: rust_fields!(FrameUniforms {
                 cam_position,
+                tan_half_fov_x,
                 cam_forward,
+                tan_half_fov_y,
                 cam_right,
+                _pad0,
                 cam_up,
+                _pad1,
                 env_radiance,
-                image,
-                counts,
-                reserved,
+                _pad2,
+                width,
+                height,
+                spp,
+                seed,
+                box_media_count,
+                shape_count,
+                light_count,
+                ray_samples,
+                _pad3,
             }),
         },
         Mirror {
@@ -381,8 +400,8 @@ fn mirrors() -> Vec<Mirror> {
             fields: rust_fields!(PassPush {
                 frame,
                 sample_base,
-                pad0,
-                pad1,
+                _pad0,
+                _pad1,
             }),
         },
         // A std140 member of BaselineUniforms, and the std430 push constant of the
@@ -394,9 +413,13 @@ fn mirrors() -> Vec<Mirror> {
             size: size_of::<GridParamsGpu>(),
             fields: rust_fields!(GridParamsGpu {
                 bounds_min,
+                density_scale,
                 bounds_max,
+                sigma_t_max,
                 dims,
+                super_voxel_factor,
                 super_dims,
+                _pad0,
             }),
         },
         Mirror {
@@ -406,11 +429,18 @@ fn mirrors() -> Vec<Mirror> {
             size: size_of::<BaselineUniformsGpu>(),
             fields: rust_fields!(BaselineUniformsGpu {
                 grid,
-                albedo_g,
+                albedo,
+                g,
                 env_select,
+                _pad0,
+                _pad1,
+                _pad2,
                 emission_scale,
+                _pad3,
                 emission_dims,
+                _pad4,
                 env_size,
+                _pad5,
             }),
         },
         Mirror {
@@ -419,14 +449,28 @@ fn mirrors() -> Vec<Mirror> {
             rules: &[Std140],
             size: size_of::<RestirUniformsGpu>(),
             fields: rust_fields!(RestirUniformsGpu {
-                pc_primary,
-                pc_indirect,
-                factors,
-                march_dims,
-                nee_dims,
-                settings,
-                spatial,
+                pc_primary_dims,
+                pc_primary_offset,
+                pc_indirect_dims,
+                pc_indirect_offset,
+                pc_primary_factor,
+                pc_indirect_factor,
+                march_reuse_factor,
+                march_nee_factor,
+                march_reuse_dims,
+                _pad0,
+                march_nee_dims,
+                _pad1,
+                candidates,
+                temporal_limit,
+                spatial_neighbors,
+                reservoir_stride,
+                spatial_radius,
+                march_reuse_step,
+                march_nee_step,
+                _pad2,
                 velocity_dims,
+                _pad3,
             }),
         },
         Mirror {

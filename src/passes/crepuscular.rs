@@ -11,7 +11,7 @@ use nimbus_scene::{CameraFrame, Scene};
 
 use super::{compute_pipeline, image_groups, upload_records, FrameConstants, Pass, Targets};
 use crate::gpu::features::*;
-use crate::gpu::{bindings, non_empty, FrameUniforms, GpuScene, PassPush};
+use crate::gpu::{bindings, non_empty, FrameUniforms, GpuScene, PassPush, RecordCounts};
 use crate::plan::{estimator_id, CrepuscularPlan};
 use crate::shaders;
 
@@ -50,12 +50,12 @@ impl CrepuscularPass {
         let records = GpuScene::build(scene)?;
         let constants = FrameConstants {
             env_radiance: records.env_radiance,
-            counts: [
-                records.media.len() as u32,
-                records.shapes.len() as u32,
-                records.lights.len() as u32,
-                plan.samples_along_ray,
-            ],
+            counts: RecordCounts {
+                box_media: records.media.len() as u32,
+                shapes: records.shapes.len() as u32,
+                lights: records.lights.len() as u32,
+                ray_samples: plan.samples_along_ray,
+            },
         };
         let (objects, (pipeline, set)) = GpuObjects::build(ctx, |o| {
             let mut layout = Vec::from(Targets::layout());

@@ -14,8 +14,11 @@ use crate::plan::RestirPlan;
 pub struct DerivedVolume {
     /// σ_t* (scaled) of the primary level, then of the indirect level.
     pub pc: Vec<f32>,
-    pub pc_primary: [u32; 4],
-    pub pc_indirect: [u32; 4],
+    /// Dims of the primary level (its values start at 0), of the indirect level and
+    /// where its values start.
+    pub pc_primary_dims: [u32; 3],
+    pub pc_indirect_dims: [u32; 3],
+    pub pc_indirect_offset: u32,
     /// Unscaled density, half floats, at mip_reuse and mip_indirect.
     pub march_reuse: (Vec<u16>, [u32; 3]),
     pub march_nee: (Vec<u16>, [u32; 3]),
@@ -46,15 +49,14 @@ impl DerivedVolume {
         let mut pc: Vec<f32> = primary.data.iter().map(|v| v * scale).collect();
         let offset = pc.len() as u32;
         pc.extend(indirect.data.iter().map(|v| v * scale));
-        let d = primary.dims;
-        let e = indirect.dims;
         let mips = density.mip_chain();
         let march_reuse = to_half(level_of(&mips, plan.mip_reuse));
         let march_nee = to_half(level_of(&mips, plan.mip_indirect));
         DerivedVolume {
             pc,
-            pc_primary: [d[0], d[1], d[2], 0],
-            pc_indirect: [e[0], e[1], e[2], offset],
+            pc_primary_dims: primary.dims,
+            pc_indirect_dims: indirect.dims,
+            pc_indirect_offset: offset,
             march_reuse,
             march_nee,
             density,
