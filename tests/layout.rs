@@ -1,9 +1,9 @@
 //! The Rust mirrors of GPU data agree with the GLSL declarations: binding numbers with
-//! `shaders/include/bindings.glsl`, and every record, uniform and push-constant struct
-//! of `shaders/include/scene.glsl`, `shaders/include/grid_types.glsl` and
-//! `shaders/restir/resources.glsl` member by member: the same member names, each with
-//! the same type and the offset and size that the GLSL std140 / std430 rules give it,
-//! and the same struct size.
+//! `shaders/include/bindings.glsl`, the shape and light type tags with scene.glsl, and
+//! every record, uniform and push-constant struct of `shaders/include/scene.glsl`,
+//! `shaders/include/grid_types.glsl` and `shaders/restir/resources.glsl` member by
+//! member: the same member names, each with the same type and the offset and size that
+//! the GLSL std140 / std430 rules give it, and the same struct size.
 
 use std::collections::HashMap;
 use std::mem::size_of;
@@ -11,7 +11,8 @@ use std::mem::size_of;
 use nimbus::gpu::bindings;
 use nimbus::gpu::{
     BaselineUniformsGpu, BoxMediumGpu, FrameUniforms, GridParamsGpu, LightGpu, PassPush,
-    RestirPush, RestirUniformsGpu, ShapeGpu,
+    RestirPush, RestirUniformsGpu, ShapeGpu, LIGHT_DIRECTIONAL, LIGHT_POINT, LIGHT_SPHERE,
+    SHAPE_BOX, SHAPE_QUAD, SHAPE_SPHERE,
 };
 
 const ROOT: &str = env!("CARGO_MANIFEST_DIR");
@@ -55,6 +56,38 @@ fn binding_numbers_match_the_glsl_header() {
         bindings::ALL.len(),
         "a binding is missing on one side"
     );
+}
+
+/// The values of `Shape.type` and `Light.type` (`#define NAME <n>u` in scene.glsl).
+#[test]
+fn record_type_tags_match_the_glsl_defines() {
+    let text = read("shaders/include/scene.glsl");
+    let defs: HashMap<&str, u32> = text
+        .lines()
+        .filter_map(|line| {
+            let mut words = line.split_whitespace();
+            (words.next()? == "#define").then_some(())?;
+            let name = words.next()?;
+            let value = words.next()?.strip_suffix('u')?.parse().ok()?;
+            Some((name, value))
+        })
+        .collect();
+    let rust = [
+        ("SHAPE_QUAD", SHAPE_QUAD),
+        ("SHAPE_BOX", SHAPE_BOX),
+        ("SHAPE_SPHERE", SHAPE_SPHERE),
+        ("LIGHT_DIRECTIONAL", LIGHT_DIRECTIONAL),
+        ("LIGHT_POINT", LIGHT_POINT),
+        ("LIGHT_SPHERE", LIGHT_SPHERE),
+    ];
+    for (name, value) in rust {
+        assert_eq!(defs.get(name).copied(), Some(value), "{name}");
+    }
+    let tags = defs
+        .keys()
+        .filter(|k| k.starts_with("SHAPE_") || k.starts_with("LIGHT_"))
+        .count();
+    assert_eq!(tags, rust.len(), "a type tag is missing on one side");
 }
 
 // ---------------------------------------------------------------------------------------
