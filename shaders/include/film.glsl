@@ -36,7 +36,7 @@ layout(std430, set = 0, binding = BINDING_STATS) buffer StatsBlock {
 
 // Whether `pixel` lies inside the image (dispatches round up to whole workgroups).
 bool film_contains(uvec2 pixel) {
-    return pixel.x < u_frame.image.x && pixel.y < u_frame.image.y;
+    return pixel.x < u_frame.width && pixel.y < u_frame.height;
 }
 
 // True for a finite sample; counts a NaN or infinite one instead.
@@ -50,13 +50,13 @@ bool film_sample_finite(vec3 L) {
 
 // Add one frame's estimate of `pixel` to the running sums.
 void film_accumulate(uvec2 pixel, vec3 estimate) {
-    uint index = pixel.y * u_frame.image.x + pixel.x;
+    uint index = pixel.y * u_frame.width + pixel.x;
     accum[index] += vec4(estimate, 1.0);
     accum_sq[index] += vec4(estimate * estimate, 0.0);
 }
 
 // ---------------------------------------------------------------------------------------
-// The pixel loop of the path tracers (crepuscular, baseline): u_frame.image.z camera
+// The pixel loop of the path tracers (crepuscular, baseline): u_frame.spp camera
 // samples per pixel per frame, each with its own random stream, jittered over the
 // pixel's footprint (box filter).
 
@@ -69,10 +69,10 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng);
 vec3 film_pixel_estimate(uvec2 pixel, uint frame, uint sample_base) {
     vec3 sum = vec3(0.0);
     uint kept = 0u;
-    for (uint s = 0u; s < u_frame.image.z; ++s) {
-        uint rng = rng_init(pixel, frame, sample_base + s, u_frame.image.w);
+    for (uint s = 0u; s < u_frame.spp; ++s) {
+        uint rng = rng_init(pixel, frame, sample_base + s, u_frame.seed);
         vec2 px = vec2(pixel) + pixel_jitter(rng);
-        vec3 L = radiance(u_frame.cam_position.xyz, camera_direction(u_frame, px), rng);
+        vec3 L = radiance(u_frame.cam_position, camera_direction(u_frame, px), rng);
         if (film_sample_finite(L)) {
             sum += L;
             kept += 1u;

@@ -34,8 +34,8 @@
 // test against bounds_min / bounds_max themselves (not centre +- half size), so a ray
 // lying in a face plane is inside exactly when its coordinate is within the bounds.
 vec2 grid_span(vec3 o, vec3 d) {
-    vec3 b_min = u_grid.bounds_min.xyz;
-    vec3 b_max = u_grid.bounds_max.xyz;
+    vec3 b_min = u_grid.bounds_min;
+    vec3 b_max = u_grid.bounds_max;
     float t_in = -FAR;
     float t_out = FAR;
     for (int a = 0; a < 3; ++a) {
@@ -58,7 +58,7 @@ vec2 grid_span(vec3 o, vec3 d) {
 // World -> index space per unit length: dims / size. Domain: size > 0 (scenes are
 // validated to non-empty boxes).
 vec3 grid_index_scale() {
-    return vec3(u_grid.dims.xyz) / (u_grid.bounds_max.xyz - u_grid.bounds_min.xyz);
+    return vec3(u_grid.dims) / (u_grid.bounds_max - u_grid.bounds_min);
 }
 
 // Trilinear blend of the 8 corner values c[z][y][x] (packed x fastest) with fractions f.
@@ -74,7 +74,7 @@ float grid_trilinear(float c[8], vec3 f) {
 // with the grid's dims: lower corner clamp(cell, 0, n - 1), upper corner
 // clamp(cell + 1, 0, n - 1) (equal in border cells).
 void grid_cell_corners_in(sampler3D density, ivec3 cell, out float c[8]) {
-    ivec3 n_minus_1 = ivec3(u_grid.dims.xyz) - 1;
+    ivec3 n_minus_1 = ivec3(u_grid.dims) - 1;
     ivec3 lo = clamp(cell, ivec3(0), n_minus_1);
     ivec3 hi = clamp(cell + 1, ivec3(0), n_minus_1);
     c[0] = texelFetch(density, ivec3(lo.x, lo.y, lo.z), 0).r;
@@ -95,13 +95,13 @@ void grid_cell_corners(ivec3 cell, out float c[8]) {
 // sigma_t of a density texture (the grid's dims, unscaled) at index-space point p
 // (clamped per SCENE_FORMAT.md; any p is accepted).
 float grid_sigma_index_in(sampler3D density, vec3 p) {
-    vec3 n = vec3(u_grid.dims.xyz);
+    vec3 n = vec3(u_grid.dims);
     // Shifted so centres sit at integers, clamped to the outermost centres.
     vec3 q = clamp(p - 0.5, vec3(0.0), n - 1.0);
-    ivec3 cell = min(ivec3(floor(q)), ivec3(u_grid.dims.xyz) - 1);
+    ivec3 cell = min(ivec3(floor(q)), ivec3(u_grid.dims) - 1);
     float c[8];
     grid_cell_corners_in(density, cell, c);
-    return u_grid.bounds_min.w * grid_trilinear(c, clamp(q - vec3(cell), 0.0, 1.0));
+    return u_grid.density_scale * grid_trilinear(c, clamp(q - vec3(cell), 0.0, 1.0));
 }
 
 // sigma_t of u_density at index-space point p.
@@ -112,10 +112,10 @@ float grid_sigma_index(vec3 p) {
 // sigma_t = density_scale * trilinear density (of a texture with the grid's dims) at world
 // x; 0 outside the closed bounds.
 float grid_sigma_t_in(sampler3D density, vec3 x) {
-    if (any(lessThan(x, u_grid.bounds_min.xyz)) || any(greaterThan(x, u_grid.bounds_max.xyz))) {
+    if (any(lessThan(x, u_grid.bounds_min)) || any(greaterThan(x, u_grid.bounds_max))) {
         return 0.0;
     }
-    return grid_sigma_index_in(density, (x - u_grid.bounds_min.xyz) * grid_index_scale());
+    return grid_sigma_index_in(density, (x - u_grid.bounds_min) * grid_index_scale());
 }
 
 // The same for the grid's own density u_density.
@@ -156,11 +156,11 @@ float grid_optical_depth(vec3 o, vec3 d, float t0, float t1) {
         return 0.0;
     }
     float len = t_b - t_a;
-    ivec3 n = ivec3(u_grid.dims.xyz);
+    ivec3 n = ivec3(u_grid.dims);
     vec3 scale = grid_index_scale();
     // q(s) = q0 + dq s, s = t - t_a in [0, len]: dual-cell coordinates from the entry
     // point, so precision does not depend on the distance of o.
-    vec3 q0 = (o + t_a * d - u_grid.bounds_min.xyz) * scale - 0.5;
+    vec3 q0 = (o + t_a * d - u_grid.bounds_min) * scale - 0.5;
     vec3 dq = d * scale;
     ivec3 cell;
     ivec3 step_dir;
@@ -204,7 +204,7 @@ float grid_optical_depth(vec3 o, vec3 d, float t0, float t1) {
         }
         s_next[a] = grid_dual_crossing(q0[a], dq[a], cell[a], n[a], s);
     }
-    return u_grid.bounds_min.w * tau;
+    return u_grid.density_scale * tau;
 }
 
 // exp(-optical depth). Domain: tau >= 0, so T in (0, 1].
@@ -213,17 +213,17 @@ float grid_transmittance(vec3 o, vec3 d, float t0, float t1) {
 }
 
 // Unbiased T estimate by ratio tracking [Novák et al. 2014] with the global majorant
-// bounds_max.w: T = prod over tentative collisions of (1 - sigma_t / sigma_maj).
+// sigma_t_max: T = prod over tentative collisions of (1 - sigma_t / sigma_maj).
 float grid_ratio_tracking(vec3 o, vec3 d, float t0, float t1, inout uint rng) {
     vec2 span = grid_span(o, d);
     float t_a = max(t0, span.x);
     float t_b = min(t1, span.y);
-    float sigma_maj = u_grid.bounds_max.w;
+    float sigma_maj = u_grid.sigma_t_max;
     if (!(t_a < t_b) || !(sigma_maj > 0.0)) {
         return 1.0;
     }
     vec3 scale = grid_index_scale();
-    vec3 p0 = (o + t_a * d - u_grid.bounds_min.xyz) * scale;
+    vec3 p0 = (o + t_a * d - u_grid.bounds_min) * scale;
     vec3 dp = d * scale;
     float len = t_b - t_a;
     float T = 1.0;

@@ -12,7 +12,7 @@
 
 // Block DDA: block (I, J, K) of edge f voxels covers index-space [I f, min((I+1) f, n)] per
 // axis (`count` = ceil(n / f) blocks per axis, the last one possibly narrower). Super-voxels
-// (f = dims.w, 8) and the coarse piecewise-constant levels of ReSTIR (f = 2^mip) use it.
+// (f = super_voxel_factor, 8) and the coarse piecewise-constant levels of ReSTIR (f = 2^mip) use it.
 
 struct GridSuperDda {
     vec3 p0;        // index-space point at s = 0 (t = t_a)
@@ -47,7 +47,7 @@ bool grid_blocks_begin(vec3 o, vec3 d, float t0, float t1, int f, ivec3 count, o
         return false;
     }
     vec3 scale = grid_index_scale();
-    it.p0 = (o + it.t_a * d - u_grid.bounds_min.xyz) * scale;
+    it.p0 = (o + it.t_a * d - u_grid.bounds_min) * scale;
     it.dp = d * scale;
     for (int a = 0; a < 3; ++a) {
         // Domain: f >= 1.
@@ -89,9 +89,9 @@ bool grid_blocks_next(inout GridSuperDda it, out float s0, out float s1, out uin
     return true;
 }
 
-// Super-voxel walk (f = dims.w) over [t0, t1]; false if empty.
+// Super-voxel walk (f = super_voxel_factor) over [t0, t1]; false if empty.
 bool grid_super_begin(vec3 o, vec3 d, float t0, float t1, out GridSuperDda it) {
-    return grid_blocks_begin(o, d, t0, t1, int(u_grid.dims.w), ivec3(u_grid.super_dims.xyz), it);
+    return grid_blocks_begin(o, d, t0, t1, int(u_grid.super_voxel_factor), ivec3(u_grid.super_dims), it);
 }
 
 // The current span and its super-voxel's (min, max, avg, 0) of sigma_t; advances.

@@ -54,10 +54,10 @@ void main() {
         return;
     }
     uint at = res_at(u_push.dst, pixel);
-    uint rng = rng_init(pixel, u_push.frame, 0u, u_frame.image.w);
-    vec3 albedo = u_base.albedo_g.rgb;
-    float g = u_base.albedo_g.w;
-    uint candidates = u_restir.settings.x;
+    uint rng = rng_init(pixel, u_push.frame, 0u, u_frame.seed);
+    vec3 albedo = u_base.albedo;
+    float g = u_base.g;
+    uint candidates = u_restir.candidates;
 
     Reservoir r = res_empty();
     for (uint m = 0u; m < candidates; ++m) {

@@ -51,10 +51,10 @@ CameraRay camera_ray(uvec2 pixel, uint code, uint set) {
     r.set = set;
     vec2 px = vec2(pixel) + jitter_code_offset(code);
     if (set == SET_CURRENT) {
-        r.o = u_frame.cam_position.xyz;
+        r.o = u_frame.cam_position;
         r.d = camera_direction(u_frame, px);
     } else {
-        r.o = u_prev_frame.cam_position.xyz;
+        r.o = u_prev_frame.cam_position;
         r.d = camera_direction(u_prev_frame, px);
     }
     return r;
@@ -83,21 +83,21 @@ float march_transmittance(sampler3D tex, uvec3 dims, uint factor, float step, ve
     float dt = (b - a) / float(n);
     // Texture coordinates: index space over the blocks' extent (dims * factor voxels).
     vec3 to_uvw = grid_index_scale() / (vec3(dims) * float(factor));
-    vec3 uvw0 = (o + a * d - u_grid.bounds_min.xyz) * to_uvw;
+    vec3 uvw0 = (o + a * d - u_grid.bounds_min) * to_uvw;
     vec3 duvw = d * to_uvw;
     float sum = 0.0;
     for (int j = 0; j < n; ++j) {
         sum += textureLod(tex, uvw0 + duvw * ((float(j) + 0.5) * dt), 0.0).r;
     }
     // Domain: density_scale * sum * dt >= 0.
-    return exp(-u_grid.bounds_min.w * sum * dt);
+    return exp(-u_grid.density_scale * sum * dt);
 }
 
 // T~ for target functions of reuse (mip_reuse) in a frame's set.
 float reuse_transmittance(uint set, vec3 o, vec3 d, float t1) {
-    uvec3 dims = u_restir.march_dims.xyz;
-    uint factor = u_restir.factors.z;
-    float step = u_restir.spatial.y;
+    uvec3 dims = u_restir.march_reuse_dims;
+    uint factor = u_restir.march_reuse_factor;
+    float step = u_restir.march_reuse_step;
     if (set == SET_CURRENT) {
         return march_transmittance(u_march_reuse, dims, factor, step, o, d, 0.0, t1);
     }
@@ -106,8 +106,8 @@ float reuse_transmittance(uint set, vec3 o, vec3 d, float t1) {
 
 // T~ of NEE segments of initial candidates (mip_indirect).
 float nee_transmittance(vec3 o, vec3 d, float t1) {
-    return march_transmittance(u_march_nee, u_restir.nee_dims.xyz, u_restir.factors.w, u_restir.spatial.z, o,
-                               d, 0.0, t1);
+    return march_transmittance(u_march_nee, u_restir.march_nee_dims, u_restir.march_nee_factor,
+                               u_restir.march_nee_step, o, d, 0.0, t1);
 }
 
 // Unbiased T for final shading: the closed form through the trilinear grid, or ratio
@@ -129,12 +129,14 @@ float final_transmittance(vec3 o, vec3 d, float t1, inout uint rng) {
 // tau_target. Returns the collision distance (FAR if the ray leaves first), sigma_t* there
 // and tau = the optical depth walked (tau_target at a collision, the total otherwise).
 float pc_track(uint level, vec3 o, vec3 d, float t_end, float tau_target, out float sigma_star, out float tau) {
-    uvec4 lv = level == LEVEL_PRIMARY ? u_restir.pc_primary : u_restir.pc_indirect;
-    int f = int(level == LEVEL_PRIMARY ? u_restir.factors.x : u_restir.factors.y);
+    bool primary = level == LEVEL_PRIMARY;
+    uvec3 dims = primary ? u_restir.pc_primary_dims : u_restir.pc_indirect_dims;
+    uint offset = primary ? u_restir.pc_primary_offset : u_restir.pc_indirect_offset;
+    int f = int(primary ? u_restir.pc_primary_factor : u_restir.pc_indirect_factor);
     sigma_star = 0.0;
     tau = 0.0;
     GridSuperDda it;
-    if (!grid_blocks_begin(o, d, 0.0, t_end, f, ivec3(lv.xyz), it)) {
+    if (!grid_blocks_begin(o, d, 0.0, t_end, f, ivec3(dims), it)) {
         return FAR;
     }
     float s0;
@@ -143,7 +145,7 @@ float pc_track(uint level, vec3 o, vec3 d, float t_end, float tau_target, out fl
     int steps = 0;
     while (grid_blocks_next(it, s0, s1, index) && steps < GRID_MAX_STEPS) {
         ++steps;
-        float sigma = pc_grid[lv.w + index];
+        float sigma = pc_grid[offset + index];
         float dtau = sigma * (s1 - s0);
         if (sigma > 0.0 && tau + dtau >= tau_target) {
             sigma_star = sigma;
@@ -189,8 +191,8 @@ vec3 path_value(uint at, Reservoir r, CameraRay cam, CameraRay src, uint mode, i
                                      : reuse_transmittance(set, cam.o, cam.d, t_end);
         return L * T;
     }
-    vec3 albedo = u_base.albedo_g.rgb;
-    float g = u_base.albedo_g.w;
+    vec3 albedo = u_base.albedo;
+    float g = u_base.g;
     // Vertex reuse: x_2 of the owner's path, in world space.
     bool keep_x2 = SC_REUSE_VERTEX && kp >= 2u;
     vec3 x2_world = vec3(0.0);

@@ -13,7 +13,7 @@ void main() {
         return;
     }
     uint at = res_at(u_push.src, pixel);
-    uint rng = rng_init(pixel, u_push.frame, 3u, u_frame.image.w);
+    uint rng = rng_init(pixel, u_push.frame, 3u, u_frame.seed);
     Reservoir r = res_load(at);
     CameraRay cam = camera_ray(pixel, res_jitter(r), SET_CURRENT);
     vec3 L = vec3(0.0);

@@ -27,7 +27,7 @@ use crate::budget::{grid_bytes, level_dims, Binding, Footprint};
 use crate::gpu::features::*;
 use crate::gpu::{
     frame_uniforms, non_empty, BaselineUniformsGpu, FrameUniforms, GpuGrid, LightGpu, LightSet,
-    RestirPush, RestirUniformsGpu,
+    RecordCounts, RestirPush, RestirUniformsGpu,
 };
 use crate::plan::RestirPlan;
 
@@ -96,43 +96,28 @@ impl RestirPass {
         let dims = density.dims;
         let volumes = Volumes::load(density, grid, plan, &scene.position_scale(), &grid_label)?;
         let first = volumes.base()?;
+        // Voxels per block edge of a mip level.
+        let factor = |level: u32| 1 << level.min(last_level(dims));
         let restir_uniforms = RestirUniformsGpu {
-            pc_primary: first.pc_primary,
-            pc_indirect: first.pc_indirect,
-            factors: [
-                plan.mip_candidates,
-                plan.mip_indirect,
-                plan.mip_reuse,
-                plan.mip_indirect,
-            ]
-            .map(|level| 1 << level.min(last_level(dims))),
-            march_dims: [
-                first.march_reuse.dims[0],
-                first.march_reuse.dims[1],
-                first.march_reuse.dims[2],
-                0,
-            ],
-            nee_dims: [
-                first.march_nee.dims[0],
-                first.march_nee.dims[1],
-                first.march_nee.dims[2],
-                0,
-            ],
-            settings: [
-                plan.candidates,
-                plan.temporal_limit,
-                plan.spatial_neighbors,
-                (stride_bytes / 4) as u32,
-            ],
-            spatial: [
-                plan.spatial_radius_px,
-                march_step(grid, dims, plan.mip_reuse),
-                march_step(grid, dims, plan.mip_indirect),
-                0.0,
-            ],
-            velocity_dims: velocity
-                .as_ref()
-                .map_or([1, 1, 1, 0], |v| [v.dims[0], v.dims[1], v.dims[2], 0]),
+            pc_primary_dims: first.pc_primary_dims,
+            pc_primary_offset: 0,
+            pc_indirect_dims: first.pc_indirect_dims,
+            pc_indirect_offset: first.pc_indirect_offset,
+            pc_primary_factor: factor(plan.mip_candidates),
+            pc_indirect_factor: factor(plan.mip_indirect),
+            march_reuse_factor: factor(plan.mip_reuse),
+            march_nee_factor: factor(plan.mip_indirect),
+            march_reuse_dims: first.march_reuse.dims,
+            march_nee_dims: first.march_nee.dims,
+            candidates: plan.candidates,
+            temporal_limit: plan.temporal_limit,
+            spatial_neighbors: plan.spatial_neighbors,
+            reservoir_stride: (stride_bytes / 4) as u32,
+            spatial_radius: plan.spatial_radius_px,
+            march_reuse_step: march_step(grid, dims, plan.mip_reuse),
+            march_nee_step: march_step(grid, dims, plan.mip_indirect),
+            velocity_dims: velocity.as_ref().map_or([1, 1, 1], |v| v.dims),
+            ..RestirUniformsGpu::default()
         };
         let inputs = Inputs {
             grid: &grid_gpu,
@@ -155,7 +140,10 @@ impl RestirPass {
             },
             constants: FrameConstants {
                 env_radiance: grid_gpu.env_radiance,
-                counts: [0, 0, grid_gpu.lights.len() as u32, 0],
+                counts: RecordCounts {
+                    lights: grid_gpu.lights.len() as u32,
+                    ..RecordCounts::default()
+                },
             },
             grid: grid.clone(),
             volumes,
@@ -189,7 +177,7 @@ impl RestirPass {
             bytemuck::cast_slice(&records),
         )?;
         let mut base = self.base_uniforms;
-        base.env_select[0] = cur.env_select;
+        base.env_select = cur.env_select;
         ctx.upload_buffer(
             &self.objects[self.res.base_uniforms],
             0,

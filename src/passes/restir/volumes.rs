@@ -70,8 +70,11 @@ impl MarchLevel {
 pub struct DerivedVolume {
     /// σ_t* (scaled) of the primary level, then of the indirect level.
     pub pc: Vec<f32>,
-    pub pc_primary: [u32; 4],
-    pub pc_indirect: [u32; 4],
+    /// Dims of the primary level (its values start at 0), of the indirect level and
+    /// where its values start.
+    pub pc_primary_dims: [u32; 3],
+    pub pc_indirect_dims: [u32; 3],
+    pub pc_indirect_offset: u32,
     /// Unscaled density at mip_reuse and mip_indirect.
     pub march_reuse: MarchLevel,
     pub march_nee: MarchLevel,
@@ -87,22 +90,22 @@ impl DerivedVolume {
         plan: &RestirPlan,
         format: MarchFormat,
     ) -> DerivedVolume {
-        let (pc, pc_primary, pc_indirect) = {
+        let (pc, pc_primary_dims, pc_indirect_dims, pc_indirect_offset) = {
             let conservative = density.conservative_piecewise_constant();
             let primary = conservative.mip_level(plan.mip_candidates);
             let indirect = conservative.mip_level(plan.mip_indirect);
             let mut pc: Vec<f32> = primary.data.iter().map(|v| v * scale).collect();
             let offset = pc.len() as u32;
             pc.extend(indirect.data.iter().map(|v| v * scale));
-            let (d, e) = (primary.dims, indirect.dims);
-            (pc, [d[0], d[1], d[2], 0], [e[0], e[1], e[2], offset])
+            (pc, primary.dims, indirect.dims, offset)
         };
         let march_reuse = MarchLevel::of(&density.mip_level(plan.mip_reuse), format);
         let march_nee = MarchLevel::of(&density.mip_level(plan.mip_indirect), format);
         DerivedVolume {
             pc,
-            pc_primary,
-            pc_indirect,
+            pc_primary_dims,
+            pc_indirect_dims,
+            pc_indirect_offset,
             march_reuse,
             march_nee,
             density,
