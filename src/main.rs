@@ -305,6 +305,15 @@ fn render(args: RenderArgs) -> Result<()> {
             result.non_finite_samples
         );
     }
+    for note in &result.notes {
+        eprintln!("note: {note}");
+    }
+    if result.step_cap_hits > 0 {
+        eprintln!(
+            "warning: {} walk(s) through the grid stopped at the step limit; their samples are biased",
+            result.step_cap_hits
+        );
+    }
     report_validation(&ctx)
 }
 

@@ -45,6 +45,9 @@ pub struct RenderResult {
     pub frames: u32,
     /// Samples whose radiance was NaN or infinite; they were dropped, never written.
     pub non_finite_samples: u64,
+    /// Walks through a grid cut short at `GRID_MAX_STEPS` (their estimates are biased;
+    /// exact tracking of hot spans should keep this 0).
+    pub step_cap_hits: u64,
     /// GPU timestamps of each measured frame (empty if the device has none).
     pub frame_timings: Vec<Vec<ScopeResult>>,
     /// Wall-clock time of the whole render, warm-up included.
@@ -53,6 +56,8 @@ pub struct RenderResult {
     pub frame_images: Vec<ImageRgb>,
     /// Bytes of every GPU buffer and image the render created.
     pub device_bytes: u64,
+    /// What the passes decided from the scene's content (see `Pass::notes`).
+    pub notes: Vec<String>,
 }
 
 /// Render `scene` with `plan` on `ctx`.
@@ -98,6 +103,7 @@ pub fn render(
         let targets = handles.targets(&objects);
         let mut pass = passes::create(ctx, scene, plan, &targets)?;
         let device_bytes = objects.bytes() + pass.device_bytes();
+        let notes = pass.notes();
         let run = run_frames(ctx, scene, pass.as_mut(), &targets, opts);
         pass.destroy(ctx);
         let (frame_timings, frames, sequence_sums, frame_images) = run?;
@@ -112,6 +118,7 @@ pub fn render(
         )?;
         result.frame_images = frame_images;
         result.device_bytes = device_bytes;
+        result.notes = notes;
         Ok(result)
     })();
     objects.destroy(ctx);
@@ -329,10 +336,12 @@ fn read_result(
         std_error,
         frames,
         non_finite_samples: u64::from(stats[bindings::STAT_NON_FINITE]),
+        step_cap_hits: u64::from(stats[bindings::STAT_STEP_CAP]),
         frame_timings,
         wall_time: start.elapsed(),
         frame_images: Vec::new(),
         device_bytes: 0,
+        notes: Vec::new(),
     })
 }
 

@@ -8,7 +8,8 @@
 // accum[p]    rgb: sum over frames of the frame's pixel estimate, a: frames
 // accum_sq[p] rgb: sum of squares of the frame estimates (the renderer's standard error)
 // A non-finite sample is never written: it is counted in stats[STAT_NON_FINITE] and the
-// pass decides what stands for it (left out of the mean, or 0).
+// pass decides what stands for it (left out of the mean, or 0). Walks cut short at
+// GRID_MAX_STEPS are counted in stats[STAT_STEP_CAP].
 #ifndef NIMBUS_FILM_GLSL
 #define NIMBUS_FILM_GLSL
 
@@ -32,6 +33,7 @@ layout(std430, set = 0, binding = BINDING_STATS) buffer StatsBlock {
 };
 
 #include "camera.glsl"
+#include "counters.glsl"
 #include "rng.glsl"
 
 // Whether `pixel` lies inside the image (dispatches round up to whole workgroups).
@@ -46,6 +48,15 @@ bool film_sample_finite(vec3 L) {
         return false;
     }
     return true;
+}
+
+// Adds this invocation's counters (counters.glsl) to the stats buffer. Every pass calls
+// it once per invocation, after its work.
+void film_flush_counters() {
+    if (g_step_cap_hits > 0u) {
+        atomicAdd(stats[STAT_STEP_CAP], g_step_cap_hits);
+        g_step_cap_hits = 0u;
+    }
 }
 
 // Add one frame's estimate of `pixel` to the running sums.
@@ -78,6 +89,7 @@ vec3 film_pixel_estimate(uvec2 pixel, uint frame, uint sample_base) {
             kept += 1u;
         }
     }
+    film_flush_counters();
     return kept > 0u ? sum / float(kept) : vec3(0.0);
 }
 

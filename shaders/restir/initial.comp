@@ -48,7 +48,15 @@ void add_candidate(uint at, inout Reservoir r, inout uint rng, float w, float p_
     }
 }
 
+void restir_main();
+
+// The stage, then its counters into the stats buffer.
 void main() {
+    restir_main();
+    film_flush_counters();
+}
+
+void restir_main() {
     uvec2 pixel = gl_GlobalInvocationID.xy;
     if (!film_contains(pixel)) {
         return;

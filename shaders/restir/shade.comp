@@ -7,7 +7,15 @@
 #extension GL_GOOGLE_include_directive : require
 #include "path.glsl"
 
+void restir_main();
+
+// The stage, then its counters into the stats buffer.
 void main() {
+    restir_main();
+    film_flush_counters();
+}
+
+void restir_main() {
     uvec2 pixel = gl_GlobalInvocationID.xy;
     if (!film_contains(pixel)) {
         return;

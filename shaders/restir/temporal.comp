@@ -19,7 +19,15 @@ vec3 velocity_at(vec3 x) {
     return textureLod(u_velocity, uvw, 0.0).xyz;
 }
 
+void restir_main();
+
+// The stage, then its counters into the stats buffer.
 void main() {
+    restir_main();
+    film_flush_counters();
+}
+
+void restir_main() {
     uvec2 pixel = gl_GlobalInvocationID.xy;
     if (!film_contains(pixel)) {
         return;

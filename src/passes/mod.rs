@@ -78,6 +78,12 @@ pub trait Pass {
     /// Bytes of every buffer and image the pass created.
     fn device_bytes(&self) -> u64;
 
+    /// What the pass decided from the scene's content that the user should know (e.g.
+    /// settings it refined), one sentence each.
+    fn notes(&self) -> Vec<String> {
+        Vec::new()
+    }
+
     /// Frees every GPU object of the pass.
     fn destroy(self: Box<Self>, ctx: &Context);
 }

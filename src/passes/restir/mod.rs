@@ -67,6 +67,8 @@ pub struct RestirPass {
     prev_slot: Option<u32>,
     /// The previous-frame uniforms last uploaded.
     prev_uploaded: Option<FrameUniforms>,
+    /// The levels the plan asked for (the volumes hold those used).
+    plan_levels: volumes::Levels,
 }
 
 impl RestirPass {
@@ -96,6 +98,7 @@ impl RestirPass {
         let dims = density.dims;
         let volumes = Volumes::load(density, grid, plan, &scene.position_scale(), &grid_label)?;
         let first = volumes.base()?;
+        let levels = volumes.levels;
         // Voxels per block edge of a mip level.
         let factor = |level: u32| 1 << level.min(last_level(dims));
         let restir_uniforms = RestirUniformsGpu {
@@ -103,10 +106,10 @@ impl RestirPass {
             pc_primary_offset: 0,
             pc_indirect_dims: first.pc_indirect_dims,
             pc_indirect_offset: first.pc_indirect_offset,
-            pc_primary_factor: factor(plan.mip_candidates),
-            pc_indirect_factor: factor(plan.mip_indirect),
-            march_reuse_factor: factor(plan.mip_reuse),
-            march_nee_factor: factor(plan.mip_indirect),
+            pc_primary_factor: factor(levels.candidates),
+            pc_indirect_factor: factor(levels.indirect),
+            march_reuse_factor: factor(levels.reuse),
+            march_nee_factor: factor(levels.indirect),
             march_reuse_dims: first.march_reuse.dims,
             march_nee_dims: first.march_nee.dims,
             candidates: plan.candidates,
@@ -114,8 +117,8 @@ impl RestirPass {
             spatial_neighbors: plan.spatial_neighbors,
             reservoir_stride: (stride_bytes / 4) as u32,
             spatial_radius: plan.spatial_radius_px,
-            march_reuse_step: march_step(grid, dims, plan.mip_reuse),
-            march_nee_step: march_step(grid, dims, plan.mip_indirect),
+            march_reuse_step: march_step(grid, dims, levels.reuse),
+            march_nee_step: march_step(grid, dims, levels.indirect),
             velocity_dims: velocity.as_ref().map_or([1, 1, 1], |v| v.dims),
             ..RestirUniformsGpu::default()
         };
@@ -153,6 +156,11 @@ impl RestirPass {
             loaded: (0, 0),
             prev_slot: None,
             prev_uploaded: None,
+            plan_levels: volumes::Levels {
+                candidates: plan.mip_candidates,
+                indirect: plan.mip_indirect,
+                reuse: plan.mip_reuse,
+            },
         })
     }
 
@@ -289,6 +297,30 @@ impl Pass for RestirPass {
 
     fn device_bytes(&self) -> u64 {
         self.objects.bytes()
+    }
+
+    fn notes(&self) -> Vec<String> {
+        let l = self.volumes.levels;
+        let asked = (
+            self.plan_levels.candidates,
+            self.plan_levels.indirect,
+            self.plan_levels.reuse,
+        );
+        if (l.candidates, l.indirect, l.reuse) == asked {
+            return Vec::new();
+        }
+        vec![format!(
+            "ReSTIR used mip levels {}/{}/{} (candidates/indirect/reuse) instead of {}/{}/{}: \
+             coarser levels would spread the grid's sharpest density steps over more than \
+             {} optical depths and stop sampling paths that contribute",
+            l.candidates,
+            l.indirect,
+            l.reuse,
+            asked.0,
+            asked.1,
+            asked.2,
+            volumes::MAX_LEVEL_EXCESS_TAU
+        )]
     }
 
     fn destroy(self: Box<Self>, ctx: &Context) {
