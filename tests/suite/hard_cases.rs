@@ -440,3 +440,66 @@ fn a_hot_voxel_costs_only_where_it_is_and_both_integrators_agree() {
         0.01,
     );
 }
+
+/// An environment map larger than a storage buffer of the device can hold is refused
+/// before anything is allocated or its pixels are read (only its header is), naming the
+/// scene, the light, the field and the file, and the device limit. A 16384×8192 map used
+/// to be staged as a 2 GiB buffer and crash the driver after 25 s.
+#[test]
+fn environment_maps_beyond_the_device_are_refused_before_allocation() {
+    use exr::prelude::{Encoding, Image, SpecificChannels, Vec2, WritableImage};
+    let ctx = context();
+    let dir = scratch("hard_cases", "envmap");
+    let limit = u64::from(ctx.info().max_storage_buffer_range);
+    // The smallest square map whose RGBA f32 texels exceed the limit.
+    let mut side = 256usize;
+    while (side * side * 16) as u64 <= limit {
+        side *= 2;
+    }
+    assert!(
+        side <= 16384,
+        "the device allows maps larger than the format's limit"
+    );
+    let path = dir.join(format!("sky{side}.exr"));
+    if !path.exists() {
+        let channels = SpecificChannels::rgb(|_: Vec2<usize>| {
+            (
+                half::f16::from_f32(0.5),
+                half::f16::from_f32(0.6),
+                half::f16::from_f32(0.9),
+            )
+        });
+        Image::from_encoded_channels((side, side), Encoding::FAST_LOSSLESS, channels)
+            .write()
+            .to_file(&path)
+            .unwrap();
+    }
+    let text = cube_scene(&box_medium("1", "0"), "").replace(
+        "[[light]]\ntype = \"directional\"",
+        &format!(
+            "[[light]]\ntype = \"environment\"\nfile = \"{}\"\n[[light]]\ntype = \"directional\"",
+            path.display()
+        ),
+    ) + "\n[integrator]\nvolume = \"baseline\"\n";
+    // Grid scenes light the medium with the map; a box scene only shows it as background,
+    // so use a uniform grid.
+    let text = text.replace(&box_medium("1", "0"), &uniform_grid(&dir, "1", "0"));
+    let scene = parse(&text).unwrap();
+    let started = std::time::Instant::now();
+    let e = try_render(&ctx, &scene)
+        .err()
+        .unwrap_or_else(|| panic!("a {side}² map was accepted"));
+    assert!(
+        e.contains(FILE)
+            && e.contains("[[light]] #1")
+            && e.contains("`file`")
+            && e.contains(&format!("sky{side}.exr"))
+            && e.contains("maxStorageBufferRange"),
+        "{e}"
+    );
+    assert!(
+        started.elapsed().as_secs_f64() < 5.0,
+        "refusal took {:?}",
+        started.elapsed()
+    );
+}
