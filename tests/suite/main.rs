@@ -24,3 +24,4 @@ mod restir;
 mod restir_golden;
 mod sampling_gpu;
 mod study;
+mod vdb_render;

@@ -113,7 +113,10 @@
 //! tree's 8³ leaf nodes as bricks plus constant tiles, the index-to-world transform
 //! as an affine matrix, the background and the active bounding box, so memory follows
 //! the active voxels. [`list_grids`] names a file's grids for messages. [`vdb`] lists
-//! what of the format is supported. The scene parser does not use it yet.
+//! what of the format is supported. `[[medium]] type = "vdb"` reads each grid's header
+//! and topology ([`read_vdb_topology`]) when the scene loads, and its values into the
+//! dense window around the active voxels ([`VdbWindow`]) when the grid loads
+//! ([`load_grid`]).
 //!
 //! # Triangle meshes
 //! The [`mesh`] module (re-exported here) loads `.obj` / `.ply` files into a
@@ -162,8 +165,8 @@ pub use parse::{
 pub use procedural::procedural_cloud;
 pub use types::*;
 pub use vdb::{
-    list_grids, read_vdb_grid, GridClass, SparseGrid, ValueType, VdbGridInfo, VdbGridKind, VdbTile,
-    BRICK_VOXELS, LEAF_DIM, MAX_ACTIVE_VOXELS,
+    list_grids, read_vdb_grid, read_vdb_topology, GridClass, SparseGrid, ValueType, VdbGridHeader,
+    VdbGridInfo, VdbGridKind, VdbTile, VdbTopology, BRICK_VOXELS, LEAF_DIM, MAX_ACTIVE_VOXELS,
 };
 pub use vol_write::write_vol;
 pub use volume::{

@@ -284,7 +284,8 @@ pub(crate) fn check_scene(source: &crate::fields::Source, scene: &Scene) -> anyh
                 }
             }
             Medium::Grid(g) => {
-                let table = format!("[[medium]] #{} (type = \"grid\")", i + 1);
+                let kind = if g.vdb.is_some() { "vdb" } else { "grid" };
+                let table = format!("[[medium]] #{} (type = \"{kind}\")", i + 1);
                 for source_grid in g.density_sources() {
                     let Ok(dims) = source_grid.dims() else {
                         continue;

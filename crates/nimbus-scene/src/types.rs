@@ -6,7 +6,7 @@
 
 use std::path::PathBuf;
 
-use glam::{Mat3, Vec2, Vec3};
+use glam::{DMat3, DMat4, IVec3, Mat3, Vec2, Vec3};
 
 /// A whole scene, as loaded from one TOML file.
 #[derive(Clone, Debug, PartialEq)]
@@ -180,7 +180,9 @@ pub struct BoxMedium {
     pub g: f32,
 }
 
-/// A heterogeneous voxel medium filling `bounds_min .. bounds_max`.
+/// A heterogeneous voxel medium filling the box `bounds_min .. bounds_max`: `type =
+/// "grid"`, or `type = "vdb"` (`vdb` is `Some`, every source a [`GridSource::Vdb`] with
+/// the same [`VdbWindow`]), whose box is then its window's voxels in the world.
 #[derive(Clone, Debug, PartialEq)]
 pub struct GridMedium {
     pub bounds_min: Vec3,
@@ -194,6 +196,37 @@ pub struct GridMedium {
     pub velocity: Option<GridSource>,
     /// Sorted by `frame`.
     pub frames: Vec<GridFrame>,
+    /// `type = "vdb"`: where its index space sits (every source is then
+    /// [`GridSource::Vdb`]); `None` for `type = "grid"`.
+    pub vdb: Option<Box<VdbPlacement>>,
+}
+
+/// Where a `type = "vdb"` medium sits, read from its files when the scene loads.
+#[derive(Clone, Debug, PartialEq)]
+pub struct VdbPlacement {
+    /// The scene's `to_world` (identity without one), applied after each grid's own
+    /// index-to-world transform.
+    pub to_world: DMat4,
+    /// The density grid's index-to-world transform with `to_world` applied (column
+    /// vectors): voxel (i, j, k)'s value sits at `index_to_world · (i, j, k, 1)`. Every
+    /// `[[medium.frame]]` density, the emission and the velocity share it. Its linear
+    /// part is diagonal (the grid's axes along the world's).
+    pub index_to_world: DMat4,
+    /// Inclusive index-space bounds of the density's active voxels, over every frame.
+    /// The medium's extent is this box grown by one voxel (where trilinear filtering
+    /// reaches).
+    pub active_bbox: (IVec3, IVec3),
+}
+
+impl VdbPlacement {
+    /// The world length of one index step along each index axis.
+    pub fn voxel_size(&self) -> [f64; 3] {
+        [
+            self.index_to_world.x_axis.truncate().length(),
+            self.index_to_world.y_axis.truncate().length(),
+            self.index_to_world.z_axis.truncate().length(),
+        ]
+    }
 }
 
 /// Where a voxel grid comes from. Files are checked to exist (and, for raw files, to
@@ -206,6 +239,29 @@ pub enum GridSource {
     MitsubaVol { file: PathBuf },
     /// Deterministic procedural cloud.
     ProceduralCloud { dims: [u32; 3], noise_seed: u64 },
+    /// One grid of an OpenVDB file (`type = "vdb"` media): the one named `grid`, else the
+    /// file's only grid of the kind needed, else (scalars) the one named "density". It
+    /// loads as the dense grid `window` cuts out of it.
+    Vdb {
+        file: PathBuf,
+        grid: Option<String>,
+        window: Box<VdbWindow>,
+    },
+}
+
+/// The dense grid a `type = "vdb"` medium's grids load into: the lattice points of the
+/// density's active bounding box (over every frame) grown by one voxel, so that the
+/// trilinear field falls to the background 0 at its faces. Dense voxel `d` (cell-centred
+/// in the medium's `bounds_min .. bounds_max`) holds the grid's voxel `origin + d`, with
+/// axis `a` reversed (`origin + dims − 1 − d`) where `flip[a]` (a negative scale).
+#[derive(Clone, Debug, PartialEq)]
+pub struct VdbWindow {
+    pub origin: IVec3,
+    pub dims: [u32; 3],
+    pub flip: [bool; 3],
+    /// Maps the vectors of a vec3 (velocity) grid from the file's world to the scene's:
+    /// the linear part of `to_world`.
+    pub vector_map: DMat3,
 }
 
 /// `[[medium.frame]]`: the density grid to use from `frame` on.

@@ -382,6 +382,8 @@ pub fn check_grid_memory(dims: [u32; 3], channels: u32, what: &str) -> Result<us
 /// - `MitsubaVol`: the header is read and checked with [`read_vol_header`]; its
 ///   channel count must equal `channels`.
 /// - `ProceduralCloud`: [`procedural_cloud`] (scalar only).
+/// - `Vdb`: the grid's values in its [`crate::VdbWindow`] (a float or half grid for 1
+///   channel, a vec3 grid for 3, its vectors mapped by the window's `vector_map`).
 ///
 /// The memory guard ([`check_grid_memory`]) runs before any allocation. Errors name the
 /// file and, for bad values, the voxel (i, j, k), channel and value.
@@ -437,11 +439,19 @@ pub fn load_grid(source: &GridSource, channels: u32, what: &str) -> Result<Voxel
             check_grid_memory(*dims, 1, what)?;
             procedural_cloud(*dims, *noise_seed)
         }
+        GridSource::Vdb { file, grid, window } => {
+            check_grid_memory(
+                window.dims,
+                channels,
+                &format!("{what}: {}", file.display()),
+            )?;
+            crate::vdb::load_window(file, grid.as_deref(), window, channels, what)?
+        }
     };
     let name = match source {
-        GridSource::Raw { file, .. } | GridSource::MitsubaVol { file } => {
-            file.display().to_string()
-        }
+        GridSource::Raw { file, .. }
+        | GridSource::MitsubaVol { file }
+        | GridSource::Vdb { file, .. } => file.display().to_string(),
         GridSource::ProceduralCloud { .. } => "procedural cloud".to_string(),
     };
     validate_values(&grid, &name, channels == 1).with_context(|| what.to_string())?;
@@ -450,11 +460,13 @@ pub fn load_grid(source: &GridSource, channels: u32, what: &str) -> Result<Voxel
 
 impl GridSource {
     /// The grid's dims without reading its values: `dims` of raw and procedural grids,
-    /// the header's of `.vol` files (read and checked with [`read_vol_header`]).
+    /// the header's of `.vol` files (read and checked with [`read_vol_header`]), the
+    /// window's of OpenVDB grids ([`crate::VdbWindow`]).
     pub fn dims(&self) -> Result<[u32; 3]> {
         match self {
             GridSource::Raw { dims, .. } | GridSource::ProceduralCloud { dims, .. } => Ok(*dims),
             GridSource::MitsubaVol { file } => Ok(read_vol_header(file)?.dims),
+            GridSource::Vdb { window, .. } => Ok(window.dims),
         }
     }
 }

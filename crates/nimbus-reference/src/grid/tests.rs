@@ -32,6 +32,7 @@ fn grid_medium(lo: Vec3, hi: Vec3, density_scale: f32, albedo: Vec3, g: f32) -> 
         emission_scale: Vec3::ONE,
         velocity: None,
         frames: Vec::new(),
+        vdb: None,
     }
 }
 

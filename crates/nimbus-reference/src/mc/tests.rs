@@ -364,6 +364,7 @@ fn unsupported_scenes_and_options_are_errors() {
         emission_scale: Vec3::ONE,
         velocity: None,
         frames: Vec::new(),
+        vdb: None,
     }));
     assert!(ray(&s, &opts).unwrap_err().contains("grid media"));
 

@@ -40,6 +40,7 @@ const MEDIUM_TYPES: &[(&str, &[&str])] = &[
             "frame",
         ],
     ),
+    ("vdb", super::vdb::VDB_KEYS),
 ];
 const GRID_KEYS: &[&str] = &["file", "dims", "procedural", "noise_seed"];
 const GRID_FRAME_KEYS: &[&str] = &["frame", "density"];
@@ -67,6 +68,9 @@ pub(super) fn parse_medium(
             medium.rotation_deg.as_dvec3(),
         );
         return Ok((Medium::Box(medium), f.name, bounds));
+    }
+    if kind == "vdb" {
+        return super::vdb::parse_vdb_medium(&f, albedo, g);
     }
 
     let bounds_min = f.vec3("bounds_min", None)?;
@@ -146,6 +150,7 @@ pub(super) fn parse_medium(
         emission_scale: f.color("emission_scale", Some(Vec3::ONE), radiometric)?,
         velocity,
         frames: frames.into_iter().map(|(frame, _)| frame).collect(),
+        vdb: None,
     };
     let bounds = OrientedBox::aabb(bounds_min.as_dvec3(), bounds_max.as_dvec3());
     Ok((Medium::Grid(medium), f.name, bounds))
@@ -218,6 +223,15 @@ fn parse_grid_source(
                 return Err(f.error("noise_seed", "only procedural grids take a `noise_seed`"));
             }
             let path = f.source.resolve(name);
+            if name.to_ascii_lowercase().ends_with(".vdb") {
+                return Err(f.error(
+                    "file",
+                    format!(
+                        "\"{name}\" is an OpenVDB file: use a [[medium]] of type = \"vdb\" \
+                         (placed by the file's own transform) instead of type = \"grid\""
+                    ),
+                ));
+            }
             if name.to_ascii_lowercase().ends_with(".vol") {
                 let header = read_vol_header(&path).map_err(|e| f.error("file", e))?;
                 if header.channels != channels.count() {

@@ -14,6 +14,7 @@ use crate::types::*;
 
 mod lights;
 mod media;
+mod vdb;
 
 use lights::parse_light;
 use media::parse_medium;

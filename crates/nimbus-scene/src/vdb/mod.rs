@@ -62,6 +62,7 @@
 //! OpenVDB 10's Python module cannot write, and truncate and byte-flip real files.
 
 mod blosc;
+mod dense;
 mod file;
 mod input;
 mod tree;
@@ -75,6 +76,7 @@ use anyhow::{anyhow, bail, Result};
 use glam::{DMat4, IVec3};
 
 use crate::volume::MAX_GRID_VALUES;
+pub(crate) use dense::load_window;
 use file::Descriptor;
 use input::Input;
 
@@ -299,6 +301,105 @@ impl SparseGrid {
     }
 }
 
+/// A grid's tree without its leaf values ([`read_vdb_topology`]): enough to place the
+/// grid and to know which bricks it stores before reading them.
+#[derive(Clone, Debug)]
+pub struct VdbTopology {
+    /// Scalars in `background[0]`, the other channels 0.
+    pub background: [f32; 3],
+    /// Origins of the leaf nodes (bricks), in file order.
+    pub leaf_origins: Vec<IVec3>,
+    /// Active tiles.
+    pub tiles: Vec<VdbTile>,
+    /// Inclusive index-space bounds of the active voxels and tiles.
+    pub active_bbox: Option<(IVec3, IVec3)>,
+    pub active_voxels: u64,
+}
+
+/// What [`read_vdb_topology`] returns: the grid's identity, transform and topology.
+#[derive(Clone, Debug)]
+pub struct VdbGridHeader {
+    pub file: PathBuf,
+    pub name: String,
+    pub value_type: ValueType,
+    pub saved_as_half: bool,
+    pub grid_class: GridClass,
+    pub map_type: String,
+    pub index_to_world: DMat4,
+    pub topology: VdbTopology,
+}
+
+/// Reads one grid of a `.vdb` file as [`read_vdb_grid`] does, but stops after the tree's
+/// topology: no leaf values are read or decompressed (tiles of internal nodes are).
+/// Errors are [`read_vdb_grid`]'s.
+pub fn read_vdb_topology(
+    path: &Path,
+    grid: Option<&str>,
+    kind: VdbGridKind,
+    what: &str,
+) -> Result<VdbGridHeader> {
+    let what = prefix(what);
+    let mut input = open(path, &what)?;
+    let file_err = |e: anyhow::Error| anyhow!("{what}{}: {e:#}", path.display());
+    file::read_header(&mut input).map_err(file_err)?;
+    file::read_meta(&mut input).map_err(file_err)?;
+    let descs = file::read_descriptors(&mut input).map_err(file_err)?;
+    let desc = select(&descs, grid, kind).map_err(file_err)?;
+    let grid_err =
+        |e: anyhow::Error| anyhow!("{what}{}: grid \"{}\": {e:#}", path.display(), desc.name);
+    let value_type = check_type(desc, kind).map_err(grid_err)?;
+    let read = |input: &mut Input<_>| -> Result<VdbGridHeader> {
+        // An instance's tree is its parent's (see `read_grid`).
+        let tree_desc = if desc.instance_parent.is_empty() {
+            desc
+        } else {
+            descs
+                .iter()
+                .find(|d| d.unique_name == desc.instance_parent)
+                .ok_or_else(|| {
+                    anyhow!(
+                        "its instance parent \"{}\" is not in the file",
+                        desc.instance_parent
+                    )
+                })?
+        };
+        input.seek(desc.grid_pos)?;
+        input.u32("the grid's compression flags")?;
+        let meta = file::read_meta(input)?;
+        let (map_type, index_to_world) = file::read_transform(input)?;
+        input.seek(tree_desc.grid_pos)?;
+        let compression = input.u32("the grid's compression flags")?;
+        file::read_meta(input)?;
+        file::read_transform(input)?;
+        let enc = tree::Encoding {
+            value: value_type,
+            save_half: tree_desc.save_half,
+            compression,
+        };
+        let topology = tree::read_topology_only(input, &enc)?;
+        Ok(VdbGridHeader {
+            file: path.to_path_buf(),
+            name: desc.name.clone(),
+            value_type,
+            saved_as_half: desc.save_half,
+            grid_class: file::grid_class(&meta),
+            map_type,
+            index_to_world,
+            topology,
+        })
+    };
+    read(&mut input).map_err(grid_err)
+}
+
+/// `"{what}: "`, or nothing when `what` is empty.
+fn prefix(what: &str) -> String {
+    if what.is_empty() {
+        String::new()
+    } else {
+        format!("{what}: ")
+    }
+}
+
 /// Opens `path`; errors read "{prefix}{path}: cannot open VDB file: ...".
 fn open(path: &Path, prefix: &str) -> Result<Input<std::io::BufReader<File>>> {
     let file = File::open(path)
@@ -414,7 +515,7 @@ pub fn read_vdb_grid(
     kind: VdbGridKind,
     what: &str,
 ) -> Result<SparseGrid> {
-    let mut input = open(path, &format!("{what}: "))?;
+    let mut input = open(path, &prefix(what))?;
     read_from(&mut input, path, grid, kind, what)
 }
 
@@ -426,13 +527,14 @@ fn read_from<R: Read + Seek>(
     kind: VdbGridKind,
     what: &str,
 ) -> Result<SparseGrid> {
-    let file_err = |e: anyhow::Error| anyhow!("{what}: {}: {e:#}", path.display());
+    let what = prefix(what);
+    let file_err = |e: anyhow::Error| anyhow!("{what}{}: {e:#}", path.display());
     let header = file::read_header(input).map_err(file_err)?;
     file::read_meta(input).map_err(file_err)?;
     let descs = file::read_descriptors(input).map_err(file_err)?;
     let desc = select(&descs, grid, kind).map_err(file_err)?;
     let grid_err =
-        |e: anyhow::Error| anyhow!("{what}: {}: grid \"{}\": {e:#}", path.display(), desc.name);
+        |e: anyhow::Error| anyhow!("{what}{}: grid \"{}\": {e:#}", path.display(), desc.name);
     let value_type = check_type(desc, kind).map_err(grid_err)?;
     let mut grid = read_grid(input, &descs, desc, value_type, path).map_err(grid_err)?;
     grid.file_version = header.file_version;

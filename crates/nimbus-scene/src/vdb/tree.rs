@@ -140,6 +140,43 @@ pub fn read_tree<R: Read + Seek>(
     read_buffers(input, enc, topo, grid)
 }
 
+/// The topology of the tree at the input's position (just after the transform), without
+/// its leaf values: background, leaf origins with their active masks, active tiles, the
+/// active bounding box and voxel count.
+pub fn read_topology_only<R: Read + Seek>(
+    input: &mut Input<R>,
+    enc: &Encoding,
+) -> Result<super::VdbTopology> {
+    enc.check()?;
+    let topo = read_topology(input, enc)?;
+    check_finite(&topo.background, enc.channels(), || {
+        "the background value".to_string()
+    })?;
+    let mut bbox: Option<(IVec3, IVec3)> = None;
+    let mut grow = |lo: IVec3, hi: IVec3| {
+        bbox = Some(match bbox {
+            None => (lo, hi),
+            Some((a, b)) => (a.min(lo), b.max(hi)),
+        });
+    };
+    for leaf in &topo.leaves {
+        for n in ones(&leaf.mask) {
+            let ijk = leaf.origin + local(n, 3);
+            grow(ijk, ijk);
+        }
+    }
+    for t in &topo.tiles {
+        grow(t.origin, t.origin + IVec3::splat(t.edge as i32 - 1));
+    }
+    Ok(super::VdbTopology {
+        background: topo.background,
+        leaf_origins: topo.leaves.iter().map(|l| l.origin).collect(),
+        tiles: topo.tiles,
+        active_bbox: bbox,
+        active_voxels: topo.active_voxels,
+    })
+}
+
 pub(super) fn check_limits(enc: &Encoding, leaves: usize, active: u64) -> Result<()> {
     let values = leaves as u64 * BRICK_VOXELS as u64 * enc.channels() as u64;
     if values > MAX_GRID_VALUES {

@@ -338,6 +338,7 @@ fn grid_medium(frames: &[u32]) -> GridMedium {
                 density: source(u64::from(frame)),
             })
             .collect(),
+        vdb: None,
     }
 }
 

@@ -337,6 +337,7 @@ final_transmittance = "ratio"
                     }
                 },
             ],
+            vdb: None,
         })
     );
     let Medium::Grid(defaults) = &scene.media[2] else {

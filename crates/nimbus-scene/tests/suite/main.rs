@@ -15,4 +15,5 @@ mod good_scenes;
 mod mesh_bvh;
 mod mesh_load;
 mod vdb;
+mod vdb_scenes;
 mod volume;
