@@ -125,6 +125,7 @@
 //! ([`Bvh::closest_hit`], [`Bvh::any_hit`]) as the reference for the GPU traversal.
 //! It is not yet wired into the scene's `[[shape]] type = "mesh"`.
 
+pub mod bricks;
 mod envmap;
 mod fields;
 mod files;
@@ -143,6 +144,7 @@ use std::path::Path;
 
 use anyhow::{anyhow, Result};
 
+pub use bricks::{BrickGrid, BrickTopology};
 pub use envmap::{
     direction_to_uv, luminance, uv_to_direction, EnvMap, EnvSampler, MAX_ENVMAP_HEIGHT,
     MAX_ENVMAP_WIDTH,

@@ -385,6 +385,83 @@ impl crate::types::GridMedium {
     }
 }
 
+impl crate::types::GridMedium {
+    /// The world length of one lattice step of the density along each index axis: the
+    /// box's size over the dims for `type = "grid"` (`dims` of the density), the
+    /// transform's for `type = "vdb"`.
+    pub fn voxel_size(&self, dims: [u32; 3]) -> [f64; 3] {
+        match &self.vdb {
+            Some(v) => v.voxel_size(),
+            None => {
+                let size = self.bounds_max - self.bounds_min;
+                [0, 1, 2].map(|a| f64::from(size[a]) / f64::from(dims[a].max(1)))
+            }
+        }
+    }
+
+    /// The affine map from the p-space of `grid` (a density, emission or velocity grid of
+    /// this medium, loaded into bricks) to world space: for `type = "grid"` the box
+    /// `bounds_min .. bounds_max` over the grid's dims; for `type = "vdb"` the grid's own
+    /// transform, then `to_world` (lattice point `l` sits at `index_to_world · (l +
+    /// origin)`).
+    pub fn p_to_world(&self, grid: &crate::BrickGrid) -> anyhow::Result<glam::DMat4> {
+        use glam::{DMat4, DVec3};
+        match (&self.vdb, grid.file_transform) {
+            (Some(v), Some(file)) => Ok(v.to_world
+                * file
+                * DMat4::from_translation(grid.origin.as_dvec3() - DVec3::splat(0.5))),
+            (None, None) => {
+                let dims = (grid.lattice_max + 1).as_dvec3();
+                let size = (self.bounds_max - self.bounds_min).as_dvec3();
+                Ok(DMat4::from_translation(self.bounds_min.as_dvec3())
+                    * DMat4::from_scale(size / dims))
+            }
+            _ => anyhow::bail!("internal: a grid of a different medium type"),
+        }
+    }
+
+    /// [`GridMedium::check_density`] on a density loaded into bricks: the same two
+    /// rules, computed on the stored bricks only. Voxels in messages are the grid's own
+    /// (absolute) index coordinates.
+    pub fn check_density_bricks(
+        &self,
+        density: &crate::BrickGrid,
+        scale: &PositionScale,
+        what: &str,
+    ) -> anyhow::Result<()> {
+        let s = f64::from(self.density_scale);
+        let (max_value, at) = density.max_value();
+        let sigma_max = s * f64::from(max_value);
+        if sigma_max > crate::MAX_SIGMA_T {
+            let ijk = density.origin + at;
+            anyhow::bail!(
+                "{what}: voxel ({}, {}, {}) = {max_value:e} times density_scale {s:e} is \
+                 sigma_t = {sigma_max:e} /m, above the largest extinction {:e} /m",
+                ijk.x,
+                ijk.y,
+                ijk.z,
+                crate::MAX_SIGMA_T
+            );
+        }
+        let dims = (density.lattice_max + 1)
+            .to_array()
+            .map(|d| d.max(1) as u32);
+        let voxel = self.voxel_size(dims);
+        let (sigma, at) = crate::bricks::effective_sigma_t(density, s, voxel);
+        if let Some(problem) = scale.sigma_t_problem(sigma, "the extinction where light enters it")
+        {
+            let ijk = density.origin + at;
+            anyhow::bail!(
+                "{what} (with density_scale {s:e}): near voxel ({}, {}, {}), {problem}",
+                ijk.x,
+                ijk.y,
+                ijk.z
+            );
+        }
+        Ok(())
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -119,6 +119,7 @@ fn cloud_density(seed: u64, p: [f64; 3]) -> f64 {
 /// Allocates `dims` product f32s; callers with untrusted dims should go through
 /// [`crate::load_grid`], which applies the memory guard first.
 pub fn procedural_cloud(dims: [u32; 3], seed: u64) -> VoxelGrid {
+    // (Kept as its own loop, not through `cloud_voxel`: the golden checksum pins it.)
     let [nx, ny, nz] = dims.map(|d| d as usize);
     let mut data = vec![0f32; nx * ny * nz];
     for k in 1..nz.saturating_sub(1) {
@@ -138,6 +139,15 @@ pub fn procedural_cloud(dims: [u32; 3], seed: u64) -> VoxelGrid {
         channels: 1,
         data,
     }
+}
+
+/// Voxel `ijk` of [`procedural_cloud`]`(dims, seed)`, alone: 0 on the outermost layer.
+pub(crate) fn cloud_voxel(dims: [u32; 3], seed: u64, ijk: [u32; 3]) -> f32 {
+    if (0..3).any(|a| ijk[a] == 0 || ijk[a] + 1 >= dims[a]) {
+        return 0.0;
+    }
+    let p = [0, 1, 2].map(|a| (f64::from(ijk[a]) + 0.5) / f64::from(dims[a]));
+    cloud_density(seed, p) as f32
 }
 
 #[cfg(test)]

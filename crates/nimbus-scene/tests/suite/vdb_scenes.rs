@@ -7,7 +7,9 @@
 use std::path::{Path, PathBuf};
 
 use glam::{DMat4, DVec3, IVec3};
-use nimbus_scene::{load_grid, read_vdb_grid, GridSource, Medium, VdbGridKind, VoxelGrid};
+use nimbus_scene::{
+    load_grid, read_vdb_grid, BrickGrid, GridSource, Medium, VdbGridKind, VoxelGrid,
+};
 
 use crate::common::{assert_contains, parse, TempDir, CAMERA};
 
@@ -324,4 +326,52 @@ fn bad_vdb_media_are_refused_naming_file_and_grid() {
             "exceeds the limit",
         ],
     );
+}
+
+/// The same grids as 8³ bricks (the sparse form the GPU storage is built on): every
+/// lattice point of the window holds the dense window's value, `p_to_world` puts it where
+/// the dense grid's voxel centre is, and the bricks hold only the file's leaves and
+/// their neighbours, not the window.
+#[test]
+fn vdb_bricks_hold_the_window_values_at_their_world_positions() {
+    let file = asset("half_zip.vdb");
+    for to_world in [
+        "",
+        "to_world = { scale = [2, -1, 0.5], translate = [1, 2, -3] }",
+    ] {
+        let scene = parse(&medium(&format!(
+            "density = {{ file = \"{}\" }}\n{to_world}",
+            file.display()
+        )))
+        .unwrap();
+        let g = grid_of(&scene);
+        let GridSource::Vdb { window, .. } = &g.density else {
+            panic!("a vdb source");
+        };
+        let dense = load_grid(&g.density, 1, "t").unwrap();
+        let bricks = BrickGrid::load(&g.density, 1, "t").unwrap();
+        assert_eq!(bricks.lattice_min + bricks.origin, window.origin);
+        let p_to_world = g.p_to_world(&bricks).unwrap();
+        for dk in 0..window.dims[2] {
+            for dj in 0..window.dims[1] {
+                for di in 0..window.dims[0] {
+                    let d = [di, dj, dk];
+                    let ijk = IVec3::from_array([0, 1, 2].map(|a| {
+                        let o = if window.flip[a] {
+                            window.dims[a] - 1 - d[a]
+                        } else {
+                            d[a]
+                        };
+                        window.origin[a] + o as i32
+                    }));
+                    let l = ijk - bricks.origin;
+                    assert_eq!(bricks.get(l), dense.get(di, dj, dk), "voxel {ijk}");
+                    let world = (p_to_world * (l.as_dvec3() + 0.5).extend(1.0)).truncate();
+                    assert!(close(world, dense_centre(g, &dense, d)), "voxel {ijk}");
+                }
+            }
+        }
+        let sparse = read_vdb_grid(&file, None, VdbGridKind::Scalar, "t").unwrap();
+        assert!(bricks.bricks.len() <= 27 * sparse.brick_count());
+    }
 }

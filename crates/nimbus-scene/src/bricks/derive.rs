@@ -1,0 +1,349 @@
+//! The levels derived from a [`BrickGrid`], brick by brick: mips (mean and minimum), the
+//! conservative piecewise-constant grid of Volumetric ReSTIR and the baseline's
+//! super-voxel bounds. Each visits only bricks near stored ones; for a dense grid each
+//! gives bit for bit what the dense function of [`crate::VoxelGrid`] gives (same
+//! neighbourhoods, same f64 summation order).
+
+use std::collections::HashSet;
+
+use anyhow::Result;
+use glam::IVec3;
+
+use super::{point_index, shr, BrickGrid, BRICK_EDGE, BRICK_POINTS};
+
+/// Bricks of `grid` and their 26 neighbours inside its indirection, each once, sorted
+/// by (z, y, x).
+fn dilated(grid: &BrickGrid) -> Vec<IVec3> {
+    let mut set = HashSet::new();
+    for b in &grid.bricks {
+        for z in -1..=1 {
+            for y in -1..=1 {
+                for x in -1..=1 {
+                    let n = *b + IVec3::new(x, y, z);
+                    if grid.cell(n).is_some() {
+                        set.insert(n);
+                    }
+                }
+            }
+        }
+    }
+    let mut out: Vec<IVec3> = set.into_iter().collect();
+    out.sort_unstable_by_key(|b| (b.z, b.y, b.x));
+    out
+}
+
+/// The 10³ lattice points `8b − 1 ..= 8b + 8` around brick `b` (channel 0, 0 where no
+/// brick holds them) and whether each lies inside the clamp range; x fastest.
+fn neighbourhood(grid: &BrickGrid, b: IVec3, values: &mut [f32; 1000], inside: &mut [bool; 1000]) {
+    let base = b * BRICK_EDGE - 1;
+    for z in 0..10 {
+        for y in 0..10 {
+            for x in 0..10 {
+                let l = base + IVec3::new(x, y, z);
+                let n = (x + 10 * (y + 10 * z)) as usize;
+                inside[n] = grid.in_range(l);
+                values[n] = if inside[n] { grid.get(l) } else { 0.0 };
+            }
+        }
+    }
+}
+
+impl BrickGrid {
+    /// The conservative piecewise-constant grid of Volumetric ReSTIR sec. 4.1 (see
+    /// [`crate::VoxelGrid::conservative_piecewise_constant`]): each lattice point keeps
+    /// its own value (channel 0), a zero takes the average of its 26 neighbours inside the
+    /// lattice range (zeros included), rounded up to the smallest positive f32 rather
+    /// than to 0. Bricks that come out all zero are not stored.
+    pub fn conservative(&self) -> Result<BrickGrid> {
+        let mut out = BrickGrid::empty(
+            self.origin,
+            self.lattice_min,
+            self.lattice_max,
+            self.index_min,
+            self.index_max,
+            1,
+        )?;
+        let mut hood = [0f32; 1000];
+        let mut inside = [false; 1000];
+        let mut values = vec![0f32; BRICK_POINTS];
+        for b in dilated(self) {
+            neighbourhood(self, b, &mut hood, &mut inside);
+            let (lo, hi) = self.brick_range(b);
+            values.iter_mut().for_each(|v| *v = 0.0);
+            let mut any = false;
+            for k in lo.z..=hi.z {
+                for j in lo.y..=hi.y {
+                    for i in lo.x..=hi.x {
+                        let local = IVec3::new(i, j, k) - b * BRICK_EDGE;
+                        let at = |d: IVec3| {
+                            let h = local + 1 + d;
+                            (h.x + 10 * (h.y + 10 * h.z)) as usize
+                        };
+                        let own = hood[at(IVec3::ZERO)];
+                        let value = if own != 0.0 {
+                            own
+                        } else {
+                            let mut sum = 0f64;
+                            let mut count = 0u32;
+                            for dz in -1..=1 {
+                                for dy in -1..=1 {
+                                    for dx in -1..=1 {
+                                        let d = IVec3::new(dx, dy, dz);
+                                        if d != IVec3::ZERO && inside[at(d)] {
+                                            sum += f64::from(hood[at(d)]);
+                                            count += 1;
+                                        }
+                                    }
+                                }
+                            }
+                            let avg = if count == 0 {
+                                0.0
+                            } else {
+                                sum / f64::from(count)
+                            };
+                            let mut v = avg as f32;
+                            if avg > 0.0 && v <= 0.0 {
+                                v = f32::from_bits(1);
+                            }
+                            v
+                        };
+                        values[point_index(local)] = value;
+                        any |= value != 0.0;
+                    }
+                }
+            }
+            if any {
+                out.push_brick(b, &values)?;
+            }
+        }
+        Ok(out)
+    }
+
+    /// One mip level down (see [`crate::VoxelGrid::mip_chain`]): lattice range halved
+    /// (floor), each point the average of its existing 2×2×2 children (those inside this
+    /// grid's range), per channel. The box is halved too. All-zero bricks are dropped.
+    pub fn mip(&self) -> Result<BrickGrid> {
+        self.reduce(false)
+    }
+
+    /// One level of a minimum pyramid: each point the minimum of its existing children
+    /// (channel 0; where no brick holds a child it is 0).
+    pub fn min_mip(&self) -> Result<BrickGrid> {
+        self.reduce(true)
+    }
+
+    /// [`BrickGrid::mip`] `level` times (a copy of this grid at level 0).
+    pub fn mip_level(&self, level: u32) -> Result<BrickGrid> {
+        let mut g = self.clone();
+        for _ in 0..level {
+            g = g.mip()?;
+        }
+        Ok(g)
+    }
+
+    fn reduce(&self, minimum: bool) -> Result<BrickGrid> {
+        let ch = if minimum { 1 } else { self.channels as usize };
+        let mut out = BrickGrid::empty(
+            self.origin,
+            shr(self.lattice_min, 1),
+            shr(self.lattice_max, 1),
+            self.index_min * 0.5,
+            self.index_max * 0.5,
+            ch as u32,
+        )?;
+        let mut parents: Vec<IVec3> = self
+            .bricks
+            .iter()
+            .map(|b| shr(*b, 1))
+            .collect::<HashSet<_>>()
+            .into_iter()
+            .collect();
+        parents.sort_unstable_by_key(|b| (b.z, b.y, b.x));
+        let mut values = vec![0f32; BRICK_POINTS * ch];
+        let mut sum = vec![0f64; ch];
+        for p in parents {
+            let (lo, hi) = out.brick_range(p);
+            values.iter_mut().for_each(|v| *v = 0.0);
+            let mut any = false;
+            for k in lo.z..=hi.z {
+                for j in lo.y..=hi.y {
+                    for i in lo.x..=hi.x {
+                        let parent = IVec3::new(i, j, k);
+                        let first = parent * 2;
+                        let c_lo = first.max(self.lattice_min);
+                        let c_hi = (first + 1).min(self.lattice_max);
+                        sum.iter_mut().for_each(|s| *s = 0.0);
+                        let mut count = 0u32;
+                        let mut m = f32::INFINITY;
+                        for kk in c_lo.z..=c_hi.z {
+                            for jj in c_lo.y..=c_hi.y {
+                                for ii in c_lo.x..=c_hi.x {
+                                    let l = IVec3::new(ii, jj, kk);
+                                    if minimum {
+                                        m = m.min(self.get(l));
+                                    } else {
+                                        for (c, s) in sum.iter_mut().enumerate() {
+                                            *s += f64::from(self.get_channel(l, c as u32));
+                                        }
+                                    }
+                                    count += 1;
+                                }
+                            }
+                        }
+                        let dst = point_index(parent - p * BRICK_EDGE) * ch;
+                        if minimum {
+                            values[dst] = if count == 0 { 0.0 } else { m };
+                        } else if count > 0 {
+                            for c in 0..ch {
+                                values[dst + c] = (sum[c] / f64::from(count)) as f32;
+                            }
+                        }
+                        any |= values[dst..dst + ch].iter().any(|v| *v != 0.0);
+                    }
+                }
+            }
+            if any {
+                out.push_brick(p, &values)?;
+            }
+        }
+        Ok(out)
+    }
+
+    /// The super-voxels of the baseline (Volumetric ReSTIR sec. 6; see
+    /// [`crate::VoxelGrid::super_voxels`]) with the bricks' own edge: super-voxel `b`
+    /// covers the p-space block `[8b, 8b + 8]` (clipped to the box) and gets the min and
+    /// max of every lattice point whose trilinear support reaches it (`8b − 1 ..= 8b + 8`,
+    /// clamped) and the exact mean of the trilinear field over it. Only super-voxels
+    /// with a positive max are returned, sorted by (z, y, x): elsewhere the density is 0.
+    pub fn super_voxels(&self) -> Vec<(IVec3, [f32; 3])> {
+        let mut out = Vec::new();
+        let mut hood = [0f32; 1000];
+        let mut inside = [false; 1000];
+        for b in dilated(self) {
+            let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+            neighbourhood(self, b, &mut hood, &mut inside);
+            // Per axis: the lattice range reaching the block, and each point's weight
+            // integral over the block divided by its length.
+            let mut ranges: [(i32, Vec<f64>); 3] = Default::default();
+            for (axis, range) in ranges.iter_mut().enumerate() {
+                let (lmin, lmax) = (self.lattice_min[axis], self.lattice_max[axis]);
+                let block = f64::from(b[axis] * BRICK_EDGE);
+                let a = block.max(self.index_min[axis]);
+                let z = (block + f64::from(BRICK_EDGE)).min(self.index_max[axis]);
+                let first = (b[axis] * BRICK_EDGE - 1).max(lmin);
+                let last = (b[axis] * BRICK_EDGE + BRICK_EDGE).min(lmax);
+                let len = z - a;
+                let weights = (first..=last)
+                    .map(|m| {
+                        if len > 0.0 {
+                            weight_integral(lmin, lmax, m, a, z) / len
+                        } else {
+                            0.0
+                        }
+                    })
+                    .collect();
+                *range = (first, weights);
+            }
+            let mut mean = 0f64;
+            let base = b * BRICK_EDGE - 1;
+            for (dz, fz) in ranges[2].1.iter().enumerate() {
+                for (dy, fy) in ranges[1].1.iter().enumerate() {
+                    for (dx, fx) in ranges[0].1.iter().enumerate() {
+                        let l = IVec3::new(
+                            ranges[0].0 + dx as i32,
+                            ranges[1].0 + dy as i32,
+                            ranges[2].0 + dz as i32,
+                        ) - base;
+                        let v = hood[(l.x + 10 * (l.y + 10 * l.z)) as usize];
+                        lo = lo.min(v);
+                        hi = hi.max(v);
+                        mean += f64::from(v) * fx * fy * fz;
+                    }
+                }
+            }
+            if hi > 0.0 {
+                out.push((b, [lo, hi, (mean as f32).clamp(lo, hi)]));
+            }
+        }
+        out
+    }
+
+    /// The bricks whose slot (the brick and its apron: `SLOT_EDGE`³ clamped lookups from
+    /// `8b`, every channel) holds a non-zero value, sorted by (z, y, x): the bricks an
+    /// atlas needs so that every dual cell with a non-zero corner reads a slot.
+    pub fn slot_bricks(&self) -> Vec<IVec3> {
+        let mut candidates = HashSet::new();
+        for b in &self.bricks {
+            for z in -1..=0 {
+                for y in -1..=0 {
+                    for x in -1..=0 {
+                        let n = *b + IVec3::new(x, y, z);
+                        if self.cell(n).is_some() {
+                            candidates.insert(n);
+                        }
+                    }
+                }
+            }
+        }
+        let mut out: Vec<IVec3> = candidates.into_iter().collect();
+        out.sort_unstable_by_key(|b| (b.z, b.y, b.x));
+        let mut texels = Vec::new();
+        out.retain(|b| {
+            texels.clear();
+            self.slot_texels(*b, 1.0, &mut texels);
+            texels.iter().any(|v| *v != 0.0)
+        });
+        out
+    }
+
+    /// The largest `self − min` (f32 differences) over the lattice points of this grid's
+    /// bricks, `min` a grid of the same level (0 where it stores no brick).
+    pub fn max_excess_over(&self, min: &BrickGrid) -> f64 {
+        let mut best = 0f64;
+        let ch = self.channels as usize;
+        for (i, b) in self.bricks.iter().enumerate() {
+            let (lo, hi) = self.brick_range(*b);
+            let values = self.brick_values(i);
+            for k in lo.z..=hi.z {
+                for j in lo.y..=hi.y {
+                    for x in lo.x..=hi.x {
+                        let l = IVec3::new(x, j, k);
+                        let m = values[point_index(l - *b * BRICK_EDGE) * ch];
+                        best = best.max(f64::from(m - min.get(l)));
+                    }
+                }
+            }
+        }
+        best
+    }
+}
+
+/// The 1D clamped-linear weight of lattice point `m` (range `lo ..= hi`) at p-space
+/// coordinate `x`: the hat centred at m + 0.5, flat to the range's ends beyond them.
+fn weight_1d(lo: i32, hi: i32, m: i32, x: f64) -> f64 {
+    let c = x.clamp(f64::from(lo) + 0.5, f64::from(hi) + 0.5);
+    (1.0 - (c - (f64::from(m) + 0.5)).abs()).max(0.0)
+}
+
+/// ∫ₐᵇ weight_1d(lo, hi, m, x) dx, exact: the weight is linear between its breakpoints,
+/// so the trapezoid rule on those pieces is exact.
+fn weight_integral(lo: i32, hi: i32, m: i32, a: f64, b: f64) -> f64 {
+    let mf = f64::from(m);
+    let mut points = vec![a, b];
+    for p in [
+        mf - 0.5,
+        mf + 0.5,
+        mf + 1.5,
+        f64::from(lo) + 0.5,
+        f64::from(hi) + 0.5,
+    ] {
+        if p > a && p < b {
+            points.push(p);
+        }
+    }
+    points.sort_by(f64::total_cmp);
+    points
+        .windows(2)
+        .map(|w| (w[1] - w[0]) * 0.5 * (weight_1d(lo, hi, m, w[0]) + weight_1d(lo, hi, m, w[1])))
+        .sum()
+}
