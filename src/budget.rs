@@ -138,7 +138,7 @@ impl Footprint {
         let file = scene.source.display();
         let Some((index, g)) = scene.media.iter().enumerate().find_map(|(i, m)| match m {
             Medium::Grid(g) => Some((i, g)),
-            Medium::Box(_) => None,
+            _ => None,
         }) else {
             return Ok(None);
         };

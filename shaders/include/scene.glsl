@@ -8,15 +8,21 @@
 #ifndef NIMBUS_SCENE_GLSL
 #define NIMBUS_SCENE_GLSL
 
-// A homogeneous box medium. 96 bytes.
+// A homogeneous box or convex medium. 112 bytes. A convex medium (plane_count > 0) is
+// the intersection of its planes' half-spaces n . x <= d in the local frame (unit n),
+// inside the box |x_a| <= half_size that bounds it.
 struct BoxMedium {
     vec4 world_to_local[3]; // rows of R^T (w 0); local = R^T (x - center)
-    vec3 center;            // world
+    vec3 center;            // world (convex: the centroid of its vertices)
     float sigma_t;          // extinction (1/m)
-    vec3 half_size;         // half extents along the local axes (m)
+    vec3 half_size;         // half extents along the local axes (m); convex: of its bounding box
     float g;                // HG asymmetry
     vec3 sigma_s;           // rgb sigma_s = albedo * sigma_t (1/m)
-    float _pad0;
+    uint plane_count;       // 0: a box; else the planes of a convex medium
+    uint plane_first;       // index of its first plane in medium_planes[]
+    uint _pad0;
+    uint _pad1;
+    uint _pad2;
 };
 
 // Shape.type

@@ -24,6 +24,7 @@ pub const MARCH_NEE: u32 = 19;
 pub const GRID_DENSITY_PREV: u32 = 20;
 pub const VELOCITY: u32 = 21;
 pub const PREV_FRAME_UNIFORMS: u32 = 22;
+pub const MEDIUM_PLANES: u32 = 23;
 
 /// Index of the non-finite sample counter in the stats buffer.
 pub const STAT_NON_FINITE: usize = 0;
@@ -33,7 +34,7 @@ pub const STAT_STEP_CAP: usize = 1;
 pub const STAT_COUNT: usize = 4;
 
 /// Every binding with its GLSL name, for the layout test.
-pub const ALL: [(&str, u32); 23] = [
+pub const ALL: [(&str, u32); 24] = [
     ("BINDING_FRAME_UNIFORMS", FRAME_UNIFORMS),
     ("BINDING_ACCUM", ACCUM),
     ("BINDING_ACCUM_SQ", ACCUM_SQ),
@@ -57,4 +58,5 @@ pub const ALL: [(&str, u32); 23] = [
     ("BINDING_GRID_DENSITY_PREV", GRID_DENSITY_PREV),
     ("BINDING_VELOCITY", VELOCITY),
     ("BINDING_PREV_FRAME_UNIFORMS", PREV_FRAME_UNIFORMS),
+    ("BINDING_MEDIUM_PLANES", MEDIUM_PLANES),
 ];

@@ -9,22 +9,29 @@
 
 use bytemuck::{Pod, Zeroable};
 
-/// `BoxMedium` in scene.glsl: a homogeneous box medium.
+/// `BoxMedium` in scene.glsl: a homogeneous box or convex medium.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct BoxMediumGpu {
     /// Rows of Rᵀ (w 0): local = Rᵀ (x − center).
     pub world_to_local: [[f32; 4]; 3],
+    /// World position of the local origin (convex: the vertices' centroid).
     pub center: [f32; 3],
     /// Extinction (1/m).
     pub sigma_t: f32,
-    /// Half extents along the local axes.
+    /// Half extents along the local axes (convex: of its bounding box).
     pub half_size: [f32; 3],
     /// HG asymmetry.
     pub g: f32,
     /// albedo · sigma_t.
     pub sigma_s: [f32; 3],
-    pub _pad0: f32,
+    /// 0 for a box; the number of planes of a convex medium.
+    pub plane_count: u32,
+    /// Index of a convex medium's first plane in the planes buffer.
+    pub plane_first: u32,
+    pub _pad0: u32,
+    pub _pad1: u32,
+    pub _pad2: u32,
 }
 
 /// Values of `ShapeGpu::type`.

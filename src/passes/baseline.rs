@@ -60,6 +60,7 @@ pub fn create(
             BindingDesc::storage_buffer(bindings::SUPER_VOXELS),
             BindingDesc::sampled_image(bindings::GRID_EMISSION),
             BindingDesc::storage_buffer(bindings::BOX_MEDIA),
+            BindingDesc::storage_buffer(bindings::MEDIUM_PLANES),
             BindingDesc::storage_buffer(bindings::ENV_TEXELS),
             BindingDesc::storage_buffer(bindings::ENV_CDF),
         ]);
@@ -75,6 +76,8 @@ pub fn create(
         let lights = upload_records(ctx, o, &non_empty(&grid.lights), "lights")?;
         let super_voxels = upload_records(ctx, o, &grid.super_voxels, "super-voxels")?;
         let boxes = upload_records(ctx, o, &non_empty(&boxes), "box media")?;
+        // Convex media are refused beside grids: their (compiled-out) planes are empty.
+        let planes = upload_records(ctx, o, &[[0.0f32; 4]], "medium planes")?;
         let (env_texels, env_tables) = upload_env_map(ctx, o, &grid)?;
         let uniforms = upload_uniform(ctx, o, &grid.uniforms, "baseline uniforms")?;
         let r32 = vk::Format::R32_SFLOAT;
@@ -122,6 +125,10 @@ pub fn create(
             DescriptorWrite::StorageBuffer {
                 binding: bindings::BOX_MEDIA,
                 buffer: &o[boxes],
+            },
+            DescriptorWrite::StorageBuffer {
+                binding: bindings::MEDIUM_PLANES,
+                buffer: &o[planes],
             },
             DescriptorWrite::StorageBuffer {
                 binding: bindings::ENV_TEXELS,

@@ -372,7 +372,7 @@ pub fn scene_grid(scene: &Scene) -> Result<(usize, &GridMedium)> {
         .enumerate()
         .find_map(|(i, m)| match m {
             Medium::Grid(g) => Some((i, g)),
-            Medium::Box(_) => None,
+            _ => None,
         })
         .context("internal: a grid pass was given no grid medium")
 }

@@ -89,6 +89,11 @@ pub struct CrepuscularPlan {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct CrepuscularFeatures {
     pub has_media: bool,
+    /// Some media are convex polyhedra.
+    pub has_convex: bool,
+    /// Entries of the shaders' piece tables: the most light-facing planes of any medium
+    /// and light (3 for boxes).
+    pub max_pieces: u32,
     pub has_shapes: bool,
     pub has_gobos: bool,
     pub has_env: bool,

@@ -33,9 +33,20 @@ pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
         .enumerate()
         .filter_map(|(i, m)| match m {
             Medium::Grid(g) => Some((i, g)),
-            Medium::Box(_) => None,
+            _ => None,
         })
         .collect();
+    if let Some(i) = scene
+        .media
+        .iter()
+        .position(|m| matches!(m, Medium::Convex(_)))
+    {
+        bail!(
+            "{file}: [[medium]] #{} (type = \"convex\"): convex media next to a grid are not \
+             supported yet by {integrator_name} (box media are)",
+            i + 1
+        );
+    }
     if grids.len() > 1 {
         bail!(
             "{file}: [[medium]] #{}: {integrator_name} takes one grid medium, this scene has {}",

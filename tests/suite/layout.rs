@@ -371,7 +371,11 @@ fn mirrors() -> Vec<Mirror> {
                 half_size,
                 g,
                 sigma_s,
+                plane_count,
+                plane_first,
                 _pad0,
+                _pad1,
+                _pad2,
             }),
         },
         Mirror {

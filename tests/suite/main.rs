@@ -20,6 +20,7 @@ mod hard_cases;
 mod image_harness;
 mod layout;
 mod render_box;
+mod render_convex;
 mod restir;
 mod restir_golden;
 mod sampling_gpu;

@@ -67,7 +67,8 @@
 //! | environment `file` | ends in `.exr` (any case) and exists |
 //! | gobo | 3..=64 `[u, v]` points, convex, non-zero area, no repeated consecutive point; clockwise input is reversed to counter-clockwise |
 //! | quad | `edge_u`, `edge_v` non-zero and not parallel (sin angle > 1e-6) |
-//! | media | no two share volume: exact separating-axis test on (rotated) boxes and grid AABBs; touching within 1e-6 × the scene scale is allowed |
+//! | convex `planes` | 4..=64 `[nx, ny, nz, d]`, no zero normal; their intersection bounded (within 1e3·max|d| + 1e8 m), with a non-empty interior, spanning at most 1e7 m (see [`convex`]) |
+//! | media | no two share volume: exact separating-axis test on (rotated) boxes, convex polyhedra and grid AABBs; touching within 1e-6 × the scene scale is allowed |
 //! | `max_bounces` | 1..=1024 |
 //! | `volume` | `"restir"`, `"baseline"` |
 //! | `box_estimator` | `"mcwvds"`, `"reds"`, `"rees"`, `"rm"`, `"mcds"` |
@@ -122,6 +123,7 @@
 //! ([`Bvh::closest_hit`], [`Bvh::any_hit`]) as the reference for the GPU traversal.
 //! It is not yet wired into the scene's `[[shape]] type = "mesh"`.
 
+pub mod convex;
 mod envmap;
 mod fields;
 mod files;

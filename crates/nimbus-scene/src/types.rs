@@ -161,6 +161,8 @@ pub struct Gobo {
 #[derive(Clone, Debug, PartialEq)]
 pub enum Medium {
     Box(BoxMedium),
+    /// A homogeneous convex polyhedron (`type = "convex"`).
+    Convex(ConvexMedium),
     Grid(GridMedium),
 }
 
@@ -178,6 +180,55 @@ pub struct BoxMedium {
     pub albedo: Vec3,
     /// Henyey–Greenstein asymmetry in (-1, 1).
     pub g: f32,
+}
+
+/// A homogeneous medium filling a convex polyhedron: the intersection of the
+/// half-spaces n·x <= d of `planes`. Build one with [`ConvexMedium::new`], which
+/// checks the polyhedron.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ConvexMedium {
+    /// [nx, ny, nz, d] with a unit normal (normalized on load, d scaled alike) as the
+    /// renderer sees them (f32); 4..=64 of them.
+    pub planes: Vec<[f32; 4]>,
+    /// The polyhedron of `planes` (widened to f64): its vertices, faces and edges.
+    pub polyhedron: crate::convex::ConvexPolyhedron,
+    /// Extinction in 1/m, >= 0.
+    pub sigma_t: f32,
+    /// Single-scattering albedo per channel in [0, 1]; sigma_s = albedo * sigma_t.
+    pub albedo: Vec3,
+    /// Henyey–Greenstein asymmetry in (-1, 1).
+    pub g: f32,
+}
+
+impl ConvexMedium {
+    /// The medium of the half-spaces `planes` ([nx, ny, nz, d]: n·x <= d), or why they
+    /// do not bound one: fewer than 4 or more than 64 planes, a zero normal, an
+    /// unbounded, empty or flat region. The normals are normalized (d scaled alike) and
+    /// rounded to f32; the polyhedron is that of the rounded planes.
+    pub fn new(planes: &[[f64; 4]], sigma_t: f32, albedo: Vec3, g: f32) -> Result<Self, String> {
+        use crate::convex::{ConvexPolyhedron, MAX_CONVEX_PLANES, MIN_CONVEX_PLANES};
+        if !(MIN_CONVEX_PLANES..=MAX_CONVEX_PLANES).contains(&planes.len()) {
+            return Err(format!(
+                "{} planes; a convex medium takes {MIN_CONVEX_PLANES} to {MAX_CONVEX_PLANES}",
+                planes.len()
+            ));
+        }
+        let unit = ConvexPolyhedron::new(planes)?;
+        let rounded: Vec<[f32; 4]> = unit
+            .planes
+            .iter()
+            .map(|(n, d)| [n.x as f32, n.y as f32, n.z as f32, *d as f32])
+            .collect();
+        let widened: Vec<[f64; 4]> = rounded.iter().map(|p| p.map(f64::from)).collect();
+        let polyhedron = ConvexPolyhedron::new(&widened)?;
+        Ok(Self {
+            planes: rounded,
+            polyhedron,
+            sigma_t,
+            albedo,
+            g,
+        })
+    }
 }
 
 /// A heterogeneous voxel medium filling `bounds_min .. bounds_max`.

@@ -6,9 +6,10 @@ use anyhow::Result;
 use glam::{DVec3, Vec3};
 use toml::Value;
 
+use crate::convex::Solid;
 use crate::fields::{open_interval, positive_up_to, type_name, unit_interval, Fields, Source};
 use crate::files::file_size;
-use crate::geometry::{convex_ccw_polygon, OrientedBox};
+use crate::geometry::convex_ccw_polygon;
 use crate::overrides::FieldOverride;
 use crate::types::*;
 
@@ -94,7 +95,7 @@ pub(crate) fn parse_scene(text: &str, file: &Path, overrides: &[FieldOverride]) 
         .collect::<Result<(Vec<_>, Vec<_>)>>()?;
 
     let mut media = Vec::new();
-    let mut medium_bounds: Vec<(String, OrientedBox)> = Vec::new();
+    let mut medium_bounds: Vec<(String, Solid)> = Vec::new();
     for (i, table) in top.tables("medium")?.into_iter().enumerate() {
         let (medium, name, bounds) = parse_medium(&source, i + 1, table)?;
         media.push(medium);
