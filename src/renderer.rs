@@ -7,7 +7,7 @@
 
 use std::time::{Duration, Instant};
 
-use anyhow::{Context as _, Result};
+use anyhow::{bail, Context as _, Result};
 use nimbus_gpu::{vk, Buffer, BufferDesc, Context, GpuObjects, Handle, Profiler, ScopeResult};
 use nimbus_scene::Scene;
 
@@ -48,6 +48,9 @@ pub struct RenderResult {
     /// Walks through a grid cut short at `GRID_MAX_STEPS` (their estimates are biased;
     /// exact tracking of hot spans should keep this 0).
     pub step_cap_hits: u64,
+    /// Shader invocations whose loops the device cut short (lavapipe's 65535-iteration
+    /// limit per invocation); their estimates are wrong.
+    pub loops_cut: u64,
     /// GPU timestamps of each measured frame (empty if the device has none).
     pub frame_timings: Vec<Vec<ScopeResult>>,
     /// Wall-clock time of the whole render, warm-up included.
@@ -119,6 +122,18 @@ pub fn render(
         result.frame_images = frame_images;
         result.device_bytes = device_bytes;
         result.notes = notes;
+        if result.loops_cut > 0 {
+            bail!(
+                "{}: device '{}' cut the loops of {} shader invocation(s) short (llvmpipe ends \
+                 every loop of an invocation after 65535 iterations in all), so the image would \
+                 be wrong; less work per pixel per frame renders right (lower [render] spp, \
+                 [integrator] box_samples or max_bounces, [integrator.restir] \
+                 spatial_neighbors), or use a GPU",
+                scene.source.display(),
+                ctx.info().name,
+                result.loops_cut
+            );
+        }
         Ok(result)
     })();
     objects.destroy(ctx);
@@ -337,6 +352,7 @@ fn read_result(
         frames,
         non_finite_samples: u64::from(stats[bindings::STAT_NON_FINITE]),
         step_cap_hits: u64::from(stats[bindings::STAT_STEP_CAP]),
+        loops_cut: u64::from(stats[bindings::STAT_LOOPS_CUT]),
         frame_timings,
         wall_time: start.elapsed(),
         frame_images: Vec::new(),

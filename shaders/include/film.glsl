@@ -57,6 +57,18 @@ void film_flush_counters() {
         atomicAdd(stats[STAT_STEP_CAP], g_step_cap_hits);
         g_step_cap_hits = 0u;
     }
+    // lavapipe (llvmpipe) silently ends every loop of an invocation once 65535 loop
+    // iterations (all loops together) have run in it, so a long invocation returns a cut
+    // estimate. A loop of two trips that the compiler cannot count ahead then runs once:
+    // count it, and the renderer refuses the image.
+    uint trips = 2u + (u_frame.width >> 31u);
+    uint runs = 0u;
+    for (uint i = 0u; i < trips; ++i) {
+        runs += 1u;
+    }
+    if (runs < trips) {
+        atomicAdd(stats[STAT_LOOPS_CUT], 1u);
+    }
 }
 
 // Add one frame's estimate of `pixel` to the running sums.

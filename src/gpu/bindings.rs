@@ -29,6 +29,9 @@ pub const PREV_FRAME_UNIFORMS: u32 = 22;
 pub const STAT_NON_FINITE: usize = 0;
 /// Index of the counter of walks cut short at `GRID_MAX_STEPS`.
 pub const STAT_STEP_CAP: usize = 1;
+/// Index of the counter of invocations whose loops the device cut short (lavapipe ends
+/// every loop of an invocation after 65535 iterations in all).
+pub const STAT_LOOPS_CUT: usize = 2;
 /// Number of u32 counters in the stats buffer.
 pub const STAT_COUNT: usize = 4;
 
