@@ -38,7 +38,7 @@ struct RestirUniforms {
     uint march_reuse_factor;  // ... of the reuse march texture (mip_reuse)
     uint march_nee_factor;    // ... of the NEE march texture (mip_indirect)
     uvec3 march_reuse_dims;   // dims of the reuse march texture
-    uint _pad0;
+    uint candidates_per_dispatch; // candidates one initial dispatch draws (its aux: the first)
     uvec3 march_nee_dims;     // dims of the NEE march texture
     uint _pad1;
     uint candidates;          // M: random walks per pixel
@@ -58,7 +58,7 @@ struct RestirPush {
     uint frame;  // frame index within the render (0 = first)
     uint src;    // reservoir slot read
     uint dst;    // reservoir slot written
-    uint aux;    // temporal: slot of the previous frame; spatial: the round
+    uint aux;    // initial: first candidate; temporal: previous slot; spatial: the round
 };
 
 #include "film.glsl"

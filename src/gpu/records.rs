@@ -174,7 +174,9 @@ pub struct RestirUniformsGpu {
     pub march_reuse_factor: u32,
     pub march_nee_factor: u32,
     pub march_reuse_dims: [u32; 3],
-    pub _pad0: u32,
+    /// Candidates one dispatch of the initial pass draws (M unless the device limits the
+    /// loop iterations of an invocation).
+    pub candidates_per_dispatch: u32,
     pub march_nee_dims: [u32; 3],
     pub _pad1: u32,
     /// M.

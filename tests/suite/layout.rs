@@ -493,7 +493,7 @@ fn mirrors() -> Vec<Mirror> {
                 march_reuse_factor,
                 march_nee_factor,
                 march_reuse_dims,
-                _pad0,
+                candidates_per_dispatch,
                 march_nee_dims,
                 _pad1,
                 candidates,

@@ -808,3 +808,36 @@ fn unsupported_scenes_are_plan_errors() {
     let restir = plan.restir().cloned().expect("a ReSTIR plan");
     assert_eq!((restir.max_bounces, restir.spatial_neighbors), (16, 16));
 }
+
+/// M = 4096 candidates render the same image as M = 4 within noise: RIS stays unbiased
+/// at the top of the range, and on lavapipe, whose invocations stop their loops after
+/// 65535 iterations, the candidates are drawn over several dispatches (M = 4096 used to
+/// draw about a third of them and render the cloud at a third of its brightness).
+#[test]
+fn candidates_at_the_limit_match_a_few() {
+    let ctx = context();
+    let at = |candidates: u32, frames: u32| {
+        let restir = format!("candidates = {candidates}\ntemporal = false\nspatial_neighbors = 0");
+        let cloud = Cloud {
+            size: (10, 8),
+            frames,
+            restir: &restir,
+            ..Cloud::default()
+        };
+        render_checked(
+            &ctx,
+            &cloud.scene(&format!("restir-m{candidates}.toml")),
+            None,
+        )
+    };
+    let many = at(4096, 3);
+    let few = at(4, 96);
+    let se = (crate::common::gpu::se_of_mean(&many.std_error).powi(2)
+        + crate::common::gpu::se_of_mean(&few.std_error).powi(2))
+    .sqrt();
+    let (a, b) = (many.image.mean()[1], few.image.mean()[1]);
+    assert!(
+        (a - b).abs() <= 4.5 * se + 0.01 * b,
+        "M = 4096: {a}, M = 4: {b} (combined SE {se})"
+    );
+}

@@ -46,6 +46,10 @@ pub struct ScheduleSettings {
     pub temporal: bool,
     pub spatial_neighbors: u32,
     pub spatial_rounds: u32,
+    /// M, and how many of them one initial dispatch draws (the initial stage is
+    /// dispatched ceil(M / per dispatch) times; `aux` is each dispatch's first).
+    pub candidates: u32,
+    pub candidates_per_dispatch: u32,
 }
 
 /// One dispatch: a stage and its push constants (`src`, `dst` slots; `aux` is the
@@ -74,10 +78,14 @@ pub fn schedule(
         dst,
         aux,
     };
-    let mut dispatches = vec![Dispatch {
-        stage: Stage::Initial,
-        push: push(first, first, 0),
-    }];
+    let chunk = settings.candidates_per_dispatch.max(1);
+    let mut dispatches: Vec<Dispatch> = (0..settings.candidates.max(1))
+        .step_by(chunk as usize)
+        .map(|m0| Dispatch {
+            stage: Stage::Initial,
+            push: push(first, first, m0),
+        })
+        .collect();
     if let (true, Some(p)) = (settings.temporal, previous) {
         dispatches.push(Dispatch {
             stage: Stage::Temporal,
@@ -111,7 +119,25 @@ mod tests {
             temporal,
             spatial_neighbors: neighbors,
             spatial_rounds: rounds,
+            candidates: 4,
+            candidates_per_dispatch: 4,
         }
+    }
+
+    #[test]
+    fn candidates_split_over_initial_dispatches() {
+        let s = ScheduleSettings {
+            candidates: 10,
+            candidates_per_dispatch: 4,
+            ..settings(false, 0, 0)
+        };
+        let (d, _) = schedule(0, None, &s);
+        let firsts: Vec<_> = d
+            .iter()
+            .filter(|d| d.stage == Stage::Initial)
+            .map(|d| (d.push.dst, d.push.aux))
+            .collect();
+        assert_eq!(firsts, [(0, 0), (0, 4), (0, 8)]);
     }
 
     fn stages(d: &[Dispatch]) -> Vec<Stage> {
