@@ -191,5 +191,5 @@ void main() {
     if (!film_contains(pixel)) {
         return;
     }
-    film_accumulate(pixel, film_pixel_estimate(pixel, u_push.frame, u_push.sample_base));
+    film_accumulate(pixel, film_pixel_estimate(pixel, u_push.frame, u_push.sample_base, u_push.sample_count));
 }

@@ -79,20 +79,21 @@ void film_accumulate(uvec2 pixel, vec3 estimate) {
 }
 
 // ---------------------------------------------------------------------------------------
-// The pixel loop of the path tracers (crepuscular, baseline): u_frame.spp camera
-// samples per pixel per frame, each with its own random stream, jittered over the
+// The pixel loop of the path tracers (crepuscular, baseline): the frame's u_frame.spp
+// camera samples per pixel, taken by one dispatch or shared among several (each adds
+// its own estimate to the sums), each with its own random stream, jittered over the
 // pixel's footprint (box filter).
 
 // Radiance arriving at o from direction -d, estimated by the including pass; only a pass
 // that calls film_pixel_estimate defines it.
 vec3 radiance(vec3 o, vec3 d, inout uint rng);
 
-// The frame's estimate of `pixel`: the mean of its finite camera samples (0 if none).
-// Sample s of the frame draws from the stream (pixel, frame, sample_base + s, seed).
-vec3 film_pixel_estimate(uvec2 pixel, uint frame, uint sample_base) {
+// The dispatch's estimate of `pixel`: the mean of its finite camera samples (0 if none).
+// Sample s draws from the stream (pixel, frame, sample_base + s, seed), s < sample_count.
+vec3 film_pixel_estimate(uvec2 pixel, uint frame, uint sample_base, uint sample_count) {
     vec3 sum = vec3(0.0);
     uint kept = 0u;
-    for (uint s = 0u; s < u_frame.spp; ++s) {
+    for (uint s = 0u; s < sample_count; ++s) {
         uint rng = rng_init(pixel, frame, sample_base + s, u_frame.seed);
         vec2 px = vec2(pixel) + pixel_jitter(rng);
         vec3 L = radiance(u_frame.cam_position, camera_direction(u_frame, px), rng);

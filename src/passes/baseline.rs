@@ -146,7 +146,7 @@ pub fn create(
         Ok((pipeline, o.add(set)))
     })?;
     Ok(ImagePass::new(
-        "baseline", objects, pipeline, set, constants,
+        ctx, "baseline", objects, pipeline, set, constants,
     ))
 }
 

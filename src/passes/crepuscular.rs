@@ -90,6 +90,7 @@ pub fn create(
         Ok((pipeline, o.add(set)))
     })?;
     Ok(ImagePass::new(
+        ctx,
         "crepuscular",
         objects,
         pipeline,

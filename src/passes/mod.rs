@@ -33,8 +33,9 @@ pub mod restir;
 use anyhow::{bail, Context as _, Result};
 use glam::Vec3;
 use nimbus_gpu::{
-    vk, BindingDesc, Buffer, BufferDesc, ComputePipeline, ComputePipelineDesc, Context,
-    DescriptorSet, DescriptorWrite, GpuObjects, Handle, Image, ImageDesc, Profiler, SpecValue,
+    compute_barrier, vk, BindingDesc, Buffer, BufferDesc, ComputePipeline, ComputePipelineDesc,
+    Context, DescriptorSet, DescriptorWrite, GpuObjects, Handle, Image, ImageDesc, Profiler,
+    SpecValue,
 };
 use nimbus_scene::{CameraFrame, GridMedium, Medium, Scene};
 
@@ -190,10 +191,15 @@ pub struct ImagePass {
     pipeline: Handle<ComputePipeline>,
     set: Handle<DescriptorSet>,
     constants: FrameConstants,
+    /// Camera samples per pixel one dispatch takes: the frame's spp, or 1 on a device
+    /// that limits the loop iterations of an invocation (each dispatch then adds its
+    /// own estimate to the sums).
+    samples_per_dispatch: u32,
 }
 
 impl ImagePass {
     pub fn new(
+        ctx: &Context,
         label: &'static str,
         objects: GpuObjects,
         pipeline: Handle<ComputePipeline>,
@@ -206,6 +212,11 @@ impl ImagePass {
             pipeline,
             set,
             constants,
+            samples_per_dispatch: if ctx.info().loop_budget().is_some() {
+                1
+            } else {
+                u32::MAX
+            },
         }
     }
 }
@@ -227,17 +238,29 @@ impl Pass for ImagePass {
         dispatch_index: u32,
         _profiler: Option<&mut Profiler>,
     ) -> Result<()> {
-        let push = PassPush {
-            frame: dispatch_index,
-            ..Default::default()
-        };
-        self.objects[self.pipeline].dispatch(
-            ctx,
-            cmd,
-            &self.objects[self.set],
-            bytemuck::bytes_of(&push),
-            image_groups(uniforms),
-        )
+        let spp = uniforms.spp.max(1);
+        let per = self.samples_per_dispatch.clamp(1, spp);
+        let mut base = 0;
+        while base < spp {
+            if base > 0 {
+                compute_barrier(ctx, cmd);
+            }
+            let push = PassPush {
+                frame: dispatch_index,
+                sample_base: base,
+                sample_count: per.min(spp - base),
+                _pad1: 0,
+            };
+            self.objects[self.pipeline].dispatch(
+                ctx,
+                cmd,
+                &self.objects[self.set],
+                bytemuck::bytes_of(&push),
+                image_groups(uniforms),
+            )?;
+            base += per;
+        }
+        Ok(())
     }
 
     fn device_bytes(&self) -> u64 {

@@ -435,7 +435,7 @@ fn mirrors() -> Vec<Mirror> {
             fields: rust_fields!(PassPush {
                 frame,
                 sample_base,
-                _pad0,
+                sample_count,
                 _pad1,
             }),
         },
