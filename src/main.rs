@@ -141,7 +141,11 @@ struct StudyArgs {
     /// Scene file (TOML).
     scene: PathBuf,
     /// KEY=V1,V2,... (repeatable; the configurations are the cartesian product). Keys:
-    /// box_estimator, spp, box_samples, frames, seed, max_bounces, volume.
+    /// box_estimator, spp, box_samples, frames, seed, max_bounces, volume, and the
+    /// [integrator.restir] knobs candidates, temporal, temporal_limit, spatial_neighbors,
+    /// spatial_radius_px, spatial_rounds, reuse, mip_candidates, mip_indirect, mip_reuse,
+    /// final_transmittance. Each max_bounces gets its own reference; configurations that
+    /// render the same image are measured and listed once.
     #[arg(long, value_name = "KEY=V1,V2,...")]
     vary: Vec<String>,
     /// Frames per configuration (unless frames is varied).
@@ -176,10 +180,17 @@ struct StudyArgs {
     /// Image height for the reference and every configuration (default: the scene's).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16384))]
     height: Option<u32>,
-    /// Frames rendered before each configuration's measured frames (fills ReSTIR's
-    /// temporal history; at least 1).
+    /// Frames rendered before each configuration's measured frames, not measured. Each
+    /// configuration warms up for at least 1 frame (shader compilation) and, for
+    /// Volumetric ReSTIR with temporal reuse, at least 4·temporal_limit frames; this
+    /// raises both.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(0..=100_000))]
     warmup: u32,
+    /// Renders of every configuration, each with its own seed derived from the scene's;
+    /// rows report the mean error over the seeds and its spread (min and max RMSE).
+    /// --vary seed needs --seeds 1.
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=i64::from(study::MAX_SEEDS)))]
+    seeds: u32,
     /// Report the mean of each measured frame's own error, at the GPU time of one frame
     /// (steady-state single-frame error, as the Volumetric ReSTIR paper measures), instead
     /// of the error of the mean over the frames.
@@ -221,6 +232,7 @@ fn study_cmd(args: StudyArgs) -> Result<()> {
         width: args.width,
         height: args.height,
         warmup: args.warmup,
+        seeds: args.seeds,
         per_frame: args.per_frame,
     })?;
     let ctx = Context::new(&ContextDesc::from_env())?;
@@ -393,5 +405,34 @@ fn report_validation(ctx: &Context) -> Result<()> {
             errors.len(),
             errors.join("\n")
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::CommandFactory as _;
+
+    use super::*;
+
+    /// `nimbus study --help` names every key `--vary` accepts.
+    #[test]
+    fn study_help_lists_every_vary_key() {
+        let cli = Cli::command();
+        let study = cli
+            .find_subcommand("study")
+            .expect("the study subcommand");
+        let vary = study
+            .get_arguments()
+            .find(|a| a.get_id() == "vary")
+            .expect("--vary");
+        let help = vary.get_help().expect("--vary has help").to_string();
+        let keys = study::vary_keys();
+        assert_eq!(keys.len(), 18);
+        for key in keys {
+            let listed = help
+                .split(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
+                .any(|word| word == key);
+            assert!(listed, "--vary help does not list {key}: {help}");
+        }
     }
 }

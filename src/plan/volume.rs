@@ -69,6 +69,15 @@ pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
                 "{file}: [[shape]] #1: Volumetric ReSTIR does not render surfaces yet; use [integrator] volume = \"baseline\""
             );
         }
+        if scene.render.spp > 1 {
+            bail!(
+                "{file}: [render] field `spp` = {}: Volumetric ReSTIR renders one path per pixel \
+                 per frame, so spp would be ignored; its work per frame is set by \
+                 [integrator.restir] `candidates` (random walks per pixel) and its total by \
+                 [render] `frames`. Set spp = 1 (the default) or use volume = \"baseline\"",
+                scene.render.spp
+            );
+        }
         if integrator.max_bounces > MAX_RESTIR_BOUNCES {
             bail!(
                 "{file}: [integrator] field `max_bounces` = {}: Volumetric ReSTIR stores paths of at most {MAX_RESTIR_BOUNCES} scattering events",
@@ -327,4 +336,42 @@ fn restir_plan(
         ),
     ];
     (Integrator::Restir(plan), decisions)
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use super::*;
+
+    /// A grid scene rendered by `volume` with `[render] spp`.
+    fn grid_scene(volume: &str, spp: u32) -> Scene {
+        let text = format!(
+            "[render]\nspp = {spp}\n[camera]\nposition = [0, 0, 3]\nlook_at = [0, 0, 0]\n\
+             [[medium]]\ntype = \"grid\"\nbounds_min = [-1, -1, -1]\nbounds_max = [1, 1, 1]\n\
+             density = {{ procedural = \"cloud\", dims = [4, 4, 4] }}\n\
+             [integrator]\nvolume = \"{volume}\"\n"
+        );
+        nimbus_scene::parse_str(&text, Path::new("spp.toml")).unwrap()
+    }
+
+    /// ReSTIR draws one path per pixel per frame: spp > 1 would be ignored, so it is
+    /// refused with what sets its work instead; the baseline takes any spp.
+    #[test]
+    fn restir_refuses_more_than_one_sample_per_pixel() {
+        let message = format!("{:#}", build(&grid_scene("restir", 4)).unwrap_err());
+        for needle in [
+            "spp.toml",
+            "[render]",
+            "`spp` = 4",
+            "Volumetric ReSTIR",
+            "[integrator.restir] `candidates`",
+            "`frames`",
+        ] {
+            assert!(message.contains(needle), "{needle:?} missing: {message}");
+        }
+        assert!(build(&grid_scene("restir", 1)).is_ok());
+        let (integrator, _) = build(&grid_scene("baseline", 4)).unwrap();
+        assert!(matches!(integrator, Integrator::Baseline(_)));
+    }
 }

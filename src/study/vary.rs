@@ -19,7 +19,7 @@ const GENERAL_KEYS: [&str; 7] = [
 
 /// Every key `--vary` accepts: [`GENERAL_KEYS`], then the fields of
 /// `[integrator.restir]` (the scene crate's list, so the two cannot drift apart).
-fn keys() -> Vec<&'static str> {
+pub(super) fn keys() -> Vec<&'static str> {
     GENERAL_KEYS
         .iter()
         .chain(nimbus_scene::RESTIR_KEYS)
@@ -30,6 +30,14 @@ fn keys() -> Vec<&'static str> {
 /// The keys that buy accuracy with time: configurations differing only in these form
 /// one series (one polyline of the plot).
 pub(super) const KNOB_KEYS: [&str; 3] = ["spp", "frames", "box_samples"];
+
+/// The keys that change what the image converges to (the integrand), so that each of
+/// their values needs its own reference: `max_bounces` (K, the scattering orders
+/// summed). The others change how it is estimated: the estimators and `volume` (the
+/// same integral), spp, frames and seeds (how many samples, which ones), and the
+/// ReSTIR knobs (unbiased reuse). `frames` would change it for animated lights or
+/// media, which a study refuses (the reference needs a static scene).
+pub(super) const INTEGRAND_KEYS: [&str; 1] = ["max_bounces"];
 
 /// The `[integrator] volume` names of the scene format.
 const VOLUME_INTEGRATORS: [(&str, VolumeIntegrator); 2] = [
@@ -214,7 +222,7 @@ pub(super) fn cartesian(varies: &[Vary]) -> Vec<Assignment> {
 
 /// The part of an assignment that names its series: every pair whose key is not a
 /// knob ([`KNOB_KEYS`]).
-fn series_key(assignment: &[(String, String)]) -> Assignment {
+pub(super) fn series_key(assignment: &[(String, String)]) -> Assignment {
     assignment
         .iter()
         .filter(|(k, _)| !KNOB_KEYS.contains(&k.as_str()))
