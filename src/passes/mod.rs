@@ -59,7 +59,16 @@ pub trait Pass {
 
     /// Uploads what changes for the scene's frame `scene_frame` (animated lights,
     /// density frames, the previous camera) before that frame is recorded.
-    fn prepare(&mut self, _ctx: &Context, _scene: &Scene, _scene_frame: u32) -> Result<()> {
+    /// `previous_frame` is the scene frame the previous dispatch rendered: usually
+    /// `scene_frame - 1`, `scene_frame` itself when a frame is rendered again to
+    /// accumulate it (the previous camera and density are then this frame's).
+    fn prepare(
+        &mut self,
+        _ctx: &Context,
+        _scene: &Scene,
+        _scene_frame: u32,
+        _previous_frame: u32,
+    ) -> Result<()> {
         Ok(())
     }
 

@@ -13,7 +13,7 @@ use crate::output::{read_exr, write_image, ImageRgb};
 use crate::plan::RenderPlan;
 
 /// FNV-1a, 64 bit, over `bytes`, continuing from `hash` (start with [`FNV_OFFSET`]).
-fn fnv1a64(mut hash: u64, bytes: &[u8]) -> u64 {
+pub(crate) fn fnv1a64(mut hash: u64, bytes: &[u8]) -> u64 {
     for &b in bytes {
         hash ^= u64::from(b);
         hash = hash.wrapping_mul(0x0000_0100_0000_01B3);
@@ -22,7 +22,7 @@ fn fnv1a64(mut hash: u64, bytes: &[u8]) -> u64 {
 }
 
 /// The FNV-1a 64 offset basis.
-const FNV_OFFSET: u64 = 0xCBF2_9CE4_8422_2325;
+pub(crate) const FNV_OFFSET: u64 = 0xCBF2_9CE4_8422_2325;
 
 /// `$XDG_CACHE_HOME/nimbus/references`, else `$HOME/.cache/nimbus/references`.
 pub(super) fn default_cache_dir() -> Result<PathBuf> {

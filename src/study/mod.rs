@@ -39,7 +39,7 @@
 //! time and equal-time ratios; `cache` keeps references on disk; `report` formats the
 //! tables and texts; `plot` draws the PNG.
 
-mod cache;
+pub(crate) mod cache;
 mod metrics;
 mod plot;
 mod report;
@@ -53,6 +53,7 @@ use nimbus_scene::{Scene, VolumeIntegrator};
 
 use self::cache::{default_cache_dir, ReferenceJob};
 use self::metrics::ErrorMetrics;
+pub use self::vary::keys as vary_keys;
 use self::vary::{apply, cartesian, format_pairs, parse_vary, resolve_baseline, Assignment, Vary};
 use crate::plan::{self, RenderPlan};
 

@@ -19,7 +19,7 @@ const GENERAL_KEYS: [&str; 7] = [
 
 /// Every key `--vary` accepts: [`GENERAL_KEYS`], then the fields of
 /// `[integrator.restir]` (the scene crate's list, so the two cannot drift apart).
-fn keys() -> Vec<&'static str> {
+pub fn keys() -> Vec<&'static str> {
     GENERAL_KEYS
         .iter()
         .chain(nimbus_scene::RESTIR_KEYS)

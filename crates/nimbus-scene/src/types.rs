@@ -380,6 +380,18 @@ impl Scene {
             .collect()
     }
 
+    /// Whether anything changes between frames: camera keyframes, light keyframes or
+    /// density frames (`[[medium.frame]]`). A `velocity` grid alone animates nothing (it
+    /// only guides ReSTIR's reprojection). Frames of a static scene only accumulate.
+    pub fn is_animated(&self) -> bool {
+        !self.camera.keyframes.is_empty()
+            || self.lights_animated()
+            || self.media.iter().any(|m| match m {
+                Medium::Grid(g) => !g.frames.is_empty(),
+                Medium::Box(_) => false,
+            })
+    }
+
     /// Whether any light has `[[light.keyframe]]` entries, i.e. whether
     /// [`Scene::lights_at`] may differ from `self.lights` (and between frames).
     pub fn lights_animated(&self) -> bool {

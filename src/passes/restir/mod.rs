@@ -232,8 +232,13 @@ impl Pass for RestirPass {
 
     /// Uploads what changes per frame: the lights of this frame and the previous one,
     /// the previous camera, and the density grids of both frames when they change.
-    fn prepare(&mut self, ctx: &Context, scene: &Scene, scene_frame: u32) -> Result<()> {
-        let prev_frame = scene_frame.saturating_sub(1);
+    fn prepare(
+        &mut self,
+        ctx: &Context,
+        scene: &Scene,
+        scene_frame: u32,
+        prev_frame: u32,
+    ) -> Result<()> {
         self.upload_lights(ctx, scene, scene_frame, prev_frame)?;
         // The previous frame's camera (the first frame's own camera on frame 0).
         let camera = scene.camera.frame_at(prev_frame);
