@@ -185,7 +185,7 @@ pub(super) fn render(args: RenderArgs) -> Result<ExitCode> {
                     .iter()
                     .take_while(|&&f| sequence_path(dir, f, &args.sequence_format, false).exists())
                     .count();
-                if done > 0 {
+                if done > 0 && done < list.len() {
                     eprintln!(
                         "resume: frames {a}..{} are in {}; rendering from frame {}",
                         a + done as u32 - 1,

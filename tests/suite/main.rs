@@ -18,6 +18,7 @@ mod envmap_gpu;
 mod grid_volume;
 mod image_harness;
 mod layout;
+mod pipeline;
 mod render_box;
 mod restir;
 mod restir_golden;
