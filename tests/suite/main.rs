@@ -23,4 +23,5 @@ mod render_box;
 mod restir;
 mod restir_golden;
 mod sampling_gpu;
+mod slurm;
 mod study;
