@@ -14,6 +14,7 @@ mod box_analytic;
 mod box_estimators;
 mod budget;
 mod cli;
+mod docs;
 mod envmap_gpu;
 mod grid_volume;
 mod image_harness;

@@ -157,7 +157,8 @@ pub use mesh::{
 };
 pub use overrides::FieldOverride;
 pub use parse::{
-    MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_LENGTH_M, MAX_SIGMA_T, MAX_SPATIAL_NEIGHBORS, RESTIR_KEYS,
+    scene_tables, TableFields, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_LENGTH_M, MAX_SIGMA_T,
+    MAX_SPATIAL_NEIGHBORS, RESTIR_KEYS,
 };
 pub use procedural::procedural_cloud;
 pub use types::*;

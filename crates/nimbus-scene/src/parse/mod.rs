@@ -68,6 +68,51 @@ pub const RESTIR_KEYS: &[&str] = &[
     "final_transmittance",
 ];
 
+/// One table of the scene format and every field the parser accepts in it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct TableFields {
+    /// The table as `docs/scene-format.md` heads it: `[render]`, `[[light]] type =
+    /// "point"`, `[[light.keyframe]] of a "sphere" light`, `grid source`, ...
+    pub table: String,
+    pub fields: Vec<&'static str>,
+}
+
+/// Every table of the scene format with the fields the parser accepts in it, from the
+/// same lists the parser checks unknown fields against (so the reference
+/// documentation can be tested against them).
+pub fn scene_tables() -> Vec<TableFields> {
+    let table = |name: &str, fields: &[&'static str]| TableFields {
+        table: name.to_string(),
+        fields: fields.to_vec(),
+    };
+    let mut tables = vec![
+        table("top level", TOP_KEYS),
+        table("[render]", RENDER_KEYS),
+        table("[camera]", CAMERA_KEYS),
+        table("[[camera.keyframe]]", KEYFRAME_KEYS),
+    ];
+    for (kind, fields) in lights::LIGHT_TYPES {
+        tables.push(table(&format!("[[light]] type = \"{kind}\""), fields));
+    }
+    for (kind, fields) in lights::LIGHT_KEYFRAME_KEYS {
+        tables.push(table(
+            &format!("[[light.keyframe]] of a \"{kind}\" light"),
+            fields,
+        ));
+    }
+    for (kind, fields) in media::MEDIUM_TYPES {
+        tables.push(table(&format!("[[medium]] type = \"{kind}\""), fields));
+    }
+    tables.push(table("grid source", media::GRID_KEYS));
+    tables.push(table("[[medium.frame]]", media::GRID_FRAME_KEYS));
+    for (kind, fields) in SHAPE_TYPES {
+        tables.push(table(&format!("[[shape]] type = \"{kind}\""), fields));
+    }
+    tables.push(table("[integrator]", INTEGRATOR_KEYS));
+    tables.push(table("[integrator.restir]", RESTIR_KEYS));
+    tables
+}
+
 /// Parses and validates the scene in `text`; `file` names it in errors and anchors
 /// relative paths.
 pub(crate) fn parse_scene(text: &str, file: &Path, overrides: &[FieldOverride]) -> Result<Scene> {
