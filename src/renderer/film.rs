@@ -84,8 +84,8 @@ impl Batches {
             for c in 0..4 {
                 let batch_mean = (s[c] - closed[c]) / size;
                 q[c] += batch_mean * batch_mean;
-                closed[c] = s[c];
             }
+            *closed = *s;
         }
         self.count += 1;
     }
