@@ -107,6 +107,13 @@ pub(super) fn render(args: RenderArgs) -> Result<ExitCode> {
     let plan = plan::build(&scene, None)?;
     if args.explain {
         print!("{}", plan.explain(&scene));
+        let f = nimbus::budget::Footprint::of(&scene, &plan)?;
+        let mib = |b: u64| b as f64 / f64::from(1u32 << 20);
+        println!(
+            "  memory: {:.1} MiB of GPU buffers and images, about {:.1} MiB of host memory at the peak for the scene's data",
+            mib(f.device_bytes()),
+            mib(f.host_peak)
+        );
         return Ok(ExitCode::SUCCESS);
     }
     let animated = scene.is_animated();
@@ -284,6 +291,15 @@ pub(super) fn render(args: RenderArgs) -> Result<ExitCode> {
         eprintln!(
             "warning: {} sample(s) were not finite and were dropped",
             result.non_finite_samples
+        );
+    }
+    for note in &result.notes {
+        eprintln!("note: {note}");
+    }
+    if result.step_cap_hits > 0 {
+        eprintln!(
+            "warning: {} walk(s) through the grid stopped at the step limit; their samples are biased",
+            result.step_cap_hits
         );
     }
     report_validation(&ctx)?;

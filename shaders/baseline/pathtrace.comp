@@ -60,12 +60,12 @@ float sample_collision(vec3 o, vec3 d, float t_end, inout uint rng, out uint med
     float t1 = min(span.y, t_end);
     float t_best = t1 > t0 ? grid_sample_collision(o, d, t0, t1, rng) : FAR;
     if (SC_HAS_MEDIA) {
-        uint count = u_frame.counts.x;
+        uint count = u_frame.box_media_count;
         for (uint m = 0u; m < count; ++m) {
             vec2 s = box_medium_span(m, o, d);
             float a = max(s.x, 0.0);
             float b = min(s.y, min(t_end, t_best));
-            float sigma_t = media[m].center_sigma_t.w;
+            float sigma_t = media[m].sigma_t;
             if (b <= a || !(sigma_t > 0.0)) {
                 continue;
             }
@@ -131,13 +131,13 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
         float t_collision = sample_collision(o, d, t_end, rng, medium);
 
         if (t_collision < FAR) {
-            vec3 albedo_medium = u_base.albedo_g.rgb;
-            float g = u_base.albedo_g.w;
+            vec3 albedo_medium = u_base.albedo;
+            float g = u_base.g;
             if (medium != NO_INDEX) {
                 BoxMedium bm = media[medium];
                 // Domain: a collision happened, so sigma_t > 0.
-                albedo_medium = bm.sigma_s.rgb / bm.center_sigma_t.w;
-                g = bm.half_size_g.w;
+                albedo_medium = bm.sigma_s / bm.sigma_t;
+                g = bm.g;
             }
             // A real collision: absorbed emission (sigma_a Le over sigma_t), next-event
             // estimation, then continue by HG.
@@ -162,13 +162,13 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
         } else if (t_light < t_surface) {
             // An emitting sphere: seen directly only by the camera segment.
             if (bounce == 0u) {
-                L += beta * lights[light_index].irradiance.rgb;
+                L += beta * lights[light_index].irradiance;
             }
             break;
         } else if (t_surface < FAR) {
             // A Lambertian surface: next-event estimation, then continue by cosine sampling.
             Shape s = shapes[shape_index];
-            vec3 albedo = s.albedo_type.rgb;
+            vec3 albedo = s.albedo;
             if (!any(greaterThan(albedo, vec3(0.0)))) {
                 break;
             }
@@ -193,7 +193,7 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
         } else {
             // Escaped: the environment, seen directly by the camera segment only.
             if (SC_HAS_ENV && bounce == 0u) {
-                L += beta * (SC_HAS_ENV_MAP ? env_lookup(d) : u_frame.env_radiance.rgb);
+                L += beta * (SC_HAS_ENV_MAP ? env_lookup(d) : u_frame.env_radiance);
             }
             break;
         }

@@ -67,15 +67,15 @@ vec3 surface_direct(Shape s, vec3 x, vec3 n) {
     // Shadow rays leave from just off the surface.
     vec3 x_off = offset_ray_origin(x, n);
     vec3 E = vec3(0.0);
-    uint light_count = u_frame.counts.z;
+    uint light_count = u_frame.light_count;
     for (uint l = 0u; l < light_count; ++l) {
         Light light = lights[l];
-        float cos_i = dot(n, -light.direction_type.xyz);
+        float cos_i = dot(n, -light.direction_or_position);
         if (cos_i > 0.0) {
             E += cos_i * light_arriving(light, x_off, 0.0);
         }
     }
-    return s.albedo_type.rgb * INV_PI * E;
+    return s.albedo * INV_PI * E;
 }
 
 // Sample a free-flight collision along o + t d before t_surface through the box media
@@ -86,7 +86,7 @@ float sample_collision(vec3 o, vec3 d, float t_surface, inout uint rng, out uint
     // The optical depth of the collision, exponential with rate 1.
     float tau_target = sample_exponential(rng_next(rng), 1.0);
     float tau_acc = 0.0;
-    uint count = min(u_frame.counts.x, MAX_MEDIA);
+    uint count = min(u_frame.box_media_count, MAX_MEDIA);
     float last_entry = -FAR;
     // Visit the media spans in order of entry (media are disjoint, so entries differ).
     for (uint visited = 0u; visited < count; ++visited) {
@@ -109,7 +109,7 @@ float sample_collision(vec3 o, vec3 d, float t_surface, inout uint rng, out uint
         if (t_b <= t_a) {
             break;
         }
-        float sigma_t = media[next].center_sigma_t.w;
+        float sigma_t = media[next].sigma_t;
         float d_tau = sigma_t * (t_b - t_a);
         if (tau_acc + d_tau >= tau_target) {
             medium = next;
@@ -130,12 +130,12 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
         float t_surface = nearest_shape(o, d, 0.0, FAR, shape_index);
 
         // Add single scattering from every box medium the segment crosses.
-        uint media_count = SC_HAS_MEDIA ? min(u_frame.counts.x, MAX_MEDIA) : 0u;
+        uint media_count = SC_HAS_MEDIA ? min(u_frame.box_media_count, MAX_MEDIA) : 0u;
         for (uint m = 0u; m < media_count; ++m) {
             vec2 span = box_medium_span(m, o, d);
             float t_enter = max(span.x, 0.0);
             float t_b = min(span.y, t_surface);
-            if (t_b > t_enter && media[m].center_sigma_t.w > 0.0) {
+            if (t_b > t_enter && media[m].sigma_t > 0.0) {
                 float T_before = exp(-box_optical_depth_except(o, d, 0.0, t_enter, m));
                 L += beta * T_before * single_scatter_box(m, o, d, t_enter, t_b, rng);
             }
@@ -147,12 +147,12 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
             Shape s = shapes[shape_index];
             vec3 x = o + t_surface * d;
             n = shape_normal(s, x, d);
-            if (any(greaterThan(s.albedo_type.rgb, vec3(0.0)))) {
+            if (any(greaterThan(s.albedo, vec3(0.0)))) {
                 L += beta * exp(-box_optical_depth(o, d, 0.0, t_surface)) * surface_direct(s, x, n);
             }
         } else if (SC_HAS_ENV && bounce == 0u) {
             // Add the environment seen through the media by the camera ray.
-            L += exp(-box_optical_depth(o, d, 0.0, FAR)) * u_frame.env_radiance.rgb;
+            L += exp(-box_optical_depth(o, d, 0.0, FAR)) * u_frame.env_radiance;
         }
         if (bounce + 1u >= SC_MAX_BOUNCES) {
             break;
@@ -164,11 +164,11 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
         if (t_collision < FAR) {
             BoxMedium bm = media[medium];
             // Domain: sigma_t > 0 in a medium where a collision happened.
-            beta *= bm.sigma_s.rgb / bm.center_sigma_t.w;
+            beta *= bm.sigma_s / bm.sigma_t;
             o = o + t_collision * d;
-            d = sample_hg(d, bm.half_size_g.w, vec2(rng_next(rng), rng_next(rng)));
+            d = sample_hg(d, bm.g, vec2(rng_next(rng), rng_next(rng)));
         } else if (t_surface < FAR) {
-            vec3 albedo = shapes[shape_index].albedo_type.rgb;
+            vec3 albedo = shapes[shape_index].albedo;
             if (!any(greaterThan(albedo, vec3(0.0)))) {
                 break;
             }

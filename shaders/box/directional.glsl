@@ -4,10 +4,10 @@
 // `Light lights[]`, `vec4 gobo_planes[]`, the bool constant SC_HAS_GOBOS, and includes
 // shapes.glsl and box_media.glsl first.
 //
-// A light travels along omega = direction_type.xyz, so it reaches x from direction
+// A light travels along omega = direction_or_position, so it reaches x from direction
 // -omega. Its gobo is a convex polygon in the plane through gobo_origin spanned by
-// (gobo_u, gobo_v): gobo_origin.w half-planes from index gobo_u.w on, and the light passes
-// where all of them hold (a prism along omega).
+// (gobo_u, gobo_v): gobo_plane_count half-planes from index gobo_first_plane on, and the
+// light passes where all of them hold (a prism along omega).
 #ifndef NIMBUS_BOX_DIRECTIONAL_GLSL
 #define NIMBUS_BOX_DIRECTIONAL_GLSL
 
@@ -19,10 +19,10 @@ bool inside_gobo(Light l, vec3 x) {
     if (!SC_HAS_GOBOS) {
         return true;
     }
-    uint count = uint(l.gobo_origin.w);
-    uint first = uint(l.gobo_u.w);
-    vec3 p = x - l.gobo_origin.xyz;
-    vec2 uv = vec2(dot(p, l.gobo_u.xyz), dot(p, l.gobo_v.xyz));
+    uint count = l.gobo_plane_count;
+    uint first = l.gobo_first_plane;
+    vec3 p = x - l.gobo_origin;
+    vec2 uv = vec2(dot(p, l.gobo_u), dot(p, l.gobo_v));
     for (uint i = 0u; i < count; ++i) {
         vec4 plane = gobo_planes[first + i];
         if (plane.x * uv.x + plane.y * uv.y + plane.z < 0.0) {
@@ -38,11 +38,11 @@ vec2 gobo_interval(Light l, vec3 o, vec3 d, float t_a, float t_b) {
     if (!SC_HAS_GOBOS) {
         return vec2(t_a, t_b);
     }
-    uint count = uint(l.gobo_origin.w);
-    uint first = uint(l.gobo_u.w);
-    vec3 p = o - l.gobo_origin.xyz;
-    vec2 uv0 = vec2(dot(p, l.gobo_u.xyz), dot(p, l.gobo_v.xyz));
-    vec2 uv_d = vec2(dot(d, l.gobo_u.xyz), dot(d, l.gobo_v.xyz));
+    uint count = l.gobo_plane_count;
+    uint first = l.gobo_first_plane;
+    vec3 p = o - l.gobo_origin;
+    vec2 uv0 = vec2(dot(p, l.gobo_u), dot(p, l.gobo_v));
+    vec2 uv_d = vec2(dot(d, l.gobo_u), dot(d, l.gobo_v));
     for (uint i = 0u; i < count; ++i) {
         vec4 plane = gobo_planes[first + i];
         float alpha = plane.x * uv0.x + plane.y * uv0.y + plane.z;
@@ -84,7 +84,7 @@ float light_visibility(vec3 x, vec3 omega, uint skip) {
 // Irradiance from light l arriving unscattered at x: E · gobo · visibility · T to the
 // light. `t_min` offsets the shadow ray's start (0 inside media, > 0 on surfaces).
 vec3 light_arriving(Light l, vec3 x, float t_min) {
-    vec3 omega = l.direction_type.xyz;
+    vec3 omega = l.direction_or_position;
     if (!inside_gobo(l, x)) {
         return vec3(0.0);
     }
@@ -92,7 +92,7 @@ vec3 light_arriving(Light l, vec3 x, float t_min) {
         return vec3(0.0);
     }
     float tau = box_optical_depth(x, -omega, 0.0, FAR);
-    return l.irradiance.rgb * exp(-tau);
+    return l.irradiance * exp(-tau);
 }
 
 #endif

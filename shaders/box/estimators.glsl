@@ -1,6 +1,6 @@
 // Single scattering in a homogeneous box medium under collimated light, by the
 // estimators of Velinov & Mitchell (Sec. 4-6). Each is a distance sampler times a
-// combiner, over N = u_frame.counts.w samples along one camera segment [t_enter, t_b]:
+// combiner, over N = u_frame.ray_samples samples along one camera segment [t_enter, t_b]:
 //
 //   estimator  distance sampler                              combiner
 //   MCWVDS     whole volume: the unoccluded integrand (Eq. 9-11)  Monte Carlo
@@ -54,14 +54,14 @@ vec3 to_local_dir(BoxMedium bm, vec3 v) {
 
 // A point in the frame of box medium bm.
 vec3 to_local_point(BoxMedium bm, vec3 x) {
-    return to_local_dir(bm, x - bm.center_sigma_t.xyz);
+    return to_local_dir(bm, x - bm.center);
 }
 
 // The trapezoid pieces of light l along o + t d in box medium bm over the interval iv
 // (camera transmittance from t_enter).
 BoxPieces light_pieces(BoxMedium bm, Light l, vec3 o_local, vec3 d_local, float t_enter, vec2 iv) {
-    vec3 omega_local = to_local_dir(bm, l.direction_type.xyz);
-    return box_pieces(o_local, d_local, omega_local, bm.half_size_g.xyz, bm.center_sigma_t.w, t_enter, iv.x, iv.y);
+    vec3 omega_local = to_local_dir(bm, l.direction_or_position);
+    return box_pieces(o_local, d_local, omega_local, bm.half_size, bm.sigma_t, t_enter, iv.x, iv.y);
 }
 
 // Pick a light in proportion to the weights `w` (sum `w_sum` > 0) with u in [0, 1).
@@ -139,14 +139,14 @@ DistanceSample integrand_sample(BoxMedium bm, Light l, vec3 o, vec3 d, vec3 o_lo
     if (!(pdf > 0.0)) {
         return s;
     }
-    vec3 omega = l.direction_type.xyz;
-    float sigma_t = bm.center_sigma_t.w;
+    vec3 omega = l.direction_or_position;
+    float sigma_t = bm.sigma_t;
     // Mask by the gobo at the sampled point.
     float gobo = (SC_HAS_GOBOS && !inside_gobo(l, o + t * d)) ? 0.0 : 1.0;
     // Transmittance from the camera's entry to t, then to the boundary towards the light.
-    float d_light = box_light_distance(o_local + t * d_local, to_local_dir(bm, omega), bm.half_size_g.xyz);
+    float d_light = box_light_distance(o_local + t * d_local, to_local_dir(bm, omega), bm.half_size);
     float T = exp(-sigma_t * ((t - t_enter) + d_light));
-    vec3 f = bm.sigma_s.rgb * hg_phase(dot(omega, -d), bm.half_size_g.w) * l.irradiance.rgb * T * gobo;
+    vec3 f = bm.sigma_s * hg_phase(dot(omega, -d), bm.g) * l.irradiance * T * gobo;
     // Domain: pdf > 0 (checked) and prob > 0 (a chosen light).
     s.F = f / (pdf * prob);
     s.lit = gobo > 0.0;
@@ -157,7 +157,7 @@ DistanceSample integrand_sample(BoxMedium bm, Light l, vec3 o, vec3 d, vec3 o_lo
 // The estimator.
 
 // Single-scattered radiance towards o from box medium m along o + t d, t in
-// [t_enter, t_b], by the estimator SC_ESTIMATOR with u_frame.counts.w samples. Excludes
+// [t_enter, t_b], by the estimator SC_ESTIMATOR with u_frame.ray_samples samples. Excludes
 // the transmittance of other media between o and t_enter.
 vec3 single_scatter_box(uint m, vec3 o, vec3 d, float t_enter, float t_b, inout uint rng) {
     uint sampling = estimator_sampler(SC_ESTIMATOR);
@@ -168,7 +168,7 @@ vec3 single_scatter_box(uint m, vec3 o, vec3 d, float t_enter, float t_b, inout 
 
     // Compute every light's analytic unoccluded radiance U_l (Eq. 6) over its gobo
     // interval: the light-selection weights w_l and, summed, the ratio estimator's U.
-    uint light_count = min(u_frame.counts.z, MAX_LIGHTS);
+    uint light_count = min(u_frame.light_count, MAX_LIGHTS);
     vec3 U[MAX_LIGHTS];
     float w[MAX_LIGHTS];
     vec2 interval[MAX_LIGHTS];
@@ -185,8 +185,8 @@ vec3 single_scatter_box(uint m, vec3 o, vec3 d, float t_enter, float t_b, inout 
             pieces = p;
             cached = 0u;
         }
-        float phase = hg_phase(dot(light.direction_type.xyz, -d), bm.half_size_g.w);
-        U[l] = bm.sigma_s.rgb * phase * light.irradiance.rgb * p.total;
+        float phase = hg_phase(dot(light.direction_or_position, -d), bm.g);
+        U[l] = bm.sigma_s * phase * light.irradiance * p.total;
         w[l] = U[l].r + U[l].g + U[l].b;
         U_total += U[l];
         w_sum += w[l];
@@ -195,7 +195,7 @@ vec3 single_scatter_box(uint m, vec3 o, vec3 d, float t_enter, float t_b, inout 
         return vec3(0.0);
     }
 
-    uint n = max(u_frame.counts.w, 1u);
+    uint n = max(u_frame.ray_samples, 1u);
     // Monte Carlo: sum of F V; ratio: its numerator, and the sum of F below.
     vec3 sum_FV = vec3(0.0);
     vec3 sum_F = vec3(0.0);
@@ -219,12 +219,12 @@ vec3 single_scatter_box(uint m, vec3 o, vec3 d, float t_enter, float t_b, inout 
         } else {
             float pdf;
             float t = sampling == SAMPLER_EQUIDISTANT ? sample_equidistant(interval[l], r, pdf)
-                                                     : sample_camera_distance(interval[l], bm.center_sigma_t.w, r, pdf);
+                                                     : sample_camera_distance(interval[l], bm.sigma_t, r, pdf);
             s = integrand_sample(bm, light, o, d, o_local, d_local, t_enter, t, pdf, prob);
         }
 
         // Weight by the visibility towards the light.
-        float V = s.lit ? light_visibility(o + s.t * d, light.direction_type.xyz, m) : 0.0;
+        float V = s.lit ? light_visibility(o + s.t * d, light.direction_or_position, m) : 0.0;
         sum_FV += s.F * V;
         if (combiner == COMBINER_RATIO) {
             sum_F += s.F;

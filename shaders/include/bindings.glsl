@@ -29,6 +29,7 @@
 
 // Indices into the stats buffer (uint counters).
 #define STAT_NON_FINITE 0
+#define STAT_STEP_CAP 1
 #define STAT_COUNT 4
 
 #endif

@@ -1,6 +1,6 @@
 // Homogeneous box media (scene.glsl's BoxMedium): their buffer `media`, the span of a ray
 // inside one, and the closed-form optical depth of all of them along a ray. The includer
-// declares `u_frame` (counts.x = number of box media) and the bool constant SC_HAS_MEDIA
+// declares `u_frame` (box_media_count = number of box media) and the bool constant SC_HAS_MEDIA
 // (without it there are no box media).
 #ifndef NIMBUS_BOX_MEDIA_GLSL
 #define NIMBUS_BOX_MEDIA_GLSL
@@ -19,19 +19,19 @@ vec2 box_medium_span(uint m, vec3 o, vec3 d) {
     BoxMedium bm = media[m];
     vec3 o_local;
     vec3 d_local;
-    to_box_frame(bm.world_to_local, bm.center_sigma_t.xyz, o, d, o_local, d_local);
-    return intersect_slabs(o_local, d_local, bm.half_size_g.xyz);
+    to_box_frame(bm.world_to_local, bm.center, o, d, o_local, d_local);
+    return intersect_slabs(o_local, d_local, bm.half_size);
 }
 
 // Optical depth of the box media other than `skip` along o + t d, t in [t_min, t_max].
 float box_optical_depth_except(vec3 o, vec3 d, float t_min, float t_max, uint skip) {
     float tau = 0.0;
-    uint count = SC_HAS_MEDIA ? u_frame.counts.x : 0u;
+    uint count = SC_HAS_MEDIA ? u_frame.box_media_count : 0u;
     for (uint m = 0u; m < count; ++m) {
         if (m == skip) {
             continue;
         }
-        tau += media[m].center_sigma_t.w * overlap_length(box_medium_span(m, o, d), t_min, t_max);
+        tau += media[m].sigma_t * overlap_length(box_medium_span(m, o, d), t_min, t_max);
     }
     return tau;
 }

@@ -11,22 +11,22 @@
 
 // Unit direction of the camera ray through pixel position px.
 vec3 camera_direction(FrameUniforms cam, vec2 px) {
-    float sx = (2.0 * px.x / float(cam.image.x) - 1.0) * cam.cam_position.w;
-    float sy = (1.0 - 2.0 * px.y / float(cam.image.y)) * cam.cam_forward.w;
-    return normalize(cam.cam_forward.xyz + sx * cam.cam_right.xyz + sy * cam.cam_up.xyz);
+    float sx = (2.0 * px.x / float(cam.width) - 1.0) * cam.tan_half_fov_x;
+    float sy = (1.0 - 2.0 * px.y / float(cam.height)) * cam.tan_half_fov_y;
+    return normalize(cam.cam_forward + sx * cam.cam_right + sy * cam.cam_up);
 }
 
 // Pixel position of world point x seen by `cam`; false if behind the camera.
 bool camera_project(FrameUniforms cam, vec3 x, out vec2 px) {
-    vec3 v = x - cam.cam_position.xyz;
-    float z = dot(v, cam.cam_forward.xyz);
+    vec3 v = x - cam.cam_position;
+    float z = dot(v, cam.cam_forward);
     if (!(z > 1e-6)) {
         return false;
     }
     // Domain: z > 0 and tan(fov / 2) > 0 (validated fov).
-    float sx = dot(v, cam.cam_right.xyz) / (z * cam.cam_position.w);
-    float sy = dot(v, cam.cam_up.xyz) / (z * cam.cam_forward.w);
-    px = vec2((sx + 1.0) * 0.5 * float(cam.image.x), (1.0 - sy) * 0.5 * float(cam.image.y));
+    float sx = dot(v, cam.cam_right) / (z * cam.tan_half_fov_x);
+    float sy = dot(v, cam.cam_up) / (z * cam.tan_half_fov_y);
+    px = vec2((sx + 1.0) * 0.5 * float(cam.width), (1.0 - sy) * 0.5 * float(cam.height));
     return true;
 }
 

@@ -12,7 +12,7 @@
 
 // Block DDA: block (I, J, K) of edge f voxels covers index-space [I f, min((I+1) f, n)] per
 // axis (`count` = ceil(n / f) blocks per axis, the last one possibly narrower). Super-voxels
-// (f = dims.w, 8) and the coarse piecewise-constant levels of ReSTIR (f = 2^mip) use it.
+// (f = super_voxel_factor, 8) and the coarse piecewise-constant levels of ReSTIR (f = 2^mip) use it.
 
 struct GridSuperDda {
     vec3 p0;        // index-space point at s = 0 (t = t_a)
@@ -47,7 +47,7 @@ bool grid_blocks_begin(vec3 o, vec3 d, float t0, float t1, int f, ivec3 count, o
         return false;
     }
     vec3 scale = grid_index_scale();
-    it.p0 = (o + it.t_a * d - u_grid.bounds_min.xyz) * scale;
+    it.p0 = (o + it.t_a * d - u_grid.bounds_min) * scale;
     it.dp = d * scale;
     for (int a = 0; a < 3; ++a) {
         // Domain: f >= 1.
@@ -89,9 +89,9 @@ bool grid_blocks_next(inout GridSuperDda it, out float s0, out float s1, out uin
     return true;
 }
 
-// Super-voxel walk (f = dims.w) over [t0, t1]; false if empty.
+// Super-voxel walk (f = super_voxel_factor) over [t0, t1]; false if empty.
 bool grid_super_begin(vec3 o, vec3 d, float t0, float t1, out GridSuperDda it) {
-    return grid_blocks_begin(o, d, t0, t1, int(u_grid.dims.w), ivec3(u_grid.super_dims.xyz), it);
+    return grid_blocks_begin(o, d, t0, t1, int(u_grid.super_voxel_factor), ivec3(u_grid.super_dims), it);
 }
 
 // The current span and its super-voxel's (min, max, avg, 0) of sigma_t; advances.
@@ -104,10 +104,22 @@ bool grid_super_next(inout GridSuperDda it, out float s0, out float s1, out vec4
     return true;
 }
 
+// A super-voxel span on which null-collision tracking would take more than this many
+// tentative collisions on average (residual majorant x length) is tracked exactly
+// instead: its closed-form optical depth, or the inversion of it (grid.glsl). One hot
+// voxel then costs only the dual cells around it, and no walk runs into GRID_MAX_STEPS.
+// Ordinary clouds stay below it everywhere, so the baseline is the paper's there.
+#define GRID_EXACT_SPAN_STEPS 64.0
+
 // Unbiased T estimate by residual ratio tracking [Novák et al. 2014] per super-voxel:
 // control sigma_c = min, residual majorant sigma_r = max - min,
-// T = prod over spans of exp(-sigma_c len) prod_i (1 - (sigma_t(x_i) - sigma_c) / sigma_r).
-float grid_residual_ratio_tracking(vec3 o, vec3 d, float t0, float t1, inout uint rng) {
+// T = prod over spans of exp(-sigma_c len) prod_i (1 - (sigma_t(x_i) - sigma_c) / sigma_r);
+// spans past GRID_EXACT_SPAN_STEPS contribute their exact exp(-tau). `majorant_scale` >= 1
+// multiplies the residual majorant: more, shorter steps with factors nearer 1, so less
+// noise for more work (Volumetric ReSTIR sec. 5.1 asks a large majorant of the ratio
+// tracking in final shading).
+float grid_residual_ratio_tracking_scaled(vec3 o, vec3 d, float t0, float t1,
+                                          float majorant_scale, inout uint rng) {
     GridSuperDda it;
     if (!grid_super_begin(o, d, t0, t1, it)) {
         return 1.0;
@@ -117,13 +129,18 @@ float grid_residual_ratio_tracking(vec3 o, vec3 d, float t0, float t1, inout uin
     float s1;
     vec4 bounds;
     int steps = 0;
-    while (grid_super_next(it, s0, s1, bounds) && T > 0.0 && steps < GRID_MAX_STEPS) {
+    while (grid_super_next(it, s0, s1, bounds) && T > 0.0) {
         // Empty super-voxel: sigma_t = 0 throughout.
         if (!(bounds.y > 0.0) || !(s1 > s0)) {
             continue;
         }
         float sigma_c = bounds.x;
-        float sigma_r = bounds.y - bounds.x;
+        float sigma_r = majorant_scale * (bounds.y - bounds.x);
+        // A span too hot for null collisions: its exact transmittance.
+        if (sigma_r * (s1 - s0) > GRID_EXACT_SPAN_STEPS) {
+            T *= exp(-grid_optical_depth(o, d, it.t_a + s0, it.t_a + s1));
+            continue;
+        }
         // Control part analytically. Domain: sigma_c (s1 - s0) >= 0.
         T *= exp(-sigma_c * (s1 - s0));
         if (!(sigma_r > 0.0)) {
@@ -131,7 +148,11 @@ float grid_residual_ratio_tracking(vec3 o, vec3 d, float t0, float t1, inout uin
         }
         // Residual part by ratio tracking with majorant sigma_r.
         float s = s0;
-        for (; steps < GRID_MAX_STEPS; ++steps) {
+        for (;; ++steps) {
+            if (steps >= GRID_MAX_STEPS) {
+                g_step_cap_hits += 1u;
+                return T;
+            }
             // Exponential step with rate sigma_r. Domain: sigma_r > 0.
             s += sample_exponential(rng_next(rng), sigma_r);
             if (s >= s1 || T == 0.0) {
@@ -144,10 +165,16 @@ float grid_residual_ratio_tracking(vec3 o, vec3 d, float t0, float t1, inout uin
     return T;
 }
 
+// Residual ratio tracking with the tight per-super-voxel majorant (the baseline's NEE).
+float grid_residual_ratio_tracking(vec3 o, vec3 d, float t0, float t1, inout uint rng) {
+    return grid_residual_ratio_tracking_scaled(o, d, t0, t1, 1.0, rng);
+}
+
 // Decomposition tracking [Kutz et al. 2017] per super-voxel: the collision with the
 // homogeneous control sigma_c = min is sampled in closed form, the residual
 // sigma_t - sigma_c by delta tracking with majorant max - min; the first of the two is the
-// real collision. Returns its t in [t0, t1), or FAR if the ray passes (probability T).
+// real collision. Spans past GRID_EXACT_SPAN_STEPS sample it by exact inversion of their
+// optical depth. Returns its t in [t0, t1), or FAR if the ray passes (probability T).
 float grid_sample_collision(vec3 o, vec3 d, float t0, float t1, inout uint rng) {
     GridSuperDda it;
     if (!grid_super_begin(o, d, t0, t1, it)) {
@@ -157,20 +184,33 @@ float grid_sample_collision(vec3 o, vec3 d, float t0, float t1, inout uint rng) 
     float s1;
     vec4 bounds;
     int steps = 0;
-    while (grid_super_next(it, s0, s1, bounds) && steps < GRID_MAX_STEPS) {
+    while (grid_super_next(it, s0, s1, bounds)) {
         // Empty super-voxel: no collision possible.
         if (!(bounds.y > 0.0) || !(s1 > s0)) {
             continue;
         }
         float sigma_c = bounds.x;
         float sigma_r = bounds.y - bounds.x;
+        // A span too hot for null collisions: regular tracking by exact inversion.
+        if (sigma_r * (s1 - s0) > GRID_EXACT_SPAN_STEPS) {
+            float target = sample_exponential(rng_next(rng), 1.0);
+            float t = grid_invert_optical_depth(o, d, it.t_a + s0, it.t_a + s1, target);
+            if (t < FAR) {
+                return t;
+            }
+            continue;
+        }
         // Control collision at rate sigma_c. Domain: sigma_c > 0 where sampled.
         float s_control = sigma_c > 0.0 ? s0 + sample_exponential(rng_next(rng), sigma_c) : FAR;
         float s_limit = min(s_control, s1);
         // Residual collisions before it, by delta tracking.
         if (sigma_r > 0.0) {
             float s = s0;
-            for (; steps < GRID_MAX_STEPS; ++steps) {
+            for (;; ++steps) {
+                if (steps >= GRID_MAX_STEPS) {
+                    g_step_cap_hits += 1u;
+                    return FAR;
+                }
                 // Tentative collision at rate sigma_r. Domain: sigma_r > 0.
                 s += sample_exponential(rng_next(rng), sigma_r);
                 if (s >= s_limit) {

@@ -6,12 +6,12 @@
 // Le at world x: emission_scale times the emission grid, trilinear between cell centres
 // and clamped within half a voxel of a face (as the density).
 vec3 grid_emission(vec3 x) {
-    vec3 size = u_grid.bounds_max.xyz - u_grid.bounds_min.xyz;
-    vec3 n = vec3(u_base.emission_dims.xyz);
+    vec3 size = u_grid.bounds_max - u_grid.bounds_min;
+    vec3 n = vec3(u_base.emission_dims);
     // Domain: size > 0 (validated bounds).
-    vec3 p = clamp((x - u_grid.bounds_min.xyz) / size * n, vec3(0.5), n - 0.5) - 0.5;
+    vec3 p = clamp((x - u_grid.bounds_min) / size * n, vec3(0.5), n - 0.5) - 0.5;
     ivec3 i0 = ivec3(floor(p));
-    ivec3 hi = ivec3(u_base.emission_dims.xyz) - 1;
+    ivec3 hi = ivec3(u_base.emission_dims) - 1;
     ivec3 i1 = min(i0 + 1, hi);
     vec3 f = p - vec3(i0);
     float c000 = texelFetch(u_emission, ivec3(i0.x, i0.y, i0.z), 0).r;
@@ -26,7 +26,7 @@ vec3 grid_emission(vec3 x) {
     float c10 = mix(c010, c110, f.x);
     float c01 = mix(c001, c101, f.x);
     float c11 = mix(c011, c111, f.x);
-    return u_base.emission_scale.rgb * mix(mix(c00, c10, f.y), mix(c01, c11, f.y), f.z);
+    return u_base.emission_scale * mix(mix(c00, c10, f.y), mix(c01, c11, f.y), f.z);
 }
 
 #endif

@@ -14,9 +14,9 @@
 layout(std140, set = 0, binding = BINDING_BASELINE_UNIFORMS) uniform BaselineBlock {
     BaselineUniforms u_base;
 };
-// Analytic lights: direction_type = (direction or position or centre, type), irradiance
-// = (E or I or L, sphere radius), gobo_v.w = selection CDF. ReSTIR binds the current
-// frame's set, then the previous frame's (counts.z records each).
+// Analytic lights (scene.glsl's Light: direction or position or centre by type, E or I or
+// L, sphere radius, selection CDF). ReSTIR binds the current frame's set, then the
+// previous frame's (u_frame.light_count records each).
 layout(std430, set = 0, binding = BINDING_LIGHTS) readonly buffer LightsBlock {
     Light lights[];
 };
@@ -34,7 +34,7 @@ layout(std430, set = 0, binding = BINDING_ENV_CDF) readonly buffer EnvCdfBlock {
 };
 
 #define u_grid u_base.grid
-#define ENV_SIZE u_base.env_size.xy
+#define ENV_SIZE u_base.env_size
 #include "grid.glsl"
 #include "grid_blocks.glsl"
 #include "grid_emission.glsl"

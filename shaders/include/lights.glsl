@@ -3,13 +3,13 @@
 // from another shading point, and what a ray sees when it ends on a light.
 //
 // The includer declares, before including this file:
-//   Light lights[]            (std430; direction_type.w = type, irradiance.w = sphere radius,
-//                              gobo_v.w = selection CDF over the analytic lights)
-//   BaselineUniforms u_base   (env_select.x = probability that NEE picks the environment)
-//   FrameUniforms u_frame     (counts.z = analytic lights per set, env_radiance)
+//   Light lights[]            (std430; scene.glsl: type, radius of a sphere, select_cdf =
+//                              selection CDF over the analytic lights of a set)
+//   BaselineUniforms u_base   (env_select = probability that NEE picks the environment)
+//   FrameUniforms u_frame     (light_count = analytic lights per set, env_radiance)
 //   bool constants SC_HAS_ENV, SC_HAS_ENV_MAP, and envmap.glsl's buffers (included here).
 //
-// A light set is `counts.z` records starting at `base`: ReSTIR keeps the current frame's
+// A light set is `light_count` records starting at `base`: ReSTIR keeps the current frame's
 // set at 0 and the previous frame's right after it, for animated lights.
 //
 // Measures: a directional light and a point light are deltas (their "radiance" is E and
@@ -25,8 +25,6 @@
 #include "scene.glsl"
 #include "envmap.glsl"
 
-#define LIGHT_POINT 1u
-#define LIGHT_SPHERE 2u
 // The light index of the environment in a stored path.
 #define LIGHT_ENV 0xffu
 
@@ -58,7 +56,7 @@ vec3 env_radiance_along(vec3 d) {
     if (!SC_HAS_ENV) {
         return vec3(0.0);
     }
-    return SC_HAS_ENV_MAP ? env_lookup(d) : u_frame.env_radiance.rgb;
+    return SC_HAS_ENV_MAP ? env_lookup(d) : u_frame.env_radiance;
 }
 
 // Nearest emitting sphere of the set at `base` along o + t d in (t_min, t_max): its
@@ -66,13 +64,13 @@ vec3 env_radiance_along(vec3 d) {
 float nearest_sphere_light(uint base, vec3 o, vec3 d, float t_min, float t_max, out uint index) {
     index = NO_INDEX;
     float t_hit = t_max;
-    uint count = u_frame.counts.z;
+    uint count = u_frame.light_count;
     for (uint l = 0u; l < count; ++l) {
         Light light = lights[base + l];
-        if (uint(light.direction_type.w) != LIGHT_SPHERE) {
+        if (light.type != LIGHT_SPHERE) {
             continue;
         }
-        float t = intersect_sphere(light.direction_type.xyz, light.irradiance.w, o, d, t_min, t_hit);
+        float t = intersect_sphere(light.direction_or_position, light.radius, o, d, t_min, t_hit);
         if (t < t_hit) {
             t_hit = t;
             index = l;
@@ -82,10 +80,10 @@ float nearest_sphere_light(uint base, vec3 o, vec3 d, float t_min, float t_max, 
 }
 
 // Pick a light for next-event estimation at x: the environment with probability
-// env_select.x, else an analytic light by the power CDF. u in [0, 1), u2 in [0, 1)^2.
+// env_select, else an analytic light by the power CDF. u in [0, 1), u2 in [0, 1)^2.
 LightSample light_sample(uint base, vec3 x, float u, vec2 u2) {
     LightSample s = light_sample_none();
-    float p_env = u_base.env_select.x;
+    float p_env = u_base.env_select;
     if (SC_HAS_ENV && u >= 1.0 - p_env) {
         s.index = LIGHT_ENV;
         if (SC_HAS_ENV_MAP) {
@@ -96,7 +94,7 @@ LightSample light_sample(uint base, vec3 x, float u, vec2 u2) {
         } else {
             // Uniform direction.
             s.wi = sample_uniform_sphere(u2);
-            s.L = u_frame.env_radiance.rgb;
+            s.L = u_frame.env_radiance;
             s.pdf = p_env * uniform_sphere_pdf();
         }
         // Domain: pdf > 0 for a usable sample (0 at the map's poles or black texels).
@@ -104,11 +102,11 @@ LightSample light_sample(uint base, vec3 x, float u, vec2 u2) {
         s.point = x + s.wi;
         return s;
     }
-    uint count = u_frame.counts.z;
+    uint count = u_frame.light_count;
     uint chosen = NO_INDEX;
     float cdf_before = 0.0;
     for (uint l = 0u; l < count; ++l) {
-        float cdf = lights[base + l].gobo_v.w;
+        float cdf = lights[base + l].select_cdf;
         if (u < cdf) {
             chosen = l;
             break;
@@ -119,22 +117,22 @@ LightSample light_sample(uint base, vec3 x, float u, vec2 u2) {
         return s;
     }
     Light light = lights[base + chosen];
-    float p_select = light.gobo_v.w - cdf_before;
+    float p_select = light.select_cdf - cdf_before;
     if (!(p_select > 0.0)) {
         return s;
     }
-    uint type = uint(light.direction_type.w);
+    uint type = light.type;
     s.index = chosen;
     if (type == LIGHT_DIRECTIONAL) {
-        s.wi = -light.direction_type.xyz;
-        s.L = light.irradiance.rgb;
+        s.wi = -light.direction_or_position;
+        s.L = light.irradiance;
         s.pdf = p_select;
         // Domain: p_select > 0.
         s.L_over_pdf = s.L / p_select;
         s.point = x + s.wi;
         return s;
     }
-    vec3 to_light = light.direction_type.xyz - x;
+    vec3 to_light = light.direction_or_position - x;
     float d2 = dot(to_light, to_light);
     if (type == LIGHT_POINT) {
         // Domain: a point light off the shading point (d2 > 0).
@@ -143,14 +141,14 @@ LightSample light_sample(uint base, vec3 x, float u, vec2 u2) {
         }
         s.dist = sqrt(d2);
         s.wi = to_light / s.dist;
-        s.point = light.direction_type.xyz;
-        s.L = light.irradiance.rgb / d2;
+        s.point = light.direction_or_position;
+        s.L = light.irradiance / d2;
         s.pdf = p_select;
         s.L_over_pdf = s.L / p_select;
         return s;
     }
     // Emitting sphere: uniform in the cone it subtends, pdf_sa = 1 / (2 pi (1 - cos_max)).
-    float radius = light.irradiance.w;
+    float radius = light.radius;
     if (d2 <= radius * radius) {
         return light_sample_none();
     }
@@ -161,21 +159,21 @@ LightSample light_sample(uint base, vec3 x, float u, vec2 u2) {
     // 1 - cos_max without cancellation: sin2 / (1 + cos).
     float one_minus_cos_max = sin2_max / (1.0 + cos_max);
     s.wi = sample_uniform_cone(axis, one_minus_cos_max, u2);
-    float t_hit = intersect_sphere(light.direction_type.xyz, radius, x, s.wi, 0.0, FAR);
+    float t_hit = intersect_sphere(light.direction_or_position, radius, x, s.wi, 0.0, FAR);
     if (t_hit >= FAR) {
         return light_sample_none();
     }
     s.dist = t_hit;
     s.point = x + t_hit * s.wi;
     // cos at the light: the outward normal against the arriving direction.
-    float cos_l = max(0.0, dot(normalize(s.point - light.direction_type.xyz), -s.wi));
+    float cos_l = max(0.0, dot(normalize(s.point - light.direction_or_position), -s.wi));
     // Domain: t_hit > 0 (x outside the sphere).
     float g = cos_l / (t_hit * t_hit);
-    s.L = light.irradiance.rgb * g;
+    s.L = light.irradiance * g;
     // Domain: one_minus_cos_max > 0 since radius > 0.
     s.pdf = p_select * g / (2.0 * PI * one_minus_cos_max);
     // L / pdf with the geometry factor cancelled (finite even at grazing cos_l = 0).
-    s.L_over_pdf = light.irradiance.rgb * (2.0 * PI * one_minus_cos_max / p_select);
+    s.L_over_pdf = light.irradiance * (2.0 * PI * one_minus_cos_max / p_select);
     return s;
 }
 
@@ -190,16 +188,16 @@ vec3 light_eval(uint base, uint index, vec3 dir, vec3 point, vec3 x, out vec3 wi
     if (index == LIGHT_ENV) {
         return env_radiance_along(dir);
     }
-    if (index >= u_frame.counts.z) {
+    if (index >= u_frame.light_count) {
         return vec3(0.0);
     }
     Light light = lights[base + index];
-    uint type = uint(light.direction_type.w);
+    uint type = light.type;
     if (type == LIGHT_DIRECTIONAL) {
-        wi = -light.direction_type.xyz;
-        return light.irradiance.rgb;
+        wi = -light.direction_or_position;
+        return light.irradiance;
     }
-    vec3 target = type == LIGHT_POINT ? light.direction_type.xyz : point;
+    vec3 target = type == LIGHT_POINT ? light.direction_or_position : point;
     vec3 to_light = target - x;
     float d2 = dot(to_light, to_light);
     // Domain: a vertex off the shading point.
@@ -209,14 +207,14 @@ vec3 light_eval(uint base, uint index, vec3 dir, vec3 point, vec3 x, out vec3 wi
     dist = sqrt(d2);
     wi = to_light / dist;
     if (type == LIGHT_POINT) {
-        return light.irradiance.rgb / d2;
+        return light.irradiance / d2;
     }
     // A point on a sphere is seen from x only from its outer side.
-    float cos_l = dot(normalize(point - light.direction_type.xyz), -wi);
+    float cos_l = dot(normalize(point - light.direction_or_position), -wi);
     if (!(cos_l > 0.0)) {
         return vec3(0.0);
     }
-    return light.irradiance.rgb * (cos_l / d2);
+    return light.irradiance * (cos_l / d2);
 }
 
 // True if an emitting sphere blocks the segment from x along wi before `dist` (the light
@@ -234,7 +232,7 @@ vec3 light_seen(uint base, vec3 o, vec3 d, out float t_end) {
     uint index;
     t_end = nearest_sphere_light(base, o, d, 0.0, FAR, index);
     if (index != NO_INDEX) {
-        return lights[base + index].irradiance.rgb;
+        return lights[base + index].irradiance;
     }
     return env_radiance_along(d);
 }

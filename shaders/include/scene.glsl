@@ -1,58 +1,89 @@
-// GPU scene records (std430). Mirrored by #[repr(C)] structs in src/gpu_scene.rs; a
-// test checks the sizes.
+// GPU scene records (std430 storage buffers), the frame's uniforms (std140) and the
+// push constants of a dispatch. Mirrored member by member by the #[repr(C)] structs in
+// src/gpu/records.rs (same names); tests/layout.rs parses this file and checks every
+// member's type and offset and every struct's size.
+//
+// A float or uint after a vec3 shares the vec3's 16 bytes (std140 and std430 alike), so
+// each xyz quantity carries one named scalar or an explicit `_padN`.
 #ifndef NIMBUS_SCENE_GLSL
 #define NIMBUS_SCENE_GLSL
 
 // A homogeneous box medium. 96 bytes.
 struct BoxMedium {
-    vec4 world_to_local[3]; // rows of R^T; local = R^T (x - center)
-    vec4 center_sigma_t;    // xyz centre, w sigma_t (1/m)
-    vec4 half_size_g;       // xyz half extents, w HG g
-    vec4 sigma_s;           // rgb sigma_s = albedo * sigma_t
+    vec4 world_to_local[3]; // rows of R^T (w 0); local = R^T (x - center)
+    vec3 center;            // world
+    float sigma_t;          // extinction (1/m)
+    vec3 half_size;         // half extents along the local axes (m)
+    float g;                // HG asymmetry
+    vec3 sigma_s;           // rgb sigma_s = albedo * sigma_t (1/m)
+    float _pad0;
 };
 
+// Shape.type
 #define SHAPE_QUAD 0u
 #define SHAPE_BOX 1u
 #define SHAPE_SPHERE 2u
 
-// An opaque Lambertian shape. 96 bytes.
+// An opaque Lambertian shape. 96 bytes. `p` is a tagged union on `type` (GLSL has no
+// unions; one named member per shape's parameter would more than double the record):
 //   quad:   p[0] corner, p[1] edge_u, p[2] edge_v, p[3].xyz w = n / dot(n, n), n = cross(edge_u, edge_v)
-//   box:    p[0..2] rows of R^T, p[3].xyz centre, p[4].xyz half extents
+//   box:    p[0..2] rows of R^T (w 0), p[3].xyz centre, p[4].xyz half extents
 //   sphere: p[0].xyz centre, p[0].w radius
 struct Shape {
     vec4 p[5];
-    vec4 albedo_type; // rgb albedo, w = shape type as float (exact small integer)
+    vec3 albedo;  // rgb Lambertian albedo
+    uint type;    // SHAPE_QUAD, SHAPE_BOX or SHAPE_SPHERE
 };
 
+// Light.type
 #define LIGHT_DIRECTIONAL 0u
+#define LIGHT_POINT 1u
+#define LIGHT_SPHERE 2u
 
-// An analytic light. 80 bytes.
+// An analytic light. 80 bytes. The crepuscular pass reads directional lights with their
+// gobos; the grid-medium passes read every type with its selection CDF.
 struct Light {
-    vec4 direction_type;   // xyz unit travel direction, w type
-    vec4 irradiance;       // rgb W/m^2
-    vec4 gobo_origin;      // xyz point on the gobo plane, w = number of gobo half-planes (0: none)
-    vec4 gobo_u;           // xyz gobo u axis, w = first half-plane index
-    vec4 gobo_v;           // xyz gobo v axis
+    vec3 direction_or_position; // directional: unit travel direction; point: position; sphere: centre
+    uint type;                  // LIGHT_DIRECTIONAL, LIGHT_POINT or LIGHT_SPHERE
+    vec3 irradiance;            // rgb: directional E (W/m^2), point I (W/sr), sphere L (W/m^2/sr)
+    float radius;               // sphere: radius (m); 0 otherwise
+    vec3 gobo_origin;           // a point on the gobo plane
+    uint gobo_plane_count;      // gobo half-planes (0: no gobo)
+    vec3 gobo_u;                // gobo plane u axis
+    uint gobo_first_plane;      // index of the first half-plane in gobo_planes[]
+    vec3 gobo_v;                // gobo plane v axis
+    float select_cdf;           // grid passes: CDF of next-event light selection over the set
 };
 
 // Parameters fixed for a frame (std140 uniform). 128 bytes.
 struct FrameUniforms {
-    vec4 cam_position;   // w tan(hfov / 2)
-    vec4 cam_forward;    // w tan(vfov / 2)
-    vec4 cam_right;
-    vec4 cam_up;
-    vec4 env_radiance;   // rgb radiance of escaping rays
-    uvec4 image;         // width, height, spp, seed
-    uvec4 counts;        // box media, shapes, lights, samples along a camera ray
-    vec4 reserved;
+    vec3 cam_position;
+    float tan_half_fov_x;   // tan(hfov / 2)
+    vec3 cam_forward;
+    float tan_half_fov_y;   // tan(vfov / 2)
+    vec3 cam_right;
+    float _pad0;
+    vec3 cam_up;
+    float _pad1;
+    vec3 env_radiance;      // rgb radiance of the constant environment (escaping rays)
+    float _pad2;
+    uint width;             // image width in pixels
+    uint height;            // image height in pixels
+    uint spp;               // samples per pixel per frame (path tracers)
+    uint seed;              // the render's seed (folded to 32 bits)
+    uint box_media_count;   // records in media[]
+    uint shape_count;       // records in shapes[]
+    uint light_count;       // analytic lights in one light set of lights[]
+    uint ray_samples;       // box estimators: samples N along one camera segment
+    vec4 _pad3;
 };
 
 // Push constants of a dispatch. 16 bytes.
 struct PassPush {
     uint frame;        // frame index within the render
     uint sample_base;  // index of this dispatch's first sample per pixel
-    uint pad0;
-    uint pad1;
+    uint _pad0;
+    uint _pad1;
 };
 
 #endif

@@ -1,5 +1,5 @@
 // Opaque shapes: their buffer, nearest hit with normal, and occlusion queries. Needs
-// `u_frame` (counts.y = number of shapes) and the bool constant SC_HAS_SHAPES to be
+// `u_frame` (shape_count = number of shapes) and the bool constant SC_HAS_SHAPES to be
 // declared by the including pass.
 #ifndef NIMBUS_SHAPES_GLSL
 #define NIMBUS_SHAPES_GLSL
@@ -14,7 +14,7 @@ layout(std430, set = 0, binding = BINDING_SHAPES) readonly buffer ShapesBlock {
 
 // Hit distance of one shape along o + t d within (t_min, t_max); FAR if none.
 float intersect_shape(Shape s, vec3 o, vec3 d, float t_min, float t_max) {
-    uint type = uint(s.albedo_type.w);
+    uint type = s.type;
     if (type == SHAPE_QUAD) {
         return intersect_quad(s.p[0].xyz, s.p[1].xyz, s.p[2].xyz, s.p[3].xyz, o, d, t_min, t_max);
     }
@@ -40,7 +40,7 @@ float intersect_shape(Shape s, vec3 o, vec3 d, float t_min, float t_max) {
 
 // Geometric normal of shape `s` at the surface point x, facing against d.
 vec3 shape_normal(Shape s, vec3 x, vec3 d) {
-    uint type = uint(s.albedo_type.w);
+    uint type = s.type;
     vec3 n;
     if (type == SHAPE_QUAD) {
         n = cross(s.p[1].xyz, s.p[2].xyz);
@@ -65,7 +65,7 @@ float nearest_shape(vec3 o, vec3 d, float t_min, float t_max, out uint index) {
     float t_hit = t_max;
     index = NO_INDEX;
     if (SC_HAS_SHAPES) {
-        uint count = u_frame.counts.y;
+        uint count = u_frame.shape_count;
         for (uint s = 0u; s < count; ++s) {
             float t = intersect_shape(shapes[s], o, d, t_min, t_hit);
             if (t < t_hit) {
@@ -82,7 +82,7 @@ bool occluded_before(vec3 o, vec3 d, float t_min, float t_max) {
     if (!SC_HAS_SHAPES) {
         return false;
     }
-    uint count = u_frame.counts.y;
+    uint count = u_frame.shape_count;
     for (uint s = 0u; s < count; ++s) {
         if (intersect_shape(shapes[s], o, d, t_min, t_max) < FAR) {
             return true;

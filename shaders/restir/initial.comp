@@ -48,16 +48,24 @@ void add_candidate(uint at, inout Reservoir r, inout uint rng, float w, float p_
     }
 }
 
+void restir_main();
+
+// The stage, then its counters into the stats buffer.
 void main() {
+    restir_main();
+    film_flush_counters();
+}
+
+void restir_main() {
     uvec2 pixel = gl_GlobalInvocationID.xy;
     if (!film_contains(pixel)) {
         return;
     }
     uint at = res_at(u_push.dst, pixel);
-    uint rng = rng_init(pixel, u_push.frame, 0u, u_frame.image.w);
-    vec3 albedo = u_base.albedo_g.rgb;
-    float g = u_base.albedo_g.w;
-    uint candidates = u_restir.settings.x;
+    uint rng = rng_init(pixel, u_push.frame, 0u, u_frame.seed);
+    vec3 albedo = u_base.albedo;
+    float g = u_base.g;
+    uint candidates = u_restir.candidates;
 
     Reservoir r = res_empty();
     for (uint m = 0u; m < candidates; ++m) {

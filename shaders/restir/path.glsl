@@ -51,10 +51,10 @@ CameraRay camera_ray(uvec2 pixel, uint code, uint set) {
     r.set = set;
     vec2 px = vec2(pixel) + jitter_code_offset(code);
     if (set == SET_CURRENT) {
-        r.o = u_frame.cam_position.xyz;
+        r.o = u_frame.cam_position;
         r.d = camera_direction(u_frame, px);
     } else {
-        r.o = u_prev_frame.cam_position.xyz;
+        r.o = u_prev_frame.cam_position;
         r.d = camera_direction(u_prev_frame, px);
     }
     return r;
@@ -66,6 +66,9 @@ CameraRay camera_ray(uvec2 pixel, uint code, uint set) {
 float sigma_t_of(uint set, vec3 x) {
     return set == SET_CURRENT ? grid_sigma_t_in(u_density, x) : grid_sigma_t_in(u_density_prev, x);
 }
+
+// The largest optical depth a ray-marched T~ reports (T~ >= e^-64, a normal float).
+#define MARCH_MAX_TAU 64.0
 
 // T~ along o + t d, t in [t0, t1]: midpoint ray marching of the mip texture `tex` (dims
 // `dims`, blocks of `factor` voxels) with steps of at most `step` metres. Deterministic, so
@@ -83,21 +86,23 @@ float march_transmittance(sampler3D tex, uvec3 dims, uint factor, float step, ve
     float dt = (b - a) / float(n);
     // Texture coordinates: index space over the blocks' extent (dims * factor voxels).
     vec3 to_uvw = grid_index_scale() / (vec3(dims) * float(factor));
-    vec3 uvw0 = (o + a * d - u_grid.bounds_min.xyz) * to_uvw;
+    vec3 uvw0 = (o + a * d - u_grid.bounds_min) * to_uvw;
     vec3 duvw = d * to_uvw;
     float sum = 0.0;
     for (int j = 0; j < n; ++j) {
         sum += textureLod(tex, uvw0 + duvw * ((float(j) + 0.5) * dt), 0.0).r;
     }
-    // Domain: density_scale * sum * dt >= 0.
-    return exp(-u_grid.bounds_min.w * sum * dt);
+    // Domain: density_scale * sum * dt >= 0. Capped at MARCH_MAX_TAU so T~ (and with it
+    // every target function) stays > 0 wherever the path contributes: RIS is unbiased
+    // only if p^ > 0 wherever f > 0, and an approximate T~ may exceed the true depth.
+    return exp(-min(u_grid.density_scale * sum * dt, MARCH_MAX_TAU));
 }
 
 // T~ for target functions of reuse (mip_reuse) in a frame's set.
 float reuse_transmittance(uint set, vec3 o, vec3 d, float t1) {
-    uvec3 dims = u_restir.march_dims.xyz;
-    uint factor = u_restir.factors.z;
-    float step = u_restir.spatial.y;
+    uvec3 dims = u_restir.march_reuse_dims;
+    uint factor = u_restir.march_reuse_factor;
+    float step = u_restir.march_reuse_step;
     if (set == SET_CURRENT) {
         return march_transmittance(u_march_reuse, dims, factor, step, o, d, 0.0, t1);
     }
@@ -106,15 +111,20 @@ float reuse_transmittance(uint set, vec3 o, vec3 d, float t1) {
 
 // T~ of NEE segments of initial candidates (mip_indirect).
 float nee_transmittance(vec3 o, vec3 d, float t1) {
-    return march_transmittance(u_march_nee, u_restir.nee_dims.xyz, u_restir.factors.w, u_restir.spatial.z, o,
-                               d, 0.0, t1);
+    return march_transmittance(u_march_nee, u_restir.march_nee_dims, u_restir.march_nee_factor,
+                               u_restir.march_nee_step, o, d, 0.0, t1);
 }
 
-// Unbiased T for final shading: the closed form through the trilinear grid, or ratio
-// tracking with the global majorant.
+// The residual majorant's multiple in final ratio tracking: the paper's advice is a large
+// majorant ("forcing a smaller average step"); the tight global one it replaced gave
+// 7-27x the per-frame RMSE of the closed form.
+#define FINAL_RATIO_MAJORANT_SCALE 4.0
+
+// Unbiased T for final shading: the closed form through the trilinear grid, or residual
+// ratio tracking per super-voxel with a 4x majorant.
 float final_transmittance(vec3 o, vec3 d, float t1, inout uint rng) {
     if (SC_FINAL_RATIO_TRACKING) {
-        return grid_ratio_tracking(o, d, 0.0, t1, rng);
+        return grid_residual_ratio_tracking_scaled(o, d, 0.0, t1, FINAL_RATIO_MAJORANT_SCALE, rng);
     }
     return grid_transmittance(o, d, 0.0, t1);
 }
@@ -129,12 +139,14 @@ float final_transmittance(vec3 o, vec3 d, float t1, inout uint rng) {
 // tau_target. Returns the collision distance (FAR if the ray leaves first), sigma_t* there
 // and tau = the optical depth walked (tau_target at a collision, the total otherwise).
 float pc_track(uint level, vec3 o, vec3 d, float t_end, float tau_target, out float sigma_star, out float tau) {
-    uvec4 lv = level == LEVEL_PRIMARY ? u_restir.pc_primary : u_restir.pc_indirect;
-    int f = int(level == LEVEL_PRIMARY ? u_restir.factors.x : u_restir.factors.y);
+    bool primary = level == LEVEL_PRIMARY;
+    uvec3 dims = primary ? u_restir.pc_primary_dims : u_restir.pc_indirect_dims;
+    uint offset = primary ? u_restir.pc_primary_offset : u_restir.pc_indirect_offset;
+    int f = int(primary ? u_restir.pc_primary_factor : u_restir.pc_indirect_factor);
     sigma_star = 0.0;
     tau = 0.0;
     GridSuperDda it;
-    if (!grid_blocks_begin(o, d, 0.0, t_end, f, ivec3(lv.xyz), it)) {
+    if (!grid_blocks_begin(o, d, 0.0, t_end, f, ivec3(dims), it)) {
         return FAR;
     }
     float s0;
@@ -143,7 +155,7 @@ float pc_track(uint level, vec3 o, vec3 d, float t_end, float tau_target, out fl
     int steps = 0;
     while (grid_blocks_next(it, s0, s1, index) && steps < GRID_MAX_STEPS) {
         ++steps;
-        float sigma = pc_grid[lv.w + index];
+        float sigma = pc_grid[offset + index];
         float dtau = sigma * (s1 - s0);
         if (sigma > 0.0 && tau + dtau >= tau_target) {
             sigma_star = sigma;
@@ -189,8 +201,8 @@ vec3 path_value(uint at, Reservoir r, CameraRay cam, CameraRay src, uint mode, i
                                      : reuse_transmittance(set, cam.o, cam.d, t_end);
         return L * T;
     }
-    vec3 albedo = u_base.albedo_g.rgb;
-    float g = u_base.albedo_g.w;
+    vec3 albedo = u_base.albedo;
+    float g = u_base.g;
     // Vertex reuse: x_2 of the owner's path, in world space.
     bool keep_x2 = SC_REUSE_VERTEX && kp >= 2u;
     vec3 x2_world = vec3(0.0);

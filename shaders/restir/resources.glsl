@@ -1,6 +1,6 @@
 // Volumetric ReSTIR (Lin, Wyman and Yuksel 2021): what the four passes bind. The
 // specialization constants, the settings and push-constant records (mirrored by
-// RestirUniformsGpu and RestirPush in src/passes/restir.rs), the descriptors of set 0
+// RestirUniformsGpu and RestirPush in src/gpu/records.rs), the descriptors of set 0
 // (the film's and the grid medium's through film.glsl and grid_resources.glsl, the rest
 // here), and where a pixel's reservoir lives. The passes include path.glsl or
 // combine.glsl, which include this file.
@@ -29,14 +29,28 @@ layout(constant_id = SC_ID_HAS_VELOCITY) const bool SC_HAS_VELOCITY = false;
 
 // Settings of the ReSTIR passes (std140). Mirrored by RestirUniformsGpu. 128 bytes.
 struct RestirUniforms {
-    uvec4 pc_primary;    // xyz dims of the piecewise-constant level for camera rays, w offset
-    uvec4 pc_indirect;   // xyz dims of the level for scattered rays, w offset
-    uvec4 factors;       // voxels per block edge: x primary level, y indirect, z reuse march, w NEE march
-    uvec4 march_dims;    // xyz dims of the reuse march texture (mip_reuse), w unused
-    uvec4 nee_dims;      // xyz dims of the NEE march texture (mip_indirect), w unused
-    uvec4 settings;      // x candidates M, y temporal limit Q, z spatial neighbours, w reservoir stride (uints)
-    vec4 spatial;        // x radius (pixels), y reuse march step (m), z NEE march step (m), w unused
-    uvec4 velocity_dims; // xyz dims of the velocity grid, w unused
+    uvec3 pc_primary_dims;    // dims of the piecewise-constant level for camera rays
+    uint pc_primary_offset;   // its first value in pc_grid[]
+    uvec3 pc_indirect_dims;   // dims of the level for scattered rays
+    uint pc_indirect_offset;  // its first value in pc_grid[]
+    uint pc_primary_factor;   // voxels per block edge of the primary level
+    uint pc_indirect_factor;  // ... of the indirect level
+    uint march_reuse_factor;  // ... of the reuse march texture (mip_reuse)
+    uint march_nee_factor;    // ... of the NEE march texture (mip_indirect)
+    uvec3 march_reuse_dims;   // dims of the reuse march texture
+    uint _pad0;
+    uvec3 march_nee_dims;     // dims of the NEE march texture
+    uint _pad1;
+    uint candidates;          // M: random walks per pixel
+    uint temporal_limit;      // Q: cap of the temporal M, in multiples of M
+    uint spatial_neighbors;   // neighbours of a spatial round
+    uint reservoir_stride;    // uints per reservoir
+    float spatial_radius;     // pixels
+    float march_reuse_step;   // reuse march step (m)
+    float march_nee_step;     // NEE march step (m)
+    float _pad2;
+    uvec3 velocity_dims;      // dims of the velocity grid (1 x 1 x 1 without one)
+    uint _pad3;
 };
 
 // Push constants of every ReSTIR dispatch. 16 bytes.
@@ -83,14 +97,14 @@ layout(std430, set = 0, binding = BINDING_RESERVOIRS) buffer ReservoirBlock {
 
 // The first light record of a set.
 uint light_base(uint set) {
-    return set == SET_CURRENT ? 0u : u_frame.counts.z;
+    return set == SET_CURRENT ? 0u : u_frame.light_count;
 }
 
 // The reservoir of `pixel` in slot `slot`: slot s of pixel p starts at uint
-// (s * pixels + p) * stride, stride = settings.w (see reservoir.glsl).
+// (s * pixels + p) * stride, stride = reservoir_stride (see reservoir.glsl).
 uint res_at(uint slot, uvec2 pixel) {
-    uint pixels = u_frame.image.x * u_frame.image.y;
-    return (slot * pixels + pixel.y * u_frame.image.x + pixel.x) * u_restir.settings.w;
+    uint pixels = u_frame.width * u_frame.height;
+    return (slot * pixels + pixel.y * u_frame.width + pixel.x) * u_restir.reservoir_stride;
 }
 
 #endif

@@ -7,13 +7,21 @@
 #extension GL_GOOGLE_include_directive : require
 #include "path.glsl"
 
+void restir_main();
+
+// The stage, then its counters into the stats buffer.
 void main() {
+    restir_main();
+    film_flush_counters();
+}
+
+void restir_main() {
     uvec2 pixel = gl_GlobalInvocationID.xy;
     if (!film_contains(pixel)) {
         return;
     }
     uint at = res_at(u_push.src, pixel);
-    uint rng = rng_init(pixel, u_push.frame, 3u, u_frame.image.w);
+    uint rng = rng_init(pixel, u_push.frame, 3u, u_frame.seed);
     Reservoir r = res_load(at);
     CameraRay cam = camera_ray(pixel, res_jitter(r), SET_CURRENT);
     vec3 L = vec3(0.0);

@@ -10,17 +10,25 @@
 #extension GL_GOOGLE_include_directive : require
 #include "combine.glsl"
 
+void restir_main();
+
+// The stage, then its counters into the stats buffer.
 void main() {
+    restir_main();
+    film_flush_counters();
+}
+
+void restir_main() {
     uvec2 pixel = gl_GlobalInvocationID.xy;
     if (!film_contains(pixel)) {
         return;
     }
-    uint rng = rng_init(pixel, u_push.frame, 2u + u_push.aux, u_frame.image.w);
+    uint rng = rng_init(pixel, u_push.frame, 2u + u_push.aux, u_frame.seed);
 
     candidate_set(0u, res_at(u_push.src, pixel), pixel, SET_CURRENT);
     uint n = 1u;
-    uint neighbors = min(u_restir.settings.z, MAX_SPATIAL_NEIGHBORS);
-    float radius = u_restir.spatial.x;
+    uint neighbors = min(u_restir.spatial_neighbors, MAX_SPATIAL_NEIGHBORS);
+    float radius = u_restir.spatial_radius;
     // Random rotation of the sequence for this pixel, frame and round.
     float r0 = rng_next(rng);
     float a0 = rng_next(rng);
@@ -29,8 +37,8 @@ void main() {
         float rho = radius * sqrt(fract(r0 + float(j) * 0.6180339887));
         float phi = 2.0 * PI * fract(a0 + float(j) * 0.7548776662);
         ivec2 q = ivec2(pixel) + ivec2(round(rho * vec2(cos(phi), sin(phi))));
-        if (q == ivec2(pixel) || q.x < 0 || q.y < 0 || q.x >= int(u_frame.image.x) ||
-            q.y >= int(u_frame.image.y)) {
+        if (q == ivec2(pixel) || q.x < 0 || q.y < 0 || q.x >= int(u_frame.width) ||
+            q.y >= int(u_frame.height)) {
             continue;
         }
         candidate_set(n, res_at(u_push.src, uvec2(q)), uvec2(q), SET_CURRENT);

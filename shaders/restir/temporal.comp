@@ -15,17 +15,25 @@
 
 // Velocity (m per frame) at world x, linearly filtered.
 vec3 velocity_at(vec3 x) {
-    vec3 uvw = (x - u_grid.bounds_min.xyz) / (u_grid.bounds_max.xyz - u_grid.bounds_min.xyz);
+    vec3 uvw = (x - u_grid.bounds_min) / (u_grid.bounds_max - u_grid.bounds_min);
     return textureLod(u_velocity, uvw, 0.0).xyz;
 }
 
+void restir_main();
+
+// The stage, then its counters into the stats buffer.
 void main() {
+    restir_main();
+    film_flush_counters();
+}
+
+void restir_main() {
     uvec2 pixel = gl_GlobalInvocationID.xy;
     if (!film_contains(pixel)) {
         return;
     }
     uint at = res_at(u_push.src, pixel);
-    uint rng = rng_init(pixel, u_push.frame, 1u, u_frame.image.w);
+    uint rng = rng_init(pixel, u_push.frame, 1u, u_frame.seed);
     Reservoir cur = res_load(at);
     // The selected path's own camera ray (its jitter; the pixel centre region otherwise).
     CameraRay cam = camera_ray(pixel, res_jitter(cur), SET_CURRENT);
@@ -63,10 +71,10 @@ void main() {
         on_screen = camera_project(u_prev_frame, x_prev, px);
     } else {
         // Nothing in the medium along the ray: follow the background (a far point).
-        on_screen = camera_project(u_prev_frame, u_prev_frame.cam_position.xyz + cam.d * 1e6, px);
+        on_screen = camera_project(u_prev_frame, u_prev_frame.cam_position + cam.d * 1e6, px);
     }
-    if (!on_screen || px.x < 0.0 || px.y < 0.0 || px.x >= float(u_frame.image.x) ||
-        px.y >= float(u_frame.image.y)) {
+    if (!on_screen || px.x < 0.0 || px.y < 0.0 || px.x >= float(u_frame.width) ||
+        px.y >= float(u_frame.height)) {
         // No temporal neighbour: the reservoir stays as it is.
         return;
     }
@@ -75,7 +83,7 @@ void main() {
     candidate_set(0u, at, pixel, SET_CURRENT);
     candidate_set(1u, res_at(u_push.aux, q_prev), q_prev, SET_PREVIOUS);
     // Temporal limit: M_prev <= Q M, scaling w_sum alike so W_prev is unchanged.
-    float m_cap = float(u_restir.settings.y) * float(u_restir.settings.x);
+    float m_cap = float(u_restir.temporal_limit) * float(u_restir.candidates);
     if (cand_M[1] > m_cap) {
         // Domain: M > m_cap > 0.
         cand_w_scale[1] = m_cap / cand_M[1];

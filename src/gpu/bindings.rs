@@ -27,6 +27,8 @@ pub const PREV_FRAME_UNIFORMS: u32 = 22;
 
 /// Index of the non-finite sample counter in the stats buffer.
 pub const STAT_NON_FINITE: usize = 0;
+/// Index of the counter of walks cut short at `GRID_MAX_STEPS`.
+pub const STAT_STEP_CAP: usize = 1;
 /// Number of u32 counters in the stats buffer.
 pub const STAT_COUNT: usize = 4;
 

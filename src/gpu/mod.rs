@@ -14,5 +14,5 @@ pub mod scene;
 pub use records::*;
 pub use scene::{
     box_records, frame_uniforms, gobo_half_planes, non_empty, shape_records, GpuGrid, GpuScene,
-    LightSet,
+    LightSet, RecordCounts,
 };

@@ -1,58 +1,108 @@
 //! Every `#[repr(C)]` mirror of a GLSL struct the passes share with their shaders.
 //!
-//! All records are made of 16-byte vectors (or groups of four 32-bit scalars) so that
-//! std140 / std430 and `repr(C)` agree; `tests/layout.rs` parses the GLSL declarations
-//! (`shaders/include/scene.glsl`, `grid_types.glsl`, `restir.glsl`) and checks every size.
+//! Each mirror has the GLSL struct's members, in order and by the same names: a `vec3`
+//! is `[f32; 3]` followed by the scalar (or `_padN`) that shares its 16 bytes, so
+//! std140 / std430 and `repr(C)` agree with no implicit padding (which `Pod` forbids).
+//! `tests/layout.rs` parses the GLSL declarations (`shaders/include/scene.glsl`,
+//! `shaders/include/grid_types.glsl`, `shaders/restir/resources.glsl`) and checks every
+//! member's type and offset and every struct's size.
 
 use bytemuck::{Pod, Zeroable};
 
-/// `BoxMedium` in scene.glsl.
+/// `BoxMedium` in scene.glsl: a homogeneous box medium.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct BoxMediumGpu {
+    /// Rows of Rᵀ (w 0): local = Rᵀ (x − center).
     pub world_to_local: [[f32; 4]; 3],
-    pub center_sigma_t: [f32; 4],
-    pub half_size_g: [f32; 4],
-    pub sigma_s: [f32; 4],
+    pub center: [f32; 3],
+    /// Extinction (1/m).
+    pub sigma_t: f32,
+    /// Half extents along the local axes.
+    pub half_size: [f32; 3],
+    /// HG asymmetry.
+    pub g: f32,
+    /// albedo · sigma_t.
+    pub sigma_s: [f32; 3],
+    pub _pad0: f32,
 }
 
+/// Values of `ShapeGpu::type`.
 pub const SHAPE_QUAD: u32 = 0;
 pub const SHAPE_BOX: u32 = 1;
 pub const SHAPE_SPHERE: u32 = 2;
 
-/// `Shape` in scene.glsl.
+/// `Shape` in scene.glsl: an opaque Lambertian shape. `p` is a tagged union on `type`
+/// (see scene.glsl for what each shape keeps there).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct ShapeGpu {
     pub p: [[f32; 4]; 5],
-    pub albedo_type: [f32; 4],
+    pub albedo: [f32; 3],
+    /// `SHAPE_QUAD`, `SHAPE_BOX` or `SHAPE_SPHERE`.
+    pub r#type: u32,
 }
 
+/// Values of `LightGpu::type`.
 pub const LIGHT_DIRECTIONAL: u32 = 0;
+pub const LIGHT_POINT: u32 = 1;
+pub const LIGHT_SPHERE: u32 = 2;
 
-/// `Light` in scene.glsl.
+/// `Light` in scene.glsl: an analytic light.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct LightGpu {
-    pub direction_type: [f32; 4],
-    pub irradiance: [f32; 4],
-    pub gobo_origin: [f32; 4],
-    pub gobo_u: [f32; 4],
-    pub gobo_v: [f32; 4],
+    /// Directional: unit travel direction; point: position; sphere: centre.
+    pub direction_or_position: [f32; 3],
+    /// `LIGHT_DIRECTIONAL`, `LIGHT_POINT` or `LIGHT_SPHERE`.
+    pub r#type: u32,
+    /// Directional E, point I, sphere L.
+    pub irradiance: [f32; 3],
+    /// Sphere radius; 0 for the other types.
+    pub radius: f32,
+    pub gobo_origin: [f32; 3],
+    /// Gobo half-planes (0: no gobo).
+    pub gobo_plane_count: u32,
+    pub gobo_u: [f32; 3],
+    /// Index of the light's first half-plane in `GpuScene::gobo_planes`.
+    pub gobo_first_plane: u32,
+    pub gobo_v: [f32; 3],
+    /// Grid passes: CDF of next-event light selection over the light set.
+    pub select_cdf: f32,
 }
 
 /// `FrameUniforms` in scene.glsl (std140).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct FrameUniforms {
-    pub cam_position: [f32; 4],
-    pub cam_forward: [f32; 4],
-    pub cam_right: [f32; 4],
-    pub cam_up: [f32; 4],
-    pub env_radiance: [f32; 4],
-    pub image: [u32; 4],
-    pub counts: [u32; 4],
-    pub reserved: [f32; 4],
+    pub cam_position: [f32; 3],
+    /// tan(hfov / 2).
+    pub tan_half_fov_x: f32,
+    pub cam_forward: [f32; 3],
+    /// tan(vfov / 2).
+    pub tan_half_fov_y: f32,
+    pub cam_right: [f32; 3],
+    pub _pad0: f32,
+    pub cam_up: [f32; 3],
+    pub _pad1: f32,
+    /// Radiance of the constant environment.
+    pub env_radiance: [f32; 3],
+    pub _pad2: f32,
+    pub width: u32,
+    pub height: u32,
+    /// Samples per pixel per frame.
+    pub spp: u32,
+    /// The render's seed folded to 32 bits.
+    pub seed: u32,
+    /// Records in the box-media buffer.
+    pub box_media_count: u32,
+    /// Records in the shapes buffer.
+    pub shape_count: u32,
+    /// Analytic lights in one light set.
+    pub light_count: u32,
+    /// Box estimators: samples along one camera segment (N).
+    pub ray_samples: u32,
+    pub _pad3: [f32; 4],
 }
 
 /// `PassPush` in scene.glsl: the push constants of every dispatch.
@@ -61,18 +111,26 @@ pub struct FrameUniforms {
 pub struct PassPush {
     pub frame: u32,
     pub sample_base: u32,
-    pub pad0: u32,
-    pub pad1: u32,
+    pub _pad0: u32,
+    pub _pad1: u32,
 }
 
 /// `GridParams` in grid_types.glsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
 pub struct GridParamsGpu {
-    pub bounds_min: [f32; 4],
-    pub bounds_max: [f32; 4],
-    pub dims: [u32; 4],
-    pub super_dims: [u32; 4],
+    pub bounds_min: [f32; 3],
+    /// sigma_t = density_scale · density.
+    pub density_scale: f32,
+    pub bounds_max: [f32; 3],
+    /// Global max of sigma_t: the majorant of ratio / delta tracking.
+    pub sigma_t_max: f32,
+    pub dims: [u32; 3],
+    /// Voxels per super-voxel edge.
+    pub super_voxel_factor: u32,
+    /// Super-voxel grid dims, ceil(dims / factor).
+    pub super_dims: [u32; 3],
+    pub _pad0: u32,
 }
 
 /// `BaselineUniforms` in grid_types.glsl (std140).
@@ -80,33 +138,61 @@ pub struct GridParamsGpu {
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
 pub struct BaselineUniformsGpu {
     pub grid: GridParamsGpu,
-    /// rgb single-scattering albedo, w HG g.
-    pub albedo_g: [f32; 4],
-    /// Probability that next-event estimation picks the environment, in x.
-    pub env_select: [f32; 4],
-    /// rgb emission_scale (Le = scale · trilinear emission grid), w unused.
-    pub emission_scale: [f32; 4],
-    /// Emission grid dims xyz (its own resolution), w unused.
-    pub emission_dims: [u32; 4],
-    /// Environment map width and height in xy (1 x 1 without a map).
-    pub env_size: [u32; 4],
+    /// Single-scattering albedo.
+    pub albedo: [f32; 3],
+    /// HG asymmetry.
+    pub g: f32,
+    /// Probability that next-event estimation picks the environment.
+    pub env_select: f32,
+    pub _pad0: f32,
+    pub _pad1: f32,
+    pub _pad2: f32,
+    /// Le = emission_scale · trilinear emission grid.
+    pub emission_scale: [f32; 3],
+    pub _pad3: f32,
+    /// Emission grid dims (its own resolution; 1 × 1 × 1 without one).
+    pub emission_dims: [u32; 3],
+    pub _pad4: u32,
+    /// Environment map width and height (1 × 1 without a map).
+    pub env_size: [u32; 2],
+    pub _pad5: [u32; 2],
 }
-
-pub const LIGHT_POINT: u32 = 1;
-pub const LIGHT_SPHERE: u32 = 2;
 
 /// `RestirUniforms` in restir/resources.glsl (std140).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
 pub struct RestirUniformsGpu {
-    pub pc_primary: [u32; 4],
-    pub pc_indirect: [u32; 4],
-    pub factors: [u32; 4],
-    pub march_dims: [u32; 4],
-    pub nee_dims: [u32; 4],
-    pub settings: [u32; 4],
-    pub spatial: [f32; 4],
-    pub velocity_dims: [u32; 4],
+    /// Dims of the piecewise-constant level for camera rays, and its first value.
+    pub pc_primary_dims: [u32; 3],
+    pub pc_primary_offset: u32,
+    /// Dims of the level for scattered rays, and its first value.
+    pub pc_indirect_dims: [u32; 3],
+    pub pc_indirect_offset: u32,
+    /// Voxels per block edge of the two levels and the two march textures.
+    pub pc_primary_factor: u32,
+    pub pc_indirect_factor: u32,
+    pub march_reuse_factor: u32,
+    pub march_nee_factor: u32,
+    pub march_reuse_dims: [u32; 3],
+    pub _pad0: u32,
+    pub march_nee_dims: [u32; 3],
+    pub _pad1: u32,
+    /// M.
+    pub candidates: u32,
+    /// Q.
+    pub temporal_limit: u32,
+    pub spatial_neighbors: u32,
+    /// u32s per reservoir.
+    pub reservoir_stride: u32,
+    /// Pixels.
+    pub spatial_radius: f32,
+    /// Metres.
+    pub march_reuse_step: f32,
+    pub march_nee_step: f32,
+    pub _pad2: f32,
+    /// Velocity grid dims (1 × 1 × 1 without one).
+    pub velocity_dims: [u32; 3],
+    pub _pad3: u32,
 }
 
 /// `RestirPush` in restir/resources.glsl.

@@ -62,19 +62,24 @@ impl GpuScene {
                         Some(gobo) => {
                             any_gobo = true;
                             let (u, v) = Gobo::basis(*direction);
-                            let first = gobo_planes.len() as f32;
+                            let first = gobo_planes.len() as u32;
                             gobo_planes.extend(gobo_half_planes(&gobo.polygon));
-                            let count = gobo.polygon.len() as f32;
+                            let count = gobo.polygon.len() as u32;
                             (gobo.origin, u, v, first, count)
                         }
-                        None => (Vec3::ZERO, Vec3::X, Vec3::Y, 0.0, 0.0),
+                        None => (Vec3::ZERO, Vec3::X, Vec3::Y, 0, 0),
                     };
                     lights.push(LightGpu {
-                        direction_type: v4(*direction, LIGHT_DIRECTIONAL as f32),
-                        irradiance: v4(*irradiance, 0.0),
-                        gobo_origin: v4(origin, count),
-                        gobo_u: v4(u, first),
-                        gobo_v: v4(v, 0.0),
+                        direction_or_position: direction.to_array(),
+                        r#type: LIGHT_DIRECTIONAL,
+                        irradiance: irradiance.to_array(),
+                        radius: 0.0,
+                        gobo_origin: origin.to_array(),
+                        gobo_plane_count: count,
+                        gobo_u: u.to_array(),
+                        gobo_first_plane: first,
+                        gobo_v: v.to_array(),
+                        select_cdf: 0.0,
                     });
                 }
                 Light::Environment {
@@ -104,13 +109,27 @@ pub fn box_records(scene: &Scene) -> Vec<BoxMediumGpu> {
         .filter_map(|m| match m {
             Medium::Box(b) => Some(BoxMediumGpu {
                 world_to_local: world_to_local_rows(rotation_xyz_deg(b.rotation_deg)),
-                center_sigma_t: v4(b.center, b.sigma_t),
-                half_size_g: v4(b.size * 0.5, b.g),
-                sigma_s: v4(b.albedo * b.sigma_t, 0.0),
+                center: b.center.to_array(),
+                sigma_t: b.sigma_t,
+                half_size: (b.size * 0.5).to_array(),
+                g: b.g,
+                sigma_s: (b.albedo * b.sigma_t).to_array(),
+                _pad0: 0.0,
             }),
             Medium::Grid(_) => None,
         })
         .collect()
+}
+
+/// What a pass's frame uniforms count: the records of its buffers, and the samples the
+/// box estimators take along a camera segment.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct RecordCounts {
+    pub box_media: u32,
+    pub shapes: u32,
+    /// Analytic lights in one light set.
+    pub lights: u32,
+    pub ray_samples: u32,
 }
 
 /// The per-frame uniforms: camera frame `camera`, environment radiance `env` and the
@@ -119,19 +138,30 @@ pub fn frame_uniforms(
     scene: &Scene,
     camera: &CameraFrame,
     env: Vec3,
-    counts: [u32; 4],
+    counts: RecordCounts,
 ) -> FrameUniforms {
     let r = &scene.render;
     let tan_y = camera.tan_half_fov_x * r.height as f32 / r.width as f32;
     FrameUniforms {
-        cam_position: v4(camera.position, camera.tan_half_fov_x),
-        cam_forward: v4(camera.forward, tan_y),
-        cam_right: v4(camera.right, 0.0),
-        cam_up: v4(camera.up, 0.0),
-        env_radiance: v4(env, 0.0),
-        image: [r.width, r.height, r.spp, (r.seed ^ (r.seed >> 32)) as u32],
-        counts,
-        reserved: [0.0; 4],
+        cam_position: camera.position.to_array(),
+        tan_half_fov_x: camera.tan_half_fov_x,
+        cam_forward: camera.forward.to_array(),
+        tan_half_fov_y: tan_y,
+        cam_right: camera.right.to_array(),
+        _pad0: 0.0,
+        cam_up: camera.up.to_array(),
+        _pad1: 0.0,
+        env_radiance: env.to_array(),
+        _pad2: 0.0,
+        width: r.width,
+        height: r.height,
+        spp: r.spp,
+        seed: (r.seed ^ (r.seed >> 32)) as u32,
+        box_media_count: counts.box_media,
+        shape_count: counts.shapes,
+        light_count: counts.lights,
+        ray_samples: counts.ray_samples,
+        _pad3: [0.0; 4],
     }
 }
 
@@ -184,7 +214,8 @@ fn shape_record(shape: &Shape) -> ShapeGpu {
     };
     ShapeGpu {
         p,
-        albedo_type: v4(albedo, kind as f32),
+        albedo: albedo.to_array(),
+        r#type: kind,
     }
 }
 
@@ -219,8 +250,8 @@ pub struct GpuGrid {
     pub emission: Option<nimbus_scene::VoxelGrid>,
     pub super_voxels: Vec<[f32; 4]>,
     pub uniforms: BaselineUniformsGpu,
-    /// Analytic lights (directional, point, sphere), each with its selection CDF in
-    /// `gobo_v.w`, and the constant environment radiance.
+    /// Analytic lights (directional, point, sphere), each with its selection CDF, and
+    /// the constant environment radiance.
     pub lights: Vec<LightGpu>,
     pub env_radiance: Vec3,
     /// The environment map's texels (rgb, w unused) and its sampling tables (marginal
@@ -232,7 +263,7 @@ pub struct GpuGrid {
     pub env_map_luminance: Option<f32>,
 }
 
-/// The analytic lights of one frame with their selection CDF (in `gobo_v.w`), the
+/// The analytic lights of one frame with their selection CDF (`select_cdf`), the
 /// probability that next-event estimation picks the environment, and the constant
 /// environment radiance.
 pub struct LightSet {
@@ -297,11 +328,16 @@ impl LightSet {
                 }
             };
             lights.push(LightGpu {
-                direction_type: v4(p0, kind as f32),
-                irradiance: v4(power_rgb, radius_l),
-                gobo_origin: [0.0; 4],
-                gobo_u: [0.0; 4],
-                gobo_v: [0.0; 4],
+                direction_or_position: p0.to_array(),
+                r#type: kind,
+                irradiance: power_rgb.to_array(),
+                radius: radius_l,
+                gobo_origin: [0.0; 3],
+                gobo_plane_count: 0,
+                gobo_u: [0.0; 3],
+                gobo_first_plane: 0,
+                gobo_v: [0.0; 3],
+                select_cdf: 0.0,
             });
             weights.push(weight.max(0.0));
         }
@@ -314,7 +350,7 @@ impl LightSet {
             let mut cdf = 0.0;
             for (light, w) in lights.iter_mut().zip(&weights) {
                 cdf += w / total;
-                light.gobo_v[3] = cdf;
+                light.select_cdf = cdf;
             }
         }
         LightSet {
@@ -369,18 +405,21 @@ impl GpuGrid {
         let max_sigma = super_voxels.iter().fold(0.0f32, |m, s| m.max(s[1]));
         let uniforms = BaselineUniformsGpu {
             grid: GridParamsGpu {
-                bounds_min: v4(grid.bounds_min, scale),
-                bounds_max: v4(grid.bounds_max, max_sigma),
-                dims: [density.dims[0], density.dims[1], density.dims[2], factor],
-                super_dims: [sv.dims[0], sv.dims[1], sv.dims[2], 0],
+                bounds_min: grid.bounds_min.to_array(),
+                density_scale: scale,
+                bounds_max: grid.bounds_max.to_array(),
+                sigma_t_max: max_sigma,
+                dims: density.dims,
+                super_voxel_factor: factor,
+                super_dims: sv.dims,
+                _pad0: 0,
             },
-            albedo_g: v4(grid.albedo, grid.g),
-            env_select: [0.0; 4],
-            emission_scale: v4(grid.emission_scale, 0.0),
-            emission_dims: emission
-                .as_ref()
-                .map_or([1, 1, 1, 0], |e| [e.dims[0], e.dims[1], e.dims[2], 0]),
-            env_size: [1, 1, 0, 0],
+            albedo: grid.albedo.to_array(),
+            g: grid.g,
+            emission_scale: grid.emission_scale.to_array(),
+            emission_dims: emission.as_ref().map_or([1, 1, 1], |e| e.dims),
+            env_size: [1, 1],
+            ..BaselineUniformsGpu::default()
         };
 
         let radius = 0.5 * (grid.bounds_max - grid.bounds_min).length();
@@ -412,13 +451,11 @@ impl GpuGrid {
             }
         }
         let mut uniforms = uniforms;
-        if let Some((_, _, [w, h])) = &env_map {
-            uniforms.env_size = [*w, *h, 0, 0];
-        } else {
-            uniforms.env_size = [1, 1, 0, 0];
+        if let Some((_, _, size)) = &env_map {
+            uniforms.env_size = *size;
         }
         let set = LightSet::build(&scene.lights, radius, env_map_luminance);
-        uniforms.env_select[0] = set.env_select;
+        uniforms.env_select = set.env_select;
         Ok(GpuGrid {
             density,
             emission,

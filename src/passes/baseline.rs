@@ -12,7 +12,9 @@ use super::{
 };
 use crate::budget::Footprint;
 use crate::gpu::features::*;
-use crate::gpu::{bindings, box_records, non_empty, shape_records, GpuGrid, PassPush};
+use crate::gpu::{
+    bindings, box_records, non_empty, shape_records, GpuGrid, PassPush, RecordCounts,
+};
 use crate::plan::BaselinePlan;
 use crate::shaders;
 
@@ -41,12 +43,12 @@ pub fn create(
     let boxes = box_records(scene);
     let constants = FrameConstants {
         env_radiance: grid.env_radiance,
-        counts: [
-            boxes.len() as u32,
-            shapes.len() as u32,
-            grid.lights.len() as u32,
-            0,
-        ],
+        counts: RecordCounts {
+            box_media: boxes.len() as u32,
+            shapes: shapes.len() as u32,
+            lights: grid.lights.len() as u32,
+            ray_samples: 0,
+        },
     };
     let (objects, (pipeline, set)) = GpuObjects::build(ctx, |o| {
         let mut layout = Vec::from(Targets::layout());

@@ -9,7 +9,7 @@ use nimbus_scene::Scene;
 use super::{compute_pipeline, upload_records, FrameConstants, ImagePass, Targets};
 use crate::budget::{Binding, Footprint};
 use crate::gpu::features::*;
-use crate::gpu::{bindings, non_empty, GpuScene, PassPush};
+use crate::gpu::{bindings, non_empty, GpuScene, PassPush, RecordCounts};
 use crate::plan::{estimator_id, CrepuscularPlan};
 use crate::shaders;
 
@@ -40,12 +40,12 @@ pub fn create(
     let records = GpuScene::build(scene)?;
     let constants = FrameConstants {
         env_radiance: records.env_radiance,
-        counts: [
-            records.media.len() as u32,
-            records.shapes.len() as u32,
-            records.lights.len() as u32,
-            plan.samples_along_ray,
-        ],
+        counts: RecordCounts {
+            box_media: records.media.len() as u32,
+            shapes: records.shapes.len() as u32,
+            lights: records.lights.len() as u32,
+            ray_samples: plan.samples_along_ray,
+        },
     };
     let (objects, (pipeline, set)) = GpuObjects::build(ctx, |o| {
         let mut layout = Vec::from(Targets::layout());

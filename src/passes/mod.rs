@@ -39,7 +39,7 @@ use nimbus_gpu::{
 use nimbus_scene::{CameraFrame, GridMedium, Medium, Scene};
 
 use crate::budget::Footprint;
-use crate::gpu::{bindings, frame_uniforms, FrameUniforms, GpuGrid, PassPush};
+use crate::gpu::{bindings, frame_uniforms, FrameUniforms, GpuGrid, PassPush, RecordCounts};
 use crate::plan::{Integrator, RenderPlan};
 
 /// Workgroup size of every image-space shader (`local_size_x`, `local_size_y`).
@@ -86,6 +86,12 @@ pub trait Pass {
 
     /// Bytes of every buffer and image the pass created.
     fn device_bytes(&self) -> u64;
+
+    /// What the pass decided from the scene's content that the user should know (e.g.
+    /// settings it refined), one sentence each.
+    fn notes(&self) -> Vec<String> {
+        Vec::new()
+    }
 
     /// Frees every GPU object of the pass.
     fn destroy(self: Box<Self>, ctx: &Context);
@@ -175,7 +181,7 @@ impl<'a> Targets<'a> {
 #[derive(Clone, Copy, Debug)]
 pub struct FrameConstants {
     pub env_radiance: Vec3,
-    pub counts: [u32; 4],
+    pub counts: RecordCounts,
 }
 
 impl FrameConstants {
@@ -255,8 +261,8 @@ impl Pass for ImagePass {
 /// Workgroups covering the frame's image, one invocation per pixel.
 pub fn image_groups(uniforms: &FrameUniforms) -> [u32; 3] {
     [
-        uniforms.image[0].div_ceil(GROUP_SIZE[0]),
-        uniforms.image[1].div_ceil(GROUP_SIZE[1]),
+        uniforms.width.div_ceil(GROUP_SIZE[0]),
+        uniforms.height.div_ceil(GROUP_SIZE[1]),
         1,
     ]
 }

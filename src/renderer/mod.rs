@@ -147,6 +147,9 @@ pub struct RenderResult {
     pub stop: StopReason,
     /// Samples whose radiance was NaN or infinite; they were dropped, never written.
     pub non_finite_samples: u64,
+    /// Walks through a grid cut short at `GRID_MAX_STEPS` (their estimates are biased;
+    /// exact tracking of hot spans should keep this 0).
+    pub step_cap_hits: u64,
     /// GPU timestamps of each measured frame of this image (empty if the device has
     /// none).
     pub frame_timings: Vec<Vec<ScopeResult>>,
@@ -158,6 +161,8 @@ pub struct RenderResult {
     pub frame_images: Vec<ImageRgb>,
     /// Bytes of every GPU buffer and image the render created.
     pub device_bytes: u64,
+    /// What the passes decided from the scene's content (see `Pass::notes`).
+    pub notes: Vec<String>,
 }
 
 impl RenderResult {
@@ -241,6 +246,7 @@ pub fn render_each(
         let targets = handles.targets(&objects);
         let mut pass = passes::create(ctx, scene, plan, &targets)?;
         let device_bytes = objects.bytes() + pass.device_bytes();
+        let notes = pass.notes();
         let mut run = Run {
             ctx,
             scene,
@@ -248,6 +254,7 @@ pub fn render_each(
             opts,
             start,
             device_bytes,
+            notes,
             batch: error_batch(plan),
             profiler: None,
             dispatches: 0,
@@ -312,6 +319,7 @@ struct Run<'a> {
     opts: &'a RenderOptions,
     start: Instant,
     device_bytes: u64,
+    notes: Vec<String>,
     /// Frames per batch of the error estimate ([`error_batch`]).
     batch: u32,
     profiler: Option<Profiler>,
@@ -580,11 +588,13 @@ impl Run<'_> {
             error_independent: e.independent,
             stop,
             non_finite_samples: u64::from(stats[bindings::STAT_NON_FINITE]),
+            step_cap_hits: u64::from(stats[bindings::STAT_STEP_CAP]),
             frame_timings: state.timings,
             wall_time: self.start.elapsed(),
             image_time: state.start.elapsed(),
             frame_images: state.frame_images,
             device_bytes: self.device_bytes,
+            notes: self.notes.clone(),
         })
     }
 }

@@ -22,6 +22,7 @@
 use crate::common::kernel::{records, Arg, Kernel};
 use crate::common::rng::Pcg32;
 use bytemuck::{Pod, Zeroable};
+use nimbus::gpu::GridParamsGpu;
 use nimbus_gpu::{vk, BindingDesc, SamplerDesc};
 use nimbus_scene::{procedural_cloud, VoxelGrid, SUPER_VOXEL_FACTOR};
 
@@ -40,23 +41,14 @@ const MODE_COLLISION: u32 = 2;
 const LOCAL_SIZE: u32 = 64;
 
 // ---------------------------------------------------------------------------------------
-// GPU side: records mirrored from shaders/include/grid_types.glsl and the test shader.
-
-/// `GridParams` of grid_types.glsl.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable)]
-struct GpuGridParams {
-    bounds_min: [f32; 4],
-    bounds_max: [f32; 4],
-    dims: [u32; 4],
-    super_dims: [u32; 4],
-}
+// GPU side: records mirrored from the test shader (its `GridParams` is the renderer's,
+// mirrored by nimbus::gpu::GridParamsGpu).
 
 /// The push constants of grid_volume.comp.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 struct GpuPush {
-    grid: GpuGridParams,
+    grid: GridParamsGpu,
     query_count: u32,
     pad: [u32; 3],
 }
@@ -83,7 +75,6 @@ struct GpuResult {
     pad: [u32; 3],
 }
 
-const _: () = assert!(std::mem::size_of::<GpuGridParams>() == 64);
 const _: () = assert!(std::mem::size_of::<GpuPush>() == 80);
 const _: () = assert!(std::mem::size_of::<GpuQuery>() == 48);
 const _: () = assert!(std::mem::size_of::<GpuResult>() == 48);
@@ -98,21 +89,18 @@ struct Medium {
 }
 
 impl Medium {
-    fn params(&self) -> GpuGridParams {
+    fn params(&self) -> GridParamsGpu {
         let sv = self.grid.super_voxels(SUPER_VOXEL_FACTOR);
         let max = self.grid.data.iter().fold(0f32, |m, &v| m.max(v));
-        let [x0, y0, z0] = self.bounds_min;
-        let [x1, y1, z1] = self.bounds_max;
-        GpuGridParams {
-            bounds_min: [x0, y0, z0, self.scale],
-            bounds_max: [x1, y1, z1, max * self.scale],
-            dims: [
-                self.grid.dims[0],
-                self.grid.dims[1],
-                self.grid.dims[2],
-                sv.factor,
-            ],
-            super_dims: [sv.dims[0], sv.dims[1], sv.dims[2], 0],
+        GridParamsGpu {
+            bounds_min: self.bounds_min,
+            density_scale: self.scale,
+            bounds_max: self.bounds_max,
+            sigma_t_max: max * self.scale,
+            dims: self.grid.dims,
+            super_voxel_factor: sv.factor,
+            super_dims: sv.dims,
+            _pad0: 0,
         }
     }
 
@@ -258,7 +246,7 @@ struct Gpu {
 
 /// What a run binds for a medium: its parameters, density texels and super-voxels.
 struct GpuMedium {
-    params: GpuGridParams,
+    params: GridParamsGpu,
     dims: [u32; 3],
     density: Vec<f32>,
     super_voxels: Vec<[f32; 4]>,
@@ -664,7 +652,7 @@ fn sigma_t_equals_voxel_values_at_centres_and_zero_outside() {
             })
             .collect();
         let results = gpu.run(&handle, &queries);
-        let sigma_max = f64::from(medium.params().bounds_max[3]);
+        let sigma_max = f64::from(medium.params().sigma_t_max);
         let mut worst = 0.0f64;
         for ((x, want), result) in points.iter().zip(&expected).zip(&results) {
             let got = f64::from(result.r0[2]);

@@ -17,6 +17,7 @@ mod cli;
 mod docs;
 mod envmap_gpu;
 mod grid_volume;
+mod hard_cases;
 mod image_harness;
 mod layout;
 mod pipeline;

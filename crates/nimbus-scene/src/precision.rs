@@ -14,9 +14,9 @@
 //!   a point misplaced by δ misjudges the optical depth to the boundary by σt · δ.
 //!   Nimbus requires σt · δ ≤ [`MAX_OPTICAL_RESOLUTION`] = 1/256 (0.4 % in
 //!   transmittance), i.e. a mean free path of at least 256 resolutions. In a trilinear
-//!   grid a step from σ₀ to σ₁ over one voxel of size h is not a jump: scattering
-//!   happens where its optical depth reaches ~1, where the extinction is
-//!   σ_eff = min(σ₁, σ₀ + √(2(σ₁ − σ₀)/h)), and that is what is checked.
+//!   grid a ramp is not a jump: light enters where the optical depth from clear space
+//!   reaches ~1, and the extinction there is what is checked
+//!   ([`grid_effective_sigma_t`]); an opaque interior is never reached.
 //!
 //! A scene outside these limits is refused before anything is allocated, with the
 //! largest value that would render right and the farthest point that sets δ, so the
@@ -191,39 +191,72 @@ impl Scene {
     }
 }
 
-/// The largest effective extinction of a grid (see the module docs): its boundary
-/// voxels (the density is constant from each face to the first centre, a jump from
-/// vacuum), and for every pair of neighbouring voxels the extinction where a step
-/// between them reaches optical depth one. `scale` is `density_scale`; `voxel` the
-/// voxel size in metres per axis. Returns σ_eff and the voxel (i, j, k) it occurs at.
+/// The largest extinction where light enters a grid (see the module docs). Light enters
+/// from clear space: along every row of voxels in each of the 6 axis directions, from
+/// the face (outside is vacuum; the density is constant from the face to the first
+/// centre) and from every voxel thin enough to let light in from the side
+/// (σ · h < 1/100), the trilinear density is integrated until the optical depth reaches
+/// one, and the extinction there is what a position error multiplies. A dense interior
+/// is never reached, so it does not count; a row that never reaches depth one is thin
+/// and counts its largest extinction. `scale` is `density_scale`; `voxel` the voxel size
+/// in metres per axis. Returns σ_eff and the voxel (i, j, k) nearest where it occurs.
 pub fn grid_effective_sigma_t(grid: &VoxelGrid, scale: f64, voxel: [f64; 3]) -> (f64, [u32; 3]) {
-    let [nx, ny, nz] = grid.dims.map(|d| d as usize);
-    let at = |i: usize, j: usize, k: usize| scale * f64::from(grid.data[(k * ny + j) * nx + i]);
+    let dims = grid.dims.map(|d| d as usize);
+    let at = |ijk: [usize; 3]| {
+        scale * f64::from(grid.data[(ijk[2] * dims[1] + ijk[1]) * dims[0] + ijk[0]])
+    };
     let mut best = (0.0f64, [0u32; 3]);
     let mut consider = |sigma: f64, ijk: [usize; 3]| {
         if sigma > best.0 {
             best = (sigma, ijk.map(|v| v as u32));
         }
     };
-    for k in 0..nz {
-        for j in 0..ny {
-            for i in 0..nx {
-                let s = at(i, j, k);
-                if i == 0 || j == 0 || k == 0 || i + 1 == nx || j + 1 == ny || k + 1 == nz {
-                    consider(s, [i, j, k]);
-                }
-                for (axis, (ni, nj, nk)) in
-                    [(0, (i + 1, j, k)), (1, (i, j + 1, k)), (2, (i, j, k + 1))]
-                {
-                    if ni >= nx || nj >= ny || nk >= nz {
-                        continue;
+    for axis in 0..3 {
+        let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+        let n = dims[axis];
+        let h = voxel[axis];
+        for a in 0..dims[u] {
+            for b in 0..dims[v] {
+                let cell = |m: usize| {
+                    let mut ijk = [0usize; 3];
+                    ijk[axis] = m;
+                    ijk[u] = a;
+                    ijk[v] = b;
+                    ijk
+                };
+                for forward in [true, false] {
+                    let index = |step: usize| if forward { step } else { n - 1 - step };
+                    // From the face: a constant half voxel of the first centre's value.
+                    let first = at(cell(index(0)));
+                    let mut tau = first * 0.5 * h;
+                    let mut entered = tau >= 1.0;
+                    if entered {
+                        consider(first, cell(index(0)));
                     }
-                    let t = at(ni, nj, nk);
-                    let (lo, hi) = if s < t { (s, t) } else { (t, s) };
-                    // Domain: voxel sizes > 0 (validated extents and dims).
-                    let ramp = lo + (2.0 * (hi - lo) / voxel[axis]).sqrt();
-                    let ijk = if s < t { [ni, nj, nk] } else { [i, j, k] };
-                    consider(hi.min(ramp), ijk);
+                    let mut row_max = first;
+                    for step in 1..n {
+                        let (sa, sb) = (at(cell(index(step - 1))), at(cell(index(step))));
+                        row_max = row_max.max(sb);
+                        // A voxel thin enough to let light in from the side: start over.
+                        if sa * h < 0.01 {
+                            tau = 0.0;
+                            entered = false;
+                        }
+                        let segment = 0.5 * (sa + sb) * h;
+                        if !entered && tau + segment >= 1.0 {
+                            // Linear density sa -> sb over h: depth r = 1 - tau is reached
+                            // where sigma = sqrt(sa^2 + 2 (sb - sa) r / h).
+                            let r = 1.0 - tau;
+                            let sigma = (sa * sa + 2.0 * (sb - sa) * r / h).max(0.0).sqrt();
+                            consider(sigma.min(sa.max(sb)), cell(index(step)));
+                            entered = true;
+                        }
+                        tau += segment;
+                    }
+                    if !entered && tau < 1.0 {
+                        // Thin all the way: every extinction of the row is seen.
+                        consider(row_max, cell(index(0)));
+                    }
                 }
             }
         }
@@ -389,8 +422,26 @@ mod tests {
         grid.data[2 + 5 * (2 + 5 * 2)] = 1e6;
         let (sigma, ijk) = grid_effective_sigma_t(&grid, 1.0, [0.1; 3]);
         assert_eq!(ijk, [2, 2, 2]);
-        let ramp = 0.5 + (2.0 * (1e6 - 0.5) / 0.1f64).sqrt();
+        // Two clear voxels (depth 0.025 + 0.05) before the ramp into the hot one.
+        let r = 1.0 - (0.5 * 0.5 * 0.1 + 0.5 * 0.1);
+        let ramp = (0.25 + 2.0 * (1e6 - 0.5) * r / 0.1f64).sqrt();
         assert!((sigma - ramp).abs() < 1e-6 * ramp, "{sigma} {ramp}");
+        // A dense interior behind an opaque shell is never reached: a 5³ block of 1e6
+        // inside a grid whose outer shell is already opaque (1e3 over 0.1 m) counts the
+        // shell's entry, not the interior.
+        let mut shell = VoxelGrid {
+            dims: [7, 7, 7],
+            channels: 1,
+            data: vec![1e3; 343],
+        };
+        for k in 1..6 {
+            for j in 1..6 {
+                for i in 1..6 {
+                    shell.data[i + 7 * (j + 7 * k)] = 1e6;
+                }
+            }
+        }
+        assert_eq!(grid_effective_sigma_t(&shell, 1.0, [0.1; 3]).0, 1e3);
         // A uniform grid's boundary jumps from vacuum to its full density.
         let uniform = VoxelGrid {
             dims: [3, 3, 3],

@@ -132,6 +132,33 @@ impl VoxelGrid {
         current
     }
 
+    /// One step of a minimum pyramid: ceil(n/2) per axis, each value the minimum of the
+    /// existing 2×2×2 children (channel 0; the result has one channel).
+    pub fn min_downsample(&self) -> VoxelGrid {
+        let dims = self.dims.map(|n| n.div_ceil(2).max(1));
+        let mut data = Vec::with_capacity(dims.iter().map(|&d| d as usize).product());
+        for k in 0..dims[2] {
+            for j in 0..dims[1] {
+                for i in 0..dims[0] {
+                    let mut m = f32::INFINITY;
+                    for kk in (2 * k)..(2 * k + 2).min(self.dims[2]) {
+                        for jj in (2 * j)..(2 * j + 2).min(self.dims[1]) {
+                            for ii in (2 * i)..(2 * i + 2).min(self.dims[0]) {
+                                m = m.min(self.get(ii, jj, kk));
+                            }
+                        }
+                    }
+                    data.push(m);
+                }
+            }
+        }
+        VoxelGrid {
+            dims,
+            channels: 1,
+            data,
+        }
+    }
+
     /// The conservative piecewise-constant grid of Volumetric ReSTIR sec. 4.1, for
     /// regular tracking: each voxel keeps its own (nearest) density, and a voxel whose
     /// density is 0 takes the average density of its neighbours — all 26 voxels of

@@ -27,7 +27,7 @@ use crate::budget::{grid_bytes, level_dims, Binding, Footprint};
 use crate::gpu::features::*;
 use crate::gpu::{
     frame_uniforms, non_empty, BaselineUniformsGpu, FrameUniforms, GpuGrid, LightGpu, LightSet,
-    RestirPush, RestirUniformsGpu,
+    RecordCounts, RestirPush, RestirUniformsGpu,
 };
 use crate::plan::RestirPlan;
 
@@ -67,6 +67,8 @@ pub struct RestirPass {
     prev_slot: Option<u32>,
     /// The previous-frame uniforms last uploaded.
     prev_uploaded: Option<FrameUniforms>,
+    /// The levels the plan asked for (the volumes hold those used).
+    plan_levels: volumes::Levels,
 }
 
 impl RestirPass {
@@ -96,43 +98,29 @@ impl RestirPass {
         let dims = density.dims;
         let volumes = Volumes::load(density, grid, plan, &scene.position_scale(), &grid_label)?;
         let first = volumes.base()?;
+        let levels = volumes.levels;
+        // Voxels per block edge of a mip level.
+        let factor = |level: u32| 1 << level.min(last_level(dims));
         let restir_uniforms = RestirUniformsGpu {
-            pc_primary: first.pc_primary,
-            pc_indirect: first.pc_indirect,
-            factors: [
-                plan.mip_candidates,
-                plan.mip_indirect,
-                plan.mip_reuse,
-                plan.mip_indirect,
-            ]
-            .map(|level| 1 << level.min(last_level(dims))),
-            march_dims: [
-                first.march_reuse.dims[0],
-                first.march_reuse.dims[1],
-                first.march_reuse.dims[2],
-                0,
-            ],
-            nee_dims: [
-                first.march_nee.dims[0],
-                first.march_nee.dims[1],
-                first.march_nee.dims[2],
-                0,
-            ],
-            settings: [
-                plan.candidates,
-                plan.temporal_limit,
-                plan.spatial_neighbors,
-                (stride_bytes / 4) as u32,
-            ],
-            spatial: [
-                plan.spatial_radius_px,
-                march_step(grid, dims, plan.mip_reuse),
-                march_step(grid, dims, plan.mip_indirect),
-                0.0,
-            ],
-            velocity_dims: velocity
-                .as_ref()
-                .map_or([1, 1, 1, 0], |v| [v.dims[0], v.dims[1], v.dims[2], 0]),
+            pc_primary_dims: first.pc_primary_dims,
+            pc_primary_offset: 0,
+            pc_indirect_dims: first.pc_indirect_dims,
+            pc_indirect_offset: first.pc_indirect_offset,
+            pc_primary_factor: factor(levels.candidates),
+            pc_indirect_factor: factor(levels.indirect),
+            march_reuse_factor: factor(levels.reuse),
+            march_nee_factor: factor(levels.indirect),
+            march_reuse_dims: first.march_reuse.dims,
+            march_nee_dims: first.march_nee.dims,
+            candidates: plan.candidates,
+            temporal_limit: plan.temporal_limit,
+            spatial_neighbors: plan.spatial_neighbors,
+            reservoir_stride: (stride_bytes / 4) as u32,
+            spatial_radius: plan.spatial_radius_px,
+            march_reuse_step: march_step(grid, dims, levels.reuse),
+            march_nee_step: march_step(grid, dims, levels.indirect),
+            velocity_dims: velocity.as_ref().map_or([1, 1, 1], |v| v.dims),
+            ..RestirUniformsGpu::default()
         };
         let inputs = Inputs {
             grid: &grid_gpu,
@@ -155,7 +143,10 @@ impl RestirPass {
             },
             constants: FrameConstants {
                 env_radiance: grid_gpu.env_radiance,
-                counts: [0, 0, grid_gpu.lights.len() as u32, 0],
+                counts: RecordCounts {
+                    lights: grid_gpu.lights.len() as u32,
+                    ..RecordCounts::default()
+                },
             },
             grid: grid.clone(),
             volumes,
@@ -165,6 +156,11 @@ impl RestirPass {
             loaded: (0, 0),
             prev_slot: None,
             prev_uploaded: None,
+            plan_levels: volumes::Levels {
+                candidates: plan.mip_candidates,
+                indirect: plan.mip_indirect,
+                reuse: plan.mip_reuse,
+            },
         })
     }
 
@@ -189,7 +185,7 @@ impl RestirPass {
             bytemuck::cast_slice(&records),
         )?;
         let mut base = self.base_uniforms;
-        base.env_select[0] = cur.env_select;
+        base.env_select = cur.env_select;
         ctx.upload_buffer(
             &self.objects[self.res.base_uniforms],
             0,
@@ -306,6 +302,30 @@ impl Pass for RestirPass {
 
     fn device_bytes(&self) -> u64 {
         self.objects.bytes()
+    }
+
+    fn notes(&self) -> Vec<String> {
+        let l = self.volumes.levels;
+        let asked = (
+            self.plan_levels.candidates,
+            self.plan_levels.indirect,
+            self.plan_levels.reuse,
+        );
+        if (l.candidates, l.indirect, l.reuse) == asked {
+            return Vec::new();
+        }
+        vec![format!(
+            "ReSTIR used mip levels {}/{}/{} (candidates/indirect/reuse) instead of {}/{}/{}: \
+             coarser levels would spread the grid's sharpest density steps over more than \
+             {} optical depths and stop sampling paths that contribute",
+            l.candidates,
+            l.indirect,
+            l.reuse,
+            asked.0,
+            asked.1,
+            asked.2,
+            volumes::MAX_LEVEL_EXCESS_TAU
+        )]
     }
 
     fn destroy(self: Box<Self>, ctx: &Context) {

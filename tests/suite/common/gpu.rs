@@ -33,6 +33,7 @@ pub fn render_checked(ctx: &Context, scene: &Scene, box_samples: Option<u32>) ->
     let result = render(ctx, scene, &plan, &RenderOptions::default()).expect("render");
     assert_no_validation_errors(ctx);
     assert_eq!(result.non_finite_samples, 0, "non-finite samples");
+    assert_eq!(result.step_cap_hits, 0, "walks stopped at the step limit");
     assert!(result.image.first_non_finite().is_none());
     result
 }

@@ -357,15 +357,22 @@ pub(super) fn existing_file(
 /// Three lengths in (0, [`MAX_LENGTH_M`]].
 pub(super) fn size3(f: &Fields, key: &str) -> Result<Vec3> {
     let size = f.vec3_f64(key, None)?;
+    let size32 = size.as_vec3();
     for axis in 0..3 {
-        if let Some(message) = positive_up_to(MAX_LENGTH_M)(size[axis]) {
+        // The f32 the renderer sees must pass too (1e-46 rounds to 0).
+        let problem = positive_up_to(MAX_LENGTH_M)(size[axis])
+            .or_else(|| positive_up_to(MAX_LENGTH_M)(f64::from(size32[axis])));
+        if let Some(message) = problem {
             return Err(f.error(
                 key,
-                format!("component {axis} is {}, {message}", size[axis]),
+                format!(
+                    "component {axis} is {} ({} as a 32-bit float), {message}",
+                    size[axis], size32[axis]
+                ),
             ));
         }
     }
-    Ok(size.as_vec3())
+    Ok(size32)
 }
 
 fn parse_shape(source: &Source, index: usize, table: &toml::Table) -> Result<Shape> {

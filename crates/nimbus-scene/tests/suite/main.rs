@@ -10,6 +10,7 @@ mod assets;
 mod bad_scenes;
 mod conventions;
 mod envmap;
+mod fuzz;
 mod good_scenes;
 mod mesh_bvh;
 mod mesh_load;
