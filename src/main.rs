@@ -146,6 +146,11 @@ struct RenderArgs {
     /// Exposure multiplier applied before tonemapping a .png (finite, > 0).
     #[arg(long, default_value_t = 1.0, value_parser = parse_exposure)]
     exposure: f32,
+    /// Leave out the environment where camera rays see it directly (it still lights the
+    /// scene): the image is then the foreground alone, premultiplied by its alpha, ready
+    /// to composite over a plate ([render] transparent_background = true).
+    #[arg(long)]
+    transparent: bool,
     /// Tone curve of a .png: aces (Narkowicz's ACES fit), filmic (Hable's curve) or
     /// clamp (none: values above 1 clip).
     #[arg(long, default_value = "aces", value_parser = ["aces", "filmic", "clamp"])]

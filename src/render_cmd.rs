@@ -103,7 +103,14 @@ fn summary(path: &Path, scene: &Scene, result: &RenderResult) -> String {
 }
 
 pub(super) fn render(args: RenderArgs) -> Result<ExitCode> {
-    let scene = load_scene(args.scene.as_deref(), &args.overrides.fields(args.frames)?)?;
+    let mut fields = args.overrides.fields(args.frames)?;
+    if args.transparent {
+        fields.insert(
+            0,
+            nimbus_scene::FieldOverride::new("render.transparent_background", true),
+        );
+    }
+    let scene = load_scene(args.scene.as_deref(), &fields)?;
     let plan = plan::build(&scene, None)?;
     if args.explain {
         print!("{}", plan.explain(&scene));

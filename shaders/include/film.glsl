@@ -5,8 +5,10 @@
 // frame's uniforms `u_frame` (FrameUniforms: image = width, height, spp, seed) and the
 // three film buffers.
 //
-// accum[p]    rgb: sum over frames of the frame's pixel estimate, a: frames
-// accum_sq[p] rgb: sum of squares of the frame estimates (the renderer's standard error)
+// accum[p]    rgb: sum over frames of the frame's pixel estimate; a: sum of its coverage
+//             (alpha = 1 - the camera ray's transmittance, see g_camera_transmittance)
+// accum_sq[p] sum of squares of the same (the renderer's standard errors). The renderer
+//             counts the frames itself.
 // A non-finite sample is never written: it is counted in stats[STAT_NON_FINITE] and the
 // pass decides what stands for it (left out of the mean, or 0). Walks cut short at
 // GRID_MAX_STEPS are counted in stats[STAT_STEP_CAP].
@@ -59,12 +61,19 @@ void film_flush_counters() {
     }
 }
 
-// Add one frame's estimate of `pixel` to the running sums.
-void film_accumulate(uvec2 pixel, vec3 estimate) {
+// Add one frame's estimate of `pixel` (radiance, coverage alpha) to the running sums.
+void film_accumulate(uvec2 pixel, vec3 estimate, float alpha) {
     uint index = pixel.y * u_frame.width + pixel.x;
-    accum[index] += vec4(estimate, 1.0);
-    accum_sq[index] += vec4(estimate * estimate, 0.0);
+    vec4 x = vec4(estimate, alpha);
+    accum[index] += x;
+    accum_sq[index] += x * x;
 }
+
+// The transmittance of the camera ray through every medium up to the first opaque surface
+// or emitter it meets (0 when it meets one), set by the integrator for the camera sample
+// it traces: the film's alpha is 1 - its mean. A pass that never sets it leaves the
+// pixel opaque.
+float g_camera_transmittance = 0.0;
 
 // ---------------------------------------------------------------------------------------
 // The pixel loop of the path tracers (crepuscular, baseline): u_frame.spp camera
@@ -75,22 +84,27 @@ void film_accumulate(uvec2 pixel, vec3 estimate) {
 // that calls film_pixel_estimate defines it.
 vec3 radiance(vec3 o, vec3 d, inout uint rng);
 
-// The frame's estimate of `pixel`: the mean of its finite camera samples (0 if none).
-// Sample s of the frame draws from the stream (pixel, frame, sample_base + s, seed).
-vec3 film_pixel_estimate(uvec2 pixel, uint frame, uint sample_base) {
+// The frame's estimate of `pixel`: rgb the mean radiance of its finite camera samples, a
+// the mean coverage 1 - T of the same samples (0 and 1 if none is finite). Sample s of
+// the frame draws from the stream (pixel, frame, sample_base + s, seed).
+vec4 film_pixel_estimate(uvec2 pixel, uint frame, uint sample_base) {
     vec3 sum = vec3(0.0);
+    float coverage = 0.0;
     uint kept = 0u;
     for (uint s = 0u; s < u_frame.spp; ++s) {
         uint rng = rng_init(pixel, frame, sample_base + s, u_frame.seed);
         vec2 px = vec2(pixel) + pixel_jitter(rng);
+        g_camera_transmittance = 0.0;
         vec3 L = radiance(u_frame.cam_position, camera_direction(u_frame, px), rng);
         if (film_sample_finite(L)) {
             sum += L;
+            coverage += 1.0 - clamp(g_camera_transmittance, 0.0, 1.0);
             kept += 1u;
         }
     }
     film_flush_counters();
-    return kept > 0u ? sum / float(kept) : vec3(0.0);
+    // Domain: kept >= 1 where divided.
+    return kept > 0u ? vec4(sum, coverage) / float(kept) : vec4(0.0, 0.0, 0.0, 1.0);
 }
 
 #endif

@@ -9,6 +9,7 @@
 
 mod common;
 
+mod alpha;
 mod baseline;
 mod box_analytic;
 mod box_estimators;

@@ -40,6 +40,11 @@ pub struct RenderSettings {
     /// centre — the radiance at the centre instead of the footprint mean, for tests
     /// and estimator studies that need the same camera ray in every sample.
     pub pixel_jitter: bool,
+    /// Nimbus setting `[render] transparent_background` (default false): camera rays
+    /// that leave the scene see nothing instead of the environment, so the image is the
+    /// foreground alone, premultiplied by its alpha, ready to composite over a plate.
+    /// The environment still lights the scene.
+    pub transparent_background: bool,
 }
 
 impl Default for RenderSettings {
@@ -51,6 +56,7 @@ impl Default for RenderSettings {
             spp: 1,
             seed: 0,
             pixel_jitter: true,
+            transparent_background: false,
         }
     }
 }

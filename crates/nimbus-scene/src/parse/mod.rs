@@ -32,7 +32,15 @@ pub const MAX_IMAGE_SIDE: u32 = 16384;
 pub const MAX_IMAGE_PIXELS: u64 = 64 << 20;
 
 const TOP_KEYS: &[&str] = &["render", "camera", "light", "medium", "shape", "integrator"];
-const RENDER_KEYS: &[&str] = &["width", "height", "frames", "spp", "seed", "pixel_jitter"];
+const RENDER_KEYS: &[&str] = &[
+    "width",
+    "height",
+    "frames",
+    "spp",
+    "seed",
+    "pixel_jitter",
+    "transparent_background",
+];
 const CAMERA_KEYS: &[&str] = &[
     "position",
     "look_at",
@@ -201,6 +209,9 @@ fn parse_render(source: &Source, table: &toml::Table) -> Result<RenderSettings> 
         spp: f.u32_in("spp", Some(defaults.spp), 1..=65536)?,
         seed: f.int_in("seed", Some(0), 0..=i64::MAX)? as u64,
         pixel_jitter: f.opt_bool("pixel_jitter")?.unwrap_or(defaults.pixel_jitter),
+        transparent_background: f
+            .opt_bool("transparent_background")?
+            .unwrap_or(defaults.transparent_background),
     })
 }
 

@@ -227,7 +227,8 @@ final_transmittance = "ratio"
             frames: 8,
             spp: 4,
             seed: 42,
-            pixel_jitter: false
+            pixel_jitter: false,
+            transparent_background: false,
         }
     );
     let camera = &scene.camera;
