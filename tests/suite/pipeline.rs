@@ -420,3 +420,52 @@ fn frames_of_an_animation_are_their_own_images() {
     let out = nimbus(&["render", "--frame", "1", "--out", &path("x.exr")]);
     assert!(!out.status.success() && text(&out.stderr).contains("static"));
 }
+
+/// ReSTIR's frames are correlated through temporal reuse; its error estimate comes from
+/// batch means of 20 frames (temporal_limit 4). Two independent chains (seeds) then
+/// differ by what their estimates predict, sqrt(e1² + e2²) (measured: 1.08 times it at
+/// this size; 1.07 at 48x36 with 400 frames).
+#[test]
+fn restir_error_estimates_account_for_correlated_frames() {
+    let dir = scratch("restir-error");
+    let scene = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/assets/scenes/cloud-restir.toml"
+    );
+    let chain = |seed: &str| {
+        let path = dir.join(format!("seed{seed}.exr"));
+        let out = nimbus(&[
+            "render",
+            scene,
+            "--width",
+            "24",
+            "--height",
+            "18",
+            "--frames",
+            "200",
+            "--seed",
+            seed,
+            "--out",
+            path.to_str().unwrap(),
+        ]);
+        let stderr = text(&out.stderr);
+        assert!(out.status.success(), "{stderr}");
+        assert!(
+            stderr.contains("batch means of 20 correlated frames"),
+            "{stderr}"
+        );
+        read_layers(&path).unwrap()
+    };
+    let (a, b) = (chain("1"), chain("2"));
+    assert_eq!(a.attributes["error_batch"], "20");
+    assert_eq!(a.attributes["estimates"], "10");
+    let e = |l: &nimbus::output::Layers| l.attributes["rel_error"].parse::<f64>().unwrap();
+    let predicted = (e(&a).powi(2) + e(&b).powi(2)).sqrt();
+    let measured = relative_rmse(&a.color, &b.color);
+    println!("restir: two chains differ by {measured:.4}, their estimates predict {predicted:.4}");
+    let ratio = measured / predicted;
+    assert!(
+        (0.7..=1.4).contains(&ratio),
+        "measured {measured:.4} vs predicted {predicted:.4}"
+    );
+}
