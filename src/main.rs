@@ -285,6 +285,13 @@ fn run(cli: Cli) -> Result<ExitCode> {
 
 fn merge_cmd(args: MergeArgs) -> Result<()> {
     output::check_writable(&args.out).context("--out")?;
+    anyhow::ensure!(
+        args.out
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("exr")),
+        "--out {}: a merge writes an .exr (its stderr layer and metadata need one)",
+        args.out.display()
+    );
     let info = nimbus::merge::merge_files(&args.out, &args.inputs)?;
     eprintln!(
         "merged {} renders (seeds {}) into {}: {} samples per pixel, relative error {}",
