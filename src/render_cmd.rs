@@ -87,9 +87,13 @@ fn summary(path: &Path, scene: &Scene, result: &RenderResult) -> String {
         ),
         Some(e) => format!("{e:.4}"),
     };
+    let dropped = match result.non_finite_samples {
+        0 => String::new(),
+        n => format!(", {n} non-finite sample(s) dropped"),
+    };
     format!(
         "wrote {} ({}x{}, {} frame(s) x {} spp = {} samples per pixel) in {:.2} s, \
-         GPU {:.1} ms, relative error {error}, stopped: {}",
+         GPU {:.1} ms, relative error {error}, stopped: {}{dropped}",
         path.display(),
         r.width,
         r.height,
