@@ -191,10 +191,22 @@ pub struct ImagePass {
     pipeline: Handle<ComputePipeline>,
     set: Handle<DescriptorSet>,
     constants: FrameConstants,
-    /// Camera samples per pixel one dispatch takes: the frame's spp, or 1 on a device
-    /// that limits the loop iterations of an invocation (each dispatch then adds its
-    /// own estimate to the sums).
+    /// Camera samples per pixel one dispatch takes: all of the frame's where the device
+    /// has no loop limit, else as many as fit its loop budget (each dispatch then adds
+    /// its own estimate to the sums).
     samples_per_dispatch: u32,
+}
+
+/// Camera samples one dispatch may take on a device with a loop budget (see
+/// [`nimbus_gpu::DeviceInfo::loop_budget`]) when one sample may run `sample_cost` loop
+/// iterations: a quarter of the budget (the walk's random collisions and a margin), at
+/// least 1. Few dispatches per frame keep the film's f32 sums as short as they were
+/// (one addition per frame), so sky pixels stay exact to rounding.
+pub fn samples_per_dispatch(budget: Option<u32>, sample_cost: u32) -> u32 {
+    match budget {
+        None => u32::MAX,
+        Some(b) => (b / 4 / sample_cost.max(1)).max(1),
+    }
 }
 
 impl ImagePass {
@@ -205,6 +217,7 @@ impl ImagePass {
         pipeline: Handle<ComputePipeline>,
         set: Handle<DescriptorSet>,
         constants: FrameConstants,
+        sample_cost: u32,
     ) -> ImagePass {
         ImagePass {
             label,
@@ -212,11 +225,7 @@ impl ImagePass {
             pipeline,
             set,
             constants,
-            samples_per_dispatch: if ctx.info().loop_budget().is_some() {
-                1
-            } else {
-                u32::MAX
-            },
+            samples_per_dispatch: samples_per_dispatch(ctx.info().loop_budget(), sample_cost),
         }
     }
 }
