@@ -100,6 +100,13 @@ impl Footprint {
         let render = format!("{file}: [render] fields `width` x `height`");
         f.add(&render, Binding::Storage, pixels * 16);
         f.add(&render, Binding::Storage, pixels * 16);
+        // The film's partial sums: per pixel on lavapipe, where a frame's samples may be
+        // shared among dispatches (counted everywhere: an upper bound).
+        f.add(
+            &render,
+            Binding::Storage,
+            crate::renderer::film_partial_bytes(true, pixels),
+        );
         f.add(
             "frame uniforms",
             Binding::Uniform,

@@ -217,6 +217,5 @@ void main() {
     if (!film_contains(pixel)) {
         return;
     }
-    vec4 estimate = film_pixel_estimate(pixel, u_push.frame, u_push.sample_base);
-    film_accumulate(pixel, estimate.rgb, estimate.a);
+    film_take_samples(pixel, u_push.frame, u_push.sample_base, u_push.sample_count);
 }

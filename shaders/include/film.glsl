@@ -3,7 +3,7 @@
 // file after its specialization constants (SC_PIXEL_JITTER at least): it sets the
 // workgroup (one invocation per pixel, GROUP_SIZE_X x GROUP_SIZE_Y) and declares the
 // frame's uniforms `u_frame` (FrameUniforms: image = width, height, spp, seed) and the
-// three film buffers.
+// four film buffers.
 //
 // accum[p]    rgb: sum over frames of the frame's pixel estimate; a: sum of its coverage
 //             (alpha = 1 - the camera ray's transmittance, see g_camera_transmittance)
@@ -33,6 +33,12 @@ layout(std430, set = 0, binding = BINDING_ACCUM_SQ) buffer AccumSqBlock {
 layout(std430, set = 0, binding = BINDING_STATS) buffer StatsBlock {
     uint stats[];
 };
+// Per pixel, two vec4: a frame's radiance and coverage sums so far and its count of
+// finite samples, while the frame's samples are shared among dispatches (see
+// film_take_samples; one element where the device takes a frame in one dispatch).
+layout(std430, set = 0, binding = BINDING_FILM_PARTIAL) buffer FilmPartialBlock {
+    vec4 film_partial[];
+};
 
 #include "camera.glsl"
 #include "counters.glsl"
@@ -59,6 +65,18 @@ void film_flush_counters() {
         atomicAdd(stats[STAT_STEP_CAP], g_step_cap_hits);
         g_step_cap_hits = 0u;
     }
+    // lavapipe (llvmpipe) silently ends every loop of an invocation once 65535 loop
+    // iterations (all loops together) have run in it, so a long invocation returns a cut
+    // estimate. A loop of two trips that the compiler cannot count ahead then runs once:
+    // count it, and the renderer refuses the image.
+    uint trips = 2u + (u_frame.width >> 31u);
+    uint runs = 0u;
+    for (uint i = 0u; i < trips; ++i) {
+        runs += 1u;
+    }
+    if (runs < trips) {
+        atomicAdd(stats[STAT_LOOPS_CUT], 1u);
+    }
 }
 
 // Add one frame's estimate of `pixel` (radiance, coverage alpha) to the running sums.
@@ -76,22 +94,34 @@ void film_accumulate(uvec2 pixel, vec3 estimate, float alpha) {
 float g_camera_transmittance = 0.0;
 
 // ---------------------------------------------------------------------------------------
-// The pixel loop of the path tracers (crepuscular, baseline): u_frame.spp camera
-// samples per pixel per frame, each with its own random stream, jittered over the
+// The pixel loop of the path tracers (crepuscular, baseline): the frame's u_frame.spp
+// camera samples per pixel, taken by one dispatch or shared among several (each adds
+// its own estimate to the sums), each with its own random stream, jittered over the
 // pixel's footprint (box filter).
 
 // Radiance arriving at o from direction -d, estimated by the including pass; only a pass
 // that calls film_pixel_estimate defines it.
 vec3 radiance(vec3 o, vec3 d, inout uint rng);
 
-// The frame's estimate of `pixel`: rgb the mean radiance of its finite camera samples, a
-// the mean coverage 1 - T of the same samples (0 and 1 if none is finite). Sample s of
-// the frame draws from the stream (pixel, frame, sample_base + s, seed).
-vec4 film_pixel_estimate(uvec2 pixel, uint frame, uint sample_base) {
+// The path tracers' pixel loop: a frame's u_frame.spp camera samples of `pixel`
+// are drawn by one dispatch (sample_base = 0, sample_count = spp) or by several in turn
+// where the device limits loop iterations. Sample s draws from the stream (pixel, frame,
+// s, seed). A share that does not end the frame leaves its sums (radiance, coverage,
+// finite samples) in film_partial; the one that ends it adds the frame's estimate (rgb
+// the mean radiance of its finite samples, a the mean coverage 1 - T; 0 and 1 if none is
+// finite) to the film: one estimate per pixel and frame, however the frame was shared.
+void film_take_samples(uvec2 pixel, uint frame, uint sample_base, uint sample_count) {
+    uint index = pixel.y * u_frame.width + pixel.x;
     vec3 sum = vec3(0.0);
     float coverage = 0.0;
-    uint kept = 0u;
-    for (uint s = 0u; s < u_frame.spp; ++s) {
+    float kept = 0.0;
+    if (sample_base > 0u) {
+        vec4 a = film_partial[2u * index];
+        sum = a.rgb;
+        coverage = a.a;
+        kept = film_partial[2u * index + 1u].x;
+    }
+    for (uint s = 0u; s < sample_count; ++s) {
         uint rng = rng_init(pixel, frame, sample_base + s, u_frame.seed);
         vec2 px = vec2(pixel) + pixel_jitter(rng);
         g_camera_transmittance = 0.0;
@@ -99,12 +129,18 @@ vec4 film_pixel_estimate(uvec2 pixel, uint frame, uint sample_base) {
         if (film_sample_finite(L)) {
             sum += L;
             coverage += 1.0 - clamp(g_camera_transmittance, 0.0, 1.0);
-            kept += 1u;
+            kept += 1.0;
         }
     }
     film_flush_counters();
+    if (sample_base + sample_count < u_frame.spp) {
+        film_partial[2u * index] = vec4(sum, coverage);
+        film_partial[2u * index + 1u] = vec4(kept, 0.0, 0.0, 0.0);
+        return;
+    }
     // Domain: kept >= 1 where divided.
-    return kept > 0u ? vec4(sum, coverage) / float(kept) : vec4(0.0, 0.0, 0.0, 1.0);
+    vec4 estimate = kept > 0.0 ? vec4(sum, coverage) / kept : vec4(0.0, 0.0, 0.0, 1.0);
+    film_accumulate(pixel, estimate.rgb, estimate.a);
 }
 
 #endif

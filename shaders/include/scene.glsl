@@ -82,7 +82,7 @@ struct FrameUniforms {
 struct PassPush {
     uint frame;        // frame index within the render
     uint sample_base;  // index of this dispatch's first sample per pixel
-    uint _pad0;
+    uint sample_count; // samples per pixel this dispatch takes
     uint _pad1;
 };
 

@@ -235,11 +235,17 @@ pub fn render_each(
             &BufferDesc::gpu_only((bindings::STAT_COUNT * 4) as u64, storage),
             "stats",
         )?);
+        let partial_bytes = film_partial_bytes(ctx.info().loop_budget().is_some(), pixels);
+        let film_partial = o.add(ctx.create_buffer(
+            &BufferDesc::gpu_only(partial_bytes, storage),
+            "film partial sums",
+        )?);
         Ok(TargetHandles {
             uniforms,
             accum,
             accum_sq,
             stats,
+            film_partial,
         })
     })?;
     let result = (|| {
@@ -280,6 +286,17 @@ struct TargetHandles {
     accum: Handle<Buffer>,
     accum_sq: Handle<Buffer>,
     stats: Handle<Buffer>,
+    film_partial: Handle<Buffer>,
+}
+
+/// Bytes of the film's partial-sum buffer: two vec4 per pixel where a frame's samples
+/// may be shared among dispatches (a device with a loop budget), one element elsewhere.
+pub fn film_partial_bytes(shared_frames: bool, pixels: u64) -> u64 {
+    if shared_frames {
+        pixels * 32
+    } else {
+        32
+    }
 }
 
 impl TargetHandles {
@@ -289,6 +306,7 @@ impl TargetHandles {
             accum: &objects[self.accum],
             accum_sq: &objects[self.accum_sq],
             stats: &objects[self.stats],
+            film_partial: &objects[self.film_partial],
         }
     }
 }
@@ -569,6 +587,18 @@ impl Run<'_> {
         let e = film::estimate(&totals, state.batches.as_ref());
         let stats: Vec<u32> =
             bytemuck::pod_collect_to_vec(&self.ctx.readback_buffer(self.targets.stats)?);
+        let loops_cut = stats[bindings::STAT_LOOPS_CUT];
+        if loops_cut > 0 {
+            bail!(
+                "{}: device '{}' cut the loops of {loops_cut} shader invocation(s) short \
+                 (llvmpipe ends every loop of an invocation after 65535 iterations in all), so \
+                 the image would be wrong; less work per pixel per frame renders right (lower \
+                 [render] spp, [integrator] box_samples or max_bounces, [integrator.restir] \
+                 spatial_neighbors), or use a GPU",
+                self.scene.source.display(),
+                self.ctx.info().name,
+            );
+        }
         let mut image = ImageRgb::new(r.width, r.height);
         let mut std_error = ImageRgb::new(r.width, r.height);
         for (i, (m, s)) in e.mean.iter().zip(&e.std_error).enumerate() {

@@ -133,7 +133,8 @@ impl<'a> Fields<'a> {
             return Err(self.error(
                 key,
                 format!(
-                    "{value} is out of range, must be in [{}, {}]",
+                    "{} is out of range, must be in [{}, {}]",
+                    show(value),
                     range.start(),
                     range.end()
                 ),
@@ -166,7 +167,7 @@ impl<'a> Fields<'a> {
             None => return self.required(key, default),
         };
         if let Some(message) = check(value) {
-            return Err(self.error(key, format!("{value} is out of range, {message}")));
+            return Err(self.error(key, format!("{} is out of range, {message}", show(value))));
         }
         // The renderer sees the f32: check it too (179.999999999 rounds to 180).
         let v32 = value as f32;
@@ -318,7 +319,10 @@ impl<'a> Fields<'a> {
         };
         for (channel, x) in rgb.iter().enumerate() {
             if let Some(message) = check(*x) {
-                return Err(self.error(key, format!("component {channel} is {x}, {message}")));
+                return Err(self.error(
+                    key,
+                    format!("component {channel} is {}, {message}", show(*x)),
+                ));
             }
             let x32 = *x as f32;
             if let Some(message) = check(f64::from(x32)) {
@@ -367,6 +371,17 @@ impl<'a> Fields<'a> {
     /// The raw value of `key`.
     pub fn value(&self, key: &str) -> Option<&'a Value> {
         self.map.get(key)
+    }
+}
+
+/// A number for a message: plain when short, in scientific notation when very large or
+/// small (1e38 rather than 39 digits).
+pub(crate) fn show(x: f64) -> String {
+    let a = x.abs();
+    if a != 0.0 && !(1e-4..1e7).contains(&a) {
+        format!("{x:e}")
+    } else {
+        format!("{x}")
     }
 }
 

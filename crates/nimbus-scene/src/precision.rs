@@ -63,8 +63,8 @@ impl PositionScale {
     pub fn feature_problem(&self, size: f64) -> Option<String> {
         (size < self.min_feature()).then(|| {
             format!(
-                "{size:e} m is below what 32-bit positions resolve in this scene: it reaches \
-                 {:e} m from the origin ({}), where positions are known to {:.2e} m, and \
+                "{size:.3e} m is below what 32-bit positions resolve in this scene: it reaches \
+                 {:.3e} m from the origin ({}), where positions are known to {:.2e} m, and \
                  features must span at least {MIN_FEATURE_RESOLUTIONS} of those ({:.2e} m); \
                  move the scene closer to the origin or shrink its extent",
                 self.extent,
@@ -80,7 +80,7 @@ impl PositionScale {
         (sigma_t > self.max_sigma_t()).then(|| {
             format!(
                 "{what} {sigma_t:e} /m gives a mean free path of {:.2e} m, below what 32-bit \
-                 positions resolve in this scene (it reaches {:e} m from the origin ({}), \
+                 positions resolve in this scene (it reaches {:.3e} m from the origin ({}), \
                  where positions are known to {:.2e} m); at most {:.3e} /m renders right \
                  here: lower the extinction, or move the scene closer to the origin",
                 1.0 / sigma_t,

@@ -74,6 +74,9 @@ pub const RESTIR_KEYS: &[&str] = &[
     "mip_indirect",
     "mip_reuse",
     "final_transmittance",
+    "mis",
+    "temporal_history",
+    "sigma_star_floor",
 ];
 
 /// One table of the scene format and every field the parser accepts in it.
@@ -484,5 +487,19 @@ fn parse_restir(source: &Source, table: &toml::Table) -> Result<RestirSettings> 
             Some(d.final_ratio_tracking),
             &[("analytic", false), ("ratio", true)],
         )?,
+        mis: f.choice(
+            "mis",
+            Some(d.mis),
+            &[("talbot", MisMode::Talbot), ("pairwise", MisMode::Pairwise)],
+        )?,
+        temporal_history: f.choice(
+            "temporal_history",
+            Some(d.temporal_history),
+            &[
+                ("spatial", HistoryMode::Spatial),
+                ("temporal", HistoryMode::Temporal),
+            ],
+        )?,
+        sigma_star_floor: f.f32_in("sigma_star_floor", Some(d.sigma_star_floor), 0.0..=1.0)?,
     })
 }
