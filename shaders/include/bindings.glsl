@@ -26,6 +26,7 @@
 #define BINDING_GRID_DENSITY_PREV 20
 #define BINDING_VELOCITY 21
 #define BINDING_PREV_FRAME_UNIFORMS 22
+#define BINDING_FILM_PARTIAL 23
 
 // Indices into the stats buffer (uint counters).
 #define STAT_NON_FINITE 0

@@ -25,6 +25,8 @@
 #define SC_ID_FINAL_RATIO_TRACKING 10
 // ReSTIR: the medium has a velocity grid (temporal reprojection follows it).
 #define SC_ID_HAS_VELOCITY 11
+// ReSTIR: pairwise MIS in spatial reuse instead of Talbot's.
+#define SC_ID_MIS_PAIRWISE 12
 
 // ---------------------------------------------------------------------------------------
 // Values of SC_ESTIMATOR: the box-medium estimators of Velinov & Mitchell.

@@ -26,6 +26,8 @@ layout(constant_id = SC_ID_REUSE_VERTEX) const bool SC_REUSE_VERTEX = false;
 layout(constant_id = SC_ID_FINAL_RATIO_TRACKING) const bool SC_FINAL_RATIO_TRACKING = false;
 // The medium has a velocity grid (temporal reprojection follows it).
 layout(constant_id = SC_ID_HAS_VELOCITY) const bool SC_HAS_VELOCITY = false;
+// Spatial reuse weights by pairwise MIS instead of Talbot's.
+layout(constant_id = SC_ID_MIS_PAIRWISE) const bool SC_MIS_PAIRWISE = false;
 
 // Settings of the ReSTIR passes (std140). Mirrored by RestirUniformsGpu. 128 bytes.
 struct RestirUniforms {

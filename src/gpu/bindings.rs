@@ -24,6 +24,8 @@ pub const MARCH_NEE: u32 = 19;
 pub const GRID_DENSITY_PREV: u32 = 20;
 pub const VELOCITY: u32 = 21;
 pub const PREV_FRAME_UNIFORMS: u32 = 22;
+/// A frame's partial sums while its samples are shared among dispatches (film.glsl).
+pub const FILM_PARTIAL: u32 = 23;
 
 /// Index of the non-finite sample counter in the stats buffer.
 pub const STAT_NON_FINITE: usize = 0;
@@ -36,7 +38,7 @@ pub const STAT_LOOPS_CUT: usize = 2;
 pub const STAT_COUNT: usize = 4;
 
 /// Every binding with its GLSL name, for the layout test.
-pub const ALL: [(&str, u32); 23] = [
+pub const ALL: [(&str, u32); 24] = [
     ("BINDING_FRAME_UNIFORMS", FRAME_UNIFORMS),
     ("BINDING_ACCUM", ACCUM),
     ("BINDING_ACCUM_SQ", ACCUM_SQ),
@@ -60,4 +62,5 @@ pub const ALL: [(&str, u32); 23] = [
     ("BINDING_GRID_DENSITY_PREV", GRID_DENSITY_PREV),
     ("BINDING_VELOCITY", VELOCITY),
     ("BINDING_PREV_FRAME_UNIFORMS", PREV_FRAME_UNIFORMS),
+    ("BINDING_FILM_PARTIAL", FILM_PARTIAL),
 ];

@@ -22,6 +22,8 @@ pub const SC_ID_REUSE_VERTEX: u32 = 9;
 pub const SC_ID_FINAL_RATIO_TRACKING: u32 = 10;
 /// ReSTIR: temporal reprojection follows the velocity grid.
 pub const SC_ID_HAS_VELOCITY: u32 = 11;
+/// ReSTIR: pairwise MIS in spatial reuse instead of Talbot's.
+pub const SC_ID_MIS_PAIRWISE: u32 = 12;
 
 // ---------------------------------------------------------------------------------------
 // Values of `SC_ESTIMATOR` in `shaders/box/crepuscular.comp`.
@@ -62,7 +64,7 @@ pub const MARCH_MAX_STEPS: u32 = 4096;
 pub const GRID_MAX_STEPS: u32 = 1_048_576;
 
 /// Every constant above with its GLSL name.
-pub const ALL: [(&str, u32); 29] = [
+pub const ALL: [(&str, u32); 30] = [
     ("SC_ID_HAS_SHAPES", SC_ID_HAS_SHAPES),
     ("SC_ID_HAS_GOBOS", SC_ID_HAS_GOBOS),
     ("SC_ID_HAS_ENV", SC_ID_HAS_ENV),
@@ -75,6 +77,7 @@ pub const ALL: [(&str, u32); 29] = [
     ("SC_ID_REUSE_VERTEX", SC_ID_REUSE_VERTEX),
     ("SC_ID_FINAL_RATIO_TRACKING", SC_ID_FINAL_RATIO_TRACKING),
     ("SC_ID_HAS_VELOCITY", SC_ID_HAS_VELOCITY),
+    ("SC_ID_MIS_PAIRWISE", SC_ID_MIS_PAIRWISE),
     ("ESTIMATOR_MCWVDS", ESTIMATOR_MCWVDS),
     ("ESTIMATOR_REDS", ESTIMATOR_REDS),
     ("ESTIMATOR_REES", ESTIMATOR_REES),

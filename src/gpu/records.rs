@@ -87,7 +87,9 @@ pub struct FrameUniforms {
     pub _pad1: f32,
     /// Radiance of the constant environment.
     pub env_radiance: [f32; 3],
-    pub _pad2: f32,
+    /// Weight of the background (environment) that camera rays see directly: 1, or 0
+    /// for a transparent film (`[render] transparent_background`).
+    pub background: f32,
     pub width: u32,
     pub height: u32,
     /// Samples per pixel per frame.

@@ -89,6 +89,12 @@ pub fn create(
         let set = ctx.create_descriptor_set(&o[pipeline], &writes, "crepuscular set")?;
         Ok((pipeline, o.add(set)))
     })?;
+    let c = constants.counts;
+    // Per segment: the media and shapes it crosses, and per light its shadow and
+    // estimator loops (ray-marching samples, gobo and media crossings).
+    let per_segment =
+        c.box_media + c.shapes + c.lights * (c.ray_samples + c.box_media + c.shapes + 16);
+    let sample_cost = per_segment.saturating_mul(plan.max_bounces + 1);
     Ok(ImagePass::new(
         ctx,
         "crepuscular",
@@ -96,6 +102,7 @@ pub fn create(
         pipeline,
         set,
         constants,
+        sample_cost,
     ))
 }
 

@@ -221,6 +221,9 @@ fn restir_plan(
         mip_candidates: s.mip_candidates,
         mip_indirect: s.mip_indirect,
         mip_reuse: s.mip_reuse,
+        pairwise_mis: s.mis == nimbus_scene::MisMode::Pairwise,
+        history_before_spatial: s.temporal_history == nimbus_scene::HistoryMode::Temporal,
+        sigma_star_floor: s.sigma_star_floor,
     };
     let frames = scene.render.frames;
     let spatial = plan.spatial_neighbors > 0 && plan.spatial_rounds > 0;
@@ -250,13 +253,18 @@ fn restir_plan(
                 "[integrator.restir] temporal = false".into()
             } else if frames > 1 {
                 format!(
-                    "from the second frame: reprojection of x1{}, Q = {}",
+                    "from the second frame: reprojection of x1{}, Q = {}, history = the {} output",
                     if plan.has_velocity {
                         " through the velocity field"
                     } else {
                         ""
                     },
-                    plan.temporal_limit
+                    plan.temporal_limit,
+                    if plan.history_before_spatial {
+                        "temporal"
+                    } else {
+                        "spatial"
+                    }
                 )
             } else {
                 "a single frame has no previous one".into()
@@ -267,10 +275,11 @@ fn restir_plan(
             spatial,
             if spatial {
                 format!(
-                    "{} round(s) of {} neighbours within {} px, Talbot MIS, T~ marched on mip {}, {} reuse",
+                    "{} round(s) of {} neighbours within {} px, {} MIS, T~ marched on mip {}, {} reuse",
                     plan.spatial_rounds,
                     plan.spatial_neighbors,
                     plan.spatial_radius_px,
+                    if plan.pairwise_mis { "pairwise" } else { "Talbot" },
                     plan.mip_reuse,
                     if plan.vertex_reuse {
                         "vertex"

@@ -15,7 +15,7 @@ use crate::output::{read_exr, write_image, ImageRgb};
 use crate::plan::RenderPlan;
 
 /// FNV-1a, 64 bit, over `bytes`, continuing from `hash` (start with [`FNV_OFFSET`]).
-fn fnv1a64(mut hash: u64, bytes: &[u8]) -> u64 {
+pub(crate) fn fnv1a64(mut hash: u64, bytes: &[u8]) -> u64 {
     for &b in bytes {
         hash ^= u64::from(b);
         hash = hash.wrapping_mul(0x0000_0100_0000_01B3);
@@ -24,7 +24,7 @@ fn fnv1a64(mut hash: u64, bytes: &[u8]) -> u64 {
 }
 
 /// The FNV-1a 64 offset basis.
-const FNV_OFFSET: u64 = 0xCBF2_9CE4_8422_2325;
+pub(crate) const FNV_OFFSET: u64 = 0xCBF2_9CE4_8422_2325;
 
 /// The FNV-1a 64 hash of the contents of the file at `path`, read in pieces (grid files
 /// can be large).
@@ -71,14 +71,14 @@ fn scene_files(scene: &Scene) -> Vec<(String, &Path)> {
         shapes,
         integrator: _,
     } = scene;
-    let grid_file = |source: &GridSource| -> Option<&Path> {
+    fn grid_file(source: &GridSource) -> Option<&Path> {
         match source {
             GridSource::Raw { file, dims: _ } | GridSource::MitsubaVol { file } => {
                 Some(file.as_path())
             }
             GridSource::ProceduralCloud { .. } => None,
         }
-    };
+    }
     let mut out: Vec<(String, &Path)> = Vec::new();
     for (i, medium) in media.iter().enumerate() {
         let grid = match medium {
@@ -98,20 +98,20 @@ fn scene_files(scene: &Scene) -> Vec<(String, &Path)> {
             frames,
         } = grid;
         let table = format!("[[medium]] #{}", i + 1);
-        let mut push = |what: String, source: Option<&GridSource>| {
-            if let Some(path) = source.and_then(grid_file) {
-                out.push((what, path));
-            }
-        };
-        push(format!("{table} density"), Some(density));
-        push(format!("{table} emission"), emission.as_ref());
-        push(format!("{table} velocity"), velocity.as_ref());
+        let mut sources: Vec<(String, &GridSource)> = vec![(format!("{table} density"), density)];
+        sources.extend(emission.iter().map(|e| (format!("{table} emission"), e)));
+        sources.extend(velocity.iter().map(|v| (format!("{table} velocity"), v)));
         for (j, frame) in frames.iter().enumerate() {
-            push(
+            sources.push((
                 format!("{table} [[medium.frame]] #{} density", j + 1),
-                Some(&frame.density),
-            );
+                &frame.density,
+            ));
         }
+        out.extend(
+            sources
+                .into_iter()
+                .filter_map(|(what, source)| grid_file(source).map(|p| (what, p))),
+        );
     }
     for (i, light) in lights.iter().enumerate() {
         match light {

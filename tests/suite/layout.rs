@@ -415,7 +415,7 @@ fn mirrors() -> Vec<Mirror> {
                 cam_up,
                 _pad1,
                 env_radiance,
-                _pad2,
+                background,
                 width,
                 height,
                 spp,

@@ -34,7 +34,7 @@ use crate::plan::RestirPlan;
 pub use crate::gpu::reservoir_bytes;
 
 /// The specialization constants of the ReSTIR shaders for a plan.
-pub fn specialization(plan: &RestirPlan) -> [(u32, SpecValue); 8] {
+pub fn specialization(plan: &RestirPlan) -> [(u32, SpecValue); 9] {
     [
         (SC_ID_HAS_ENV, SpecValue::Bool(plan.has_env)),
         (SC_ID_MAX_BOUNCES, SpecValue::U32(plan.max_bounces)),
@@ -47,6 +47,7 @@ pub fn specialization(plan: &RestirPlan) -> [(u32, SpecValue); 8] {
             SpecValue::Bool(plan.final_ratio_tracking),
         ),
         (SC_ID_HAS_VELOCITY, SpecValue::Bool(plan.has_velocity)),
+        (SC_ID_MIS_PAIRWISE, SpecValue::Bool(plan.pairwise_mis)),
     ]
 }
 
@@ -185,6 +186,7 @@ impl RestirPass {
                 spatial_rounds: plan.spatial_rounds,
                 candidates: plan.candidates,
                 candidates_per_dispatch,
+                history_before_spatial: plan.history_before_spatial,
             },
             constants: FrameConstants {
                 env_radiance: grid_gpu.env_radiance,
@@ -273,8 +275,13 @@ impl Pass for RestirPass {
 
     /// Uploads what changes per frame: the lights of this frame and the previous one,
     /// the previous camera, and the density grids of both frames when they change.
-    fn prepare(&mut self, ctx: &Context, scene: &Scene, scene_frame: u32) -> Result<()> {
-        let prev_frame = scene_frame.saturating_sub(1);
+    fn prepare(
+        &mut self,
+        ctx: &Context,
+        scene: &Scene,
+        scene_frame: u32,
+        prev_frame: u32,
+    ) -> Result<()> {
         self.upload_lights(ctx, scene, scene_frame, prev_frame)?;
         // The previous frame's camera (the first frame's own camera on frame 0).
         let camera = scene.camera.frame_at(prev_frame);

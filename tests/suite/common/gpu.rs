@@ -34,7 +34,6 @@ pub fn render_checked(ctx: &Context, scene: &Scene, box_samples: Option<u32>) ->
     assert_no_validation_errors(ctx);
     assert_eq!(result.non_finite_samples, 0, "non-finite samples");
     assert_eq!(result.step_cap_hits, 0, "walks stopped at the step limit");
-    assert_eq!(result.loops_cut, 0, "shader loops cut short by the device");
     assert!(result.image.first_non_finite().is_none());
     result
 }
