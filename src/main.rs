@@ -211,8 +211,8 @@ struct StudyArgs {
     /// KEY=V1,V2,... (repeatable; the configurations are the cartesian product). Keys:
     /// box_estimator, spp, box_samples, frames, seed, max_bounces, volume, and the
     /// [integrator.restir] fields candidates, temporal, temporal_limit,
-    /// spatial_neighbors, spatial_radius_px, spatial_rounds, reuse, mip_candidates,
-    /// mip_indirect, mip_reuse, final_transmittance.
+    /// spatial_neighbors, spatial_radius_px, spatial_rounds, reuse, mis, temporal_history,
+    /// sigma_star_floor, mip_candidates, mip_indirect, mip_reuse, final_transmittance.
     #[arg(long, value_name = "KEY=V1,V2,...")]
     vary: Vec<String>,
     /// Frames per configuration (unless frames is varied).
