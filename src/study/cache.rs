@@ -501,12 +501,20 @@ mod tests {
         let before = scene_inputs(&scene).unwrap();
         let key = job(&before).key;
         assert_ne!(key, reference_job(&dir, b"scene", 4).key, "files hashed");
-        assert_eq!(job(&scene_inputs(&scene).unwrap()).key, key, "deterministic");
+        assert_eq!(
+            job(&scene_inputs(&scene).unwrap()).key,
+            key,
+            "deterministic"
+        );
         for (name, bytes) in [("d.raw", &[7u8; 32][..]), ("sky.exr", b"SKY")] {
             let path = dir.join(name);
             let old = std::fs::read(&path).unwrap();
             std::fs::write(&path, bytes).unwrap();
-            assert_ne!(job(&scene_inputs(&scene).unwrap()).key, key, "{name} changed");
+            assert_ne!(
+                job(&scene_inputs(&scene).unwrap()).key,
+                key,
+                "{name} changed"
+            );
             std::fs::write(&path, old).unwrap();
         }
         assert_eq!(job(&scene_inputs(&scene).unwrap()).key, key, "restored");

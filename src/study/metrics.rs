@@ -529,7 +529,10 @@ mod tests {
         assert_eq!((s.gpu_ms_total, s.gpu_ms_per_frame), (12.0, 3.0));
         assert_eq!((s.rmse_min, s.rmse_max), (1.0, 3.0));
         let one = summarize(&runs[..1]).unwrap();
-        assert_eq!((one.metrics.rmse, one.rmse_min, one.rmse_max), (3.0, 3.0, 3.0));
+        assert_eq!(
+            (one.metrics.rmse, one.rmse_min, one.rmse_max),
+            (3.0, 3.0, 3.0)
+        );
         assert!(summarize(&[]).is_err());
     }
 

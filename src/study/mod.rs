@@ -81,8 +81,7 @@ use nimbus_scene::{Scene, VolumeIntegrator};
 use self::cache::{default_cache_dir, scene_inputs, ReferenceJob};
 use self::metrics::{SeedRun, SeedSummary};
 use self::vary::{
-    apply, cartesian, format_pairs, parse_vary, resolve_baseline, Assignment, Vary,
-    INTEGRAND_KEYS,
+    apply, cartesian, format_pairs, parse_vary, resolve_baseline, Assignment, Vary, INTEGRAND_KEYS,
 };
 use crate::plan::{self, RenderPlan};
 
@@ -158,10 +157,9 @@ struct Configuration {
 /// `requested`: at least 1 (the first frame may compile pipelines), at least
 /// [`WARMUP_PER_TEMPORAL_LIMIT`]·Q for Volumetric ReSTIR with temporal reuse.
 fn warmup_frames(plan: &RenderPlan, requested: u32) -> u32 {
-    let temporal = plan
-        .restir()
-        .filter(|r| r.temporal)
-        .map_or(0, |r| r.temporal_limit.saturating_mul(WARMUP_PER_TEMPORAL_LIMIT));
+    let temporal = plan.restir().filter(|r| r.temporal).map_or(0, |r| {
+        r.temporal_limit.saturating_mul(WARMUP_PER_TEMPORAL_LIMIT)
+    });
     requested.max(1).max(temporal)
 }
 
@@ -410,7 +408,9 @@ impl Study {
 
             let effective = effective_scene(&scene, &plan);
             let same_as = configurations.iter().position(|c: &Configuration| {
-                c.plan == plan && c.seeds == seeds && effective_scene(&c.scene, &c.plan) == effective
+                c.plan == plan
+                    && c.seeds == seeds
+                    && effective_scene(&c.scene, &c.plan) == effective
             });
             configurations.push(Configuration {
                 assignment,
@@ -693,7 +693,10 @@ mod tests {
         assert_eq!(k, [1, 3]);
         for (r, c) in study.references.iter().zip([0, 4]) {
             let config = &study.configurations[c].scene;
-            assert_eq!(r.scene.integrator.max_bounces, config.integrator.max_bounces);
+            assert_eq!(
+                r.scene.integrator.max_bounces,
+                config.integrator.max_bounces
+            );
             assert_eq!(r.scene.integrator.volume, VolumeIntegrator::Baseline);
             assert_eq!(r.scene.render.seed, config.render.seed ^ REFERENCE_SEED_MIX);
         }
@@ -738,7 +741,11 @@ mod tests {
             assert!(!folds.contains(&avoid(seed)), "seed {seed}");
             folds.sort_unstable();
             folds.dedup();
-            assert_eq!(folds.len(), MAX_SEEDS as usize, "seed {seed}: a fold repeats");
+            assert_eq!(
+                folds.len(),
+                MAX_SEEDS as usize,
+                "seed {seed}: a fold repeats"
+            );
         }
     }
 
@@ -754,7 +761,10 @@ mod tests {
         for c in &study.configurations {
             assert_eq!(c.seeds, [0, 1, 2]);
             assert_eq!(c.scene.render.seed, 0);
-            assert!(c.seeds.iter().all(|&s| fold_seed(s) != fold_seed(reference)));
+            assert!(c
+                .seeds
+                .iter()
+                .all(|&s| fold_seed(s) != fold_seed(reference)));
         }
         assert_eq!(study.seeds, 3);
         remove_scratch(&opts);
@@ -791,7 +801,10 @@ mod tests {
         assert_eq!(warmup_frames(&restir(20, false), 0), 1);
 
         let opts = StudyOptions {
-            vary: vec!["volume=baseline,restir".into(), "temporal_limit=4,20".into()],
+            vary: vec![
+                "volume=baseline,restir".into(),
+                "temporal_limit=4,20".into(),
+            ],
             warmup: 0,
             ..grid_options("warmup")
         };

@@ -262,13 +262,14 @@ fn draw(
             })
             .collect();
         chart.draw_series(
-            ranges
-                .iter()
-                .map(|&(t, lo, hi)| PathElement::new(vec![(t, lo), (t, hi)], color.stroke_width(1))),
+            ranges.iter().map(|&(t, lo, hi)| {
+                PathElement::new(vec![(t, lo), (t, hi)], color.stroke_width(1))
+            }),
         )?;
         chart.draw_series(ranges.iter().flat_map(|&(t, lo, hi)| {
             [lo, hi].map(|y| {
-                EmptyElement::at((t, y)) + PathElement::new(vec![(-4, 0), (4, 0)], color.stroke_width(1))
+                EmptyElement::at((t, y))
+                    + PathElement::new(vec![(-4, 0), (4, 0)], color.stroke_width(1))
             })
         }))?;
         // Points on the front are filled, the ones it beats hollow.

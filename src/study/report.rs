@@ -395,8 +395,7 @@ pub(super) fn equal_time_text(
                 c.seed_geo_means.len()
             ),
             None if !c.seed_geo_means.is_empty() => {
-                " (per seed: no spread, some seeds' times do not overlap the baseline's)"
-                    .to_owned()
+                " (per seed: no spread, some seeds' times do not overlap the baseline's)".to_owned()
             }
             None => String::new(),
         };
@@ -526,7 +525,10 @@ mod tests {
         assert_eq!(cell("gpu_ms_per_frame"), "1");
         let rmse: f64 = cell("rmse").parse().unwrap();
         assert!((rmse - (0.25f64 / 3.0).sqrt()).abs() < 1e-12, "{rmse}");
-        assert_eq!((cell("rmse_min"), cell("rmse_max")), ("0".into(), "0.4".into()));
+        assert_eq!(
+            (cell("rmse_min"), cell("rmse_max")),
+            ("0".into(), "0.4".into())
+        );
         let rel: f64 = cell("rel_mse").parse().unwrap();
         assert!((rel - 0.7 / 3.0).abs() < 1e-12, "{rel}");
     }
@@ -557,9 +559,8 @@ mod tests {
             mean_rel_std_error: 0.01,
         };
         let rows = [test_row(&[], 1.0, 0.2), test_row(&[], 2.0, 0.1)];
-        let noise_text = |n: &ReferenceNoise, frames: u32, rows: &[Row]| {
-            noise_text(n, frames, rows, None)
-        };
+        let noise_text =
+            |n: &ReferenceNoise, frames: u32, rows: &[Row]| noise_text(n, frames, rows, None);
         let text = noise_text(&noise(0.001), 1, &rows);
         assert!(text.starts_with("Reference noise: unknown"), "{text}");
         assert!(text.contains("has 1 frame"), "{text}");
@@ -584,7 +585,10 @@ mod tests {
         assert_eq!(noise_text(&noise(0.05), 2, &[]).lines().count(), 1);
         // Several references: each is named.
         let text = super::noise_text(&noise(0.001), 2, &rows, Some("max_bounces=2"));
-        assert!(text.starts_with("Reference noise (max_bounces=2): mean"), "{text}");
+        assert!(
+            text.starts_with("Reference noise (max_bounces=2): mean"),
+            "{text}"
+        );
     }
 
     #[test]
@@ -644,7 +648,10 @@ mod tests {
         );
         assert!(text.contains("seed-mean series"), "{text}");
         assert!(text.contains("a spread that holds 1"), "{text}");
-        assert!(text.contains("mcds vs box_estimator=rm: no common"), "{text}");
+        assert!(
+            text.contains("mcds vs box_estimator=rm: no common"),
+            "{text}"
+        );
     }
 
     #[test]
@@ -695,7 +702,10 @@ mod tests {
         assert!(text.contains("reference of its own max_bounces"), "{text}");
         assert!(text.contains("- seeds: 3 seeds, derived"), "{text}");
         assert!(text.contains("rmse_min / rmse_max"), "{text}");
-        assert!(text.contains("at least 4·Q for Volumetric ReSTIR"), "{text}");
+        assert!(
+            text.contains("at least 4·Q for Volumetric ReSTIR"),
+            "{text}"
+        );
         assert!(text.contains("at least --warmup (5)"), "{text}");
         assert!(text.contains("sum over frames (total)"), "{text}");
         let cached = [reference("other gpu", true), reference("gpu", true)];

@@ -9,8 +9,7 @@ use nimbus_gpu::Context;
 
 use super::cache::{load_cached, store_cached, Reference, ReferenceJob};
 use super::metrics::{
-    equal_time_over_seeds, frame_gpu_ms, mean_metrics, measure, summarize, ReferenceNoise,
-    SeedRun,
+    equal_time_over_seeds, frame_gpu_ms, mean_metrics, measure, summarize, ReferenceNoise, SeedRun,
 };
 use super::report::{
     csv, equal_time_text, equivalents_text, markdown_table, noise_text, sig, table,
@@ -343,8 +342,8 @@ fn warn_non_finite(result: &RenderResult, what: &str) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::study::{test_row, test_row_seeds};
     use crate::study::vary::assignment;
+    use crate::study::{test_row, test_row_seeds};
 
     #[test]
     fn rows_become_series_sorted_by_time_with_their_knobs() {
@@ -379,7 +378,11 @@ mod tests {
         assert_eq!(mean.len(), 1);
         let p = &mean[0].points[0];
         assert_eq!(p.time_ms, 2.0, "median time");
-        assert!((p.rmse - (5.25f64 / 3.0).sqrt()).abs() < 1e-12, "{}", p.rmse);
+        assert!(
+            (p.rmse - (5.25f64 / 3.0).sqrt()).abs() < 1e-12,
+            "{}",
+            p.rmse
+        );
         assert_eq!(p.rmse_range, Some((0.5, 2.0)));
         let second = series(&rows, Some(1));
         let points: Vec<(f64, f64)> = second[0]
@@ -409,7 +412,10 @@ mod tests {
         assert_eq!(all.len(), 3);
         assert_eq!(
             all[0].aliases,
-            [assignment(&[("volume", "baseline"), ("temporal_limit", "20")])]
+            [assignment(&[
+                ("volume", "baseline"),
+                ("temporal_limit", "20")
+            ])]
         );
         let c = crate::study::metrics::equal_time(&("volume".into(), "baseline".into()), &all);
         let pairs: Vec<(&str, &str)> = c
