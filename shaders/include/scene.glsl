@@ -72,7 +72,7 @@ struct FrameUniforms {
     vec3 cam_up;
     float _pad1;
     vec3 env_radiance;      // rgb radiance of the constant environment (escaping rays)
-    float _pad2;
+    float background;       // weight of the environment camera rays see directly: 1, or 0 (transparent film)
     uint width;             // image width in pixels
     uint height;            // image height in pixels
     uint spp;               // samples per pixel per frame (path tracers)
@@ -88,7 +88,7 @@ struct FrameUniforms {
 struct PassPush {
     uint frame;        // frame index within the render
     uint sample_base;  // index of this dispatch's first sample per pixel
-    uint _pad0;
+    uint sample_count; // samples per pixel this dispatch takes
     uint _pad1;
 };
 

@@ -22,10 +22,12 @@ pub const SC_ID_REUSE_VERTEX: u32 = 9;
 pub const SC_ID_FINAL_RATIO_TRACKING: u32 = 10;
 /// ReSTIR: temporal reprojection follows the velocity grid.
 pub const SC_ID_HAS_VELOCITY: u32 = 11;
+/// ReSTIR: pairwise MIS in spatial reuse instead of Talbot's.
+pub const SC_ID_MIS_PAIRWISE: u32 = 12;
 /// Box estimators: entries of the piece and exit-line tables.
-pub const SC_ID_MAX_PIECES: u32 = 12;
+pub const SC_ID_MAX_PIECES: u32 = 13;
 /// Box media: some are convex polyhedra.
-pub const SC_ID_HAS_CONVEX: u32 = 13;
+pub const SC_ID_HAS_CONVEX: u32 = 14;
 
 // ---------------------------------------------------------------------------------------
 // Values of `SC_ESTIMATOR` in `shaders/box/crepuscular.comp`.
@@ -68,7 +70,7 @@ pub const MARCH_MAX_STEPS: u32 = 4096;
 pub const GRID_MAX_STEPS: u32 = 1_048_576;
 
 /// Every constant above with its GLSL name.
-pub const ALL: [(&str, u32); 32] = [
+pub const ALL: [(&str, u32); 33] = [
     ("SC_ID_HAS_SHAPES", SC_ID_HAS_SHAPES),
     ("SC_ID_HAS_GOBOS", SC_ID_HAS_GOBOS),
     ("SC_ID_HAS_ENV", SC_ID_HAS_ENV),
@@ -81,6 +83,7 @@ pub const ALL: [(&str, u32); 32] = [
     ("SC_ID_REUSE_VERTEX", SC_ID_REUSE_VERTEX),
     ("SC_ID_FINAL_RATIO_TRACKING", SC_ID_FINAL_RATIO_TRACKING),
     ("SC_ID_HAS_VELOCITY", SC_ID_HAS_VELOCITY),
+    ("SC_ID_MIS_PAIRWISE", SC_ID_MIS_PAIRWISE),
     ("SC_ID_MAX_PIECES", SC_ID_MAX_PIECES),
     ("SC_ID_HAS_CONVEX", SC_ID_HAS_CONVEX),
     ("ESTIMATOR_MCWVDS", ESTIMATOR_MCWVDS),

@@ -201,7 +201,7 @@ pub fn frame_uniforms(
         cam_up: camera.up.to_array(),
         _pad1: 0.0,
         env_radiance: env.to_array(),
-        _pad2: 0.0,
+        background: if r.transparent_background { 0.0 } else { 1.0 },
         width: r.width,
         height: r.height,
         spp: r.spp,

@@ -153,8 +153,29 @@ pub fn create(
         Ok((pipeline, o.add(set)))
     })?;
     Ok(ImagePass::new(
-        "baseline", objects, pipeline, set, constants,
+        ctx,
+        "baseline",
+        objects,
+        pipeline,
+        set,
+        constants,
+        sample_cost(plan, &grid),
     ))
+}
+
+/// Loop iterations one camera sample may typically run (see
+/// [`super::samples_per_dispatch`]): K + 1 segments, each with its shadow rays, each
+/// crossing the super-voxel grid (blocks, an exact span of up to
+/// `GRID_EXACT_SPAN_STEPS`) and looping over the lights. Collisions are random; the
+/// loop sentinel refuses an image a rare long walk would cut.
+/// `GRID_EXACT_SPAN_STEPS` of grid_blocks.glsl.
+const EXACT_SPAN_STEPS: u32 = 64;
+
+fn sample_cost(plan: &BaselinePlan, grid: &GpuGrid) -> u32 {
+    let blocks: u32 = grid.uniforms.grid.super_dims.iter().sum::<u32>() + 3;
+    let segment = blocks + EXACT_SPAN_STEPS + 3 * grid.lights.len() as u32;
+    let segments = 2 * (plan.max_bounces + 1);
+    segment.saturating_mul(segments)
 }
 
 /// What the baseline pass allocates (see [`crate::budget`]).

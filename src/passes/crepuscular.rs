@@ -97,12 +97,25 @@ pub fn create(
         let set = ctx.create_descriptor_set(&o[pipeline], &writes, "crepuscular set")?;
         Ok((pipeline, o.add(set)))
     })?;
+    let c = constants.counts;
+    // Per segment: the media (and their planes) and shapes it crosses, and per light its
+    // shadow and estimator loops (ray-marching samples, gobo and media crossings, and the
+    // trapezoid-piece tables: pieces x planes per medium).
+    let planes = records.medium_planes.len() as u32;
+    let tables = c.box_media * plan.features.max_pieces.max(3) * (planes.max(6) + 4);
+    let per_segment = c.box_media
+        + planes
+        + c.shapes
+        + c.lights * (c.ray_samples + c.box_media + planes + c.shapes + tables + 16);
+    let sample_cost = per_segment.saturating_mul(plan.max_bounces + 1);
     Ok(ImagePass::new(
+        ctx,
         "crepuscular",
         objects,
         pipeline,
         set,
         constants,
+        sample_cost,
     ))
 }
 

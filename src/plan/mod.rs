@@ -144,6 +144,12 @@ pub struct RestirPlan {
     pub mip_candidates: u32,
     pub mip_indirect: u32,
     pub mip_reuse: u32,
+    /// Pairwise MIS in spatial reuse instead of Talbot's.
+    pub pairwise_mis: bool,
+    /// The temporal stage's output (not the spatial one) is the next frame's history.
+    pub history_before_spatial: bool,
+    /// σ* ≥ this fraction of the local maximum density.
+    pub sigma_star_floor: f32,
 }
 
 /// One line of `--explain`: a pass or feature, in or out, and the reason.

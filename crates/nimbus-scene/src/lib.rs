@@ -78,6 +78,9 @@
 //! | restir `spatial_radius_px` | [0, 16384] |
 //! | restir `spatial_rounds` | 0..=16 |
 //! | restir `mip_candidates`, `mip_indirect`, `mip_reuse` | 0..=16 |
+//! | restir `mis` | `"talbot"`, `"pairwise"` |
+//! | restir `temporal_history` | `"spatial"`, `"temporal"` |
+//! | restir `sigma_star_floor` | [0, 1] |
 //! | grid `procedural` | `"cloud"` (not allowed for `velocity`) |
 //!
 //! # Voxel grids
@@ -159,7 +162,8 @@ pub use mesh::{
 };
 pub use overrides::FieldOverride;
 pub use parse::{
-    MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_LENGTH_M, MAX_SIGMA_T, MAX_SPATIAL_NEIGHBORS, RESTIR_KEYS,
+    scene_tables, TableFields, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_LENGTH_M, MAX_SIGMA_T,
+    MAX_SPATIAL_NEIGHBORS, RESTIR_KEYS,
 };
 pub use procedural::procedural_cloud;
 pub use types::*;

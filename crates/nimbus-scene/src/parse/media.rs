@@ -12,7 +12,7 @@ use crate::fields::{
 use crate::files::{check_grid_dims, file_size, read_vol_header};
 use crate::geometry::OrientedBox;
 
-const MEDIUM_TYPES: &[(&str, &[&str])] = &[
+pub(super) const MEDIUM_TYPES: &[(&str, &[&str])] = &[
     (
         "box",
         &[
@@ -43,8 +43,8 @@ const MEDIUM_TYPES: &[(&str, &[&str])] = &[
         ],
     ),
 ];
-const GRID_KEYS: &[&str] = &["file", "dims", "procedural", "noise_seed"];
-const GRID_FRAME_KEYS: &[&str] = &["frame", "density"];
+pub(super) const GRID_KEYS: &[&str] = &["file", "dims", "procedural", "noise_seed"];
+pub(super) const GRID_FRAME_KEYS: &[&str] = &["frame", "density"];
 
 pub(super) fn parse_medium(
     source: &Source,

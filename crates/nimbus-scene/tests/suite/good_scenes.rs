@@ -214,6 +214,9 @@ mip_candidates = 2
 mip_indirect = 3
 mip_reuse = 0
 final_transmittance = "ratio"
+mis = "pairwise"
+temporal_history = "temporal"
+sigma_star_floor = 0.125
 "#;
     let scene_path = dir.write("scene.toml", text.as_bytes());
     let scene = load(&scene_path).unwrap_or_else(|e| panic!("{e:#}"));
@@ -227,7 +230,8 @@ final_transmittance = "ratio"
             frames: 8,
             spp: 4,
             seed: 42,
-            pixel_jitter: false
+            pixel_jitter: false,
+            transparent_background: false,
         }
     );
     let camera = &scene.camera;
@@ -399,6 +403,9 @@ final_transmittance = "ratio"
                 mip_indirect: 3,
                 mip_reuse: 0,
                 final_ratio_tracking: true,
+                mis: MisMode::Pairwise,
+                temporal_history: HistoryMode::Temporal,
+                sigma_star_floor: 0.125,
             },
         }
     );
