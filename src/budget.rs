@@ -100,13 +100,26 @@ impl Footprint {
         let render = format!("{file}: [render] fields `width` x `height`");
         f.add(&render, Binding::Storage, pixels * 16);
         f.add(&render, Binding::Storage, pixels * 16);
+        // The film's partial sums: per pixel on lavapipe, where a frame's samples may be
+        // shared among dispatches (counted everywhere: an upper bound).
+        f.add(
+            &render,
+            Binding::Storage,
+            crate::renderer::film_partial_bytes(true, pixels),
+        );
         f.add(
             "frame uniforms",
             Binding::Uniform,
             std::mem::size_of::<FrameUniforms>() as u64,
         );
-        // Per-pixel readback of both sums.
-        f.host_peak += 2 * pixels * 16 + pixels * 12 * 2;
+        // Per-pixel readback of both sums, the mean and standard error computed from
+        // them (src/renderer/film.rs), ReSTIR's batch sums, and the two output images.
+        let batches = if crate::renderer::error_batch(plan) > 1 {
+            2 * pixels * 16
+        } else {
+            0
+        };
+        f.host_peak += 2 * pixels * 16 + 2 * pixels * 16 + batches + pixels * 12 * 2;
 
         crate::passes::footprint(scene, plan, &mut f)?;
         Ok(f)
@@ -138,7 +151,7 @@ impl Footprint {
         let file = scene.source.display();
         let Some((index, g)) = scene.media.iter().enumerate().find_map(|(i, m)| match m {
             Medium::Grid(g) => Some((i, g)),
-            Medium::Box(_) => None,
+            _ => None,
         }) else {
             return Ok(None);
         };

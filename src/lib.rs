@@ -6,6 +6,7 @@
 
 pub mod budget;
 pub mod gpu;
+pub mod merge;
 pub mod output;
 pub mod passes;
 pub mod plan;

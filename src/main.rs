@@ -6,8 +6,12 @@ use std::process::ExitCode;
 use anyhow::{bail, Context as _, Result};
 use clap::{Args, Parser, Subcommand};
 use nimbus::{load_scene, output, plan, profile, renderer, study};
+
+mod render_cmd;
+
 use nimbus_gpu::{enumerate_devices, Context, ContextDesc};
 use nimbus_scene::FieldOverride;
+use render_cmd::render;
 
 #[derive(Parser)]
 #[command(
@@ -22,8 +26,12 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Render a scene to an image (.exr linear radiance, .png tonemapped).
+    /// Render a scene to an image (.exr: linear premultiplied RGBA, a stderr layer and
+    /// the render's metadata; .png: tonemapped sRGB).
     Render(RenderArgs),
+    /// Combine partial renders of one scene and settings with different seeds into one
+    /// image, weighted by their sample counts.
+    Merge(MergeArgs),
     /// Render warm-up + N frames and report per-pass GPU milliseconds.
     Profile(ProfileArgs),
     /// List the Vulkan devices (pick one with NIMBUS_DEVICE=<substring of its name>).
@@ -38,20 +46,21 @@ enum Command {
 #[derive(Args, Clone, Debug, Default)]
 struct Overrides {
     /// Samples per pixel per frame ([render] spp).
-    #[arg(long)]
+    #[arg(long, value_name = "N")]
     spp: Option<u32>,
     /// Image width in pixels ([render] width).
-    #[arg(long)]
+    #[arg(long, value_name = "PIXELS")]
     width: Option<u32>,
     /// Image height in pixels ([render] height).
-    #[arg(long)]
+    #[arg(long, value_name = "PIXELS")]
     height: Option<u32>,
-    /// Random seed ([render] seed): same seed, scene and device, same image.
-    #[arg(long)]
+    /// Random seed ([render] seed): same seed, scene and device, same image. Parts of
+    /// a render meant for `nimbus merge` need different seeds.
+    #[arg(long, value_name = "S")]
     seed: Option<u64>,
     /// Samples along each camera ray for the box estimators, N_sample of the paper
     /// ([integrator] box_samples).
-    #[arg(long)]
+    #[arg(long, value_name = "N")]
     box_samples: Option<u32>,
     /// Set any scene field: TABLE.FIELD=VALUE (repeatable), e.g. render.width=640,
     /// light.2.irradiance=[1,2,3], integrator.volume=baseline. [[arrays]] are indexed
@@ -87,33 +96,92 @@ impl Overrides {
 
 #[derive(Args)]
 struct RenderArgs {
-    /// Scene file (TOML); without one, the embedded default scene (a room with a window).
+    /// Scene file (TOML, see docs/scene-format.md); without one, the embedded default
+    /// scene (a room with a window).
     scene: Option<PathBuf>,
-    /// Output image: .exr (linear float RGB) or .png (tonemapped sRGB).
-    #[arg(long, short)]
+    /// Output image: .exr (linear radiance, premultiplied RGBA, a `stderr` layer with
+    /// each pixel's standard error, the render's metadata in the header) or .png
+    /// (tonemapped 8-bit sRGB, see --exposure and --tonemap). Written atomically; an
+    /// interrupted render (Ctrl-C, SIGTERM) still writes the frames it has.
+    #[arg(long, short, value_name = "FILE")]
     out: Option<PathBuf>,
     /// Print the render plan (passes and shader features, and why) and exit.
     #[arg(long)]
     explain: bool,
-    /// Frames to render, the output is their mean ([render] frames).
-    #[arg(long)]
+    /// [render] frames. A static scene accumulates them (the image is their mean); in an
+    /// animated scene they are the animation's frames 0..N-1 (without --frame or
+    /// --frame-range the image is the mean of the whole animation).
+    #[arg(long, value_name = "N")]
     frames: Option<u32>,
+    /// Render frame N of an animated scene into --out: --passes dispatches of that frame
+    /// accumulated, after --warmup frames of history.
+    #[arg(long, value_name = "N", conflicts_with = "frame_range")]
+    frame: Option<u32>,
+    /// Render frames A to B of an animated scene (both included), each into its own
+    /// image frame_NNNN.<ext> in --sequence DIR (each --passes dispatches, history
+    /// carried from frame to frame).
+    #[arg(long, value_name = "A..B", value_parser = parse_frame_range, requires = "sequence", conflicts_with = "out")]
+    frame_range: Option<(u32, u32)>,
+    /// With --frame / --frame-range: dispatches of each frame accumulated into its image
+    /// (each spp samples per pixel; the stderr layer comes from their spread, so it
+    /// needs 2 or more). Default 1.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
+    passes: Option<u32>,
+    /// With --frame-range: skip the leading frames whose images already exist in
+    /// --sequence DIR (an interrupted frame is written as frame_NNNN.partial.<ext> and
+    /// rendered again).
+    #[arg(long, requires = "frame_range")]
+    resume: bool,
+    /// Render until the image's relative standard error (RMS of the per-pixel standard
+    /// errors over the image's mean, estimated from the per-pixel sums; for ReSTIR from
+    /// batch means of its correlated frames) is at most E, e.g. 0.03. Checked once at
+    /// least 8 independent estimates exist. With --frame/--frame-range, per frame.
+    #[arg(long, value_name = "E", value_parser = parse_target_error)]
+    target_error: Option<f64>,
+    /// Stop an image before a frame would end past this many seconds of rendering
+    /// (set-up and warm-up not counted; with --frame-range, per frame). At least one
+    /// frame is rendered.
+    #[arg(long, value_name = "SECONDS", value_parser = parse_seconds)]
+    time_limit: Option<f64>,
     /// Exposure multiplier applied before tonemapping a .png (finite, > 0).
     #[arg(long, default_value_t = 1.0, value_parser = parse_exposure)]
     exposure: f32,
-    /// Also write every frame's own image into this directory (frame_0000.exr, ...;
-    /// .png with --sequence-format png).
+    /// Leave out the environment where camera rays see it directly (it still lights the
+    /// scene): the image is then the foreground alone, premultiplied by its alpha, ready
+    /// to composite over a plate ([render] transparent_background = true).
     #[arg(long)]
+    transparent: bool,
+    /// Tone curve of a .png: aces (Narkowicz's ACES fit), filmic (Hable's curve) or
+    /// clamp (none: values above 1 clip).
+    #[arg(long, default_value = "aces", value_parser = ["aces", "filmic", "clamp"])]
+    tonemap: String,
+    /// Also write every frame's own image into this directory (frame_0000.exr, ...);
+    /// with --frame-range, where each frame's image goes.
+    #[arg(long, value_name = "DIR")]
     sequence: Option<PathBuf>,
     /// Image format of --sequence frames: exr or png.
     #[arg(long, default_value = "exr", value_parser = ["exr", "png"])]
     sequence_format: String,
     /// Frames rendered before the measured ones and not counted (fills ReSTIR's
-    /// temporal history).
-    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u32).range(0..=1_000_000))]
-    warmup: u32,
+    /// temporal history). Default 0; with --frame/--frame-range, the frames just before
+    /// the first one (ReSTIR with temporal reuse: up to 4·(temporal_limit + 1)).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(0..=1_000_000))]
+    warmup: Option<u32>,
     #[command(flatten)]
     overrides: Overrides,
+}
+
+#[derive(Args)]
+struct MergeArgs {
+    /// The merged image (.exr).
+    #[arg(long, short, value_name = "FILE")]
+    out: PathBuf,
+    /// Two or more .exr images from `nimbus render` of the same scene and settings with
+    /// different --seed values (the scene hash and settings in their headers must
+    /// agree). Their mean is weighted by their samples per pixel; the stderr layer is
+    /// combined exactly (independent parts: s² = Σ (wᵢ/W)² sᵢ²).
+    #[arg(required = true, value_name = "IN")]
+    inputs: Vec<PathBuf>,
 }
 
 #[derive(Args)]
@@ -141,7 +209,12 @@ struct StudyArgs {
     /// Scene file (TOML).
     scene: PathBuf,
     /// KEY=V1,V2,... (repeatable; the configurations are the cartesian product). Keys:
-    /// box_estimator, spp, box_samples, frames, seed, max_bounces, volume.
+    /// box_estimator, spp, box_samples, frames, seed, max_bounces, volume, and the
+    /// [integrator.restir] fields candidates, temporal, temporal_limit,
+    /// spatial_neighbors, spatial_radius_px, spatial_rounds, reuse, mis, temporal_history,
+    /// sigma_star_floor, mip_candidates, mip_indirect, mip_reuse, final_transmittance.
+    /// Each max_bounces gets its own reference; configurations that render the same
+    /// image are measured and listed once.
     #[arg(long, value_name = "KEY=V1,V2,...")]
     vary: Vec<String>,
     /// Frames per configuration (unless frames is varied).
@@ -176,10 +249,17 @@ struct StudyArgs {
     /// Image height for the reference and every configuration (default: the scene's).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16384))]
     height: Option<u32>,
-    /// Frames rendered before each configuration's measured frames (fills ReSTIR's
-    /// temporal history; at least 1).
+    /// Frames rendered before each configuration's measured frames, not measured. Each
+    /// configuration warms up for at least 1 frame (shader compilation) and, for
+    /// Volumetric ReSTIR with temporal reuse, at least 4·temporal_limit frames; this
+    /// raises both.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(0..=100_000))]
     warmup: u32,
+    /// Renders of every configuration, each with its own seed derived from the scene's;
+    /// rows report the mean error over the seeds and its spread (min and max RMSE).
+    /// --vary seed needs --seeds 1.
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=i64::from(study::MAX_SEEDS)))]
+    seeds: u32,
     /// Report the mean of each measured frame's own error, at the GPU time of one frame
     /// (steady-state single-frame error, as the Volumetric ReSTIR paper measures), instead
     /// of the error of the mean over the frames.
@@ -187,9 +267,13 @@ struct StudyArgs {
     per_frame: bool,
 }
 
+/// The exit status of a render that was interrupted (SIGINT or SIGTERM) and wrote the
+/// frames it had: 128 + SIGINT, as shells report Ctrl-C.
+const EXIT_INTERRUPTED: u8 = 130;
+
 fn main() -> ExitCode {
     match run(Cli::parse()) {
-        Ok(()) => ExitCode::SUCCESS,
+        Ok(code) => code,
         Err(e) => {
             eprintln!("error: {e:#}");
             ExitCode::FAILURE
@@ -197,13 +281,41 @@ fn main() -> ExitCode {
     }
 }
 
-fn run(cli: Cli) -> Result<()> {
+fn run(cli: Cli) -> Result<ExitCode> {
+    let ok = |()| ExitCode::SUCCESS;
     match cli.command {
         Command::Render(args) => render(args),
-        Command::Profile(args) => profile_cmd(args),
-        Command::Devices => devices(),
-        Command::Study(args) => study_cmd(args),
+        Command::Merge(args) => merge_cmd(args).map(ok),
+        Command::Profile(args) => profile_cmd(args).map(ok),
+        Command::Devices => devices().map(ok),
+        Command::Study(args) => study_cmd(args).map(ok),
     }
+}
+
+fn merge_cmd(args: MergeArgs) -> Result<()> {
+    output::check_writable(&args.out).context("--out")?;
+    anyhow::ensure!(
+        args.out
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("exr")),
+        "--out {}: a merge writes an .exr (its stderr layer and metadata need one)",
+        args.out.display()
+    );
+    let info = nimbus::merge::merge_files(&args.out, &args.inputs)?;
+    eprintln!(
+        "merged {} renders (seeds {}) into {}: {} samples per pixel, relative error {}",
+        args.inputs.len(),
+        info.seeds
+            .iter()
+            .map(u64::to_string)
+            .collect::<Vec<_>>()
+            .join(", "),
+        args.out.display(),
+        info.samples,
+        info.rel_error
+            .map_or_else(|| "unknown".to_string(), |e| format!("{e:.4}"))
+    );
+    Ok(())
 }
 
 fn study_cmd(args: StudyArgs) -> Result<()> {
@@ -221,12 +333,53 @@ fn study_cmd(args: StudyArgs) -> Result<()> {
         width: args.width,
         height: args.height,
         warmup: args.warmup,
+        seeds: args.seeds,
         per_frame: args.per_frame,
     })?;
     let ctx = Context::new(&ContextDesc::from_env())?;
     eprintln!("device: {}", ctx.info().name);
     study.run(&ctx)?;
     report_validation(&ctx)
+}
+
+/// `--frame-range A..B`: frames A to B, both included, A ≤ B.
+fn parse_frame_range(text: &str) -> std::result::Result<(u32, u32), String> {
+    let (a, b) = text
+        .split_once("..")
+        .ok_or_else(|| format!("{text:?} is not a range A..B (e.g. 0..99)"))?;
+    let number = |s: &str| {
+        s.trim()
+            .trim_start_matches('=')
+            .parse::<u32>()
+            .map_err(|e| format!("{s:?} in {text:?} is not a frame number: {e}"))
+    };
+    let (a, b) = (number(a)?, number(b)?);
+    if a > b {
+        return Err(format!(
+            "{text:?}: the first frame {a} comes after the last {b}"
+        ));
+    }
+    Ok((a, b))
+}
+
+/// `--target-error`: a relative error in (0, 1).
+fn parse_target_error(text: &str) -> std::result::Result<f64, String> {
+    match text.trim().parse::<f64>() {
+        Ok(x) if x > 0.0 && x < 1.0 => Ok(x),
+        Ok(x) => Err(format!(
+            "{x} is not a relative error in (0, 1), e.g. 0.03 for 3 %"
+        )),
+        Err(e) => Err(format!("{text:?} is not a number: {e}")),
+    }
+}
+
+/// `--time-limit`: finite seconds > 0.
+fn parse_seconds(text: &str) -> std::result::Result<f64, String> {
+    match text.trim().parse::<f64>() {
+        Ok(x) if x.is_finite() && x > 0.0 && x < 1.0e9 => Ok(x),
+        Ok(x) => Err(format!("{x} is not a number of seconds > 0")),
+        Err(e) => Err(format!("{text:?} is not a number of seconds: {e}")),
+    }
 }
 
 /// `--exposure`: a finite multiplier > 0 (0, negative, NaN or infinite exposure would
@@ -237,84 +390,6 @@ fn parse_exposure(text: &str) -> std::result::Result<f32, String> {
         Ok(x) => Err(format!("{x} is not a finite number > 0")),
         Err(e) => Err(format!("{text:?} is not a number: {e}")),
     }
-}
-
-fn render(args: RenderArgs) -> Result<()> {
-    let scene = load_scene(args.scene.as_deref(), &args.overrides.fields(args.frames)?)?;
-    let plan = plan::build(&scene, None)?;
-    if args.explain {
-        print!("{}", plan.explain(&scene));
-        let f = nimbus::budget::Footprint::of(&scene, &plan)?;
-        let mib = |b: u64| b as f64 / f64::from(1u32 << 20);
-        println!(
-            "  memory: {:.1} MiB of GPU buffers and images, about {:.1} MiB of host memory at the peak for the scene's data",
-            mib(f.device_bytes()),
-            mib(f.host_peak)
-        );
-        return Ok(());
-    }
-    let Some(out) = args.out else {
-        bail!("--out FILE is required to render (or pass --explain to print the plan)");
-    };
-    output::check_writable(&out).context("--out")?;
-    if let Some(dir) = &args.sequence {
-        std::fs::create_dir_all(dir).with_context(|| {
-            format!("--sequence {}: cannot create the directory", dir.display())
-        })?;
-    }
-    let ctx = Context::new(&ContextDesc::from_env())?;
-    eprintln!("device: {}", ctx.info().name);
-    let result = renderer::render(
-        &ctx,
-        &scene,
-        &plan,
-        &renderer::RenderOptions {
-            progress: true,
-            warmup_frames: args.warmup,
-            sequence: args.sequence.clone(),
-            sequence_ext: args.sequence_format.clone(),
-            sequence_exposure: args.exposure,
-            keep_frames: false,
-        },
-    )?;
-    output::write_image(&out, &result.image, args.exposure)?;
-    let gpu_ms: f64 = result
-        .frame_timings
-        .iter()
-        .filter_map(|f| f.first())
-        .map(|s| s.duration_ms())
-        .sum();
-    let mib = |b: u64| b as f64 / f64::from(1u32 << 20);
-    let host = nimbus::budget::peak_host_bytes().map_or_else(String::new, |b| {
-        format!(", peak host memory {:.0} MiB", mib(b))
-    });
-    eprintln!(
-        "wrote {} ({}x{}, {} frame(s) x {} spp) in {:.2} s, GPU {:.1} ms, GPU memory {:.1} MiB{host}",
-        out.display(),
-        scene.render.width,
-        scene.render.height,
-        result.frames,
-        scene.render.spp,
-        result.wall_time.as_secs_f64(),
-        gpu_ms,
-        mib(result.device_bytes)
-    );
-    if result.non_finite_samples > 0 {
-        eprintln!(
-            "warning: {} sample(s) were not finite and were dropped",
-            result.non_finite_samples
-        );
-    }
-    for note in &result.notes {
-        eprintln!("note: {note}");
-    }
-    if result.step_cap_hits > 0 {
-        eprintln!(
-            "warning: {} walk(s) through the grid stopped at the step limit; their samples are biased",
-            result.step_cap_hits
-        );
-    }
-    report_validation(&ctx)
 }
 
 fn profile_cmd(args: ProfileArgs) -> Result<()> {

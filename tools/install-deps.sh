@@ -2,7 +2,9 @@
 # Installs what Nimbus needs on Debian 12: the Vulkan loader, Mesa's lavapipe (a CPU
 # Vulkan device), the Khronos validation layers, the static shaderc / glslang /
 # SPIRV-Tools libraries that build.rs links (see .cargo/config.toml), OpenVDB's Python
-# module and tools for the .vdb reader's tests (tools/make_test_vdbs.py), and, when no
+# module and tools for the .vdb reader's tests (tools/make_test_vdbs.py), Slurm and munge
+# for the farm test (this writes no Slurm configuration, so the packages' own services
+# stay down; the test starts its own daemons on localhost), and, when no
 # `cargo` is on PATH, a stable Rust toolchain by rustup (Debian 12's own rustc 1.63 is
 # too old for the dependencies), linked into /usr/local/bin so the same shell finds it.
 set -euo pipefail
@@ -18,6 +20,10 @@ packages=(
     pkg-config
     python3-openvdb       # OpenVDB 10's pyopenvdb: the .vdb reader's tests write real files
     libopenvdb-tools      # vdb_tool: re-encodes those files as zip / uncompressed
+    slurmctld             # the Slurm farm test (tests/suite/slurm.rs): a one-node
+    slurmd                #   cluster on localhost, started by tools/slurm-local.sh
+    slurm-client          #   (sbatch, squeue, sinfo)
+    munge                 #   Slurm's authentication
     ca-certificates       # rustup's download, when Rust is missing
     curl
 )

@@ -125,6 +125,13 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
         uint light_index;
         float t_light = nearest_sphere_light(0u, o, d, 0.0, t_surface, light_index);
         float t_end = min(t_surface, t_light);
+        if (bounce == 0u) {
+            // The film's alpha: the camera ray's closed-form transmittance through the box
+            // media and the trilinear grid, 0 where it meets a surface or an emitter.
+            g_camera_transmittance = t_end < FAR ? 0.0
+                                                 : exp(-box_optical_depth(o, d, 0.0, FAR)) *
+                                                       grid_transmittance(o, d, 0.0, FAR);
+        }
 
         // Sample a real collision in the media before the segment's end.
         uint medium;
@@ -193,7 +200,7 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
         } else {
             // Escaped: the environment, seen directly by the camera segment only.
             if (SC_HAS_ENV && bounce == 0u) {
-                L += beta * (SC_HAS_ENV_MAP ? env_lookup(d) : u_frame.env_radiance);
+                L += beta * (SC_HAS_ENV_MAP ? env_lookup(d) : u_frame.env_radiance) * u_frame.background;
             }
             break;
         }
@@ -210,5 +217,5 @@ void main() {
     if (!film_contains(pixel)) {
         return;
     }
-    film_accumulate(pixel, film_pixel_estimate(pixel, u_push.frame, u_push.sample_base));
+    film_take_samples(pixel, u_push.frame, u_push.sample_base, u_push.sample_count);
 }

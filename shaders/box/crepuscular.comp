@@ -128,6 +128,11 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
     for (uint bounce = 0u; bounce < SC_MAX_BOUNCES; ++bounce) {
         uint shape_index;
         float t_surface = nearest_shape(o, d, 0.0, FAR, shape_index);
+        if (bounce == 0u) {
+            // The film's alpha: the camera ray's closed-form transmittance, 0 on a surface.
+            g_camera_transmittance =
+                t_surface < FAR ? 0.0 : exp(-box_optical_depth(o, d, 0.0, FAR));
+        }
 
         // Add single scattering from every box medium the segment crosses.
         uint media_count = SC_HAS_MEDIA ? min(u_frame.box_media_count, MAX_MEDIA) : 0u;
@@ -152,7 +157,7 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
             }
         } else if (SC_HAS_ENV && bounce == 0u) {
             // Add the environment seen through the media by the camera ray.
-            L += exp(-box_optical_depth(o, d, 0.0, FAR)) * u_frame.env_radiance;
+            L += exp(-box_optical_depth(o, d, 0.0, FAR)) * u_frame.env_radiance * u_frame.background;
         }
         if (bounce + 1u >= SC_MAX_BOUNCES) {
             break;
@@ -191,5 +196,5 @@ void main() {
     if (!film_contains(pixel)) {
         return;
     }
-    film_accumulate(pixel, film_pixel_estimate(pixel, u_push.frame, u_push.sample_base));
+    film_take_samples(pixel, u_push.frame, u_push.sample_base, u_push.sample_count);
 }

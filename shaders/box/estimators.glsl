@@ -57,11 +57,11 @@ vec3 to_local_point(BoxMedium bm, vec3 x) {
     return to_local_dir(bm, x - bm.center);
 }
 
-// The trapezoid pieces of light l along o + t d in box medium bm over the interval iv
+// The trapezoid pieces of light l along o + t d in medium bm over the interval iv
 // (camera transmittance from t_enter).
 BoxPieces light_pieces(BoxMedium bm, Light l, vec3 o_local, vec3 d_local, float t_enter, vec2 iv) {
     vec3 omega_local = to_local_dir(bm, l.direction_or_position);
-    return box_pieces(o_local, d_local, omega_local, bm.half_size, bm.sigma_t, t_enter, iv.x, iv.y);
+    return medium_pieces(bm, o_local, d_local, omega_local, t_enter, iv.x, iv.y);
 }
 
 // Pick a light in proportion to the weights `w` (sum `w_sum` > 0) with u in [0, 1).
@@ -144,7 +144,7 @@ DistanceSample integrand_sample(BoxMedium bm, Light l, vec3 o, vec3 d, vec3 o_lo
     // Mask by the gobo at the sampled point.
     float gobo = (SC_HAS_GOBOS && !inside_gobo(l, o + t * d)) ? 0.0 : 1.0;
     // Transmittance from the camera's entry to t, then to the boundary towards the light.
-    float d_light = box_light_distance(o_local + t * d_local, to_local_dir(bm, omega), bm.half_size);
+    float d_light = medium_light_distance(bm, o_local + t * d_local, to_local_dir(bm, omega));
     float T = exp(-sigma_t * ((t - t_enter) + d_light));
     vec3 f = bm.sigma_s * hg_phase(dot(omega, -d), bm.g) * l.irradiance * T * gobo;
     // Domain: pdf > 0 (checked) and prob > 0 (a chosen light).
@@ -174,17 +174,16 @@ vec3 single_scatter_box(uint m, vec3 o, vec3 d, float t_enter, float t_b, inout 
     vec2 interval[MAX_LIGHTS];
     vec3 U_total = vec3(0.0);
     float w_sum = 0.0;
-    // Whole-volume sampling keeps the pieces of the light it last sampled; start with the first.
+    // The piece table holds the pieces of one light at a time (box_analytic.glsl):
+    // whole-volume sampling rebuilds it when the sampled light changes.
     uint cached = NO_INDEX;
     BoxPieces pieces;
     for (uint l = 0u; l < light_count; ++l) {
         Light light = lights[l];
         interval[l] = light_interval(light, o, d, t_enter, t_b);
         BoxPieces p = light_pieces(bm, light, o_local, d_local, t_enter, interval[l]);
-        if (l == 0u) {
-            pieces = p;
-            cached = 0u;
-        }
+        pieces = p;
+        cached = l;
         float phase = hg_phase(dot(light.direction_or_position, -d), bm.g);
         U[l] = bm.sigma_s * phase * light.irradiance * p.total;
         w[l] = U[l].r + U[l].g + U[l].b;

@@ -26,10 +26,13 @@
 #define BINDING_GRID_DENSITY_PREV 20
 #define BINDING_VELOCITY 21
 #define BINDING_PREV_FRAME_UNIFORMS 22
+#define BINDING_FILM_PARTIAL 23
+#define BINDING_MEDIUM_PLANES 24
 
 // Indices into the stats buffer (uint counters).
 #define STAT_NON_FINITE 0
 #define STAT_STEP_CAP 1
+#define STAT_LOOPS_CUT 2
 #define STAT_COUNT 4
 
 #endif

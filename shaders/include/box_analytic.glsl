@@ -1,7 +1,19 @@
-// Analytic single scattering in a homogeneous box under collimated light (Velinov &
-// Mitchell, Sec. 4-5): the unoccluded transmittance integral T_box over a camera segment
-// (the paper's trapezoid segments, Eq. 6-8) and whole-volume distance sampling (Eq. 9-11).
-// Pure math: no buffers, no bindings.
+// Analytic single scattering in a homogeneous box or convex polyhedron under collimated
+// light (Velinov & Mitchell, Sec. 4-5): the unoccluded transmittance integral T_box over
+// a camera segment (the paper's trapezoid segments, Eq. 6-8) and whole-volume distance
+// sampling (Eq. 9-11). Pure math: no buffers, no bindings.
+//
+// Convex media (the paper's Sec. 7, "other medium shapes"). A convex polyhedron
+// n_i . x <= d_i (unit n_i, local frame) is left along -omega through plane i at
+//     s_i(x) = (d_i - n_i . x) / w_i,   w_i = -n_i . omega > 0,
+// and d_m(x) = min_i s_i(x) over the planes the light enters by (w_i > BOX_PARALLEL_EPS;
+// the others never stop the ray x - s omega). On the camera ray s_i is again linear in
+// t (slope -(n_i . d) / w_i), so everything below holds with more lines: a box is the
+// case of its three entry faces (s_a is s_i of the face with n = -sign(omega_a) e_a).
+// The pieces of a polyhedron are at most its light-facing planes; the piece table has
+// BOX_MAX_PIECES entries, a specialization constant the render plan sets to the most
+// light-facing planes of any medium and light (3 without convex media), so boxes keep
+// their three-entry tables.
 //
 // Frame. Everything is in the box's rotated, unscaled local frame (metres): local =
 // R^T (x - center), the box is |x_a| <= h_a. The camera ray is o + t d (d unit) and the
@@ -57,22 +69,37 @@
 #define NIMBUS_BOX_ANALYTIC_GLSL
 
 #include "constants.glsl"
+#include "features.glsl"
 #include "sampling.glsl"
 
-#define BOX_MAX_PIECES 3
+// Entries of the piece and line tables: the most pieces a segment can have.
+layout(constant_id = SC_ID_MAX_PIECES) const uint SC_MAX_PIECES = 3u;
+#define BOX_MAX_PIECES SC_MAX_PIECES
 // A light component at or below this magnitude makes the light parallel to that slab.
 #define BOX_PARALLEL_EPS 1e-20
 // The largest float below 1: random numbers are clamped to it so that 1 - r > 0.
 #define BOX_ONE_MINUS_EPSILON 0.99999994
 
+// The piece table of the segment last built by pieces_from_lines, and the exit lines it
+// was built from. GLSL cannot copy arrays sized by a specialization constant, so the
+// tables are invocation-private globals (one of each per invocation) and a BoxPieces
+// value is the summary of the table as it was built: building another segment's pieces
+// replaces the table (callers that alternate between segments rebuild).
+float piece_t_start[BOX_MAX_PIECES];   // along the camera ray (same t as the caller's ray)
+float piece_len[BOX_MAX_PIECES];       // piece length along the camera ray
+float piece_tau0[BOX_MAX_PIECES];      // optical depth at the start: sigma_t * ((t_start - t_enter) + d_m(t_start))
+float piece_slope[BOX_MAX_PIECES];     // sigma_t * c
+float piece_integral[BOX_MAX_PIECES];  // Eq. 6 for the piece
+// The light-exit lines s_j(u) = A_j + B_j u (u = t - t_a) of a segment: one per face the
+// light enters by.
+uint line_count;
+float line_A[BOX_MAX_PIECES];
+float line_B[BOX_MAX_PIECES];
+
 struct BoxPieces {
-    uint count;                      // non-empty pieces, 0..3
-    float t_start[BOX_MAX_PIECES];   // along the camera ray (same t as the caller's ray); t_start[0] = t_a even when count == 0
-    float len[BOX_MAX_PIECES];       // piece length along the camera ray (the brief's `length`: glslang parses `.length` as the array method)
-    float tau0[BOX_MAX_PIECES];      // optical depth at t_start: sigma_t * ((t_start - t_enter) + d_m(t_start))
-    float slope[BOX_MAX_PIECES];     // sigma_t * c
-    float integral[BOX_MAX_PIECES];  // Eq. 6 for the piece
-    float total;                     // sum of integral[]: the unoccluded transmittance integral T_box over [t_a, t_b]
+    uint count;   // non-empty pieces in the table, 0..BOX_MAX_PIECES
+    float t_a;    // start of the segment (where an empty table's samples land)
+    float total;  // sum of the pieces' integrals: T_box over [t_a, t_b]
 };
 
 // Distance to the box boundary towards the light (along -omega) from local point x inside
@@ -91,52 +118,68 @@ float box_light_distance(vec3 x_local, vec3 omega_local, vec3 half_size) {
     return limited ? max(d_m, 0.0) : 0.0;
 }
 
-// The pieces of T_box over the camera segment [t_a, t_b] (see the header).
-// o_local, d_local: camera ray in the box's local frame (d unit); omega_local: light travel
-// direction (unit); half_size: box half extents; sigma_t: extinction; t_enter <= t_a <= t_b.
-BoxPieces box_pieces(vec3 o_local, vec3 d_local, vec3 omega_local, vec3 half_size, float sigma_t, float t_enter, float t_a, float t_b) {
+// Start an empty set of exit lines.
+void exit_lines_clear() {
+    line_count = 0u;
+}
+
+// Add the line of the face n . x <= d (plane = (n, d), unit n) for the segment starting
+// at x_a along d_local, if the light (omega_local) enters by it.
+void exit_lines_add_plane(vec4 plane, vec3 x_a, vec3 d_local, vec3 omega_local) {
+    float w = -dot(plane.xyz, omega_local);
+    if (w > BOX_PARALLEL_EPS && line_count < BOX_MAX_PIECES) {
+        // Domain: w > 1e-20; d - n . x >= 0 inside (up to rounding, clamped later).
+        line_A[line_count] = (plane.w - dot(plane.xyz, x_a)) / w;
+        line_B[line_count] = -dot(plane.xyz, d_local) / w;
+        line_count += 1u;
+    }
+}
+
+// Set the exit lines of the box |x_a| <= half_size for the segment starting at x_a.
+void box_exit_lines(vec3 x_a, vec3 d_local, vec3 omega_local, vec3 half_size) {
+    exit_lines_clear();
+    for (int a = 0; a < 3; ++a) {
+        float w = omega_local[a];
+        if (abs(w) > BOX_PARALLEL_EPS) {
+            // Domain: |w| > 1e-20, so |A| <= 1e28 and |B| <= 1e20 for scene-sized inputs.
+            line_A[line_count] = (half_size[a] + sign(w) * x_a[a]) / abs(w);
+            line_B[line_count] = d_local[a] / w;
+            line_count += 1u;
+        }
+    }
+}
+
+// Build the piece table of T_box over [t_a, t_b] from the segment's exit lines (see the
+// header): walk the lines' lower envelope d_m(t) and integrate each piece (Eq. 6).
+BoxPieces pieces_from_lines(float sigma_t, float t_enter, float t_a, float t_b) {
     BoxPieces p;
     p.count = 0u;
+    p.t_a = t_a;
     p.total = 0.0;
-    for (int i = 0; i < BOX_MAX_PIECES; ++i) {
-        p.t_start[i] = t_a;
-        p.len[i] = 0.0;
-        p.tau0[i] = 0.0;
-        p.slope[i] = 0.0;
-        p.integral[i] = 0.0;
+    for (uint i = 0u; i < BOX_MAX_PIECES; ++i) {
+        piece_t_start[i] = t_a;
+        piece_len[i] = 0.0;
+        piece_tau0[i] = 0.0;
+        piece_slope[i] = 0.0;
+        piece_integral[i] = 0.0;
     }
     // Return no pieces for an empty (or NaN) interval.
     float span = t_b - t_a;
     if (!(span > 0.0)) {
         return p;
     }
-
-    // Build the light-exit lines s_j(u) = A_j + B_j u, u = t - t_a, of the slabs the light
-    // crosses; re-basing at t_a keeps u small and A exact for a camera inside the box.
-    vec3 x_a = fma(vec3(t_a), d_local, o_local);
-    float A[3] = float[3](0.0, 0.0, 0.0);
-    float B[3] = float[3](0.0, 0.0, 0.0);
-    int n = 0;
-    for (int a = 0; a < 3; ++a) {
-        float w = omega_local[a];
-        if (abs(w) > BOX_PARALLEL_EPS) {
-            // Domain: |w| > 1e-20, so |A| <= 1e28 and |B| <= 1e20 for scene-sized inputs.
-            A[n] = (half_size[a] + sign(w) * x_a[a]) / abs(w);
-            B[n] = d_local[a] / w;
-            ++n;
-        }
+    // Handle an omega with no usable component: the light is not attenuated.
+    if (line_count == 0u) {
+        line_A[0] = 0.0;
+        line_B[0] = 0.0;
+        line_count = 1u;
     }
-    // Handle a non-unit omega with no usable component: the light is not attenuated.
-    if (n == 0) {
-        A[0] = 0.0;
-        B[0] = 0.0;
-        n = 1;
-    }
+    uint n = line_count;
 
     // Start on the line lowest at u = 0 (on a tie, the one that stays lowest).
-    int k = 0;
-    for (int j = 1; j < n; ++j) {
-        if (A[j] < A[k] || (A[j] == A[k] && B[j] < B[k])) {
+    uint k = 0u;
+    for (uint j = 1u; j < n; ++j) {
+        if (line_A[j] < line_A[k] || (line_A[j] == line_A[k] && line_B[j] < line_B[k])) {
             k = j;
         }
     }
@@ -145,24 +188,30 @@ BoxPieces box_pieces(vec3 o_local, vec3 d_local, vec3 omega_local, vec3 half_siz
     // are at most n pieces.
     float delta = max(t_a - t_enter, 0.0);
     float u_s = 0.0;
-    for (int iter = 0; iter < BOX_MAX_PIECES; ++iter) {
+    for (uint iter = 0u; iter < BOX_MAX_PIECES; ++iter) {
         // Find the earliest u in [u_s, span] where another line drops below line k.
-        float s_k0 = A[k] + B[k] * u_s;
-        float s_k1 = A[k] + B[k] * span;
+        float A_k = line_A[k];
+        float B_k = line_B[k];
+        float s_k0 = A_k + B_k * u_s;
+        float s_k1 = A_k + B_k * span;
         float u_e = span;
         int next = -1;
-        for (int j = 0; j < n; ++j) {
-            if (j == k || !(B[j] < B[k])) {
+        float B_next = 0.0;
+        for (uint j = 0u; j < n; ++j) {
+            float A_j = line_A[j];
+            float B_j = line_B[j];
+            if (j == k || !(B_j < B_k)) {
                 continue;
             }
-            float g1 = s_k1 - (A[j] + B[j] * span);
+            float g1 = s_k1 - (A_j + B_j * span);
             if (g1 > 0.0) {
-                float g0 = max((A[j] + B[j] * u_s) - s_k0, 0.0);
+                float g0 = max((A_j + B_j * u_s) - s_k0, 0.0);
                 // Domain: g0 + g1 >= g1 > 0; the fraction lies in [0, 1].
                 float u = u_s + (span - u_s) * (g0 / (g0 + g1));
-                if (u < u_e || (u == u_e && (next < 0 || B[j] < B[next]))) {
+                if (u < u_e || (u == u_e && (next < 0 || B_j < B_next))) {
                     u_e = u;
-                    next = j;
+                    next = int(j);
+                    B_next = B_j;
                 }
             }
         }
@@ -172,43 +221,64 @@ BoxPieces box_pieces(vec3 o_local, vec3 d_local, vec3 omega_local, vec3 half_siz
         if (len > 0.0) {
             uint i = p.count;
             float d_s = max(s_k0, 0.0);
-            float d_e = max(A[k] + B[k] * u_e, 0.0);
+            float d_e = max(A_k + B_k * u_e, 0.0);
             float tau_s = sigma_t * ((delta + u_s) + d_s);
             float tau_e = sigma_t * ((delta + u_e) + d_e);
-            float slope = sigma_t * (1.0 + B[k]);
+            float slope = sigma_t * (1.0 + B_k);
             float x = slope * len;
             // Integrate from the end with the smaller depth (Eq. 6, stable for c < 0).
             // Domain: tau_low >= 0 and finite, so exp(-tau_low) lies in [0, 1] (0 for
             // tau_low > 104, the right answer); f(|x|) in (0, 1].
             float tau_low = (x >= 0.0) ? tau_s : tau_e;
-            p.t_start[i] = t_a + u_s;
-            p.len[i] = len;
-            p.tau0[i] = tau_s;
-            p.slope[i] = slope;
-            p.integral[i] = exp(-tau_low) * len * one_minus_exp_over_x(abs(x));
-            p.total += p.integral[i];
+            float integral = exp(-tau_low) * len * one_minus_exp_over_x(abs(x));
+            piece_t_start[i] = t_a + u_s;
+            piece_len[i] = len;
+            piece_tau0[i] = tau_s;
+            piece_slope[i] = slope;
+            piece_integral[i] = integral;
+            p.total += integral;
             p.count = i + 1u;
         }
         if (next < 0) {
             break;
         }
-        k = next;
+        k = uint(next);
         u_s = u_e;
     }
     return p;
 }
 
-// pdf of t at fraction v in [0, 1] of piece k: (I_k / T_box) times the truncated
-// exponential density of the piece (Eq. 11). Requires total > 0 and a non-empty piece.
+// The pieces of T_box over the camera segment [t_a, t_b] of a box (see the header).
+// o_local, d_local: camera ray in the box's local frame (d unit); omega_local: light travel
+// direction (unit); half_size: box half extents; sigma_t: extinction; t_enter <= t_a <= t_b.
+BoxPieces box_pieces(vec3 o_local, vec3 d_local, vec3 omega_local, vec3 half_size, float sigma_t, float t_enter, float t_a, float t_b) {
+    // Re-base the lines at t_a: it keeps u small and A exact for a camera inside the box.
+    vec3 x_a = fma(vec3(t_a), d_local, o_local);
+    box_exit_lines(x_a, d_local, omega_local, half_size);
+    return pieces_from_lines(sigma_t, t_enter, t_a, t_b);
+}
+
+// Distance to the face n . x <= d (plane = (n, d)) towards the light from x, or FAR when
+// the light does not enter by it.
+float plane_light_distance(vec4 plane, vec3 x_local, vec3 omega_local) {
+    float w = -dot(plane.xyz, omega_local);
+    // Domain: w > 1e-20.
+    return (w > BOX_PARALLEL_EPS) ? (plane.w - dot(plane.xyz, x_local)) / w : FAR;
+}
+
+// pdf of t at fraction v in [0, 1] of piece k of the table p summarizes: (I_k / T_box)
+// times the truncated exponential density of the piece (Eq. 11). Requires total > 0
+// and a non-empty piece.
 float box_piece_pdf(BoxPieces p, uint k, float v) {
-    float len = p.len[k];
-    float x = abs(p.slope[k]) * len;
+    float len = piece_len[k];
+    float slope = piece_slope[k];
+    float x = abs(slope) * len;
     // The density falls away from the piece's low-depth end.
-    float w = (p.slope[k] >= 0.0) ? v : 1.0 - v;
+    float w = (slope >= 0.0) ? v : 1.0 - v;
     // Domain: x * w >= 0, so exp gives (0, 1]; len > 0 and f(x) >= min(1, 0.39 / x) > 0
     // for finite x >= 0; total > 0.
     float density = exp(-x * w) / (len * one_minus_exp_over_x(x));
-    return (p.integral[k] / p.total) * density;
+    return (piece_integral[k] / p.total) * density;
 }
 
 // Choose piece k (Eq. 9) and the fraction v in [0, 1] along it (Eq. 10 and the
@@ -222,19 +292,20 @@ void box_sample_piece(BoxPieces p, float u, out uint k, out float v) {
     float below = 0.0;
     float cum = 0.0;
     bool found = false;
-    float integral_k = p.integral[0];
-    float slope_k = p.slope[0];
-    float len_k = p.len[0];
+    float integral_k = piece_integral[0];
+    float slope_k = piece_slope[0];
+    float len_k = piece_len[0];
     for (uint i = 0u; i < BOX_MAX_PIECES; ++i) {
-        bool positive = i < p.count && p.integral[i] > 0.0 && !found;
+        float integral_i = piece_integral[i];
+        bool positive = i < p.count && integral_i > 0.0 && !found;
         if (positive) {
             k = i;
             below = cum;
-            integral_k = p.integral[i];
-            slope_k = p.slope[i];
-            len_k = p.len[i];
+            integral_k = integral_i;
+            slope_k = piece_slope[i];
+            len_k = piece_len[i];
         }
-        cum += i < p.count ? p.integral[i] : 0.0;
+        cum += i < p.count ? integral_i : 0.0;
         found = found || (positive && target < cum);
     }
     // Rescale the random number into the piece (Eq. 10). Domain: integral_k > 0, since
@@ -247,18 +318,30 @@ void box_sample_piece(BoxPieces p, float u, out uint k, out float v) {
         : 1.0 - sample_truncated_exponential(x, min(1.0 - r, BOX_ONE_MINUS_EPSILON));
 }
 
+// The start and length of piece k, picked with selects (see box_sample_piece).
+vec2 box_piece_span(uint k) {
+    float start = piece_t_start[0];
+    float len = piece_len[0];
+    for (uint i = 1u; i < BOX_MAX_PIECES; ++i) {
+        start = (k == i) ? piece_t_start[i] : start;
+        len = (k == i) ? piece_len[i] : len;
+    }
+    return vec2(start, len);
+}
+
 // Whole-volume distance sampling: t in [t_a, t_b] with pdf = integrand / total; u in [0,1).
 // Returns t_a with pdf 0 when total == 0 (callers must then count no contribution).
 float sample_wvds(BoxPieces p, float u, out float pdf) {
     pdf = 0.0;
     if (!(p.total > 0.0)) {
-        return p.t_start[0];
+        return p.t_a;
     }
     uint k;
     float v;
     box_sample_piece(p, u, k, v);
     pdf = box_piece_pdf(p, k, v);
-    return p.t_start[k] + v * p.len[k];
+    vec2 piece = box_piece_span(k);
+    return piece.x + v * piece.y;
 }
 
 // Whole-volume distance sampling without the pdf, for estimators that know f / pdf in
@@ -267,26 +350,24 @@ float sample_wvds_distance(BoxPieces p, float u) {
     uint k;
     float v;
     box_sample_piece(p, u, k, v);
-    // Pick the piece's start and length with selects (see box_sample_piece).
-    float start = k == 0u ? p.t_start[0] : (k == 1u ? p.t_start[1] : p.t_start[2]);
-    float len = k == 0u ? p.len[0] : (k == 1u ? p.len[1] : p.len[2]);
-    return start + v * len;
+    vec2 piece = box_piece_span(k);
+    return piece.x + v * piece.y;
 }
 
 // pdf of sample_wvds at t (0 outside [t_a, t_b] or when total == 0).
 float wvds_pdf(BoxPieces p, float t) {
-    if (!(p.total > 0.0) || !(t >= p.t_start[0])) {
+    if (!(p.total > 0.0) || !(t >= p.t_a)) {
         return 0.0;
     }
     // Find the last piece starting at or before t.
     uint k = 0u;
     for (uint i = 1u; i < p.count; ++i) {
-        if (t >= p.t_start[i]) {
+        if (t >= piece_t_start[i]) {
             k = i;
         }
     }
-    float s = t - p.t_start[k];
-    float len = p.len[k];
+    float s = t - piece_t_start[k];
+    float len = piece_len[k];
     // Accept t up to a rounding slack past the end (t_start + length is itself rounded).
     if (s > len + 1e-6 * max(abs(t), len)) {
         return 0.0;

@@ -25,6 +25,13 @@
 #define SC_ID_FINAL_RATIO_TRACKING 10
 // ReSTIR: the medium has a velocity grid (temporal reprojection follows it).
 #define SC_ID_HAS_VELOCITY 11
+// ReSTIR: pairwise MIS in spatial reuse instead of Talbot's.
+#define SC_ID_MIS_PAIRWISE 12
+// Box estimators: entries of the piece and exit-line tables (box_analytic.glsl), the
+// most light-facing planes of any medium and light (3 for boxes).
+#define SC_ID_MAX_PIECES 13
+// Box media: some media are convex polyhedra (planes in medium_planes[]).
+#define SC_ID_HAS_CONVEX 14
 
 // ---------------------------------------------------------------------------------------
 // Values of SC_ESTIMATOR: the box-medium estimators of Velinov & Mitchell.
@@ -46,6 +53,8 @@
 #define MAX_LIGHTS 16u
 // Most box media the crepuscular pass takes.
 #define MAX_MEDIA 16u
+// Most planes of a convex medium (the scene loader's limit).
+#define MAX_CONVEX_PLANES 64u
 
 // Most scattering events a ReSTIR path stores (k' has 5 bits in a reservoir's info word,
 // see reservoir.glsl, so at most 31 would fit).

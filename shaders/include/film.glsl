@@ -3,10 +3,12 @@
 // file after its specialization constants (SC_PIXEL_JITTER at least): it sets the
 // workgroup (one invocation per pixel, GROUP_SIZE_X x GROUP_SIZE_Y) and declares the
 // frame's uniforms `u_frame` (FrameUniforms: image = width, height, spp, seed) and the
-// three film buffers.
+// four film buffers.
 //
-// accum[p]    rgb: sum over frames of the frame's pixel estimate, a: frames
-// accum_sq[p] rgb: sum of squares of the frame estimates (the renderer's standard error)
+// accum[p]    rgb: sum over frames of the frame's pixel estimate; a: sum of its coverage
+//             (alpha = 1 - the camera ray's transmittance, see g_camera_transmittance)
+// accum_sq[p] sum of squares of the same (the renderer's standard errors). The renderer
+//             counts the frames itself.
 // A non-finite sample is never written: it is counted in stats[STAT_NON_FINITE] and the
 // pass decides what stands for it (left out of the mean, or 0). Walks cut short at
 // GRID_MAX_STEPS are counted in stats[STAT_STEP_CAP].
@@ -30,6 +32,12 @@ layout(std430, set = 0, binding = BINDING_ACCUM_SQ) buffer AccumSqBlock {
 };
 layout(std430, set = 0, binding = BINDING_STATS) buffer StatsBlock {
     uint stats[];
+};
+// Per pixel, two vec4: a frame's radiance and coverage sums so far and its count of
+// finite samples, while the frame's samples are shared among dispatches (see
+// film_take_samples; one element where the device takes a frame in one dispatch).
+layout(std430, set = 0, binding = BINDING_FILM_PARTIAL) buffer FilmPartialBlock {
+    vec4 film_partial[];
 };
 
 #include "camera.glsl"
@@ -57,40 +65,82 @@ void film_flush_counters() {
         atomicAdd(stats[STAT_STEP_CAP], g_step_cap_hits);
         g_step_cap_hits = 0u;
     }
+    // lavapipe (llvmpipe) silently ends every loop of an invocation once 65535 loop
+    // iterations (all loops together) have run in it, so a long invocation returns a cut
+    // estimate. A loop of two trips that the compiler cannot count ahead then runs once:
+    // count it, and the renderer refuses the image.
+    uint trips = 2u + (u_frame.width >> 31u);
+    uint runs = 0u;
+    for (uint i = 0u; i < trips; ++i) {
+        runs += 1u;
+    }
+    if (runs < trips) {
+        atomicAdd(stats[STAT_LOOPS_CUT], 1u);
+    }
 }
 
-// Add one frame's estimate of `pixel` to the running sums.
-void film_accumulate(uvec2 pixel, vec3 estimate) {
+// Add one frame's estimate of `pixel` (radiance, coverage alpha) to the running sums.
+void film_accumulate(uvec2 pixel, vec3 estimate, float alpha) {
     uint index = pixel.y * u_frame.width + pixel.x;
-    accum[index] += vec4(estimate, 1.0);
-    accum_sq[index] += vec4(estimate * estimate, 0.0);
+    vec4 x = vec4(estimate, alpha);
+    accum[index] += x;
+    accum_sq[index] += x * x;
 }
+
+// The transmittance of the camera ray through every medium up to the first opaque surface
+// or emitter it meets (0 when it meets one), set by the integrator for the camera sample
+// it traces: the film's alpha is 1 - its mean. A pass that never sets it leaves the
+// pixel opaque.
+float g_camera_transmittance = 0.0;
 
 // ---------------------------------------------------------------------------------------
-// The pixel loop of the path tracers (crepuscular, baseline): u_frame.spp camera
-// samples per pixel per frame, each with its own random stream, jittered over the
+// The pixel loop of the path tracers (crepuscular, baseline): the frame's u_frame.spp
+// camera samples per pixel, taken by one dispatch or shared among several (each adds
+// its own estimate to the sums), each with its own random stream, jittered over the
 // pixel's footprint (box filter).
 
 // Radiance arriving at o from direction -d, estimated by the including pass; only a pass
 // that calls film_pixel_estimate defines it.
 vec3 radiance(vec3 o, vec3 d, inout uint rng);
 
-// The frame's estimate of `pixel`: the mean of its finite camera samples (0 if none).
-// Sample s of the frame draws from the stream (pixel, frame, sample_base + s, seed).
-vec3 film_pixel_estimate(uvec2 pixel, uint frame, uint sample_base) {
+// The path tracers' pixel loop: a frame's u_frame.spp camera samples of `pixel`
+// are drawn by one dispatch (sample_base = 0, sample_count = spp) or by several in turn
+// where the device limits loop iterations. Sample s draws from the stream (pixel, frame,
+// s, seed). A share that does not end the frame leaves its sums (radiance, coverage,
+// finite samples) in film_partial; the one that ends it adds the frame's estimate (rgb
+// the mean radiance of its finite samples, a the mean coverage 1 - T; 0 and 1 if none is
+// finite) to the film: one estimate per pixel and frame, however the frame was shared.
+void film_take_samples(uvec2 pixel, uint frame, uint sample_base, uint sample_count) {
+    uint index = pixel.y * u_frame.width + pixel.x;
     vec3 sum = vec3(0.0);
-    uint kept = 0u;
-    for (uint s = 0u; s < u_frame.spp; ++s) {
+    float coverage = 0.0;
+    float kept = 0.0;
+    if (sample_base > 0u) {
+        vec4 a = film_partial[2u * index];
+        sum = a.rgb;
+        coverage = a.a;
+        kept = film_partial[2u * index + 1u].x;
+    }
+    for (uint s = 0u; s < sample_count; ++s) {
         uint rng = rng_init(pixel, frame, sample_base + s, u_frame.seed);
         vec2 px = vec2(pixel) + pixel_jitter(rng);
+        g_camera_transmittance = 0.0;
         vec3 L = radiance(u_frame.cam_position, camera_direction(u_frame, px), rng);
         if (film_sample_finite(L)) {
             sum += L;
-            kept += 1u;
+            coverage += 1.0 - clamp(g_camera_transmittance, 0.0, 1.0);
+            kept += 1.0;
         }
     }
     film_flush_counters();
-    return kept > 0u ? sum / float(kept) : vec3(0.0);
+    if (sample_base + sample_count < u_frame.spp) {
+        film_partial[2u * index] = vec4(sum, coverage);
+        film_partial[2u * index + 1u] = vec4(kept, 0.0, 0.0, 0.0);
+        return;
+    }
+    // Domain: kept >= 1 where divided.
+    vec4 estimate = kept > 0.0 ? vec4(sum, coverage) / kept : vec4(0.0, 0.0, 0.0, 1.0);
+    film_accumulate(pixel, estimate.rgb, estimate.a);
 }
 
 #endif

@@ -225,16 +225,17 @@ bool light_blocked(uint base, vec3 x, vec3 wi, float dist) {
     return nearest_sphere_light(base, x, wi, 1e-6, t_max, blocker) < FAR;
 }
 
-// What a ray from o along d sees at its end beyond the media: the nearest emitting sphere
-// within t_max (its radiance) or the environment. `t_end` is where the ray ends (FAR
-// when it escapes).
+// What a camera ray from o along d sees at its end beyond the media: the nearest emitting
+// sphere (its radiance) or the environment (weighted by u_frame.background: 0 for a
+// transparent film). `t_end` is where the ray ends (FAR when it escapes).
 vec3 light_seen(uint base, vec3 o, vec3 d, out float t_end) {
     uint index;
     t_end = nearest_sphere_light(base, o, d, 0.0, FAR, index);
     if (index != NO_INDEX) {
         return lights[base + index].irradiance;
     }
-    return env_radiance_along(d);
+    // The background is weighted for a transparent film (u_frame.background = 0).
+    return env_radiance_along(d) * u_frame.background;
 }
 
 #endif

@@ -8,15 +8,21 @@
 #ifndef NIMBUS_SCENE_GLSL
 #define NIMBUS_SCENE_GLSL
 
-// A homogeneous box medium. 96 bytes.
+// A homogeneous box or convex medium. 112 bytes. A convex medium (plane_count > 0) is
+// the intersection of its planes' half-spaces n . x <= d in the local frame (unit n),
+// inside the box |x_a| <= half_size that bounds it.
 struct BoxMedium {
     vec4 world_to_local[3]; // rows of R^T (w 0); local = R^T (x - center)
-    vec3 center;            // world
+    vec3 center;            // world (convex: the centroid of its vertices)
     float sigma_t;          // extinction (1/m)
-    vec3 half_size;         // half extents along the local axes (m)
+    vec3 half_size;         // half extents along the local axes (m); convex: of its bounding box
     float g;                // HG asymmetry
     vec3 sigma_s;           // rgb sigma_s = albedo * sigma_t (1/m)
-    float _pad0;
+    uint plane_count;       // 0: a box; else the planes of a convex medium
+    uint plane_first;       // index of its first plane in medium_planes[]
+    uint _pad0;
+    uint _pad1;
+    uint _pad2;
 };
 
 // Shape.type
@@ -66,7 +72,7 @@ struct FrameUniforms {
     vec3 cam_up;
     float _pad1;
     vec3 env_radiance;      // rgb radiance of the constant environment (escaping rays)
-    float _pad2;
+    float background;       // weight of the environment camera rays see directly: 1, or 0 (transparent film)
     uint width;             // image width in pixels
     uint height;            // image height in pixels
     uint spp;               // samples per pixel per frame (path tracers)
@@ -82,7 +88,7 @@ struct FrameUniforms {
 struct PassPush {
     uint frame;        // frame index within the render
     uint sample_base;  // index of this dispatch's first sample per pixel
-    uint _pad0;
+    uint sample_count; // samples per pixel this dispatch takes
     uint _pad1;
 };
 

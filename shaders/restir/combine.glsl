@@ -1,5 +1,6 @@
 // Volumetric ReSTIR (Lin, Wyman and Yuksel 2021): combining reservoirs with Talbot MIS
-// (Algorithm 5, with Algorithm 2's combineReservoir), for temporal and spatial reuse.
+// (Algorithm 5, with Algorithm 2's combineReservoir), or pairwise MIS, for temporal and
+// spatial reuse.
 #ifndef NIMBUS_RESTIR_COMBINE_GLSL
 #define NIMBUS_RESTIR_COMBINE_GLSL
 
@@ -39,7 +40,7 @@ CameraRay candidate_ray(uint i, uint code) {
 // unbiased contribution weight. Stored as in Algorithm 2: w_sum = sum_i w_i M and M =
 // sum_i M_i, so f / p_hat * w_sum / M stays the estimator. Returns the index of the chosen
 // candidate (n if none) and the combined header (its p_hat = p_0 of the chosen sample).
-uint combine_candidates(uint n, inout uint rng, out Reservoir s) {
+uint combine_candidates_talbot(uint n, inout uint rng, out Reservoir s) {
     s = res_empty();
     float k = 0.0;
     for (uint i = 0u; i < n; ++i) {
@@ -104,6 +105,99 @@ uint combine_candidates(uint n, inout uint rng, out Reservoir s) {
         s.info = 0u;
     }
     return chosen;
+}
+
+// The target function at candidate j's pixel and frame for the sample of reservoir ri
+// (stored at candidate i, jitter code `code`, owned by camera ray `owner`); candidate i's
+// own value comes from the header when the reservoir already holds it.
+float candidate_target(uint i, uint j, Reservoir ri, uint code, CameraRay owner, inout uint rng) {
+    if (j == i && (ri.info & INFO_REUSE_TARGET) != 0u) {
+        return ri.p_hat;
+    }
+    return luminance(path_value(cand_at[i], ri, candidate_ray(j, code), owner, MODE_TARGET, rng));
+}
+
+// As combine_candidates_talbot, with pairwise MIS (Bitterli 2022; Lin et al. 2022,
+// "Generalized resampled importance sampling"): candidate 0 (the pixel's own, canonical)
+// is weighed against each of the k others alone. With c = M_0 / k,
+//   m_i(y) = (1/k) M_i p_i(y) / (M_i p_i(y) + c p_0(y))              for i >= 1,
+//   m_0(y) = (1/k) sum_i c p_0(y) / (M_i p_i(y) + c p_0(y)),
+// a partition of unity for every y (the pair terms add to 1/k each), so the combined
+// estimate stays unbiased; 3k target evaluations instead of (k + 1)^2.
+uint combine_candidates_pairwise(uint n, inout uint rng, out Reservoir s) {
+    s = res_empty();
+    float total = 0.0;
+    float k = 0.0;
+    for (uint i = 0u; i < n; ++i) {
+        total += cand_M[i];
+        k += (i > 0u && cand_M[i] > 0.0) ? 1.0 : 0.0;
+    }
+    // Domain: k >= 1 below (with no other candidate the canonical weight is 1).
+    float c = k > 0.0 ? cand_M[0] / k : 0.0;
+    uint chosen = n;
+    for (uint i = 0u; i < n; ++i) {
+        Reservoir ri = res_load(cand_at[i]);
+        ri.M = cand_M[i];
+        ri.w_sum *= cand_w_scale[i];
+        if (!res_valid(ri) || !(ri.p_hat > 0.0) || !(ri.w_sum > 0.0) || !(ri.M > 0.0)) {
+            continue;
+        }
+        uint code = res_jitter(ri);
+        CameraRay owner = candidate_ray(i, code);
+        float p_here = candidate_target(i, 0u, ri, code, owner, rng);
+        if (!(p_here > 0.0)) {
+            continue;
+        }
+        float m;
+        if (i == 0u) {
+            if (k == 0.0) {
+                m = 1.0;
+            } else {
+                m = 0.0;
+                for (uint j = 1u; j < n; ++j) {
+                    if (!(cand_M[j] > 0.0)) {
+                        continue;
+                    }
+                    float pj = candidate_target(0u, j, ri, code, owner, rng);
+                    // Domain: c p_here > 0, so the denominator is > 0.
+                    m += c * p_here / (cand_M[j] * pj + c * p_here);
+                }
+                m /= k;
+            }
+        } else {
+            float p_own = candidate_target(i, i, ri, code, owner, rng);
+            if (!(p_own > 0.0)) {
+                continue;
+            }
+            // Domain: M_i p_own > 0.
+            m = cand_M[i] * p_own / (cand_M[i] * p_own + c * p_here) / k;
+        }
+        // w_i = m_i p_0(y_i) W_i, W_i = w_sum_i / (M_i p_hat_i), stored scaled by the
+        // total M (Algorithm 2). Domain: p_hat_i > 0 and M_i > 0 (checked above).
+        float w = p_here / ri.p_hat * ri.w_sum * (m * total / ri.M);
+        Reservoir cr = ri;
+        cr.p_hat = p_here;
+        cr.info = ri.info | INFO_REUSE_TARGET;
+        if (res_update(s, cr, w, rng)) {
+            chosen = i;
+        }
+    }
+    s.M = total;
+    if (chosen == n) {
+        s.w_sum = 0.0;
+        s.p_hat = 0.0;
+        s.info = 0u;
+    }
+    return chosen;
+}
+
+// Streams candidates 0..n-1 into one reservoir for the pixel of candidate 0 with the MIS
+// the plan chose; returns the chosen index (n if none).
+uint combine_candidates(uint n, inout uint rng, out Reservoir s) {
+    if (SC_MIS_PAIRWISE) {
+        return combine_candidates_pairwise(n, rng, s);
+    }
+    return combine_candidates_talbot(n, rng, s);
 }
 
 // Writes the combined reservoir to `dst` for the pixel whose camera ray is `here`, copying

@@ -62,13 +62,16 @@ void restir_main() {
         return;
     }
     uint at = res_at(u_push.dst, pixel);
-    uint rng = rng_init(pixel, u_push.frame, 0u, u_frame.seed);
+    // This dispatch draws candidates m0 .. m1 (all M in one where the device allows),
+    // from its own random stream, streaming into the reservoir the earlier ones left.
+    uint m0 = u_push.aux;
+    uint m1 = min(m0 + u_restir.candidates_per_dispatch, u_restir.candidates);
+    uint rng = rng_init(pixel, u_push.frame, m0, u_frame.seed);
     vec3 albedo = u_base.albedo;
     float g = u_base.g;
-    uint candidates = u_restir.candidates;
 
-    Reservoir r = res_empty();
-    for (uint m = 0u; m < candidates; ++m) {
+    Reservoir r = m0 == 0u ? res_empty() : res_load(at);
+    for (uint m = m0; m < m1; ++m) {
         // Each walk starts at its own sub-pixel position, which its paths keep.
         uint code = SC_PIXEL_JITTER ? jitter_code_sample(rng) : 0u;
         uint jitter_bits = code << 16u;
@@ -151,7 +154,7 @@ void restir_main() {
             }
         }
     }
-    r.M = float(candidates);
+    r.M = float(m1);
     if (!res_valid(r)) {
         r.w_sum = 0.0;
     }

@@ -26,6 +26,8 @@ layout(constant_id = SC_ID_REUSE_VERTEX) const bool SC_REUSE_VERTEX = false;
 layout(constant_id = SC_ID_FINAL_RATIO_TRACKING) const bool SC_FINAL_RATIO_TRACKING = false;
 // The medium has a velocity grid (temporal reprojection follows it).
 layout(constant_id = SC_ID_HAS_VELOCITY) const bool SC_HAS_VELOCITY = false;
+// Spatial reuse weights by pairwise MIS instead of Talbot's.
+layout(constant_id = SC_ID_MIS_PAIRWISE) const bool SC_MIS_PAIRWISE = false;
 
 // Settings of the ReSTIR passes (std140). Mirrored by RestirUniformsGpu. 128 bytes.
 struct RestirUniforms {
@@ -38,7 +40,7 @@ struct RestirUniforms {
     uint march_reuse_factor;  // ... of the reuse march texture (mip_reuse)
     uint march_nee_factor;    // ... of the NEE march texture (mip_indirect)
     uvec3 march_reuse_dims;   // dims of the reuse march texture
-    uint _pad0;
+    uint candidates_per_dispatch; // candidates one initial dispatch draws (its aux: the first)
     uvec3 march_nee_dims;     // dims of the NEE march texture
     uint _pad1;
     uint candidates;          // M: random walks per pixel
@@ -58,7 +60,7 @@ struct RestirPush {
     uint frame;  // frame index within the render (0 = first)
     uint src;    // reservoir slot read
     uint dst;    // reservoir slot written
-    uint aux;    // temporal: slot of the previous frame; spatial: the round
+    uint aux;    // initial: first candidate; temporal: previous slot; spatial: the round
 };
 
 #include "film.glsl"

@@ -1,22 +1,27 @@
 #version 460
 // Test harness for box_analytic.glsl (tests/box_analytic.rs). One invocation per query;
-// a query names a configuration (camera ray, light direction, box, sigma_t, interval),
-// a random number for sample_wvds and a distance at which to evaluate wvds_pdf.
+// a query names a configuration (camera ray, light direction, box or convex polyhedron,
+// sigma_t, interval), a random number for sample_wvds and a distance at which to
+// evaluate wvds_pdf. A configuration with planes (plane_count > 0) is the convex
+// polyhedron of planes[plane_first ..] (n . x <= d, local frame); SC_MAX_PIECES sizes
+// the piece tables as the renderer does.
 
 #extension GL_GOOGLE_include_directive : require
 
 #include "box_analytic.glsl"
+#include "features.glsl"
 // Included twice on purpose: the include guard must make the second one a no-op.
 #include "box_analytic.glsl"
 
 layout(local_size_x = 64) in;
 
-// A configuration, in the box's local frame. 64 bytes, mirrored in tests/box_analytic.rs.
+// A configuration, in the box's local frame. 80 bytes, mirrored in tests/box_analytic.rs.
 struct Config {
     vec4 origin_sigma_t;  // xyz camera origin, w sigma_t
     vec4 dir_t_enter;     // xyz unit camera direction, w t_enter
     vec4 omega_t_a;       // xyz unit light travel direction, w t_a
     vec4 half_size_t_b;   // xyz box half extents, w t_b
+    uvec4 planes;         // x plane_first, y plane_count (0: the box)
 };
 
 // What to do with a configuration. 16 bytes.
@@ -39,13 +44,13 @@ struct Result {
     uint pad1;
 };
 
-// The pieces of a configuration, one per vec4 component (w unused). 80 bytes.
+// The pieces of a configuration (entries past BOX_MAX_PIECES stay 0). 1280 bytes.
 struct PiecesOut {
-    vec4 t_start;
-    vec4 len;
-    vec4 tau0;
-    vec4 slope;
-    vec4 integral;
+    float t_start[MAX_CONVEX_PLANES];
+    float len[MAX_CONVEX_PLANES];
+    float tau0[MAX_CONVEX_PLANES];
+    float slope[MAX_CONVEX_PLANES];
+    float integral[MAX_CONVEX_PLANES];
 };
 
 layout(push_constant) uniform PushBlock {
@@ -67,6 +72,9 @@ layout(std430, set = 0, binding = 2) writeonly buffer ResultBlock {
 layout(std430, set = 0, binding = 3) writeonly buffer PiecesBlock {
     PiecesOut pieces[];
 };
+layout(std430, set = 0, binding = 4) readonly buffer PlaneBlock {
+    vec4 planes[];
+};
 
 // 1 if x is NaN or infinite, judged by its exponent bits (immune to fast-math folding).
 uint non_finite(float x) {
@@ -81,17 +89,28 @@ void main() {
     Query q = queries[index];
     Config c = configs[q.config];
 
-    BoxPieces p = box_pieces(c.origin_sigma_t.xyz, c.dir_t_enter.xyz, c.omega_t_a.xyz,
-        c.half_size_t_b.xyz, c.origin_sigma_t.w, c.dir_t_enter.w, c.omega_t_a.w, c.half_size_t_b.w);
+    BoxPieces p;
+    if (c.planes.y == 0u) {
+        p = box_pieces(c.origin_sigma_t.xyz, c.dir_t_enter.xyz, c.omega_t_a.xyz,
+            c.half_size_t_b.xyz, c.origin_sigma_t.w, c.dir_t_enter.w, c.omega_t_a.w, c.half_size_t_b.w);
+    } else {
+        // The exit lines of the polyhedron's planes, re-based at t_a (as box_media.glsl).
+        vec3 x_a = fma(vec3(c.omega_t_a.w), c.dir_t_enter.xyz, c.origin_sigma_t.xyz);
+        exit_lines_clear();
+        for (uint i = 0u; i < c.planes.y; ++i) {
+            exit_lines_add_plane(planes[c.planes.x + i], x_a, c.dir_t_enter.xyz, c.omega_t_a.xyz);
+        }
+        p = pieces_from_lines(c.origin_sigma_t.w, c.dir_t_enter.w, c.omega_t_a.w, c.half_size_t_b.w);
+    }
     float pdf_sample;
     float t_sample = sample_wvds(p, q.u, pdf_sample);
     float pdf_eval = wvds_pdf(p, q.t_eval);
 
     // Count non-finite values among everything computed.
     uint bad = non_finite(p.total) + non_finite(t_sample) + non_finite(pdf_sample) + non_finite(pdf_eval);
-    for (int i = 0; i < BOX_MAX_PIECES; ++i) {
-        bad += non_finite(p.t_start[i]) + non_finite(p.len[i]) + non_finite(p.tau0[i])
-            + non_finite(p.slope[i]) + non_finite(p.integral[i]);
+    for (uint i = 0u; i < BOX_MAX_PIECES; ++i) {
+        bad += non_finite(piece_t_start[i]) + non_finite(piece_len[i]) + non_finite(piece_tau0[i])
+            + non_finite(piece_slope[i]) + non_finite(piece_integral[i]);
     }
 
     Result r;
@@ -106,12 +125,12 @@ void main() {
     results[index] = r;
 
     if ((q.flags & 1u) != 0u) {
-        PiecesOut out_p;
-        out_p.t_start = vec4(p.t_start[0], p.t_start[1], p.t_start[2], 0.0);
-        out_p.len = vec4(p.len[0], p.len[1], p.len[2], 0.0);
-        out_p.tau0 = vec4(p.tau0[0], p.tau0[1], p.tau0[2], 0.0);
-        out_p.slope = vec4(p.slope[0], p.slope[1], p.slope[2], 0.0);
-        out_p.integral = vec4(p.integral[0], p.integral[1], p.integral[2], 0.0);
-        pieces[q.config] = out_p;
+        for (uint i = 0u; i < min(BOX_MAX_PIECES, MAX_CONVEX_PLANES); ++i) {
+            pieces[q.config].t_start[i] = piece_t_start[i];
+            pieces[q.config].len[i] = piece_len[i];
+            pieces[q.config].tau0[i] = piece_tau0[i];
+            pieces[q.config].slope[i] = piece_slope[i];
+            pieces[q.config].integral[i] = piece_integral[i];
+        }
     }
 }

@@ -24,16 +24,22 @@ pub const MARCH_NEE: u32 = 19;
 pub const GRID_DENSITY_PREV: u32 = 20;
 pub const VELOCITY: u32 = 21;
 pub const PREV_FRAME_UNIFORMS: u32 = 22;
+/// A frame's partial sums while its samples are shared among dispatches (film.glsl).
+pub const FILM_PARTIAL: u32 = 23;
+pub const MEDIUM_PLANES: u32 = 24;
 
 /// Index of the non-finite sample counter in the stats buffer.
 pub const STAT_NON_FINITE: usize = 0;
 /// Index of the counter of walks cut short at `GRID_MAX_STEPS`.
 pub const STAT_STEP_CAP: usize = 1;
+/// Index of the counter of invocations whose loops the device cut short (lavapipe ends
+/// every loop of an invocation after 65535 iterations in all).
+pub const STAT_LOOPS_CUT: usize = 2;
 /// Number of u32 counters in the stats buffer.
 pub const STAT_COUNT: usize = 4;
 
 /// Every binding with its GLSL name, for the layout test.
-pub const ALL: [(&str, u32); 23] = [
+pub const ALL: [(&str, u32); 25] = [
     ("BINDING_FRAME_UNIFORMS", FRAME_UNIFORMS),
     ("BINDING_ACCUM", ACCUM),
     ("BINDING_ACCUM_SQ", ACCUM_SQ),
@@ -57,4 +63,6 @@ pub const ALL: [(&str, u32); 23] = [
     ("BINDING_GRID_DENSITY_PREV", GRID_DENSITY_PREV),
     ("BINDING_VELOCITY", VELOCITY),
     ("BINDING_PREV_FRAME_UNIFORMS", PREV_FRAME_UNIFORMS),
+    ("BINDING_FILM_PARTIAL", FILM_PARTIAL),
+    ("BINDING_MEDIUM_PLANES", MEDIUM_PLANES),
 ];

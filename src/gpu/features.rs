@@ -22,6 +22,12 @@ pub const SC_ID_REUSE_VERTEX: u32 = 9;
 pub const SC_ID_FINAL_RATIO_TRACKING: u32 = 10;
 /// ReSTIR: temporal reprojection follows the velocity grid.
 pub const SC_ID_HAS_VELOCITY: u32 = 11;
+/// ReSTIR: pairwise MIS in spatial reuse instead of Talbot's.
+pub const SC_ID_MIS_PAIRWISE: u32 = 12;
+/// Box estimators: entries of the piece and exit-line tables.
+pub const SC_ID_MAX_PIECES: u32 = 13;
+/// Box media: some are convex polyhedra.
+pub const SC_ID_HAS_CONVEX: u32 = 14;
 
 // ---------------------------------------------------------------------------------------
 // Values of `SC_ESTIMATOR` in `shaders/box/crepuscular.comp`.
@@ -43,6 +49,8 @@ pub const GROUP_SIZE_Y: u32 = 8;
 pub const MAX_LIGHTS: u32 = 16;
 /// Most box media the crepuscular pass takes.
 pub const MAX_MEDIA: u32 = 16;
+/// Most planes of a convex medium.
+pub const MAX_CONVEX_PLANES: u32 = 64;
 /// Most scattering events a ReSTIR path stores.
 pub const MAX_RESTIR_BOUNCES: u32 = 16;
 /// Most analytic lights a ReSTIR path can name (8-bit index, 0xff = environment).
@@ -62,7 +70,7 @@ pub const MARCH_MAX_STEPS: u32 = 4096;
 pub const GRID_MAX_STEPS: u32 = 1_048_576;
 
 /// Every constant above with its GLSL name.
-pub const ALL: [(&str, u32); 29] = [
+pub const ALL: [(&str, u32); 33] = [
     ("SC_ID_HAS_SHAPES", SC_ID_HAS_SHAPES),
     ("SC_ID_HAS_GOBOS", SC_ID_HAS_GOBOS),
     ("SC_ID_HAS_ENV", SC_ID_HAS_ENV),
@@ -75,6 +83,9 @@ pub const ALL: [(&str, u32); 29] = [
     ("SC_ID_REUSE_VERTEX", SC_ID_REUSE_VERTEX),
     ("SC_ID_FINAL_RATIO_TRACKING", SC_ID_FINAL_RATIO_TRACKING),
     ("SC_ID_HAS_VELOCITY", SC_ID_HAS_VELOCITY),
+    ("SC_ID_MIS_PAIRWISE", SC_ID_MIS_PAIRWISE),
+    ("SC_ID_MAX_PIECES", SC_ID_MAX_PIECES),
+    ("SC_ID_HAS_CONVEX", SC_ID_HAS_CONVEX),
     ("ESTIMATOR_MCWVDS", ESTIMATOR_MCWVDS),
     ("ESTIMATOR_REDS", ESTIMATOR_REDS),
     ("ESTIMATOR_REES", ESTIMATOR_REES),
@@ -84,6 +95,7 @@ pub const ALL: [(&str, u32); 29] = [
     ("GROUP_SIZE_Y", GROUP_SIZE_Y),
     ("MAX_LIGHTS", MAX_LIGHTS),
     ("MAX_MEDIA", MAX_MEDIA),
+    ("MAX_CONVEX_PLANES", MAX_CONVEX_PLANES),
     ("MAX_RESTIR_BOUNCES", MAX_RESTIR_BOUNCES),
     ("MAX_RESTIR_LIGHTS", MAX_RESTIR_LIGHTS),
     ("MAX_SPATIAL_NEIGHBORS", MAX_SPATIAL_NEIGHBORS),
@@ -98,6 +110,8 @@ pub const ALL: [(&str, u32); 29] = [
 const _: () = assert!(MAX_CANDIDATES == MAX_SPATIAL_NEIGHBORS + 1);
 // The scene loader validates `spatial_neighbors` against its own copy of the limit.
 const _: () = assert!(MAX_SPATIAL_NEIGHBORS == nimbus_scene::MAX_SPATIAL_NEIGHBORS);
+// The scene loader validates convex media against its own copy of the limit.
+const _: () = assert!(MAX_CONVEX_PLANES as usize == nimbus_scene::convex::MAX_CONVEX_PLANES);
 // k' has 5 bits in a reservoir's info word.
 const _: () = assert!(MAX_RESTIR_BOUNCES <= 31);
 

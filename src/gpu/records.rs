@@ -9,22 +9,29 @@
 
 use bytemuck::{Pod, Zeroable};
 
-/// `BoxMedium` in scene.glsl: a homogeneous box medium.
+/// `BoxMedium` in scene.glsl: a homogeneous box or convex medium.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct BoxMediumGpu {
     /// Rows of Rᵀ (w 0): local = Rᵀ (x − center).
     pub world_to_local: [[f32; 4]; 3],
+    /// World position of the local origin (convex: the vertices' centroid).
     pub center: [f32; 3],
     /// Extinction (1/m).
     pub sigma_t: f32,
-    /// Half extents along the local axes.
+    /// Half extents along the local axes (convex: of its bounding box).
     pub half_size: [f32; 3],
     /// HG asymmetry.
     pub g: f32,
     /// albedo · sigma_t.
     pub sigma_s: [f32; 3],
-    pub _pad0: f32,
+    /// 0 for a box; the number of planes of a convex medium.
+    pub plane_count: u32,
+    /// Index of a convex medium's first plane in the planes buffer.
+    pub plane_first: u32,
+    pub _pad0: u32,
+    pub _pad1: u32,
+    pub _pad2: u32,
 }
 
 /// Values of `ShapeGpu::type`.
@@ -87,7 +94,9 @@ pub struct FrameUniforms {
     pub _pad1: f32,
     /// Radiance of the constant environment.
     pub env_radiance: [f32; 3],
-    pub _pad2: f32,
+    /// Weight of the background (environment) that camera rays see directly: 1, or 0
+    /// for a transparent film (`[render] transparent_background`).
+    pub background: f32,
     pub width: u32,
     pub height: u32,
     /// Samples per pixel per frame.
@@ -110,8 +119,11 @@ pub struct FrameUniforms {
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
 pub struct PassPush {
     pub frame: u32,
+    /// The first camera sample of the pixel this dispatch takes.
     pub sample_base: u32,
-    pub _pad0: u32,
+    /// How many it takes (the frame's spp, or a share of it where the device limits
+    /// the loop iterations of an invocation).
+    pub sample_count: u32,
     pub _pad1: u32,
 }
 
@@ -174,7 +186,9 @@ pub struct RestirUniformsGpu {
     pub march_reuse_factor: u32,
     pub march_nee_factor: u32,
     pub march_reuse_dims: [u32; 3],
-    pub _pad0: u32,
+    /// Candidates one dispatch of the initial pass draws (M unless the device limits the
+    /// loop iterations of an invocation).
+    pub candidates_per_dispatch: u32,
     pub march_nee_dims: [u32; 3],
     pub _pad1: u32,
     /// M.

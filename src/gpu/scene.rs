@@ -14,6 +14,8 @@ use nimbus_scene::{rotation_xyz_deg, CameraFrame, Gobo, Light, Medium, Scene, Sh
 #[derive(Clone, Debug)]
 pub struct GpuScene {
     pub media: Vec<BoxMediumGpu>,
+    /// The convex media's planes (n, d) in their local frames (see `BoxMediumGpu`).
+    pub medium_planes: Vec<[f32; 4]>,
     pub shapes: Vec<ShapeGpu>,
     pub lights: Vec<LightGpu>,
     /// Gobo edges as half-planes (a, b, c, 0): inside when a·u + b·v + c >= 0.
@@ -43,7 +45,10 @@ impl GpuScene {
         if scene.media.iter().any(|m| matches!(m, Medium::Grid(_))) {
             bail!("internal: the box pass was given a grid medium");
         }
-        let media = box_records(scene);
+        let MediumRecords {
+            media,
+            planes: medium_planes,
+        } = medium_records(scene);
 
         let shapes = scene.shapes.iter().map(shape_record).collect();
 
@@ -92,6 +97,7 @@ impl GpuScene {
         }
         Ok(GpuScene {
             media,
+            medium_planes,
             shapes,
             lights,
             gobo_planes,
@@ -101,24 +107,67 @@ impl GpuScene {
     }
 }
 
-/// The records of a scene's box media (grid media are skipped).
-pub fn box_records(scene: &Scene) -> Vec<BoxMediumGpu> {
-    scene
-        .media
-        .iter()
-        .filter_map(|m| match m {
-            Medium::Box(b) => Some(BoxMediumGpu {
+/// The records of a scene's box and convex media and the convex media's planes.
+#[derive(Clone, Debug, Default)]
+pub struct MediumRecords {
+    pub media: Vec<BoxMediumGpu>,
+    pub planes: Vec<[f32; 4]>,
+}
+
+/// The records of a scene's box and convex media (grid media are skipped). A convex
+/// medium's local frame is its vertices' centroid with the world's axes; its planes
+/// (n, d − n·centroid) go to `planes`, and `half_size` bounds its vertices.
+pub fn medium_records(scene: &Scene) -> MediumRecords {
+    let mut out = MediumRecords::default();
+    for medium in &scene.media {
+        match medium {
+            Medium::Box(b) => out.media.push(BoxMediumGpu {
                 world_to_local: world_to_local_rows(rotation_xyz_deg(b.rotation_deg)),
                 center: b.center.to_array(),
                 sigma_t: b.sigma_t,
                 half_size: (b.size * 0.5).to_array(),
                 g: b.g,
                 sigma_s: (b.albedo * b.sigma_t).to_array(),
-                _pad0: 0.0,
+                plane_count: 0,
+                plane_first: 0,
+                _pad0: 0,
+                _pad1: 0,
+                _pad2: 0,
             }),
-            Medium::Grid(_) => None,
-        })
-        .collect()
+            Medium::Convex(c) => {
+                let center = c.polyhedron.centroid();
+                let (lo, hi) = c.polyhedron.bounds();
+                // The bounding box about the centroid, a little wider than the vertices
+                // so that rounding never cuts the polyhedron.
+                let half = (hi - center).max(center - lo) * (1.0 + 1e-5);
+                let first = out.planes.len() as u32;
+                out.planes.extend(c.planes.iter().map(|p| {
+                    let n = glam::DVec3::new(p[0].into(), p[1].into(), p[2].into());
+                    [p[0], p[1], p[2], (f64::from(p[3]) - n.dot(center)) as f32]
+                }));
+                out.media.push(BoxMediumGpu {
+                    world_to_local: world_to_local_rows(Mat3::IDENTITY),
+                    center: center.as_vec3().to_array(),
+                    sigma_t: c.sigma_t,
+                    half_size: half.as_vec3().to_array(),
+                    g: c.g,
+                    sigma_s: (c.albedo * c.sigma_t).to_array(),
+                    plane_count: c.planes.len() as u32,
+                    plane_first: first,
+                    _pad0: 0,
+                    _pad1: 0,
+                    _pad2: 0,
+                });
+            }
+            Medium::Grid(_) => {}
+        }
+    }
+    out
+}
+
+/// The records of a scene's box and convex media (without their planes).
+pub fn box_records(scene: &Scene) -> Vec<BoxMediumGpu> {
+    medium_records(scene).media
 }
 
 /// What a pass's frame uniforms count: the records of its buffers, and the samples the
@@ -152,7 +201,7 @@ pub fn frame_uniforms(
         cam_up: camera.up.to_array(),
         _pad1: 0.0,
         env_radiance: env.to_array(),
-        _pad2: 0.0,
+        background: if r.transparent_background { 0.0 } else { 1.0 },
         width: r.width,
         height: r.height,
         spp: r.spp,
@@ -374,7 +423,7 @@ impl GpuGrid {
     pub fn build(scene: &Scene) -> Result<GpuGrid> {
         let Some((index, grid)) = scene.media.iter().enumerate().find_map(|(i, m)| match m {
             Medium::Grid(g) => Some((i, g)),
-            Medium::Box(_) => None,
+            _ => None,
         }) else {
             bail!("internal: the baseline pass was given no grid medium");
         };

@@ -60,6 +60,7 @@ pub fn create(
             BindingDesc::storage_buffer(bindings::SUPER_VOXELS),
             BindingDesc::sampled_image(bindings::GRID_EMISSION),
             BindingDesc::storage_buffer(bindings::BOX_MEDIA),
+            BindingDesc::storage_buffer(bindings::MEDIUM_PLANES),
             BindingDesc::storage_buffer(bindings::ENV_TEXELS),
             BindingDesc::storage_buffer(bindings::ENV_CDF),
         ]);
@@ -75,6 +76,8 @@ pub fn create(
         let lights = upload_records(ctx, o, &non_empty(&grid.lights), "lights")?;
         let super_voxels = upload_records(ctx, o, &grid.super_voxels, "super-voxels")?;
         let boxes = upload_records(ctx, o, &non_empty(&boxes), "box media")?;
+        // Convex media are refused beside grids: their (compiled-out) planes are empty.
+        let planes = upload_records(ctx, o, &[[0.0f32; 4]], "medium planes")?;
         let (env_texels, env_tables) = upload_env_map(ctx, o, &grid)?;
         let uniforms = upload_uniform(ctx, o, &grid.uniforms, "baseline uniforms")?;
         let r32 = vk::Format::R32_SFLOAT;
@@ -124,6 +127,10 @@ pub fn create(
                 buffer: &o[boxes],
             },
             DescriptorWrite::StorageBuffer {
+                binding: bindings::MEDIUM_PLANES,
+                buffer: &o[planes],
+            },
+            DescriptorWrite::StorageBuffer {
                 binding: bindings::ENV_TEXELS,
                 buffer: &o[env_texels],
             },
@@ -146,8 +153,29 @@ pub fn create(
         Ok((pipeline, o.add(set)))
     })?;
     Ok(ImagePass::new(
-        "baseline", objects, pipeline, set, constants,
+        ctx,
+        "baseline",
+        objects,
+        pipeline,
+        set,
+        constants,
+        sample_cost(plan, &grid),
     ))
+}
+
+/// Loop iterations one camera sample may typically run (see
+/// [`super::samples_per_dispatch`]): K + 1 segments, each with its shadow rays, each
+/// crossing the super-voxel grid (blocks, an exact span of up to
+/// `GRID_EXACT_SPAN_STEPS`) and looping over the lights. Collisions are random; the
+/// loop sentinel refuses an image a rare long walk would cut.
+/// `GRID_EXACT_SPAN_STEPS` of grid_blocks.glsl.
+const EXACT_SPAN_STEPS: u32 = 64;
+
+fn sample_cost(plan: &BaselinePlan, grid: &GpuGrid) -> u32 {
+    let blocks: u32 = grid.uniforms.grid.super_dims.iter().sum::<u32>() + 3;
+    let segment = blocks + EXACT_SPAN_STEPS + 3 * grid.lights.len() as u32;
+    let segments = 2 * (plan.max_bounces + 1);
+    segment.saturating_mul(segments)
 }
 
 /// What the baseline pass allocates (see [`crate::budget`]).

@@ -14,7 +14,7 @@ use crate::plan::{estimator_id, CrepuscularPlan};
 use crate::shaders;
 
 /// The specialization constants of `crepuscular.comp` for a plan.
-pub fn specialization(plan: &CrepuscularPlan) -> [(u32, SpecValue); 7] {
+pub fn specialization(plan: &CrepuscularPlan) -> [(u32, SpecValue); 9] {
     let f = plan.features;
     [
         (SC_ID_HAS_SHAPES, SpecValue::Bool(f.has_shapes)),
@@ -27,6 +27,8 @@ pub fn specialization(plan: &CrepuscularPlan) -> [(u32, SpecValue); 7] {
         (SC_ID_HAS_MEDIA, SpecValue::Bool(f.has_media)),
         (SC_ID_MAX_BOUNCES, SpecValue::U32(plan.max_bounces)),
         (SC_ID_PIXEL_JITTER, SpecValue::Bool(f.pixel_jitter)),
+        (SC_ID_HAS_CONVEX, SpecValue::Bool(f.has_convex)),
+        (SC_ID_MAX_PIECES, SpecValue::U32(f.max_pieces)),
     ]
 }
 
@@ -51,6 +53,7 @@ pub fn create(
         let mut layout = Vec::from(Targets::layout());
         layout.extend([
             BindingDesc::storage_buffer(bindings::BOX_MEDIA),
+            BindingDesc::storage_buffer(bindings::MEDIUM_PLANES),
             BindingDesc::storage_buffer(bindings::SHAPES),
             BindingDesc::storage_buffer(bindings::LIGHTS),
             BindingDesc::storage_buffer(bindings::GOBO_PLANES),
@@ -64,6 +67,7 @@ pub fn create(
             "crepuscular",
         )?;
         let media = upload_records(ctx, o, &non_empty(&records.media), "box media")?;
+        let planes = upload_records(ctx, o, &non_empty(&records.medium_planes), "medium planes")?;
         let shapes = upload_records(ctx, o, &non_empty(&records.shapes), "shapes")?;
         let lights = upload_records(ctx, o, &non_empty(&records.lights), "lights")?;
         let gobo_planes = upload_records(ctx, o, &non_empty(&records.gobo_planes), "gobo planes")?;
@@ -72,6 +76,10 @@ pub fn create(
             DescriptorWrite::StorageBuffer {
                 binding: bindings::BOX_MEDIA,
                 buffer: &o[media],
+            },
+            DescriptorWrite::StorageBuffer {
+                binding: bindings::MEDIUM_PLANES,
+                buffer: &o[planes],
             },
             DescriptorWrite::StorageBuffer {
                 binding: bindings::SHAPES,
@@ -89,12 +97,25 @@ pub fn create(
         let set = ctx.create_descriptor_set(&o[pipeline], &writes, "crepuscular set")?;
         Ok((pipeline, o.add(set)))
     })?;
+    let c = constants.counts;
+    // Per segment: the media (and their planes) and shapes it crosses, and per light its
+    // shadow and estimator loops (ray-marching samples, gobo and media crossings, and the
+    // trapezoid-piece tables: pieces x planes per medium).
+    let planes = records.medium_planes.len() as u32;
+    let tables = c.box_media * plan.features.max_pieces.max(3) * (planes.max(6) + 4);
+    let per_segment = c.box_media
+        + planes
+        + c.shapes
+        + c.lights * (c.ray_samples + c.box_media + planes + c.shapes + tables + 16);
+    let sample_cost = per_segment.saturating_mul(plan.max_bounces + 1);
     Ok(ImagePass::new(
+        ctx,
         "crepuscular",
         objects,
         pipeline,
         set,
         constants,
+        sample_cost,
     ))
 }
 
@@ -103,12 +124,13 @@ pub fn create(
 pub fn footprint(scene: &Scene, f: &mut Footprint) -> Result<()> {
     let records = GpuScene::build(scene)?;
     let bytes = std::mem::size_of_val(records.media.as_slice())
+        + std::mem::size_of_val(records.medium_planes.as_slice())
         + std::mem::size_of_val(records.shapes.as_slice())
         + std::mem::size_of_val(records.lights.as_slice())
         + std::mem::size_of_val(records.gobo_planes.as_slice());
     f.add(
         format!(
-            "{}: box media, shapes, lights, gobos",
+            "{}: box and convex media, shapes, lights, gobos",
             scene.source.display()
         ),
         Binding::Storage,

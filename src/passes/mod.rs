@@ -33,8 +33,9 @@ pub mod restir;
 use anyhow::{bail, Context as _, Result};
 use glam::Vec3;
 use nimbus_gpu::{
-    vk, BindingDesc, Buffer, BufferDesc, ComputePipeline, ComputePipelineDesc, Context,
-    DescriptorSet, DescriptorWrite, GpuObjects, Handle, Image, ImageDesc, Profiler, SpecValue,
+    compute_barrier, vk, BindingDesc, Buffer, BufferDesc, ComputePipeline, ComputePipelineDesc,
+    Context, DescriptorSet, DescriptorWrite, GpuObjects, Handle, Image, ImageDesc, Profiler,
+    SpecValue,
 };
 use nimbus_scene::{CameraFrame, GridMedium, Medium, Scene};
 
@@ -59,7 +60,16 @@ pub trait Pass {
 
     /// Uploads what changes for the scene's frame `scene_frame` (animated lights,
     /// density frames, the previous camera) before that frame is recorded.
-    fn prepare(&mut self, _ctx: &Context, _scene: &Scene, _scene_frame: u32) -> Result<()> {
+    /// `previous_frame` is the scene frame the previous dispatch rendered: usually
+    /// `scene_frame - 1`, `scene_frame` itself when a frame is rendered again to
+    /// accumulate it (the previous camera and density are then this frame's).
+    fn prepare(
+        &mut self,
+        _ctx: &Context,
+        _scene: &Scene,
+        _scene_frame: u32,
+        _previous_frame: u32,
+    ) -> Result<()> {
         Ok(())
     }
 
@@ -130,12 +140,15 @@ pub struct Targets<'a> {
     pub accum: &'a Buffer,
     pub accum_sq: &'a Buffer,
     pub stats: &'a Buffer,
+    /// A frame's partial sums while its samples are shared among dispatches (pixels x
+    /// 32 bytes on a device with a loop budget, 32 bytes elsewhere).
+    pub film_partial: &'a Buffer,
 }
 
 impl<'a> Targets<'a> {
-    /// The descriptor writes of the frame uniforms and the three outputs, which every
+    /// The descriptor writes of the frame uniforms and the film buffers, which every
     /// pass binds at the same binding numbers.
-    pub fn writes(&self) -> [DescriptorWrite<'a>; 4] {
+    pub fn writes(&self) -> [DescriptorWrite<'a>; 5] {
         [
             DescriptorWrite::UniformBuffer {
                 binding: bindings::FRAME_UNIFORMS,
@@ -153,16 +166,21 @@ impl<'a> Targets<'a> {
                 binding: bindings::STATS,
                 buffer: self.stats,
             },
+            DescriptorWrite::StorageBuffer {
+                binding: bindings::FILM_PARTIAL,
+                buffer: self.film_partial,
+            },
         ]
     }
 
     /// The layout entries of [`Targets::writes`].
-    pub fn layout() -> [BindingDesc; 4] {
+    pub fn layout() -> [BindingDesc; 5] {
         [
             BindingDesc::uniform_buffer(bindings::FRAME_UNIFORMS),
             BindingDesc::storage_buffer(bindings::ACCUM),
             BindingDesc::storage_buffer(bindings::ACCUM_SQ),
             BindingDesc::storage_buffer(bindings::STATS),
+            BindingDesc::storage_buffer(bindings::FILM_PARTIAL),
         ]
     }
 }
@@ -190,15 +208,34 @@ pub struct ImagePass {
     pipeline: Handle<ComputePipeline>,
     set: Handle<DescriptorSet>,
     constants: FrameConstants,
+    /// Camera samples per pixel one dispatch takes: all of the frame's where the device
+    /// has no loop limit, else as many as fit its loop budget (the frame's dispatches
+    /// then carry their sums in the film's partial buffer; the last adds the frame's
+    /// estimate).
+    samples_per_dispatch: u32,
+}
+
+/// Camera samples one dispatch may take on a device with a loop budget (see
+/// [`nimbus_gpu::DeviceInfo::loop_budget`]) when one sample may run `sample_cost` loop
+/// iterations: a quarter of the budget (the walk's random collisions and a margin), at
+/// least 1. Few dispatches per frame keep a render fast on lavapipe, where every
+/// dispatch costs host time and memory.
+pub fn samples_per_dispatch(budget: Option<u32>, sample_cost: u32) -> u32 {
+    match budget {
+        None => u32::MAX,
+        Some(b) => (b / 4 / sample_cost.max(1)).max(1),
+    }
 }
 
 impl ImagePass {
     pub fn new(
+        ctx: &Context,
         label: &'static str,
         objects: GpuObjects,
         pipeline: Handle<ComputePipeline>,
         set: Handle<DescriptorSet>,
         constants: FrameConstants,
+        sample_cost: u32,
     ) -> ImagePass {
         ImagePass {
             label,
@@ -206,6 +243,7 @@ impl ImagePass {
             pipeline,
             set,
             constants,
+            samples_per_dispatch: samples_per_dispatch(ctx.info().loop_budget(), sample_cost),
         }
     }
 }
@@ -227,17 +265,29 @@ impl Pass for ImagePass {
         dispatch_index: u32,
         _profiler: Option<&mut Profiler>,
     ) -> Result<()> {
-        let push = PassPush {
-            frame: dispatch_index,
-            ..Default::default()
-        };
-        self.objects[self.pipeline].dispatch(
-            ctx,
-            cmd,
-            &self.objects[self.set],
-            bytemuck::bytes_of(&push),
-            image_groups(uniforms),
-        )
+        let spp = uniforms.spp.max(1);
+        let per = self.samples_per_dispatch.clamp(1, spp);
+        let mut base = 0;
+        while base < spp {
+            if base > 0 {
+                compute_barrier(ctx, cmd);
+            }
+            let push = PassPush {
+                frame: dispatch_index,
+                sample_base: base,
+                sample_count: per.min(spp - base),
+                _pad1: 0,
+            };
+            self.objects[self.pipeline].dispatch(
+                ctx,
+                cmd,
+                &self.objects[self.set],
+                bytemuck::bytes_of(&push),
+                image_groups(uniforms),
+            )?;
+            base += per;
+        }
+        Ok(())
     }
 
     fn device_bytes(&self) -> u64 {
@@ -372,7 +422,7 @@ pub fn scene_grid(scene: &Scene) -> Result<(usize, &GridMedium)> {
         .enumerate()
         .find_map(|(i, m)| match m {
             Medium::Grid(g) => Some((i, g)),
-            Medium::Box(_) => None,
+            _ => None,
         })
         .context("internal: a grid pass was given no grid medium")
 }

@@ -2,7 +2,7 @@
 //! shapes and the background under directional lights.
 
 use anyhow::{bail, Result};
-use nimbus_scene::{Light, Scene};
+use nimbus_scene::{Light, Medium, Scene};
 
 use super::{
     CrepuscularFeatures, CrepuscularPlan, Decision, Integrator, MAX_BOX_MEDIA,
@@ -67,8 +67,16 @@ pub(super) fn build(
         .iter()
         .any(|l| matches!(l, Light::Environment { .. }));
 
+    let convex = scene
+        .media
+        .iter()
+        .filter(|m| matches!(m, Medium::Convex(_)))
+        .count();
+    let max_pieces = max_pieces(scene);
     let features = CrepuscularFeatures {
         has_media: media > 0,
+        has_convex: convex > 0,
+        max_pieces,
         has_shapes: shapes > 0,
         has_gobos: gobos > 0,
         has_env: env,
@@ -101,6 +109,18 @@ pub(super) fn build(
             format!("{media} box medium(s) scatter and attenuate")
         } else {
             "no media: in-scattering and transmittance compiled out".into()
+        },
+    });
+    decisions.push(Decision {
+        name: "  SC_HAS_CONVEX",
+        enabled: features.has_convex,
+        reason: if features.has_convex {
+            format!(
+                "{convex} convex medium(s): spans clipped by their planes, up to {max_pieces} \
+                 trapezoid pieces per segment (SC_MAX_PIECES)"
+            )
+        } else {
+            "only boxes: plane clipping compiled out, 3 trapezoid pieces per segment".into()
         },
     });
     decisions.push(Decision {
@@ -157,4 +177,32 @@ pub(super) fn build(
         features,
     };
     Ok((Integrator::Crepuscular(plan), decisions))
+}
+
+/// The most pieces a camera segment can have in any medium under any directional light:
+/// the light-facing planes of a convex medium (a plane within 1e-4 of parallel to the
+/// light counts, so that rounding never makes the shader see more), 3 for a box.
+pub fn max_pieces(scene: &Scene) -> u32 {
+    let mut most = 3u32;
+    for medium in &scene.media {
+        let Medium::Convex(c) = medium else {
+            continue;
+        };
+        for light in &scene.lights {
+            let Light::Directional { direction, .. } = light else {
+                continue;
+            };
+            let omega = direction.as_dvec3();
+            let facing = c
+                .planes
+                .iter()
+                .filter(|p| {
+                    let n = glam::DVec3::new(p[0].into(), p[1].into(), p[2].into());
+                    -n.dot(omega) > -1e-4
+                })
+                .count();
+            most = most.max(facing as u32);
+        }
+    }
+    most
 }

@@ -89,6 +89,11 @@ pub struct CrepuscularPlan {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct CrepuscularFeatures {
     pub has_media: bool,
+    /// Some media are convex polyhedra.
+    pub has_convex: bool,
+    /// Entries of the shaders' piece tables: the most light-facing planes of any medium
+    /// and light (3 for boxes).
+    pub max_pieces: u32,
     pub has_shapes: bool,
     pub has_gobos: bool,
     pub has_env: bool,
@@ -139,6 +144,12 @@ pub struct RestirPlan {
     pub mip_candidates: u32,
     pub mip_indirect: u32,
     pub mip_reuse: u32,
+    /// Pairwise MIS in spatial reuse instead of Talbot's.
+    pub pairwise_mis: bool,
+    /// The temporal stage's output (not the spatial one) is the next frame's history.
+    pub history_before_spatial: bool,
+    /// σ* ≥ this fraction of the local maximum density.
+    pub sigma_star_floor: f32,
 }
 
 /// One line of `--explain`: a pass or feature, in or out, and the reason.

@@ -33,9 +33,20 @@ pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
         .enumerate()
         .filter_map(|(i, m)| match m {
             Medium::Grid(g) => Some((i, g)),
-            Medium::Box(_) => None,
+            _ => None,
         })
         .collect();
+    if let Some(i) = scene
+        .media
+        .iter()
+        .position(|m| matches!(m, Medium::Convex(_)))
+    {
+        bail!(
+            "{file}: [[medium]] #{} (type = \"convex\"): convex media next to a grid are not \
+             supported yet by {integrator_name} (box media are)",
+            i + 1
+        );
+    }
     if grids.len() > 1 {
         bail!(
             "{file}: [[medium]] #{}: {integrator_name} takes one grid medium, this scene has {}",
@@ -67,6 +78,15 @@ pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
         if !scene.shapes.is_empty() {
             bail!(
                 "{file}: [[shape]] #1: Volumetric ReSTIR does not render surfaces yet; use [integrator] volume = \"baseline\""
+            );
+        }
+        if scene.render.spp > 1 {
+            bail!(
+                "{file}: [render] field `spp` = {}: Volumetric ReSTIR renders one path per pixel \
+                 per frame, so spp would be ignored; its work per frame is set by \
+                 [integrator.restir] `candidates` (random walks per pixel) and its total by \
+                 [render] `frames`. Set spp = 1 (the default) or use volume = \"baseline\"",
+                scene.render.spp
             );
         }
         if integrator.max_bounces > MAX_RESTIR_BOUNCES {
@@ -212,6 +232,9 @@ fn restir_plan(
         mip_candidates: s.mip_candidates,
         mip_indirect: s.mip_indirect,
         mip_reuse: s.mip_reuse,
+        pairwise_mis: s.mis == nimbus_scene::MisMode::Pairwise,
+        history_before_spatial: s.temporal_history == nimbus_scene::HistoryMode::Temporal,
+        sigma_star_floor: s.sigma_star_floor,
     };
     let frames = scene.render.frames;
     let spatial = plan.spatial_neighbors > 0 && plan.spatial_rounds > 0;
@@ -241,13 +264,18 @@ fn restir_plan(
                 "[integrator.restir] temporal = false".into()
             } else if frames > 1 {
                 format!(
-                    "from the second frame: reprojection of x1{}, Q = {}",
+                    "from the second frame: reprojection of x1{}, Q = {}, history = the {} output",
                     if plan.has_velocity {
                         " through the velocity field"
                     } else {
                         ""
                     },
-                    plan.temporal_limit
+                    plan.temporal_limit,
+                    if plan.history_before_spatial {
+                        "temporal"
+                    } else {
+                        "spatial"
+                    }
                 )
             } else {
                 "a single frame has no previous one".into()
@@ -258,10 +286,11 @@ fn restir_plan(
             spatial,
             if spatial {
                 format!(
-                    "{} round(s) of {} neighbours within {} px, Talbot MIS, T~ marched on mip {}, {} reuse",
+                    "{} round(s) of {} neighbours within {} px, {} MIS, T~ marched on mip {}, {} reuse",
                     plan.spatial_rounds,
                     plan.spatial_neighbors,
                     plan.spatial_radius_px,
+                    if plan.pairwise_mis { "pairwise" } else { "Talbot" },
                     plan.mip_reuse,
                     if plan.vertex_reuse {
                         "vertex"
@@ -327,4 +356,42 @@ fn restir_plan(
         ),
     ];
     (Integrator::Restir(plan), decisions)
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use super::*;
+
+    /// A grid scene rendered by `volume` with `[render] spp`.
+    fn grid_scene(volume: &str, spp: u32) -> Scene {
+        let text = format!(
+            "[render]\nspp = {spp}\n[camera]\nposition = [0, 0, 3]\nlook_at = [0, 0, 0]\n\
+             [[medium]]\ntype = \"grid\"\nbounds_min = [-1, -1, -1]\nbounds_max = [1, 1, 1]\n\
+             density = {{ procedural = \"cloud\", dims = [4, 4, 4] }}\n\
+             [integrator]\nvolume = \"{volume}\"\n"
+        );
+        nimbus_scene::parse_str(&text, Path::new("spp.toml")).unwrap()
+    }
+
+    /// ReSTIR draws one path per pixel per frame: spp > 1 would be ignored, so it is
+    /// refused with what sets its work instead; the baseline takes any spp.
+    #[test]
+    fn restir_refuses_more_than_one_sample_per_pixel() {
+        let message = format!("{:#}", build(&grid_scene("restir", 4)).unwrap_err());
+        for needle in [
+            "spp.toml",
+            "[render]",
+            "`spp` = 4",
+            "Volumetric ReSTIR",
+            "[integrator.restir] `candidates`",
+            "`frames`",
+        ] {
+            assert!(message.contains(needle), "{needle:?} missing: {message}");
+        }
+        assert!(build(&grid_scene("restir", 1)).is_ok());
+        let (integrator, _) = build(&grid_scene("baseline", 4)).unwrap();
+        assert!(matches!(integrator, Integrator::Baseline(_)));
+    }
 }

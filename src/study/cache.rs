@@ -1,19 +1,21 @@
 //! The reference cache: a converged reference is rendered once and kept as EXR plus a
-//! JSON sidecar (settings, device, its own noise) under a key that hashes
-//! ([`fnv1a64`]) the scene file's bytes, the reference settings, the resolution and the
-//! Nimbus version.
+//! JSON sidecar (settings, input files, device, its own noise) under a key that hashes
+//! ([`fnv1a64`]) the scene file's bytes, the contents of every file the scene reads
+//! ([`scene_inputs`]), the reference settings (its integrand's `max_bounces` among
+//! them), the resolution and the Nimbus version.
 
+use std::io::Read as _;
 use std::path::{Path, PathBuf};
 
 use anyhow::{anyhow, Context as _, Result};
-use nimbus_scene::{Scene, VolumeIntegrator};
+use nimbus_scene::{GridSource, Light, Medium, Scene, Shape, VolumeIntegrator};
 
 use super::metrics::ReferenceNoise;
 use crate::output::{read_exr, write_image, ImageRgb};
 use crate::plan::RenderPlan;
 
 /// FNV-1a, 64 bit, over `bytes`, continuing from `hash` (start with [`FNV_OFFSET`]).
-fn fnv1a64(mut hash: u64, bytes: &[u8]) -> u64 {
+pub(crate) fn fnv1a64(mut hash: u64, bytes: &[u8]) -> u64 {
     for &b in bytes {
         hash ^= u64::from(b);
         hash = hash.wrapping_mul(0x0000_0100_0000_01B3);
@@ -22,7 +24,133 @@ fn fnv1a64(mut hash: u64, bytes: &[u8]) -> u64 {
 }
 
 /// The FNV-1a 64 offset basis.
-const FNV_OFFSET: u64 = 0xCBF2_9CE4_8422_2325;
+pub(crate) const FNV_OFFSET: u64 = 0xCBF2_9CE4_8422_2325;
+
+/// The FNV-1a 64 hash of the contents of the file at `path`, read in pieces (grid files
+/// can be large).
+fn hash_file(path: &Path) -> Result<u64> {
+    let mut file = std::fs::File::open(path)
+        .with_context(|| format!("{}: cannot open to hash it", path.display()))?;
+    let mut buffer = vec![0u8; 1 << 20];
+    let mut hash = FNV_OFFSET;
+    loop {
+        let n = file
+            .read(&mut buffer)
+            .with_context(|| format!("{}: cannot read to hash it", path.display()))?;
+        if n == 0 {
+            return Ok(hash);
+        }
+        hash = fnv1a64(hash, &buffer[..n]);
+    }
+}
+
+/// A file the scene reads besides itself, with the hash of its contents.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub(super) struct InputFile {
+    /// Where the scene names it, e.g. `[[medium]] #1 density`.
+    pub(super) role: String,
+    pub(super) path: PathBuf,
+    /// FNV-1a 64 of its bytes.
+    pub(super) hash: u64,
+}
+
+/// Every file `scene` reads besides the scene file, with where it names it: the grid
+/// files of each `[[medium]]` (density, emission, velocity, each `[[medium.frame]]`'s
+/// density) and environment maps. Procedural grids read no file.
+///
+/// The patterns below name every field and variant on purpose: a new one that can
+/// name a file does not compile until it is considered here.
+fn scene_files(scene: &Scene) -> Vec<(String, &Path)> {
+    let Scene {
+        source: _,
+        render: _,
+        camera: _,
+        lights,
+        light_keyframes: _,
+        media,
+        shapes,
+        integrator: _,
+    } = scene;
+    fn grid_file(source: &GridSource) -> Option<&Path> {
+        match source {
+            GridSource::Raw { file, dims: _ }
+            | GridSource::MitsubaVol { file }
+            | GridSource::Vdb {
+                file,
+                grid: _,
+                window: _,
+            } => Some(file.as_path()),
+            GridSource::ProceduralCloud { .. } => None,
+        }
+    }
+    let mut out: Vec<(String, &Path)> = Vec::new();
+    for (i, medium) in media.iter().enumerate() {
+        let grid = match medium {
+            Medium::Grid(grid) => grid,
+            Medium::Box(_) | Medium::Convex(_) => continue,
+        };
+        let nimbus_scene::GridMedium {
+            bounds_min: _,
+            bounds_max: _,
+            density,
+            density_scale: _,
+            albedo: _,
+            g: _,
+            emission,
+            emission_scale: _,
+            velocity,
+            frames,
+            // Where its files' grids sit, read from the files hashed below.
+            vdb: _,
+        } = grid;
+        let table = format!("[[medium]] #{}", i + 1);
+        let mut sources: Vec<(String, &GridSource)> = vec![(format!("{table} density"), density)];
+        sources.extend(emission.iter().map(|e| (format!("{table} emission"), e)));
+        sources.extend(velocity.iter().map(|v| (format!("{table} velocity"), v)));
+        for (j, frame) in frames.iter().enumerate() {
+            sources.push((
+                format!("{table} [[medium.frame]] #{} density", j + 1),
+                &frame.density,
+            ));
+        }
+        out.extend(
+            sources
+                .into_iter()
+                .filter_map(|(what, source)| grid_file(source).map(|p| (what, p))),
+        );
+    }
+    for (i, light) in lights.iter().enumerate() {
+        match light {
+            Light::Environment {
+                file: Some(file), ..
+            } => out.push((format!("[[light]] #{} file", i + 1), file.as_path())),
+            Light::Environment { file: None, .. }
+            | Light::Directional { .. }
+            | Light::Point { .. }
+            | Light::Sphere { .. } => {}
+        }
+    }
+    for shape in shapes {
+        match shape {
+            Shape::Quad { .. } | Shape::Box { .. } | Shape::Sphere { .. } => {}
+        }
+    }
+    out
+}
+
+/// Every file `scene` reads besides the scene file ([`scene_files`]), each hashed.
+pub(super) fn scene_inputs(scene: &Scene) -> Result<Vec<InputFile>> {
+    scene_files(scene)
+        .into_iter()
+        .map(|(role, path)| {
+            Ok(InputFile {
+                hash: hash_file(path).with_context(|| role.clone())?,
+                role,
+                path: path.to_path_buf(),
+            })
+        })
+        .collect()
+}
 
 /// `$XDG_CACHE_HOME/nimbus/references`, else `$HOME/.cache/nimbus/references`.
 pub(super) fn default_cache_dir() -> Result<PathBuf> {
@@ -47,6 +175,8 @@ pub(super) struct ReferenceJob {
     pub(super) plan: RenderPlan,
     /// `key=value` lines, hashed into the cache key and stored in the sidecar.
     settings: Vec<(String, String)>,
+    /// The files the scene reads, hashed into the cache key and listed in the sidecar.
+    inputs: Vec<InputFile>,
     pub(super) key: String,
     pub(super) exr: PathBuf,
     sidecar: PathBuf,
@@ -54,11 +184,13 @@ pub(super) struct ReferenceJob {
 
 impl ReferenceJob {
     /// The reference `scene` rendered with `plan`, cached in `cache_dir` under
-    /// `{stem}-{hash}`, the hash over `scene_bytes` (the scene file) and the settings.
+    /// `{stem}-{hash}`, the hash over `scene_bytes` (the scene file), the settings and
+    /// the contents of `inputs` (the files the scene reads, [`scene_inputs`]).
     pub(super) fn new(
         scene: Scene,
         plan: RenderPlan,
         scene_bytes: &[u8],
+        inputs: &[InputFile],
         stem: &str,
         cache_dir: &Path,
     ) -> Self {
@@ -74,6 +206,7 @@ impl ReferenceJob {
                 scene.integrator.box_estimator.name().to_owned(),
             ),
             ("box_samples", scene.integrator.box_samples.to_string()),
+            ("max_bounces", scene.integrator.max_bounces.to_string()),
             ("seed", r.seed.to_string()),
             (
                 "volume",
@@ -91,6 +224,12 @@ impl ReferenceJob {
         for (k, v) in &settings {
             hash = fnv1a64(hash, format!("\n{k}={v}").as_bytes());
         }
+        for input in inputs {
+            hash = fnv1a64(
+                hash,
+                format!("\nfile {}={:016x}", input.role, input.hash).as_bytes(),
+            );
+        }
         let key = format!("{stem}-{hash:016x}");
         Self {
             exr: cache_dir.join(format!("{key}.exr")),
@@ -98,6 +237,7 @@ impl ReferenceJob {
             scene,
             plan,
             settings,
+            inputs: inputs.to_vec(),
             key,
         }
     }
@@ -186,6 +326,18 @@ pub(super) fn store_cached(
         };
         meta.insert(k.clone(), value);
     }
+    let files: Vec<serde_json::Value> = job
+        .inputs
+        .iter()
+        .map(|input| {
+            serde_json::json!({
+                "role": input.role,
+                "path": input.path.display().to_string(),
+                "fnv1a64": format!("{:016x}", input.hash),
+            })
+        })
+        .collect();
+    meta.insert("files".into(), files.into());
     meta.insert("device".into(), device.into());
     meta.insert("render_wall_s".into(), wall_s.into());
     meta.insert("rms_std_error".into(), noise.rms_std_error.into());
@@ -219,7 +371,26 @@ mod tests {
         scene.render.height = 2;
         scene.render.spp = spp;
         let plan = crate::plan::build(&scene, None).unwrap();
-        ReferenceJob::new(scene, plan, scene_bytes, "window", dir)
+        ReferenceJob::new(scene, plan, scene_bytes, &[], "window", dir)
+    }
+
+    /// A grid scene in `dir` that reads files: raw density, velocity and
+    /// `[[medium.frame]]` density, a procedural emission (no file) and an environment
+    /// map (its bytes are not checked when loading).
+    fn scene_with_files(dir: &Path) -> Scene {
+        std::fs::write(dir.join("d.raw"), [0u8; 32]).unwrap();
+        std::fs::write(dir.join("v.raw"), [0u8; 96]).unwrap();
+        std::fs::write(dir.join("f2.raw"), [1u8; 32]).unwrap();
+        std::fs::write(dir.join("sky.exr"), b"sky").unwrap();
+        let text = "[camera]\nposition = [0, 0, 3]\nlook_at = [0, 0, 0]\n\
+            [[light]]\ntype = \"environment\"\nfile = \"sky.exr\"\n\
+            [[light]]\ntype = \"directional\"\ndirection = [0, -1, 0]\nirradiance = 1\n\
+            [[medium]]\ntype = \"grid\"\nbounds_min = [-1, -1, -1]\nbounds_max = [1, 1, 1]\n\
+            density = { file = \"d.raw\", dims = [2, 2, 2] }\n\
+            emission = { procedural = \"cloud\", dims = [2, 2, 2] }\n\
+            velocity = { file = \"v.raw\", dims = [2, 2, 2] }\n\
+            [[medium.frame]]\nframe = 2\ndensity = { file = \"f2.raw\", dims = [2, 2, 2] }\n";
+        nimbus_scene::parse_str(text, &dir.join("files.toml")).unwrap()
     }
 
     fn noise() -> ReferenceNoise {
@@ -256,6 +427,7 @@ mod tests {
                 "spp",
                 "box_estimator",
                 "box_samples",
+                "max_bounces",
                 "seed",
                 "volume"
             ]
@@ -272,6 +444,107 @@ mod tests {
         assert_eq!(reference_job(dir, b"scene a", 4).key, a.key);
         assert_ne!(reference_job(dir, b"scene b", 4).key, a.key);
         assert_ne!(reference_job(dir, b"scene a", 8).key, a.key);
+    }
+
+    #[test]
+    fn a_file_is_hashed_in_pieces_as_a_whole() {
+        let dir = scratch("hash-file");
+        let path = dir.join("big.raw");
+        // Over one read buffer (1 MiB), so the hash continues across reads.
+        let bytes: Vec<u8> = (0..3 << 19).map(|i: u32| (i % 251) as u8).collect();
+        std::fs::write(&path, &bytes).unwrap();
+        assert_eq!(hash_file(&path).unwrap(), fnv1a64(FNV_OFFSET, &bytes));
+        let message = format!("{:#}", hash_file(&dir.join("gone.raw")).unwrap_err());
+        assert!(message.contains("gone.raw"), "{message}");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn every_file_the_scene_reads_is_an_input() {
+        let dir = scratch("inputs");
+        let scene = scene_with_files(&dir);
+        let inputs = scene_inputs(&scene).unwrap();
+        let found: Vec<(&str, PathBuf, u64)> = inputs
+            .iter()
+            .map(|i| (i.role.as_str(), i.path.clone(), i.hash))
+            .collect();
+        let h = |bytes: &[u8]| fnv1a64(FNV_OFFSET, bytes);
+        assert_eq!(
+            found,
+            [
+                ("[[medium]] #1 density", dir.join("d.raw"), h(&[0; 32])),
+                ("[[medium]] #1 velocity", dir.join("v.raw"), h(&[0; 96])),
+                (
+                    "[[medium]] #1 [[medium.frame]] #1 density",
+                    dir.join("f2.raw"),
+                    h(&[1; 32])
+                ),
+                ("[[light]] #1 file", dir.join("sky.exr"), h(b"sky")),
+            ]
+        );
+        // Procedural grids and box scenes read no file.
+        let window = nimbus_scene::parse_str(crate::DEFAULT_SCENE, Path::new("w.toml")).unwrap();
+        assert!(scene_inputs(&window).unwrap().is_empty());
+        // A file that went away after loading is an error naming where the scene uses it.
+        std::fs::remove_file(dir.join("v.raw")).unwrap();
+        let message = format!("{:#}", scene_inputs(&scene).unwrap_err());
+        assert!(
+            message.contains("[[medium]] #1 velocity") && message.contains("v.raw"),
+            "{message}"
+        );
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// A changed grid file next to an unchanged scene file is another reference.
+    #[test]
+    fn the_key_hashes_the_contents_of_the_files_the_scene_reads() {
+        let dir = scratch("file-key");
+        let scene = scene_with_files(&dir);
+        let job = |inputs: &[InputFile]| {
+            let base = reference_job(&dir, b"scene", 4);
+            ReferenceJob::new(base.scene, base.plan, b"scene", inputs, "window", &dir)
+        };
+        let before = scene_inputs(&scene).unwrap();
+        let key = job(&before).key;
+        assert_ne!(key, reference_job(&dir, b"scene", 4).key, "files hashed");
+        assert_eq!(
+            job(&scene_inputs(&scene).unwrap()).key,
+            key,
+            "deterministic"
+        );
+        for (name, bytes) in [("d.raw", &[7u8; 32][..]), ("sky.exr", b"SKY")] {
+            let path = dir.join(name);
+            let old = std::fs::read(&path).unwrap();
+            std::fs::write(&path, bytes).unwrap();
+            assert_ne!(
+                job(&scene_inputs(&scene).unwrap()).key,
+                key,
+                "{name} changed"
+            );
+            std::fs::write(&path, old).unwrap();
+        }
+        assert_eq!(job(&scene_inputs(&scene).unwrap()).key, key, "restored");
+        // The same bytes in another role are another input.
+        let mut swapped = before.clone();
+        swapped[0].role = "[[medium]] #1 emission".into();
+        assert_ne!(job(&swapped).key, key);
+
+        // The sidecar lists the files.
+        let stored = job(&before);
+        store_cached(&stored, &ImageRgb::new(3, 2), &noise(), "lavapipe", 1.0).unwrap();
+        let text = std::fs::read_to_string(&stored.sidecar).unwrap();
+        let meta: serde_json::Value = serde_json::from_str(&text).unwrap();
+        assert_eq!(meta["files"].as_array().unwrap().len(), 4, "{text}");
+        assert_eq!(meta["files"][0]["role"], "[[medium]] #1 density");
+        assert_eq!(
+            meta["files"][0]["fnv1a64"],
+            format!("{:016x}", fnv1a64(FNV_OFFSET, &[0; 32]))
+        );
+        assert!(meta["files"][3]["path"]
+            .as_str()
+            .unwrap()
+            .ends_with("sky.exr"));
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]
@@ -296,6 +569,8 @@ mod tests {
         assert_eq!(meta["key"], job.key.as_str());
         assert_eq!(meta["spp"], 4);
         assert_eq!(meta["width"], 3);
+        assert_eq!(meta["max_bounces"], job.scene.integrator.max_bounces);
+        assert_eq!(meta["files"], serde_json::json!([]));
         assert_eq!(
             meta["box_estimator"],
             job.scene.integrator.box_estimator.name()

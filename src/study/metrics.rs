@@ -1,7 +1,8 @@
 //! How a configuration is measured: error metrics against the reference ([`measure`],
 //! [`mean_metrics`]), the reference's own noise ([`ReferenceNoise`]), GPU time from the
-//! timestamp scopes, and the equal-time comparison of series (log–log interpolation,
-//! Pareto fronts, RMSE ratios, geometric means).
+//! timestamp scopes, what a row reports over its seeds ([`summarize`]), and the
+//! equal-time comparison of series (log–log interpolation, Pareto fronts, RMSE ratios,
+//! geometric means; per seed in [`equal_time_over_seeds`]).
 
 use anyhow::{anyhow, ensure, Result};
 use nimbus_gpu::ScopeResult;
@@ -97,22 +98,70 @@ pub(super) struct ErrorMetrics {
     pub(super) mean_rel_diff: f64,
 }
 
+/// The mean of `all`'s MSE (RMSE = sqrt of the mean MSE), relative MSE and mean
+/// relative difference; `None` when empty.
+fn mean_of(all: &[ErrorMetrics]) -> Option<ErrorMetrics> {
+    if all.is_empty() {
+        return None;
+    }
+    let n = all.len() as f64;
+    let sum = |f: fn(&ErrorMetrics) -> f64| all.iter().map(f).sum::<f64>() / n;
+    Some(ErrorMetrics {
+        rmse: sum(|m| m.rmse * m.rmse).sqrt(),
+        rel_mse: sum(|m| m.rel_mse),
+        mean_rel_diff: sum(|m| m.mean_rel_diff),
+    })
+}
+
 /// The mean over `frames` of each frame's MSE, relative MSE and mean relative
 /// difference (RMSE = sqrt of the mean MSE).
 pub(super) fn mean_metrics(frames: &[ImageRgb], reference: &ImageRgb) -> Result<ErrorMetrics> {
     ensure!(!frames.is_empty(), "no frames to measure");
-    let (mut mse, mut rel, mut diff) = (0.0, 0.0, 0.0);
-    for frame in frames {
-        let m = measure(frame, reference)?;
-        mse += m.rmse * m.rmse;
-        rel += m.rel_mse;
-        diff += m.mean_rel_diff;
-    }
-    let n = frames.len() as f64;
-    Ok(ErrorMetrics {
-        rmse: (mse / n).sqrt(),
-        rel_mse: rel / n,
-        mean_rel_diff: diff / n,
+    let each: Vec<ErrorMetrics> = frames
+        .iter()
+        .map(|frame| measure(frame, reference))
+        .collect::<Result<_>>()?;
+    mean_of(&each).ok_or_else(|| anyhow!("no frames to measure"))
+}
+
+/// One seed's render of a configuration, measured.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct SeedRun {
+    pub(super) seed: u64,
+    pub(super) gpu_ms_per_frame: f64,
+    pub(super) gpu_ms_total: f64,
+    pub(super) metrics: ErrorMetrics,
+}
+
+/// What a row reports over its seeds.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct SeedSummary {
+    /// Median over the seeds.
+    pub(super) gpu_ms_per_frame: f64,
+    /// Median over the seeds.
+    pub(super) gpu_ms_total: f64,
+    /// Mean over the seeds of the MSE (RMSE = its sqrt), relative MSE and mean
+    /// relative difference.
+    pub(super) metrics: ErrorMetrics,
+    /// The smallest and largest RMSE of one seed: the spread.
+    pub(super) rmse_min: f64,
+    pub(super) rmse_max: f64,
+}
+
+/// The summary of one configuration's seeds (see [`SeedSummary`]).
+pub(super) fn summarize(runs: &[SeedRun]) -> Result<SeedSummary> {
+    let all: Vec<ErrorMetrics> = runs.iter().map(|r| r.metrics).collect();
+    let metrics = mean_of(&all).ok_or_else(|| anyhow!("no seeds to summarize"))?;
+    let median_of = |f: fn(&SeedRun) -> f64| {
+        median(&runs.iter().map(f).collect::<Vec<f64>>()).unwrap_or(f64::NAN)
+    };
+    let rmse = all.iter().map(|m| m.rmse);
+    Ok(SeedSummary {
+        gpu_ms_per_frame: median_of(|r| r.gpu_ms_per_frame),
+        gpu_ms_total: median_of(|r| r.gpu_ms_total),
+        metrics,
+        rmse_min: rmse.clone().fold(f64::INFINITY, f64::min),
+        rmse_max: rmse.fold(f64::NEG_INFINITY, f64::max),
     })
 }
 
@@ -189,6 +238,49 @@ pub(super) struct Comparison {
     /// (time ms, baseline RMSE, series RMSE at that time, ratio).
     pub(super) points: Vec<(f64, f64, f64, f64)>,
     pub(super) geo_mean: Option<f64>,
+    /// The geometric-mean ratio of each seed's series against the baseline series of
+    /// the same seed (empty when compared without seeds).
+    pub(super) seed_geo_means: Vec<Option<f64>>,
+}
+
+impl Comparison {
+    /// The smallest and largest per-seed geometric-mean ratio, when every seed has
+    /// one.
+    pub(super) fn seed_spread(&self) -> Option<(f64, f64)> {
+        let all: Option<Vec<f64>> = self.seed_geo_means.iter().copied().collect();
+        let all = all.filter(|a| !a.is_empty())?;
+        Some((
+            all.iter().copied().fold(f64::INFINITY, f64::min),
+            all.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+        ))
+    }
+}
+
+/// [`equal_time`] of the seed-mean series `mean`, with the per-seed ratios: each
+/// seed's series (`per_seed[s]`, the same series measured with seed s) against the
+/// baseline series of the same seed, their geometric means in
+/// [`Comparison::seed_geo_means`].
+pub(super) fn equal_time_over_seeds(
+    baseline: &(String, String),
+    mean: &[plot::Series],
+    per_seed: &[Vec<plot::Series>],
+) -> Vec<Comparison> {
+    let per_seed: Vec<Vec<Comparison>> = per_seed
+        .iter()
+        .map(|series| equal_time(baseline, series))
+        .collect();
+    let mut out = equal_time(baseline, mean);
+    for c in &mut out {
+        c.seed_geo_means = per_seed
+            .iter()
+            .map(|seed| {
+                seed.iter()
+                    .find(|s| s.series == c.series && s.baseline == c.baseline)
+                    .and_then(|s| s.geo_mean)
+            })
+            .collect();
+    }
+    out
 }
 
 /// Compares every series that does not have the baseline's value with the baseline
@@ -198,7 +290,8 @@ pub(super) fn equal_time(baseline: &(String, String), series: &[plot::Series]) -
     let (bkey, bvalue) = baseline;
     let mut out = Vec::new();
     for s in series {
-        if s.key.iter().any(|(k, v)| k == bkey && v == bvalue) {
+        let is_baseline = |key: &Assignment| key.iter().any(|(k, v)| k == bkey && v == bvalue);
+        if is_baseline(&s.key) || s.aliases.iter().any(is_baseline) {
             continue;
         }
         let want: Assignment = s
@@ -212,7 +305,13 @@ pub(super) fn equal_time(baseline: &(String, String), series: &[plot::Series]) -
                 }
             })
             .collect();
-        let Some(base) = series.iter().find(|b| b.key == want) else {
+        // The baseline series itself, else the one it renders as (a configuration the
+        // integrator cannot tell from another is measured, and listed, once).
+        let Some(base) = series
+            .iter()
+            .find(|b| b.key == want)
+            .or_else(|| series.iter().find(|b| b.aliases.contains(&want)))
+        else {
             continue;
         };
         let curve = |s: &plot::Series| -> Vec<(f64, f64)> {
@@ -249,6 +348,7 @@ pub(super) fn equal_time(baseline: &(String, String), series: &[plot::Series]) -
             baseline: base.label.clone(),
             points,
             geo_mean: geometric_mean(&values),
+            seed_geo_means: Vec::new(),
         });
     }
     out
@@ -350,9 +450,11 @@ mod tests {
             time_ms: t,
             rmse,
             knobs: Vec::new(),
+            rmse_range: None,
         };
         let series = |key: &[(&str, &str)], scale: f64| plot::Series {
             key: assignment(key),
+            aliases: Vec::new(),
             label: series_label(&assignment(key)),
             points: vec![point(1.0, scale), point(10.0, scale * 0.5)],
         };
@@ -379,15 +481,18 @@ mod tests {
             time_ms: t,
             rmse,
             knobs: Vec::new(),
+            rmse_range: None,
         };
         let base = plot::Series {
             key: assignment(&[("volume", "baseline")]),
+            aliases: Vec::new(),
             label: "volume=baseline".into(),
             // RMSE ∝ t^(-1/2): 1 at 10 ms, 0.5 at 40 ms.
             points: vec![point(10.0, 1.0), point(40.0, 0.5)],
         };
         let restir = plot::Series {
             key: assignment(&[("volume", "restir")]),
+            aliases: Vec::new(),
             label: "volume=restir".into(),
             points: vec![point(20.0, 0.25)],
         };
@@ -397,6 +502,87 @@ mod tests {
         assert_eq!((t, r), (20.0, 0.25));
         assert!((b - 0.5f64.sqrt()).abs() < 1e-12, "{b}");
         assert!((ratio - 0.25 / 0.5f64.sqrt()).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_row_is_the_mean_mse_and_median_time_over_its_seeds() {
+        let run = |seed: u64, ms: f64, rmse: f64, diff: f64| SeedRun {
+            seed,
+            gpu_ms_per_frame: ms / 4.0,
+            gpu_ms_total: ms,
+            metrics: ErrorMetrics {
+                rmse,
+                rel_mse: 2.0 * rmse,
+                mean_rel_diff: diff,
+            },
+        };
+        let runs = [
+            run(0, 10.0, 3.0, 0.1),
+            run(1, 30.0, 1.0, -0.2),
+            run(2, 12.0, 2.0, 0.4),
+        ];
+        let s = summarize(&runs).unwrap();
+        // MSEs 9, 1, 4: mean 14/3; not the mean RMSE (2).
+        assert!((s.metrics.rmse - (14.0f64 / 3.0).sqrt()).abs() < 1e-12);
+        assert!((s.metrics.rel_mse - 4.0).abs() < 1e-12);
+        assert!((s.metrics.mean_rel_diff - 0.1).abs() < 1e-12);
+        assert_eq!((s.gpu_ms_total, s.gpu_ms_per_frame), (12.0, 3.0));
+        assert_eq!((s.rmse_min, s.rmse_max), (1.0, 3.0));
+        let one = summarize(&runs[..1]).unwrap();
+        assert_eq!(
+            (one.metrics.rmse, one.rmse_min, one.rmse_max),
+            (3.0, 3.0, 3.0)
+        );
+        assert!(summarize(&[]).is_err());
+    }
+
+    /// Each seed's series is compared with the baseline series of the same seed; the
+    /// spread is the smallest and largest of their geometric-mean ratios.
+    #[test]
+    fn equal_time_over_seeds_compares_each_seed_with_its_own_baseline() {
+        let series = |value: &str, points: &[(f64, f64)]| plot::Series {
+            key: assignment(&[("box_estimator", value)]),
+            label: format!("box_estimator={value}"),
+            aliases: Vec::new(),
+            points: points
+                .iter()
+                .map(|&(t, rmse)| plot::Point {
+                    time_ms: t,
+                    rmse,
+                    knobs: Vec::new(),
+                    rmse_range: None,
+                })
+                .collect(),
+        };
+        let seeds = |rm: f64, reds: f64| {
+            vec![
+                series("rm", &[(1.0, rm), (4.0, rm / 2.0)]),
+                series("reds", &[(1.0, reds), (4.0, reds / 2.0)]),
+            ]
+        };
+        // Seed 0: reds is half of rm; seed 1: equal; seed 2: a quarter.
+        let per_seed = [seeds(1.0, 0.5), seeds(2.0, 2.0), seeds(4.0, 1.0)];
+        let mean = seeds(1.5, 0.75);
+        let baseline = ("box_estimator".to_owned(), "rm".to_owned());
+        let c = equal_time_over_seeds(&baseline, &mean, &per_seed);
+        assert_eq!(c.len(), 1);
+        assert!((c[0].geo_mean.unwrap() - 0.5).abs() < 1e-12);
+        let got: Vec<f64> = c[0].seed_geo_means.iter().map(|g| g.unwrap()).collect();
+        for (g, want) in got.iter().zip([0.5, 1.0, 0.25]) {
+            assert!((g - want).abs() < 1e-12, "{got:?}");
+        }
+        let (lo, hi) = c[0].seed_spread().unwrap();
+        assert!((lo - 0.25).abs() < 1e-12 && (hi - 1.0).abs() < 1e-12);
+
+        // A seed without a common time range: no spread.
+        let mut apart = per_seed.clone();
+        apart[1][1] = series("reds", &[(100.0, 1.0)]);
+        let c = equal_time_over_seeds(&baseline, &mean, &apart);
+        assert_eq!(c[0].seed_geo_means[1], None);
+        assert_eq!(c[0].seed_spread(), None);
+        // Without seeds: no per-seed ratios.
+        let c = equal_time_over_seeds(&baseline, &mean, &[]);
+        assert!(c[0].seed_geo_means.is_empty() && c[0].seed_spread().is_none());
     }
 
     #[test]

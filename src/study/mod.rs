@@ -2,12 +2,31 @@
 //!
 //! A study renders one scene under every configuration of the `--vary KEY=V1,V2,...`
 //! lists (their cartesian product, the first `--vary` outermost) and measures each
-//! image against a converged reference of the same scene:
+//! image against a converged reference of the same integrand. The protocol:
+//!
+//! - **Seeds.** Every configuration renders `--seeds N` times (default 3), with N seeds
+//!   derived from the scene's seed ([`derive_seeds`]: the scene's seed, then the next
+//!   ones, skipping any whose 32-bit fold ([`fold_seed`], what the shaders see) repeats
+//!   an earlier one's or the reference's). `--vary seed` picks the seeds by hand instead
+//!   and needs `--seeds 1`.
+//! - **Warm-up.** Each configuration renders [`warmup_frames`] frames before its
+//!   measured ones, which are not measured: at least 1 (pipelines compile lazily on some
+//!   devices, so the first frame may hold shader compilation), at least 4·Q for
+//!   Volumetric ReSTIR with temporal reuse (Q = `temporal_limit`: its history needs
+//!   that long to reach steady state), and at least `--warmup`.
+//! - **One row per distinct configuration.** Configurations that the integrator cannot
+//!   tell apart (they differ only in settings it does not read, [`effective_scene`]) are
+//!   rendered once and reported once; study.md lists which renders as which.
+//! - **A reference per integrand.** A configuration is compared with the reference of
+//!   its own integrand: the scene with the reference settings and the configuration's
+//!   values of the keys that change what is integrated (`vary::INTEGRAND_KEYS`:
+//!   `max_bounces`). Estimators, `volume`, the ReSTIR knobs, spp, frames and seeds
+//!   change how it is estimated, not what.
+//!
+//! What is measured, per seed:
 //!
 //! - **GPU time** from the timestamp scopes: the median over frames of the root
 //!   `"frame"` scope (`gpu_ms_per_frame`) and its sum over frames (`gpu_ms_total`).
-//!   Each configuration renders `--warmup` frames (at least one) first, which are not
-//!   measured.
 //! - **RMSE** over pixels and channels, √(mean (a − r)²), in W/(m²·sr).
 //! - **Relative MSE**, mean (a − r)² / (r² + ε) with ε = `metrics::REL_MSE_EPSILON` (the
 //!   metric of the golden-image tests).
@@ -15,12 +34,17 @@
 //!   averaged over the channels whose reference mean is positive. Signed, so a bias
 //!   shows its direction.
 //!
-//! The reference is the scene rendered once with the reference settings
-//! (`--reference-frames/-spp/-estimator/-box-samples`) and a seed different from every
-//! configuration's, cached as EXR plus a JSON sidecar (settings, device, its own noise)
-//! under a key that hashes (FNV-1a) the scene file's bytes, the reference settings, the
-//! resolution and the Nimbus version. Files the scene refers to (volumes, maps) are not
-//! part of the key.
+//! A row reports the mean over seeds of the MSE (its RMSE is √ of that mean), of the
+//! relative MSE and of the mean relative difference, the median over seeds of the GPU
+//! times, and the spread: the smallest and largest RMSE of one seed
+//! (`metrics::summarize`).
+//!
+//! Each reference is the scene rendered once with the reference settings
+//! (`--reference-frames/-spp/-estimator/-box-samples`), the integrand's keys and a seed
+//! different from every configuration's, cached as EXR plus a JSON sidecar (settings,
+//! input files, device, its own noise) under a key that hashes (FNV-1a) the scene file's
+//! bytes, the contents of every file the scene reads (grids, environment maps), the
+//! reference settings, the resolution and the Nimbus version (`cache`).
 //!
 //! Configurations fall into **series**: all configurations that share every varied key
 //! except the knobs that buy accuracy with time (`vary::KNOB_KEYS`: `spp`, `frames`,
@@ -28,18 +52,21 @@
 //! (`metrics::pareto_front`): a configuration that another of its series beats in both
 //! time and RMSE (two knobs varied, or timing noise) is drawn as a hollow marker and left
 //! out of the curve. The plot draws one polyline per series, RMSE against total GPU time
-//! on log–log axes; the equal-time comparison interpolates each series' log RMSE
-//! linearly in log time (`metrics::interpolate_loglog`) and reports the RMSE ratio of
-//! every series to its baseline series at the baseline's measured times
-//! (`metrics::equal_time_ratios`).
+//! on log–log axes, with the seeds' RMSE range as a bar; the equal-time comparison
+//! interpolates each series' log RMSE linearly in log time
+//! (`metrics::interpolate_loglog`) and reports the RMSE ratio of every series to its
+//! baseline series at the baseline's measured times (`metrics::equal_time_ratios`): for
+//! the seed-mean series, and per seed (each seed's series against the baseline series
+//! of the same seed), whose smallest and largest geometric-mean ratios are the spread
+//! (`metrics::equal_time_over_seeds`).
 //!
 //! The code: [`Study::new`] (here) checks the options and plans every configuration and
-//! the reference; [`Study::run`] (`run.rs`) renders and measures them. `vary` parses
+//! reference; [`Study::run`] (`run.rs`) renders and measures them. `vary` parses
 //! `--vary` and `--baseline` and sets keys on the scene; `metrics` measures errors, GPU
 //! time and equal-time ratios; `cache` keeps references on disk; `report` formats the
 //! tables and texts; `plot` draws the PNG.
 
-mod cache;
+pub(crate) mod cache;
 mod metrics;
 mod plot;
 mod report;
@@ -48,18 +75,33 @@ mod vary;
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{anyhow, ensure, Context as _, Result};
+use anyhow::{anyhow, bail, ensure, Context as _, Result};
 use nimbus_scene::{Scene, VolumeIntegrator};
 
-use self::cache::{default_cache_dir, ReferenceJob};
-use self::metrics::ErrorMetrics;
-use self::vary::{apply, cartesian, format_pairs, parse_vary, resolve_baseline, Assignment, Vary};
+use self::cache::{default_cache_dir, scene_inputs, ReferenceJob};
+use self::metrics::{SeedRun, SeedSummary};
+use self::vary::{
+    apply, cartesian, format_pairs, parse_vary, resolve_baseline, Assignment, Vary, INTEGRAND_KEYS,
+};
 use crate::plan::{self, RenderPlan};
 
 /// XORed into the scene's seed for the reference, so that no configuration that keeps
 /// the scene's seed shares the reference's random numbers. Its 32-bit fold (what the
 /// shaders see, `seed ^ seed >> 32`) is non-zero, so the folded seeds differ too.
 const REFERENCE_SEED_MIX: u64 = 0x5EED_0000_0000_5EED;
+
+/// Most `--seeds`.
+pub const MAX_SEEDS: u32 = 64;
+
+/// Volumetric ReSTIR with temporal reuse warms up for at least this many times Q
+/// (`temporal_limit`) frames: its history holds up to Q·M candidates, and its error
+/// still falls for a few Q frames after the first.
+const WARMUP_PER_TEMPORAL_LIMIT: u32 = 4;
+
+/// Every key `--vary` accepts, in the order `nimbus study --help` lists them.
+pub fn vary_keys() -> Vec<&'static str> {
+    vary::keys()
+}
 
 /// Everything `nimbus study` is asked to do (the CLI's flags).
 #[derive(Clone, Debug)]
@@ -83,9 +125,11 @@ pub struct StudyOptions {
     pub out_dir: Option<PathBuf>,
     pub width: Option<u32>,
     pub height: Option<u32>,
-    /// Frames rendered before each configuration's measured ones (ReSTIR's temporal
-    /// history); at least 1 (the first frame also compiles pipelines lazily).
+    /// Frames rendered before each configuration's measured ones; raised per
+    /// configuration by [`warmup_frames`].
     pub warmup: u32,
+    /// Renders of every configuration, each with its own seed (1..=[`MAX_SEEDS`]).
+    pub seeds: u32,
     /// Measure each frame's own error and report their mean (the error of one frame at
     /// steady state, as Volumetric ReSTIR reports), with the GPU time of one frame;
     /// otherwise the error of the mean over the frames.
@@ -95,56 +139,103 @@ pub struct StudyOptions {
 /// One configuration, ready to render.
 struct Configuration {
     assignment: Assignment,
+    /// The scene with the assignment; its seed is the first of `seeds`.
     scene: Scene,
     plan: RenderPlan,
-    /// An earlier configuration that renders exactly the same (a knob that the
-    /// integrator ignores differs), whose measurement is reused.
+    /// The seeds it renders with, one render each.
+    seeds: Vec<u64>,
+    /// Frames rendered before the measured ones ([`warmup_frames`]).
+    warmup: u32,
+    /// Index of its reference in [`Study::references`].
+    reference: usize,
+    /// An earlier configuration that renders exactly the same (a setting that the
+    /// integrator does not read differs): not rendered, and reported as that one.
     same_as: Option<usize>,
 }
 
-/// The scene as far as its integrator reads it: ReSTIR renders one sample per pixel per
-/// frame (spp is unused), the other integrators ignore `[integrator.restir]`.
+/// The frames `plan` renders before its measured ones when `--warmup` asks for
+/// `requested`: at least 1 (the first frame may compile pipelines), at least
+/// [`WARMUP_PER_TEMPORAL_LIMIT`]·Q for Volumetric ReSTIR with temporal reuse.
+fn warmup_frames(plan: &RenderPlan, requested: u32) -> u32 {
+    let temporal = plan.restir().filter(|r| r.temporal).map_or(0, |r| {
+        r.temporal_limit.saturating_mul(WARMUP_PER_TEMPORAL_LIMIT)
+    });
+    requested.max(1).max(temporal)
+}
+
+/// The scene as far as its integrator reads it: the settings of the other integrators
+/// are reset to their defaults (the box-medium pass reads neither `volume` nor
+/// `[integrator.restir]`; the grid integrators read neither the box estimator nor
+/// `box_samples`; the baseline reads no ReSTIR knob).
 fn effective_scene(scene: &Scene, plan: &RenderPlan) -> Scene {
+    let defaults = nimbus_scene::Integrator::default();
     let mut s = scene.clone();
-    if plan.restir().is_some() {
-        s.render.spp = 1;
-    } else {
-        s.integrator.restir = nimbus_scene::RestirSettings::default();
+    let i = &mut s.integrator;
+    match plan.integrator {
+        plan::Integrator::Crepuscular(_) => {
+            i.volume = defaults.volume;
+            i.restir = defaults.restir;
+        }
+        plan::Integrator::Baseline(_) => {
+            i.restir = defaults.restir;
+            i.box_estimator = defaults.box_estimator;
+            i.box_samples = defaults.box_samples;
+        }
+        plan::Integrator::Restir(_) => {
+            i.box_estimator = defaults.box_estimator;
+            i.box_samples = defaults.box_samples;
+        }
     }
     s
 }
-/// One measured configuration.
+
+/// One measured configuration: one row of the tables and one point of the plot.
 #[derive(Clone)]
 struct Row {
     assignment: Assignment,
+    /// The configurations that render exactly as this one (reported as this row).
+    equivalents: Vec<Assignment>,
+    /// Index of its reference in [`Study::references`].
+    reference: usize,
     frames: u32,
     spp: u32,
     box_samples: u32,
-    gpu_ms_per_frame: f64,
-    gpu_ms_total: f64,
-    metrics: ErrorMetrics,
+    warmup: u32,
+    /// One per seed, in the order of the seeds.
+    runs: Vec<SeedRun>,
+    /// Over the seeds.
+    summary: SeedSummary,
 }
 
-/// A prepared study: options checked, every configuration and the reference planned.
+/// A prepared study: options checked, every configuration and reference planned.
 /// Nothing has touched the GPU yet.
 pub struct Study {
     scene_path: PathBuf,
     varies: Vec<Vary>,
     configurations: Vec<Configuration>,
-    reference: ReferenceJob,
+    /// One per distinct integrand, in order of first use.
+    references: Vec<ReferenceJob>,
     /// (key, value) of the baseline series, if there is one.
     baseline: Option<(String, String)>,
     out_dir: PathBuf,
     width: u32,
     height: u32,
+    /// `--warmup` (each configuration's own is [`Configuration::warmup`]).
     warmup: u32,
+    /// Renders per configuration.
+    seeds: u32,
     per_frame: bool,
 }
 
 impl Study {
-    /// Checks the options, loads the scene and plans every configuration and the
+    /// Checks the options, loads the scene and plans every configuration and
     /// reference, so that a bad flag fails before any rendering.
     pub fn new(opts: &StudyOptions) -> Result<Self> {
+        ensure!(
+            (1..=MAX_SEEDS).contains(&opts.seeds),
+            "--seeds {}: expected 1..={MAX_SEEDS} renders per configuration",
+            opts.seeds
+        );
         let scene_bytes = std::fs::read(&opts.scene)
             .with_context(|| format!("{}: cannot read scene file", opts.scene.display()))?;
         let mut base = nimbus_scene::load(&opts.scene)?;
@@ -161,6 +252,15 @@ impl Study {
              configurations average different numbers of frames)",
             opts.scene.display()
         );
+        if let Some(i) = base.light_keyframes.iter().position(|k| !k.is_empty()) {
+            bail!(
+                "{}: [[light]] #{} has [[light.keyframe]]s: a study needs static lights (the \
+                 reference and the configurations average different numbers of frames, so \
+                 animated lights would give them different images)",
+                opts.scene.display(),
+                i + 1
+            );
+        }
         let (width, height) = (base.render.width, base.render.height);
 
         // Parse the --vary lists.
@@ -172,12 +272,21 @@ impl Study {
                 "--vary {text}: {} is already varied by an earlier --vary",
                 vary.key
             );
+            if vary.key == "seed" && opts.seeds > 1 {
+                bail!(
+                    "--vary {text} with --seeds {}: both set the seeds. Use --seeds N alone \
+                     (every configuration renders N seeds derived from the scene's, and the \
+                     tables report their spread), or --vary seed=... with --seeds 1 to pick \
+                     the seeds yourself",
+                    opts.seeds
+                );
+            }
             varies.push(vary);
         }
 
-        // Plan the reference.
-        let mut ref_scene = base.clone();
-        ref_scene.render.seed = base.render.seed ^ REFERENCE_SEED_MIX;
+        // The reference settings; the integrand's keys are set per configuration.
+        let mut ref_base = base.clone();
+        ref_base.render.seed = base.render.seed ^ REFERENCE_SEED_MIX;
         let reference_estimator = opts
             .reference_estimator
             .clone()
@@ -203,22 +312,21 @@ impl Study {
         let mut ref_box_samples = None;
         for (key, value, flag) in &ref_pairs {
             if let Some(n) =
-                apply(&mut ref_scene, key, value).with_context(|| format!("{flag} {value}"))?
+                apply(&mut ref_base, key, value).with_context(|| format!("{flag} {value}"))?
             {
                 ref_box_samples = Some(n);
             }
         }
         // Grid media: the converged reference is the baseline path tracer's (the unbiased
         // estimator every Volumetric ReSTIR claim is measured against).
-        if ref_scene
+        if ref_base
             .media
             .iter()
             .any(|m| matches!(m, nimbus_scene::Medium::Grid(_)))
         {
-            ref_scene.integrator.volume = VolumeIntegrator::Baseline;
+            ref_base.integrator.volume = VolumeIntegrator::Baseline;
         }
-        let ref_plan = plan::build(&ref_scene, ref_box_samples)
-            .context("the reference settings cannot be rendered")?;
+        let ref_fold = fold_seed(ref_base.render.seed);
         let stem = scene_stem(&opts.scene);
         let cache_dir = match &opts.cache_dir {
             Some(dir) => dir.clone(),
@@ -226,11 +334,13 @@ impl Study {
         };
         check_writable_dir(&cache_dir)
             .with_context(|| format!("--cache-dir {}", cache_dir.display()))?;
-        let reference = ReferenceJob::new(ref_scene, ref_plan, &scene_bytes, &stem, &cache_dir);
-        let ref_fold = fold_seed(reference.scene.render.seed);
+        let inputs = scene_inputs(&base)?;
+        let derived_seeds = derive_seeds(base.render.seed, opts.seeds, ref_fold);
 
-        // Plan every configuration.
-        let mut configurations = Vec::new();
+        // Plan every configuration and the reference of its integrand.
+        let mut references: Vec<ReferenceJob> = Vec::new();
+        let mut integrands: Vec<Assignment> = Vec::new();
+        let mut configurations: Vec<Configuration> = Vec::new();
         for assignment in cartesian(&varies) {
             let mut scene = base.clone();
             let mut box_samples = None;
@@ -246,23 +356,69 @@ impl Study {
             } else {
                 format_pairs(&assignment)
             };
-            ensure!(
-                fold_seed(scene.render.seed) != ref_fold,
-                "configuration {label}: seed {} gives the shaders the same random numbers as \
-                 the reference's seed {}; vary seed over other values",
-                scene.render.seed,
-                reference.scene.render.seed
-            );
+            let seeds = if varies.iter().any(|v| v.key == "seed") {
+                ensure!(
+                    fold_seed(scene.render.seed) != ref_fold,
+                    "configuration {label}: seed {} gives the shaders the same random numbers \
+                     as the reference's seed {}; vary seed over other values",
+                    scene.render.seed,
+                    ref_base.render.seed
+                );
+                vec![scene.render.seed]
+            } else {
+                derived_seeds.clone()
+            };
             let plan = plan::build(&scene, box_samples)
                 .with_context(|| format!("configuration {label} cannot be rendered"))?;
+
+            let integrand: Assignment = assignment
+                .iter()
+                .filter(|(k, _)| INTEGRAND_KEYS.contains(&k.as_str()))
+                .cloned()
+                .collect();
+            let reference = match integrands.iter().position(|i| *i == integrand) {
+                Some(i) => i,
+                None => {
+                    let mut ref_scene = ref_base.clone();
+                    for (k, v) in &integrand {
+                        apply(&mut ref_scene, k, v).with_context(|| format!("--vary {k}={v}"))?;
+                    }
+                    let ref_plan = plan::build(&ref_scene, ref_box_samples).with_context(|| {
+                        if integrand.is_empty() {
+                            "the reference settings cannot be rendered".to_owned()
+                        } else {
+                            format!(
+                                "the reference settings with {} cannot be rendered",
+                                format_pairs(&integrand)
+                            )
+                        }
+                    })?;
+                    references.push(ReferenceJob::new(
+                        ref_scene,
+                        ref_plan,
+                        &scene_bytes,
+                        &inputs,
+                        &stem,
+                        &cache_dir,
+                    ));
+                    integrands.push(integrand);
+                    references.len() - 1
+                }
+            };
+
             let effective = effective_scene(&scene, &plan);
             let same_as = configurations.iter().position(|c: &Configuration| {
-                c.plan == plan && effective_scene(&c.scene, &c.plan) == effective
+                c.plan == plan
+                    && c.seeds == seeds
+                    && effective_scene(&c.scene, &c.plan) == effective
             });
             configurations.push(Configuration {
                 assignment,
+                warmup: warmup_frames(&plan, opts.warmup),
                 scene,
                 plan,
+                seeds,
+                reference,
                 same_as,
             });
         }
@@ -280,15 +436,38 @@ impl Study {
             scene_path: opts.scene.clone(),
             varies,
             configurations,
-            reference,
+            references,
             baseline,
             out_dir,
             width,
             height,
             warmup: opts.warmup,
+            seeds: opts.seeds,
             per_frame: opts.per_frame,
         })
     }
+}
+
+/// `n` seeds for the configurations: `scene_seed`, then the seeds after it (wrapping),
+/// skipping every seed whose 32-bit fold ([`fold_seed`]) is `avoid` (the reference's)
+/// or an earlier chosen seed's, so that no two renders share the shaders' random
+/// numbers. With `n` = 1 it is the scene's own seed (its fold never equals the
+/// reference's, see [`REFERENCE_SEED_MIX`]).
+fn derive_seeds(scene_seed: u64, n: u32, avoid: u32) -> Vec<u64> {
+    let mut seeds: Vec<u64> = Vec::with_capacity(n as usize);
+    let mut folds = vec![avoid];
+    // Consecutive seeds share their high half except across one carry, so each fold
+    // is hit at most twice: n + 2·(n + 1) candidates always suffice.
+    let mut candidate = scene_seed;
+    while seeds.len() < n as usize {
+        let fold = fold_seed(candidate);
+        if !folds.contains(&fold) {
+            folds.push(fold);
+            seeds.push(candidate);
+        }
+        candidate = candidate.wrapping_add(1);
+    }
+    seeds
 }
 
 /// The 32-bit seed the shaders see.
@@ -342,6 +521,7 @@ fn grid_options(name: &str) -> StudyOptions {
         width: None,
         height: None,
         warmup: 1,
+        seeds: 1,
         per_frame: false,
     }
 }
@@ -354,22 +534,40 @@ fn remove_scratch(opts: &StudyOptions) {
     }
 }
 
-/// A measured row for tests: 2 frames of 1 spp, `box_samples` 8, `gpu_ms` in total
-/// (half of it per frame) and `rmse` as every error.
+/// A measured row for tests: 2 frames of 1 spp, `box_samples` 8, warm-up 1, one seed
+/// with `gpu_ms` in total (half of it per frame) and `rmse` as every error.
 #[cfg(test)]
 fn test_row(assignment: &[(&str, &str)], gpu_ms: f64, rmse: f64) -> Row {
+    test_row_seeds(assignment, &[(gpu_ms, rmse)])
+}
+
+/// [`test_row`] with one seed (0, 1, ...) per (total GPU ms, RMSE) of `runs`.
+#[cfg(test)]
+fn test_row_seeds(assignment: &[(&str, &str)], runs: &[(f64, f64)]) -> Row {
+    let runs: Vec<SeedRun> = runs
+        .iter()
+        .enumerate()
+        .map(|(i, &(gpu_ms, rmse))| SeedRun {
+            seed: i as u64,
+            gpu_ms_per_frame: gpu_ms / 2.0,
+            gpu_ms_total: gpu_ms,
+            metrics: metrics::ErrorMetrics {
+                rmse,
+                rel_mse: rmse,
+                mean_rel_diff: rmse,
+            },
+        })
+        .collect();
     Row {
         assignment: vary::assignment(assignment),
+        equivalents: Vec::new(),
+        reference: 0,
         frames: 2,
         spp: 1,
         box_samples: 8,
-        gpu_ms_per_frame: gpu_ms / 2.0,
-        gpu_ms_total: gpu_ms,
-        metrics: ErrorMetrics {
-            rmse,
-            rel_mse: rmse,
-            mean_rel_diff: rmse,
-        },
+        warmup: 1,
+        summary: metrics::summarize(&runs).unwrap(),
+        runs,
     }
 }
 
@@ -377,24 +575,76 @@ fn test_row(assignment: &[(&str, &str)], gpu_ms: f64, rmse: f64) -> Row {
 mod tests {
     use super::*;
 
+    fn same_as(study: &Study) -> Vec<Option<usize>> {
+        study.configurations.iter().map(|c| c.same_as).collect()
+    }
+
     #[test]
     fn configurations_an_integrator_cannot_tell_apart_are_rendered_once() {
         let opts = StudyOptions {
             vary: vec![
                 "volume=baseline,restir".into(),
                 "temporal_limit=4,20".into(),
-                "spp=1,4".into(),
+                "box_estimator=rm,reds".into(),
             ],
             baseline: Some("volume=baseline".into()),
             ..grid_options("dedupe")
         };
         let study = Study::new(&opts).unwrap();
-        let same: Vec<Option<usize>> = study.configurations.iter().map(|c| c.same_as).collect();
-        // baseline: Q is ignored (Q=20 repeats Q=4); restir: spp is ignored.
+        // The baseline reads neither Q nor the box estimator; ReSTIR reads Q but not
+        // the box estimator.
         assert_eq!(
-            same,
-            [None, None, Some(0), Some(1), None, Some(4), None, Some(6)]
+            same_as(&study),
+            [
+                None,
+                Some(0),
+                Some(0),
+                Some(0),
+                None,
+                Some(4),
+                None,
+                Some(6)
+            ]
         );
+        remove_scratch(&opts);
+
+        // The box-medium pass reads neither volume nor the ReSTIR knobs.
+        let opts = StudyOptions {
+            vary: vec![
+                "volume=restir,baseline".into(),
+                "temporal_limit=4,20".into(),
+                "spp=1,2".into(),
+            ],
+            ..grid_options("dedupe-box")
+        };
+        std::fs::write(&opts.scene, crate::DEFAULT_SCENE).unwrap();
+        let study = Study::new(&opts).unwrap();
+        let spp1 = Some(0);
+        let spp2 = Some(1);
+        assert_eq!(
+            same_as(&study),
+            [None, None, spp1, spp2, spp1, spp2, spp1, spp2]
+        );
+        remove_scratch(&opts);
+    }
+
+    /// ReSTIR renders one path per pixel per frame: `--vary spp` over it fails when
+    /// planning, with what sets its work instead (no silent spp = 1).
+    #[test]
+    fn restir_with_more_than_one_spp_is_refused_when_planning() {
+        let opts = StudyOptions {
+            vary: vec!["volume=baseline,restir".into(), "spp=1,4".into()],
+            ..grid_options("restir-spp")
+        };
+        let message = format!("{:#}", Study::new(&opts).err().expect("an error"));
+        for needle in [
+            "configuration volume=restir spp=4 cannot be rendered",
+            "[render]",
+            "`spp` = 4",
+            "[integrator.restir] `candidates`",
+        ] {
+            assert!(message.contains(needle), "{needle:?}: {message}");
+        }
         remove_scratch(&opts);
     }
 
@@ -407,10 +657,12 @@ mod tests {
             ..grid_options("reference")
         };
         let study = Study::new(&opts).unwrap();
-        let job = &study.reference;
+        assert_eq!(study.references.len(), 1);
+        let job = &study.references[0];
         assert_eq!(job.scene.integrator.volume, VolumeIntegrator::Baseline);
         assert_eq!((job.scene.render.frames, job.scene.render.spp), (3, 2));
         let seed = study.configurations[0].scene.render.seed;
+        assert_eq!(study.configurations[0].seeds, [seed]);
         assert_eq!(job.scene.render.seed, seed ^ REFERENCE_SEED_MIX);
         assert!(job.key.starts_with("grid-"), "{}", job.key);
         assert_eq!(job.exr.parent(), opts.cache_dir.as_deref());
@@ -418,24 +670,191 @@ mod tests {
         remove_scratch(&opts);
     }
 
+    /// Each max_bounces is compared with a reference of the same max_bounces; keys
+    /// that do not change the integrand share one.
+    #[test]
+    fn each_integrand_has_its_own_reference() {
+        let opts = StudyOptions {
+            vary: vec![
+                "max_bounces=1,3".into(),
+                "volume=baseline,restir".into(),
+                "candidates=2,4".into(),
+            ],
+            ..grid_options("integrands")
+        };
+        let study = Study::new(&opts).unwrap();
+        let refs: Vec<usize> = study.configurations.iter().map(|c| c.reference).collect();
+        assert_eq!(refs, [0, 0, 0, 0, 1, 1, 1, 1]);
+        let k: Vec<u32> = study
+            .references
+            .iter()
+            .map(|r| r.scene.integrator.max_bounces)
+            .collect();
+        assert_eq!(k, [1, 3]);
+        for (r, c) in study.references.iter().zip([0, 4]) {
+            let config = &study.configurations[c].scene;
+            assert_eq!(
+                r.scene.integrator.max_bounces,
+                config.integrator.max_bounces
+            );
+            assert_eq!(r.scene.integrator.volume, VolumeIntegrator::Baseline);
+            assert_eq!(r.scene.render.seed, config.render.seed ^ REFERENCE_SEED_MIX);
+        }
+        assert_ne!(study.references[0].key, study.references[1].key);
+        assert_ne!(study.references[0].exr, study.references[1].exr);
+        remove_scratch(&opts);
+
+        // Nothing that changes the integrand varied: one reference, of the scene's K.
+        let opts = StudyOptions {
+            vary: vec!["volume=baseline,restir".into(), "temporal_limit=1,2".into()],
+            ..grid_options("one-integrand")
+        };
+        std::fs::write(
+            &opts.scene,
+            std::fs::read_to_string(&opts.scene).unwrap() + "[integrator]\nmax_bounces = 2\n",
+        )
+        .unwrap();
+        let study = Study::new(&opts).unwrap();
+        assert_eq!(study.references.len(), 1);
+        assert_eq!(study.references[0].scene.integrator.max_bounces, 2);
+        assert!(study.configurations.iter().all(|c| c.reference == 0));
+        remove_scratch(&opts);
+    }
+
+    #[test]
+    fn seeds_follow_the_scene_seed_and_never_share_a_fold() {
+        let avoid = |seed: u64| fold_seed(seed ^ REFERENCE_SEED_MIX);
+        assert_eq!(derive_seeds(7, 3, avoid(7)), [7, 8, 9]);
+        assert_eq!(derive_seeds(7, 1, avoid(7)), [7]);
+        // A seed that folds to the reference's is skipped.
+        assert_eq!(derive_seeds(10, 3, fold_seed(11)), [10, 12, 13]);
+        // u64::MAX and 0 (after wrapping) both fold to 0: the second is skipped.
+        assert_eq!(fold_seed(u64::MAX), fold_seed(0));
+        assert_eq!(derive_seeds(u64::MAX, 3, avoid(u64::MAX)), [u64::MAX, 1, 2]);
+        // Across the carry into the high half, folds of both halves can meet.
+        let edge = 0xFFFF_FFF0u64;
+        for seed in [0, 3, 0x5EED, edge, u64::MAX - 5, 0x5EED_0000_0000_0000] {
+            let seeds = derive_seeds(seed, MAX_SEEDS, avoid(seed));
+            assert_eq!(seeds.len(), MAX_SEEDS as usize);
+            assert_eq!(seeds[0], seed);
+            let mut folds: Vec<u32> = seeds.iter().map(|&s| fold_seed(s)).collect();
+            assert!(!folds.contains(&avoid(seed)), "seed {seed}");
+            folds.sort_unstable();
+            folds.dedup();
+            assert_eq!(
+                folds.len(),
+                MAX_SEEDS as usize,
+                "seed {seed}: a fold repeats"
+            );
+        }
+    }
+
+    #[test]
+    fn every_configuration_renders_every_seed() {
+        let opts = StudyOptions {
+            vary: vec!["volume=baseline,restir".into()],
+            seeds: 3,
+            ..grid_options("seeds")
+        };
+        let study = Study::new(&opts).unwrap();
+        let reference = study.references[0].scene.render.seed;
+        for c in &study.configurations {
+            assert_eq!(c.seeds, [0, 1, 2]);
+            assert_eq!(c.scene.render.seed, 0);
+            assert!(c
+                .seeds
+                .iter()
+                .all(|&s| fold_seed(s) != fold_seed(reference)));
+        }
+        assert_eq!(study.seeds, 3);
+        remove_scratch(&opts);
+    }
+
+    #[test]
+    fn warmup_covers_compilation_and_the_temporal_history() {
+        let plan_of = |extra: &str| {
+            let text = format!(
+                "[camera]\nposition = [0, 0, 3]\nlook_at = [0, 0, 0]\n[[medium]]\ntype = \
+                 \"grid\"\nbounds_min = [-1, -1, -1]\nbounds_max = [1, 1, 1]\ndensity = \
+                 {{ procedural = \"cloud\", dims = [4, 4, 4] }}\n{extra}"
+            );
+            let scene = nimbus_scene::parse_str(&text, Path::new("w.toml")).unwrap();
+            plan::build(&scene, None).unwrap()
+        };
+        let restir = |q: u32, temporal: bool| {
+            plan_of(&format!(
+                "[integrator.restir]\ntemporal_limit = {q}\ntemporal = {temporal}\n"
+            ))
+        };
+        let baseline = plan_of("[integrator]\nvolume = \"baseline\"\n");
+        let window = nimbus_scene::parse_str(crate::DEFAULT_SCENE, Path::new("w.toml")).unwrap();
+        let boxes = plan::build(&window, None).unwrap();
+        // At least one frame, whatever --warmup says.
+        assert_eq!(warmup_frames(&boxes, 0), 1);
+        assert_eq!(warmup_frames(&baseline, 0), 1);
+        assert_eq!(warmup_frames(&baseline, 7), 7);
+        // ReSTIR with temporal reuse: 4·Q, or more when asked.
+        assert_eq!(warmup_frames(&restir(4, true), 0), 16);
+        assert_eq!(warmup_frames(&restir(20, true), 16), 80);
+        assert_eq!(warmup_frames(&restir(20, true), 100), 100);
+        // Without temporal reuse there is no history to fill.
+        assert_eq!(warmup_frames(&restir(20, false), 0), 1);
+
+        let opts = StudyOptions {
+            vary: vec![
+                "volume=baseline,restir".into(),
+                "temporal_limit=4,20".into(),
+            ],
+            warmup: 0,
+            ..grid_options("warmup")
+        };
+        let study = Study::new(&opts).unwrap();
+        let warmups: Vec<u32> = study.configurations.iter().map(|c| c.warmup).collect();
+        assert_eq!(warmups, [1, 1, 16, 80]);
+        remove_scratch(&opts);
+    }
+
     #[test]
     fn bad_options_fail_before_rendering() {
         let opts = grid_options("bad-options");
         let cases = [
-            (vec!["spp=1,2", "spp=4"], None, "already varied"),
+            (vec!["spp=1,2", "spp=4"], None, 1, "already varied"),
             // The scene's seed is 0, so the reference's folds to 0x5EED_5EED.
-            (vec!["seed=1592614637"], None, "same random numbers"),
-            (vec!["spp=1,2"], Some("spp=1"), "knob"),
+            (vec!["seed=1592614637"], None, 1, "same random numbers"),
+            (vec!["volume=baseline", "spp=1,2"], Some("spp=1"), 1, "knob"),
+            (vec!["seed=1,2"], None, 3, "--vary seed=1,2 with --seeds 3"),
+            (vec!["seed=1,2"], None, 3, "--seeds 1"),
+            (vec![], None, 0, "--seeds 0: expected 1..=64"),
+            (vec![], None, 65, "--seeds 65"),
         ];
-        for (vary, baseline, needle) in cases {
+        for (vary, baseline, seeds, needle) in cases {
             let bad = StudyOptions {
                 vary: vary.iter().map(|v| (*v).to_owned()).collect(),
                 baseline: baseline.map(str::to_owned),
+                seeds,
                 ..opts.clone()
             };
             let message = format!("{:#}", Study::new(&bad).err().expect("an error"));
             assert!(message.contains(needle), "{vary:?}: {message}");
         }
+        remove_scratch(&opts);
+    }
+
+    /// Animated lights would give the reference (many frames) and the configurations
+    /// (fewer) different integrands, as an animated camera would.
+    #[test]
+    fn a_study_needs_a_static_scene() {
+        let opts = grid_options("animated");
+        let scene = std::fs::read_to_string(&opts.scene).unwrap();
+        let light = "[[light]]\ntype = \"directional\"\nirradiance = 1\n\
+                     [[light.keyframe]]\nframe = 0\ndirection = [0, -1, 0]\n\
+                     [[light.keyframe]]\nframe = 4\ndirection = [0, -1, 1]\n";
+        std::fs::write(&opts.scene, format!("{scene}{light}")).unwrap();
+        let message = format!("{:#}", Study::new(&opts).err().expect("an error"));
+        assert!(
+            message.contains("[[light]] #1") && message.contains("static lights"),
+            "{message}"
+        );
         remove_scratch(&opts);
     }
 

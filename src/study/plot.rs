@@ -38,6 +38,8 @@ pub struct Point {
     pub rmse: f64,
     /// The varied knobs (spp, frames, box_samples) of this point, for its label.
     pub knobs: Vec<(String, String)>,
+    /// The smallest and largest RMSE of one seed, drawn as a bar (none for one seed).
+    pub rmse_range: Option<(f64, f64)>,
 }
 
 /// One polyline: configurations sharing every varied key but the knobs.
@@ -45,6 +47,9 @@ pub struct Point {
 pub struct Series {
     /// The (key, value) pairs the series shares.
     pub key: Vec<(String, String)>,
+    /// The keys of the series whose configurations render exactly as this one's
+    /// (measured once, as this series).
+    pub aliases: Vec<Vec<(String, String)>>,
     pub label: String,
     /// Ascending in time.
     pub points: Vec<Point>,
@@ -246,6 +251,27 @@ fn draw(
                         color.filled(),
                     )
             });
+        // The seeds' RMSE range of each point, as a bar with end ticks.
+        let ranges: Vec<(f64, f64, f64)> = s
+            .points
+            .iter()
+            .filter(|p| finite(p))
+            .filter_map(|p| {
+                let (lo, hi) = p.rmse_range?;
+                (lo > 0.0 && hi > lo && hi.is_finite()).then_some((p.time_ms, lo, hi))
+            })
+            .collect();
+        chart.draw_series(
+            ranges.iter().map(|&(t, lo, hi)| {
+                PathElement::new(vec![(t, lo), (t, hi)], color.stroke_width(1))
+            }),
+        )?;
+        chart.draw_series(ranges.iter().flat_map(|&(t, lo, hi)| {
+            [lo, hi].map(|y| {
+                EmptyElement::at((t, y))
+                    + PathElement::new(vec![(-4, 0), (4, 0)], color.stroke_width(1))
+            })
+        }))?;
         // Points on the front are filled, the ones it beats hollow.
         chart.draw_series(
             line.iter()
@@ -355,9 +381,11 @@ mod tests {
             time_ms: t,
             rmse: e,
             knobs: vec![("spp".to_owned(), format!("{t}"))],
+            rmse_range: Some((0.8 * e, 1.25 * e)),
         };
         let series = [Series {
             key: Vec::new(),
+            aliases: Vec::new(),
             label: "all".to_owned(),
             points: vec![point(1.0, 0.1), point(4.0, 0.05), point(16.0, 0.025)],
         }];

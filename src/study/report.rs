@@ -1,13 +1,15 @@
 //! What a study writes: the results table as CSV and Markdown, numbers to a few
-//! significant digits ([`sig`]), and the texts of study.md (header, the reference's
-//! noise, the equal-time comparison).
+//! significant digits ([`sig`]), and the texts of study.md (header with the protocol,
+//! the configurations measured as another, the references' noise, the equal-time
+//! comparison).
 
 use std::fmt::Write as _;
 
 use super::cache::Reference;
 use super::metrics::{Comparison, ReferenceNoise, REL_MSE_EPSILON};
-use super::vary::{Vary, KNOB_KEYS};
-use super::{Row, Study};
+use super::run::reference_label;
+use super::vary::{format_pairs, Vary, KNOB_KEYS};
+use super::{Row, Study, WARMUP_PER_TEMPORAL_LIMIT};
 
 /// One field of a CSV row (RFC 4180): quoted when it holds a comma, quote or line
 /// break, with quotes doubled.
@@ -89,8 +91,11 @@ pub(super) fn sig(x: f64, digits: usize) -> String {
     format!("{x:.decimals$}")
 }
 
-/// The results table: varied keys, frames/spp/box_samples, then the measurements.
-/// `full` gives every digit (for the CSV); otherwise 4 significant digits.
+/// The results table, one line per distinct configuration: varied keys,
+/// frames/spp/box_samples, the warm-up frames and seeds, then the measurements over the
+/// seeds (median GPU times; RMSE of the mean MSE with the smallest and largest RMSE of
+/// one seed; mean relative MSE and mean relative difference). `full` gives every digit
+/// (for the CSV); otherwise 4 significant digits.
 pub(super) fn table(varies: &[Vary], rows: &[Row], full: bool) -> (Vec<String>, Vec<Vec<String>>) {
     let varied: Vec<&str> = varies
         .iter()
@@ -103,9 +108,13 @@ pub(super) fn table(varies: &[Vary], rows: &[Row], full: bool) -> (Vec<String>, 
             "frames",
             "spp",
             "box_samples",
+            "warmup",
+            "seeds",
             "gpu_ms_per_frame",
             "gpu_ms_total",
             "rmse",
+            "rmse_min",
+            "rmse_max",
             "rel_mse",
             "mean_rel_diff",
         ]
@@ -125,15 +134,20 @@ pub(super) fn table(varies: &[Vary], rows: &[Row], full: bool) -> (Vec<String>, 
                         .unwrap_or_default()
                 })
                 .collect();
+            let s = &row.summary;
             cells.extend([
                 row.frames.to_string(),
                 row.spp.to_string(),
                 row.box_samples.to_string(),
-                num(row.gpu_ms_per_frame),
-                num(row.gpu_ms_total),
-                num(row.metrics.rmse),
-                num(row.metrics.rel_mse),
-                num(row.metrics.mean_rel_diff),
+                row.warmup.to_string(),
+                row.runs.len().to_string(),
+                num(s.gpu_ms_per_frame),
+                num(s.gpu_ms_total),
+                num(s.metrics.rmse),
+                num(s.rmse_min),
+                num(s.rmse_max),
+                num(s.metrics.rel_mse),
+                num(s.metrics.mean_rel_diff),
             ]);
             cells
         })
@@ -142,10 +156,9 @@ pub(super) fn table(varies: &[Vary], rows: &[Row], full: bool) -> (Vec<String>, 
 }
 
 impl Study {
-    /// The first lines of study.md: scene, device, resolution, reference.
-    pub(super) fn header_text(&self, device: &str, reference: &Reference) -> String {
-        let job = &self.reference;
-        let r = &job.scene.render;
+    /// The first lines of study.md: scene, device, resolution, references, and the
+    /// protocol (seeds, warm-up, what the numbers are).
+    pub(super) fn header_text(&self, device: &str, references: &[Reference]) -> String {
         let mut out = String::new();
         let _ = writeln!(out, "# Accuracy versus GPU time\n");
         let _ = writeln!(out, "- scene: `{}`", self.scene_path.display());
@@ -159,23 +172,56 @@ impl Study {
         if !varied.is_empty() {
             let _ = writeln!(out, "- varied: {}", varied.join(", "));
         }
+        for (job, reference) in self.references.iter().zip(references) {
+            let r = &job.scene.render;
+            let _ = writeln!(
+                out,
+                "- reference: {} frame(s) x {} spp, {}, box_estimator = {}, box_samples = {}, seed {}; {} `{}`{}",
+                r.frames,
+                r.spp,
+                reference_label(job).replace('=', " = "),
+                job.scene.integrator.box_estimator.name(),
+                job.scene.integrator.box_samples,
+                r.seed,
+                if reference.cached { "cached" } else { "rendered now and cached as" },
+                job.exr.display(),
+                if reference.device == device {
+                    String::new()
+                } else {
+                    format!(" (rendered on {})", reference.device)
+                }
+            );
+        }
+        if self.references.len() > 1 {
+            let _ = writeln!(
+                out,
+                "- each configuration is measured against the reference of its own \
+                 max_bounces (it changes the integrand; estimators, volume, spp, frames, \
+                 seeds and the ReSTIR knobs do not)"
+            );
+        }
+        let seeds = if self.seeds > 1 {
+            format!(
+                "{} seeds, derived from the scene's seed: each row gives the mean over the \
+                 seeds of the MSE (rmse = its sqrt), rel_mse and mean_rel_diff, the median \
+                 GPU times, and rmse_min / rmse_max, the smallest and largest RMSE of one \
+                 seed: the spread of the Monte Carlo error (and the timing noise) from seed \
+                 to seed; two rows whose ranges overlap are not told apart by these seeds",
+                self.seeds
+            )
+        } else {
+            "1 seed per configuration (no spread measured; --seeds N renders N)".to_owned()
+        };
+        let _ = writeln!(out, "- seeds: {seeds}");
         let _ = writeln!(
             out,
-            "- reference: {} frame(s) x {} spp, box_estimator = {}, box_samples = {}, seed {}; {} `{}`{}",
-            r.frames,
-            r.spp,
-            job.scene.integrator.box_estimator.name(),
-            job.scene.integrator.box_samples,
-            r.seed,
-            if reference.cached { "cached" } else { "rendered now and cached as" },
-            job.exr.display(),
-            if reference.device == device {
-                String::new()
-            } else {
-                format!(" (rendered on {})", reference.device)
-            }
+            "- warm-up (column warmup): frames rendered before the measured ones and not \
+             measured: at least 1 (the first frame may include shader compilation), at \
+             least {WARMUP_PER_TEMPORAL_LIMIT}·Q for Volumetric ReSTIR with temporal reuse \
+             (Q = temporal_limit; its history reaches steady state only after a few Q \
+             frames), at least --warmup ({})",
+            self.warmup
         );
-        let warmup = self.warmup.max(1);
         let (total, errors) = if self.per_frame {
             (
                 "the time of one frame (total)",
@@ -191,35 +237,75 @@ impl Study {
         let _ = writeln!(
             out,
             "- GPU time: the \"frame\" timestamp scope, median over frames (per frame) and \
-             {total}, after {warmup} warm-up frame(s); errors: {errors}, over all pixels and \
-             channels; rel_mse = mean (a−r)²/(r²+{REL_MSE_EPSILON}); mean_rel_diff = mean \
-             over channels of (mean a − mean r)/mean r"
+             {total}; errors: {errors}, over all pixels and channels; rel_mse = mean \
+             (a−r)²/(r²+{REL_MSE_EPSILON}); mean_rel_diff = mean over channels of (mean a − \
+             mean r)/mean r"
         );
         out
     }
 }
 
-/// The reference's own noise, and a warning when it is not small against the
-/// errors measured.
-pub(super) fn noise_text(noise: &ReferenceNoise, frames: u32, rows: &[Row]) -> String {
+/// The configurations that render exactly as another (the integrator does not read
+/// the setting they differ in), each line `X renders as Y`; `None` when there are none.
+pub(super) fn equivalents_text(rows: &[Row]) -> Option<String> {
+    let lines: Vec<String> = rows
+        .iter()
+        .flat_map(|row| {
+            row.equivalents.iter().map(move |e| {
+                format!(
+                    "- `{}` renders as `{}`",
+                    format_pairs(e),
+                    format_pairs(&row.assignment)
+                )
+            })
+        })
+        .collect();
+    if lines.is_empty() {
+        return None;
+    }
     let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "Configurations measured once: the integrator does not read the settings they \
+         differ in, so they render the same image; each is reported as the row it renders \
+         as.\n"
+    );
+    for line in lines {
+        let _ = writeln!(out, "{line}");
+    }
+    Some(out)
+}
+
+/// The reference's own noise, and a warning when it is not small against the
+/// errors measured with it (`rows`). `of` names the reference when there are several.
+pub(super) fn noise_text(
+    noise: &ReferenceNoise,
+    frames: u32,
+    rows: &[Row],
+    of: Option<&str>,
+) -> String {
+    let mut out = String::new();
+    let what = of.map_or_else(
+        || "Reference noise".to_owned(),
+        |of| format!("Reference noise ({of})"),
+    );
     if frames < 2 {
         let _ = writeln!(
             out,
-            "Reference noise: unknown (the reference has {frames} frame; its standard \
-             error needs at least 2)."
+            "{what}: unknown (the reference has {frames} frame; its standard error needs \
+             at least 2)."
         );
         return out;
     }
     let _ = writeln!(
         out,
-        "Reference noise: mean relative standard error {}, RMS standard error {}.",
+        "{what}: mean relative standard error {}, RMS standard error {}.",
         sig(noise.mean_rel_std_error, 3),
         sig(noise.rms_std_error, 3)
     );
     let min_rmse = rows
         .iter()
-        .map(|r| r.metrics.rmse)
+        .map(|r| r.summary.metrics.rmse)
         .fold(f64::INFINITY, f64::min);
     if min_rmse.is_finite() && min_rmse > 0.0 {
         let q = noise.rms_std_error / min_rmse;
@@ -246,9 +332,11 @@ pub(super) fn noise_text(noise: &ReferenceNoise, frames: u32, rows: &[Row]) -> S
     out
 }
 
+/// The equal-time section of study.md; `seeds` renders per configuration.
 pub(super) fn equal_time_text(
     comparisons: &[Comparison],
     baseline: Option<&(String, String)>,
+    seeds: usize,
 ) -> String {
     let mut out = String::new();
     let name = baseline.map_or(String::new(), |(k, v)| format!("{k}={v}"));
@@ -261,6 +349,17 @@ pub(super) fn equal_time_text(
          below 1 means more accurate for the same GPU time, and the MSE ratio is its \
          square.\n"
     );
+    if seeds > 1 {
+        let _ = writeln!(
+            out,
+            "The table and the ratio are those of the seed-mean series (RMSE of the mean \
+             MSE over the {seeds} seeds, median GPU time). The spread after them is the \
+             smallest and largest geometric-mean ratio of one seed: each seed's series \
+             against the baseline series of the same seed, with that seed's own times. \
+             It is how much the ratio moves from seed to seed; a spread that holds 1 \
+             means these seeds do not show which series is better.\n"
+        );
+    }
     if comparisons.is_empty() {
         let _ = writeln!(out, "No other series to compare.");
         return out;
@@ -288,9 +387,21 @@ pub(super) fn equal_time_text(
                 sig(ratio, 3),
             ]);
         }
+        let spread = match c.seed_spread() {
+            Some((lo, hi)) => format!(
+                " (per seed {}–{} over {} seeds)",
+                sig(lo, 3),
+                sig(hi, 3),
+                c.seed_geo_means.len()
+            ),
+            None if !c.seed_geo_means.is_empty() => {
+                " (per seed: no spread, some seeds' times do not overlap the baseline's)".to_owned()
+            }
+            None => String::new(),
+        };
         summary.push(match c.geo_mean {
             Some(g) => format!(
-                "- {} vs {}: geometric mean RMSE ratio {} over {} time(s)",
+                "- {} vs {}: geometric mean RMSE ratio {}{spread} over {} time(s)",
                 c.series,
                 c.baseline,
                 sig(g, 3),
@@ -315,8 +426,8 @@ pub(super) fn equal_time_text(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::study::vary::parse_vary;
-    use crate::study::{grid_options, remove_scratch, test_row, StudyOptions};
+    use crate::study::vary::{self, parse_vary};
+    use crate::study::{grid_options, remove_scratch, test_row, test_row_seeds, StudyOptions};
 
     #[test]
     fn csv_quotes_only_when_needed() {
@@ -368,23 +479,77 @@ mod tests {
                 "frames",
                 "spp",
                 "box_samples",
+                "warmup",
+                "seeds",
                 "gpu_ms_per_frame",
                 "gpu_ms_total",
                 "rmse",
+                "rmse_min",
+                "rmse_max",
                 "rel_mse",
                 "mean_rel_diff"
             ]
         );
         assert_eq!(
             cells[0],
-            ["rm", "2", "1", "8", "0.1667", "0.3333", "0.5000", "0.5000", "0.5000"]
+            [
+                "rm", "2", "1", "8", "1", "1", "0.1667", "0.3333", "0.5000", "0.5000", "0.5000",
+                "0.5000", "0.5000"
+            ]
         );
-        assert_eq!(cells[1][..6], ["reds", "2", "1", "8", "6.000", "12.00"]);
-        assert_eq!(cells[1][6], "1.000e-7");
+        assert_eq!(
+            cells[1][..8],
+            ["reds", "2", "1", "8", "1", "1", "6.000", "12.00"]
+        );
+        assert_eq!(cells[1][8], "1.000e-7");
         let (full_header, full) = table(&varies, &rows, true);
         assert_eq!(full_header, header);
-        assert_eq!(full[0][5], format!("{}", 1.0 / 3.0));
-        assert_eq!(full[1][6], "0.0000001");
+        assert_eq!(full[0][7], format!("{}", 1.0 / 3.0));
+        assert_eq!(full[1][8], "0.0000001");
+    }
+
+    /// A row of several seeds: the mean MSE, median times and the RMSE range.
+    #[test]
+    fn the_table_reports_the_seeds_mean_and_spread() {
+        let varies = [parse_vary("spp=1,4").unwrap()];
+        let mut row = test_row_seeds(&[("spp", "1")], &[(3.0, 0.3), (1.0, 0.4), (2.0, 0.0)]);
+        row.warmup = 80;
+        let (header, cells) = table(&varies, &[row], true);
+        let cell = |name: &str| {
+            let i = header.iter().position(|h| h == name).unwrap();
+            cells[0][i].clone()
+        };
+        assert_eq!(cell("warmup"), "80");
+        assert_eq!(cell("seeds"), "3");
+        assert_eq!(cell("gpu_ms_total"), "2");
+        assert_eq!(cell("gpu_ms_per_frame"), "1");
+        let rmse: f64 = cell("rmse").parse().unwrap();
+        assert!((rmse - (0.25f64 / 3.0).sqrt()).abs() < 1e-12, "{rmse}");
+        assert_eq!(
+            (cell("rmse_min"), cell("rmse_max")),
+            ("0".into(), "0.4".into())
+        );
+        let rel: f64 = cell("rel_mse").parse().unwrap();
+        assert!((rel - 0.7 / 3.0).abs() < 1e-12, "{rel}");
+    }
+
+    #[test]
+    fn equivalent_configurations_are_listed_once_as_what_they_render_as() {
+        let mut row = test_row(&[("volume", "baseline"), ("temporal_limit", "4")], 1.0, 1.0);
+        assert_eq!(equivalents_text(std::slice::from_ref(&row)), None);
+        row.equivalents = vec![
+            vary::assignment(&[("volume", "baseline"), ("temporal_limit", "20")]),
+            vary::assignment(&[("volume", "baseline"), ("temporal_limit", "80")]),
+        ];
+        let text = equivalents_text(&[row]).unwrap();
+        assert!(
+            text.contains(
+                "- `volume=baseline temporal_limit=20` renders as `volume=baseline \
+                 temporal_limit=4`\n"
+            ),
+            "{text}"
+        );
+        assert_eq!(text.matches(" renders as ").count(), 2, "{text}");
     }
 
     #[test]
@@ -394,6 +559,8 @@ mod tests {
             mean_rel_std_error: 0.01,
         };
         let rows = [test_row(&[], 1.0, 0.2), test_row(&[], 2.0, 0.1)];
+        let noise_text =
+            |n: &ReferenceNoise, frames: u32, rows: &[Row]| noise_text(n, frames, rows, None);
         let text = noise_text(&noise(0.001), 1, &rows);
         assert!(text.starts_with("Reference noise: unknown"), "{text}");
         assert!(text.contains("has 1 frame"), "{text}");
@@ -416,6 +583,12 @@ mod tests {
         );
         // No positive RMSE: nothing to compare with.
         assert_eq!(noise_text(&noise(0.05), 2, &[]).lines().count(), 1);
+        // Several references: each is named.
+        let text = super::noise_text(&noise(0.001), 2, &rows, Some("max_bounces=2"));
+        assert!(
+            text.starts_with("Reference noise (max_bounces=2): mean"),
+            "{text}"
+        );
     }
 
     #[test]
@@ -427,15 +600,18 @@ mod tests {
                 baseline: "box_estimator=rm".into(),
                 points: vec![(1.0, 1.0, 0.25, 0.25), (10.0, 0.5, 0.125, 0.25)],
                 geo_mean: Some(0.25),
+                seed_geo_means: Vec::new(),
             },
             Comparison {
                 series: "box_estimator=mcds".into(),
                 baseline: "box_estimator=rm".into(),
                 points: Vec::new(),
                 geo_mean: None,
+                seed_geo_means: Vec::new(),
             },
         ];
-        let text = equal_time_text(&comparisons, Some(&baseline));
+        let text = equal_time_text(&comparisons, Some(&baseline), 1);
+        assert!(!text.contains("per seed"), "{text}");
         assert!(
             text.starts_with("## Equal-time RMSE ratio against box_estimator=rm\n"),
             "{text}"
@@ -457,16 +633,38 @@ mod tests {
             .filter(|l| l.starts_with("| box_estimator="))
             .count();
         assert_eq!(table_rows, 2, "{text}");
-        let none = equal_time_text(&[], Some(&baseline));
+        let none = equal_time_text(&[], Some(&baseline), 1);
         assert!(none.contains("No other series to compare."), "{none}");
         assert!(!none.contains('|'), "{none}");
+
+        // With seeds: the spread of the per-seed ratios, and what it means.
+        let mut with_seeds = comparisons;
+        with_seeds[0].seed_geo_means = vec![Some(0.3), Some(0.2), Some(0.25)];
+        with_seeds[1].seed_geo_means = vec![Some(0.3), None, Some(0.25)];
+        let text = equal_time_text(&with_seeds, Some(&baseline), 3);
+        assert!(
+            text.contains("ratio 0.250 (per seed 0.200–0.300 over 3 seeds) over 2 time(s)"),
+            "{text}"
+        );
+        assert!(text.contains("seed-mean series"), "{text}");
+        assert!(text.contains("a spread that holds 1"), "{text}");
+        assert!(
+            text.contains("mcds vs box_estimator=rm: no common"),
+            "{text}"
+        );
     }
 
     #[test]
-    fn header_text_describes_the_scene_device_and_reference() {
+    fn header_text_describes_the_scene_device_references_and_protocol() {
         let opts = StudyOptions {
-            vary: vec!["spp=1,4".into(), "max_bounces=1,2".into()],
+            vary: vec![
+                "volume=baseline".into(),
+                "spp=1,4".into(),
+                "max_bounces=1,2".into(),
+            ],
             reference_frames: 3,
+            seeds: 3,
+            warmup: 5,
             ..grid_options("header")
         };
         let study = Study::new(&opts).unwrap();
@@ -479,7 +677,8 @@ mod tests {
             device: device.to_owned(),
             cached,
         };
-        let text = study.header_text("gpu", &reference("gpu", false));
+        let fresh = [reference("gpu", false), reference("gpu", false)];
+        let text = study.header_text("gpu", &fresh);
         assert!(text.starts_with("# Accuracy versus GPU time\n"), "{text}");
         assert!(
             text.contains(&format!("- scene: `{}`", opts.scene.display())),
@@ -488,18 +687,31 @@ mod tests {
         assert!(text.contains("- device: gpu\n"), "{text}");
         assert!(text.contains("- resolution: 8x6\n"), "{text}");
         assert!(
-            text.contains("- varied: `spp=1,4`, `max_bounces=1,2`\n"),
+            text.contains("- varied: `volume=baseline`, `spp=1,4`, `max_bounces=1,2`\n"),
             "{text}"
         );
-        assert!(text.contains("- reference: 3 frame(s) x 1 spp"), "{text}");
-        assert!(text.contains("rendered now and cached as `"), "{text}");
+        for k in [1, 2] {
+            assert!(
+                text.contains(&format!(
+                    "- reference: 3 frame(s) x 1 spp, max_bounces = {k}, box_estimator"
+                )),
+                "{text}"
+            );
+        }
+        assert_eq!(text.matches("rendered now and cached as `").count(), 2);
+        assert!(text.contains("reference of its own max_bounces"), "{text}");
+        assert!(text.contains("- seeds: 3 seeds, derived"), "{text}");
+        assert!(text.contains("rmse_min / rmse_max"), "{text}");
         assert!(
-            text.contains("sum over frames (total), after 1 warm-up frame(s)"),
+            text.contains("at least 4·Q for Volumetric ReSTIR"),
             "{text}"
         );
-        let text = study.header_text("gpu", &reference("other gpu", true));
+        assert!(text.contains("at least --warmup (5)"), "{text}");
+        assert!(text.contains("sum over frames (total)"), "{text}");
+        let cached = [reference("other gpu", true), reference("gpu", true)];
+        let text = study.header_text("gpu", &cached);
         assert!(text.contains("; cached `"), "{text}");
-        assert!(text.contains("` (rendered on other gpu)\n"), "{text}");
+        assert_eq!(text.matches("` (rendered on other gpu)\n").count(), 1);
         remove_scratch(&opts);
 
         let opts = StudyOptions {
@@ -508,12 +720,11 @@ mod tests {
             ..grid_options("header-per-frame")
         };
         let study = Study::new(&opts).unwrap();
-        let text = study.header_text("gpu", &reference("gpu", true));
+        let text = study.header_text("gpu", &[reference("gpu", true)]);
         assert!(!text.contains("- varied"), "{text}");
-        assert!(
-            text.contains("the time of one frame (total), after 1 warm-up frame(s)"),
-            "{text}"
-        );
+        assert!(!text.contains("its own max_bounces"), "{text}");
+        assert!(text.contains("- seeds: 1 seed per configuration"), "{text}");
+        assert!(text.contains("the time of one frame (total)"), "{text}");
         remove_scratch(&opts);
     }
 }

@@ -1,87 +1,100 @@
-//! Running a prepared [`Study`]: the reference (cached or rendered), every
-//! configuration rendered and measured, and the results written.
+//! Running a prepared [`Study`]: the references (cached or rendered), every
+//! distinct configuration rendered once per seed and measured, and the results
+//! written.
 
 use std::time::Instant;
 
 use anyhow::{Context as _, Result};
 use nimbus_gpu::Context;
 
-use super::cache::{load_cached, store_cached, Reference};
-use super::metrics::{equal_time, frame_gpu_ms, mean_metrics, measure, ReferenceNoise};
-use super::report::{csv, equal_time_text, markdown_table, noise_text, sig, table};
-use super::vary::{format_pairs, group_series, series_label, Assignment, KNOB_KEYS};
-use super::{plot, scene_stem, Row, Study};
+use super::cache::{load_cached, store_cached, Reference, ReferenceJob};
+use super::metrics::{
+    equal_time_over_seeds, frame_gpu_ms, mean_metrics, measure, summarize, ReferenceNoise, SeedRun,
+};
+use super::report::{
+    csv, equal_time_text, equivalents_text, markdown_table, noise_text, sig, table,
+};
+use super::vary::{format_pairs, group_series, series_key, series_label, Assignment, KNOB_KEYS};
+use super::{plot, scene_stem, Configuration, Row, Study};
 use crate::renderer::{self, RenderOptions, RenderResult};
 
 impl Study {
-    /// Renders (or loads) the reference, measures every configuration, writes
-    /// `study.csv`, `study.md` and `study.png`, and prints the table.
+    /// Renders (or loads) the references, measures every distinct configuration with
+    /// every seed, writes `study.csv`, `study.md` and `study.png`, and prints the table.
     pub fn run(&self, ctx: &Context) -> Result<()> {
         let device = ctx.info().name.clone();
-        let reference = self.reference(ctx)?;
+        let references: Vec<Reference> = self
+            .references
+            .iter()
+            .map(|job| self.reference(ctx, job))
+            .collect::<Result<_>>()?;
 
         let total = self.configurations.len();
-        let mut rows = Vec::with_capacity(total);
+        let mut rows: Vec<Row> = Vec::with_capacity(total);
+        // The row of each configuration.
+        let mut row_of: Vec<usize> = Vec::with_capacity(total);
         for (i, config) in self.configurations.iter().enumerate() {
-            let label = if config.assignment.is_empty() {
-                "scene settings".to_owned()
-            } else {
-                format_pairs(&config.assignment)
-            };
+            let label = config_label(&config.assignment);
             if let Some(first) = config.same_as {
-                let earlier: &Row = &rows[first];
+                let row = row_of[first];
                 eprintln!(
-                    "[{}/{total}] {label}: renders exactly as {} (its measurement reused)",
+                    "[{}/{total}] {label}: renders exactly as {} (measured once, reported as that)",
                     i + 1,
-                    format_pairs(&earlier.assignment)
+                    config_label(&rows[row].assignment)
                 );
-                let mut row = earlier.clone();
-                row.assignment = config.assignment.clone();
-                row.spp = config.scene.render.spp;
-                rows.push(row);
+                rows[row].equivalents.push(config.assignment.clone());
+                row_of.push(row);
                 continue;
             }
-            let opts = RenderOptions {
-                warmup_frames: self.warmup.max(1),
-                keep_frames: self.per_frame,
-                ..Default::default()
-            };
-            let start = Instant::now();
-            let result = renderer::render(ctx, &config.scene, &config.plan, &opts)
-                .with_context(|| format!("rendering configuration {label}"))?;
-            let (gpu_ms_per_frame, mut gpu_ms_total) = frame_gpu_ms(&result.frame_timings)
-                .with_context(|| format!("configuration {label} on device '{device}'"))?;
-            let metrics = if self.per_frame {
-                // The mean of the frames' own errors, at the cost of one frame.
-                gpu_ms_total = gpu_ms_per_frame;
-                mean_metrics(&result.frame_images, &reference.image)?
-            } else {
-                measure(&result.image, &reference.image)?
-            };
-            warn_non_finite(&result, &label);
-            eprintln!(
-                "[{}/{total}] {label}: {} ms/frame, {} ms total, RMSE {}, rel MSE {}, mean rel diff {:+.2}% ({:.1} s)",
-                i + 1,
-                sig(gpu_ms_per_frame, 4),
-                sig(gpu_ms_total, 4),
-                sig(metrics.rmse, 4),
-                sig(metrics.rel_mse, 4),
-                metrics.mean_rel_diff * 100.0,
-                start.elapsed().as_secs_f64()
-            );
+            let reference = &references[config.reference];
+            let mut runs = Vec::with_capacity(config.seeds.len());
+            for (s, &seed) in config.seeds.iter().enumerate() {
+                let start = Instant::now();
+                let run = self
+                    .measure_seed(ctx, config, seed, reference)
+                    .with_context(|| format!("configuration {label}, seed {seed}"))?;
+                let m = &run.metrics;
+                eprintln!(
+                    "[{}/{total}] {label}, seed {seed} ({}/{}): {} ms/frame, {} ms total, RMSE {}, \
+                     rel MSE {}, mean rel diff {:+.2}% ({:.1} s)",
+                    i + 1,
+                    s + 1,
+                    config.seeds.len(),
+                    sig(run.gpu_ms_per_frame, 4),
+                    sig(run.gpu_ms_total, 4),
+                    sig(m.rmse, 4),
+                    sig(m.rel_mse, 4),
+                    m.mean_rel_diff * 100.0,
+                    start.elapsed().as_secs_f64()
+                );
+                runs.push(run);
+            }
+            let summary = summarize(&runs).with_context(|| format!("configuration {label}"))?;
+            row_of.push(rows.len());
             rows.push(Row {
                 assignment: config.assignment.clone(),
+                equivalents: Vec::new(),
+                reference: config.reference,
                 frames: config.scene.render.frames,
                 spp: config.scene.render.spp,
                 box_samples: config.scene.integrator.box_samples,
-                gpu_ms_per_frame,
-                gpu_ms_total,
-                metrics,
+                warmup: config.warmup,
+                runs,
+                summary,
             });
         }
 
-        let series = series(&rows);
-        let comparisons = self.baseline.as_ref().map(|b| equal_time(b, &series));
+        let mean_series = series(&rows, None);
+        let seeds = rows.first().map_or(0, |r| r.runs.len());
+        let per_seed: Vec<Vec<plot::Series>> = if seeds > 1 {
+            (0..seeds).map(|s| series(&rows, Some(s))).collect()
+        } else {
+            Vec::new()
+        };
+        let comparisons = self
+            .baseline
+            .as_ref()
+            .map(|b| equal_time_over_seeds(b, &mean_series, &per_seed));
         let (header, cells) = table(&self.varies, &rows, false);
         let (csv_header, csv_cells) = table(&self.varies, &rows, true);
 
@@ -91,14 +104,29 @@ impl Study {
             .with_context(|| format!("writing {}", csv_path.display()))?;
 
         let table = markdown_table(&header, &cells);
-        let noise = noise_text(&reference.noise, self.reference.scene.render.frames, &rows);
+        let mut noise = String::new();
+        for (i, (job, reference)) in self.references.iter().zip(&references).enumerate() {
+            let used: Vec<Row> = rows.iter().filter(|r| r.reference == i).cloned().collect();
+            let of = (self.references.len() > 1).then(|| reference_label(job));
+            noise += &noise_text(
+                &reference.noise,
+                job.scene.render.frames,
+                &used,
+                of.as_deref(),
+            );
+        }
+        let equivalents = equivalents_text(&rows);
         let equal = comparisons
             .as_ref()
-            .map(|c| equal_time_text(c, self.baseline.as_ref()));
+            .map(|c| equal_time_text(c, self.baseline.as_ref(), seeds));
         let md_path = dir.join("study.md");
-        let mut md = self.header_text(&device, &reference);
+        let mut md = self.header_text(&device, &references);
         md += "\n";
         md += &table;
+        if let Some(text) = &equivalents {
+            md += "\n";
+            md += text;
+        }
         md += "\n";
         md += &noise;
         if let Some(text) = &equal {
@@ -122,10 +150,14 @@ impl Study {
             .map(|v| v.key.as_str())
             .filter(|k| KNOB_KEYS.contains(k))
             .collect();
-        plot::write_png(&png_path, &title, &knobs, &series)
+        plot::write_png(&png_path, &title, &knobs, &mean_series)
             .with_context(|| format!("writing {}", png_path.display()))?;
 
-        print!("{table}\n{noise}");
+        print!("{table}");
+        if let Some(text) = &equivalents {
+            print!("\n{text}");
+        }
+        print!("\n{noise}");
         if let Some(text) = &equal {
             print!("\n{text}");
         }
@@ -138,23 +170,62 @@ impl Study {
         Ok(())
     }
 
+    /// Renders `config` with `seed` after its warm-up and measures it against
+    /// `reference`.
+    fn measure_seed(
+        &self,
+        ctx: &Context,
+        config: &Configuration,
+        seed: u64,
+        reference: &Reference,
+    ) -> Result<SeedRun> {
+        let mut scene = config.scene.clone();
+        scene.render.seed = seed;
+        let opts = RenderOptions {
+            warmup_frames: config.warmup,
+            keep_frames: self.per_frame,
+            ..Default::default()
+        };
+        let result = renderer::render(ctx, &scene, &config.plan, &opts).context("rendering")?;
+        let (gpu_ms_per_frame, mut gpu_ms_total) = frame_gpu_ms(&result.frame_timings)
+            .with_context(|| format!("on device '{}'", ctx.info().name))?;
+        let metrics = if self.per_frame {
+            // The mean of the frames' own errors, at the cost of one frame.
+            gpu_ms_total = gpu_ms_per_frame;
+            mean_metrics(&result.frame_images, &reference.image)?
+        } else {
+            measure(&result.image, &reference.image)?
+        };
+        warn_non_finite(
+            &result,
+            &format!("{}, seed {seed}", config_label(&config.assignment)),
+        );
+        Ok(SeedRun {
+            seed,
+            gpu_ms_per_frame,
+            gpu_ms_total,
+            metrics,
+        })
+    }
+
     /// The cached reference if its files and settings match, else a fresh render that
     /// is then cached.
-    fn reference(&self, ctx: &Context) -> Result<Reference> {
-        let job = &self.reference;
+    fn reference(&self, ctx: &Context, job: &ReferenceJob) -> Result<Reference> {
         if let Some(reference) = load_cached(job)? {
             eprintln!(
-                "using cached reference {} (rendered on {})",
+                "using cached reference {} ({}, rendered on {})",
                 job.exr.display(),
+                reference_label(job),
                 reference.device
             );
             return Ok(reference);
         }
         let r = &job.scene.render;
         eprintln!(
-            "rendering reference: {} frame(s) x {} spp, box_estimator={}, box_samples={}, {}x{} (cache key {})",
+            "rendering reference: {} frame(s) x {} spp, {}, box_estimator={}, box_samples={}, {}x{} (cache key {})",
             r.frames,
             r.spp,
+            reference_label(job),
             job.scene.integrator.box_estimator.name(),
             job.scene.integrator.box_samples,
             r.width,
@@ -166,7 +237,7 @@ impl Study {
             ..Default::default()
         };
         let result = renderer::render(ctx, &job.scene, &job.plan, &opts)
-            .context("rendering the reference")?;
+            .with_context(|| format!("rendering the reference ({})", reference_label(job)))?;
         warn_non_finite(&result, "reference");
         let noise = ReferenceNoise::of(&result.image, &result.std_error);
         let device = ctx.info().name.clone();
@@ -191,8 +262,24 @@ impl Study {
     }
 }
 
-/// The series of the measured rows, each as (label, points sorted by time).
-fn series(rows: &[Row]) -> Vec<plot::Series> {
+/// A configuration's name in messages.
+fn config_label(assignment: &Assignment) -> String {
+    if assignment.is_empty() {
+        "scene settings".to_owned()
+    } else {
+        format_pairs(assignment)
+    }
+}
+
+/// What tells the references apart: the integrand's settings.
+pub(super) fn reference_label(job: &ReferenceJob) -> String {
+    format!("max_bounces={}", job.scene.integrator.max_bounces)
+}
+
+/// The series of the measured rows, each as (label, points sorted by time): of the
+/// seed-mean values (median time, RMSE of the mean MSE, with the seeds' RMSE range)
+/// when `seed` is `None`, else of that seed's own render.
+fn series(rows: &[Row], seed: Option<usize>) -> Vec<plot::Series> {
     let assignments: Vec<Assignment> = rows.iter().map(|r| r.assignment.clone()).collect();
     group_series(&assignments)
         .into_iter()
@@ -207,17 +294,36 @@ fn series(rows: &[Row]) -> Vec<plot::Series> {
                         .filter(|(k, _)| KNOB_KEYS.contains(&k.as_str()))
                         .cloned()
                         .collect();
+                    let (time_ms, rmse, rmse_range) = match seed.and_then(|s| row.runs.get(s)) {
+                        Some(run) => (run.gpu_ms_total, run.metrics.rmse, None),
+                        None => {
+                            let s = &row.summary;
+                            let range = (row.runs.len() > 1).then_some((s.rmse_min, s.rmse_max));
+                            (s.gpu_ms_total, s.metrics.rmse, range)
+                        }
+                    };
                     plot::Point {
-                        time_ms: row.gpu_ms_total,
-                        rmse: row.metrics.rmse,
+                        time_ms,
+                        rmse,
                         knobs,
+                        rmse_range,
                     }
                 })
                 .collect();
             points.sort_by(|a, b| a.time_ms.total_cmp(&b.time_ms));
+            let mut aliases: Vec<Assignment> = Vec::new();
+            for &i in &members {
+                for other in &rows[i].equivalents {
+                    let alias = series_key(other);
+                    if alias != key && !aliases.contains(&alias) {
+                        aliases.push(alias);
+                    }
+                }
+            }
             plot::Series {
                 label: series_label(&key),
                 key,
+                aliases,
                 points,
             }
         })
@@ -236,8 +342,8 @@ fn warn_non_finite(result: &RenderResult, what: &str) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::study::test_row;
     use crate::study::vary::assignment;
+    use crate::study::{test_row, test_row_seeds};
 
     #[test]
     fn rows_become_series_sorted_by_time_with_their_knobs() {
@@ -246,7 +352,7 @@ mod tests {
             test_row(&[("box_estimator", "reds"), ("spp", "4")], 5.0, 0.2),
             test_row(&[("box_estimator", "rm"), ("spp", "1")], 1.0, 1.0),
         ];
-        let all = series(&rows);
+        let all = series(&rows, None);
         assert_eq!(all.len(), 2);
         assert_eq!(all[0].key, assignment(&[("box_estimator", "rm")]));
         assert_eq!(all[0].label, "box_estimator=rm");
@@ -255,5 +361,80 @@ mod tests {
         assert_eq!(all[0].points[0].knobs, assignment(&[("spp", "1")]));
         assert_eq!(all[1].label, "box_estimator=reds");
         assert_eq!(all[1].points.len(), 1);
+        // One seed: no range to draw, no aliases.
+        assert!(all[0].points.iter().all(|p| p.rmse_range.is_none()));
+        assert!(all.iter().all(|s| s.aliases.is_empty()));
+    }
+
+    /// With seeds, the series of the means carry the seeds' RMSE range and the median
+    /// time; the series of one seed carry that seed's own values.
+    #[test]
+    fn series_of_the_seed_means_and_of_each_seed() {
+        let rows = [
+            test_row_seeds(&[("spp", "1")], &[(1.0, 1.0), (3.0, 2.0), (2.0, 0.5)]),
+            test_row_seeds(&[("spp", "4")], &[(4.0, 0.5), (4.0, 0.25), (6.0, 1.0)]),
+        ];
+        let mean = series(&rows, None);
+        assert_eq!(mean.len(), 1);
+        let p = &mean[0].points[0];
+        assert_eq!(p.time_ms, 2.0, "median time");
+        assert!(
+            (p.rmse - (5.25f64 / 3.0).sqrt()).abs() < 1e-12,
+            "{}",
+            p.rmse
+        );
+        assert_eq!(p.rmse_range, Some((0.5, 2.0)));
+        let second = series(&rows, Some(1));
+        let points: Vec<(f64, f64)> = second[0]
+            .points
+            .iter()
+            .map(|p| (p.time_ms, p.rmse))
+            .collect();
+        assert_eq!(points, [(3.0, 2.0), (4.0, 0.25)]);
+        assert!(second[0].points.iter().all(|p| p.rmse_range.is_none()));
+    }
+
+    /// A series whose rows other configurations render as has their series keys as
+    /// aliases, so the equal-time comparison finds it under either name.
+    #[test]
+    fn merged_configurations_alias_their_series() {
+        let mut baseline = test_row(&[("volume", "baseline"), ("temporal_limit", "4")], 1.0, 1.0);
+        baseline.equivalents = vec![assignment(&[
+            ("volume", "baseline"),
+            ("temporal_limit", "20"),
+        ])];
+        let rows = [
+            baseline,
+            test_row(&[("volume", "restir"), ("temporal_limit", "4")], 1.0, 0.5),
+            test_row(&[("volume", "restir"), ("temporal_limit", "20")], 1.0, 0.25),
+        ];
+        let all = series(&rows, None);
+        assert_eq!(all.len(), 3);
+        assert_eq!(
+            all[0].aliases,
+            [assignment(&[
+                ("volume", "baseline"),
+                ("temporal_limit", "20")
+            ])]
+        );
+        let c = crate::study::metrics::equal_time(&("volume".into(), "baseline".into()), &all);
+        let pairs: Vec<(&str, &str)> = c
+            .iter()
+            .map(|c| (c.series.as_str(), c.baseline.as_str()))
+            .collect();
+        assert_eq!(
+            pairs,
+            [
+                (
+                    "volume=restir temporal_limit=4",
+                    "volume=baseline temporal_limit=4"
+                ),
+                (
+                    "volume=restir temporal_limit=20",
+                    "volume=baseline temporal_limit=4"
+                ),
+            ]
+        );
+        assert!((c[1].geo_mean.unwrap() - 0.25).abs() < 1e-12);
     }
 }

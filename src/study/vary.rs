@@ -19,7 +19,7 @@ const GENERAL_KEYS: [&str; 7] = [
 
 /// Every key `--vary` accepts: [`GENERAL_KEYS`], then the fields of
 /// `[integrator.restir]` (the scene crate's list, so the two cannot drift apart).
-fn keys() -> Vec<&'static str> {
+pub fn keys() -> Vec<&'static str> {
     GENERAL_KEYS
         .iter()
         .chain(nimbus_scene::RESTIR_KEYS)
@@ -30,6 +30,14 @@ fn keys() -> Vec<&'static str> {
 /// The keys that buy accuracy with time: configurations differing only in these form
 /// one series (one polyline of the plot).
 pub(super) const KNOB_KEYS: [&str; 3] = ["spp", "frames", "box_samples"];
+
+/// The keys that change what the image converges to (the integrand), so that each of
+/// their values needs its own reference: `max_bounces` (K, the scattering orders
+/// summed). The others change how it is estimated: the estimators and `volume` (the
+/// same integral), spp, frames and seeds (how many samples, which ones), and the
+/// ReSTIR knobs (unbiased reuse). `frames` would change it for animated lights or
+/// media, which a study refuses (the reference needs a static scene).
+pub(super) const INTEGRAND_KEYS: [&str; 1] = ["max_bounces"];
 
 /// The `[integrator] volume` names of the scene format.
 const VOLUME_INTEGRATORS: [(&str, VolumeIntegrator); 2] = [
@@ -119,6 +127,26 @@ pub(super) fn apply(scene: &mut Scene, key: &str, value: &str) -> Result<Option<
                 "analytic" => false,
                 "ratio" => true,
                 _ => bail!("{key}: unknown transmittance {value:?}; valid: analytic, ratio"),
+            };
+        }
+        "mis" => {
+            scene.integrator.restir.mis = match value {
+                "talbot" => nimbus_scene::MisMode::Talbot,
+                "pairwise" => nimbus_scene::MisMode::Pairwise,
+                _ => bail!("{key}: unknown MIS {value:?}; valid: talbot, pairwise"),
+            };
+        }
+        "temporal_history" => {
+            scene.integrator.restir.temporal_history = match value {
+                "spatial" => nimbus_scene::HistoryMode::Spatial,
+                "temporal" => nimbus_scene::HistoryMode::Temporal,
+                _ => bail!("{key}: unknown history {value:?}; valid: spatial, temporal"),
+            };
+        }
+        "sigma_star_floor" => {
+            scene.integrator.restir.sigma_star_floor = match value.parse::<f32>() {
+                Ok(f) if (0.0..=1.0).contains(&f) => f,
+                _ => bail!("{key}: {value:?} is not a number in [0, 1]"),
             };
         }
         _ => bail!("unknown key {key:?}; valid keys: {}", keys().join(", ")),
@@ -214,7 +242,7 @@ pub(super) fn cartesian(varies: &[Vary]) -> Vec<Assignment> {
 
 /// The part of an assignment that names its series: every pair whose key is not a
 /// knob ([`KNOB_KEYS`]).
-fn series_key(assignment: &[(String, String)]) -> Assignment {
+pub(super) fn series_key(assignment: &[(String, String)]) -> Assignment {
     assignment
         .iter()
         .filter(|(k, _)| !KNOB_KEYS.contains(&k.as_str()))
@@ -399,6 +427,9 @@ mod tests {
             ("mip_indirect", "3"),
             ("mip_reuse", "2"),
             ("final_transmittance", "ratio"),
+            ("mis", "pairwise"),
+            ("temporal_history", "temporal"),
+            ("sigma_star_floor", "0.25"),
         ];
         assert_eq!(values.len(), keys().len());
         let mut s = scene();
@@ -425,6 +456,9 @@ mod tests {
             ("reuse", "path"),
             ("spatial_neighbors", "65"),
             ("final_transmittance", "exact"),
+            ("mis", "balance"),
+            ("temporal_history", "both"),
+            ("sigma_star_floor", "1.5"),
         ] {
             assert!(apply(&mut s, key, value).is_err(), "{key}={value}");
         }

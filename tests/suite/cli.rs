@@ -20,6 +20,44 @@ fn explain_prints_the_plan_of_the_default_scene() {
     assert!(stdout.contains("[off] pass baseline"), "{stdout}");
 }
 
+/// A convex medium switches plane clipping on and sizes the piece tables by its
+/// light-facing planes: an octahedron lit from straight above faces the light with its
+/// four upper planes; a box scene keeps the three pieces of a box.
+#[test]
+fn explain_names_convex_media_and_their_pieces() {
+    let dir = scratch("explain-convex");
+    let octahedron: Vec<String> = (0..8)
+        .map(|i| {
+            let s = |b: i32| if i & b != 0 { -1 } else { 1 };
+            format!("[{}, {}, {}, 1]", s(1), s(2), s(4))
+        })
+        .collect();
+    let path = dir.join("octahedron.toml");
+    std::fs::write(
+        &path,
+        format!(
+            "[camera]\nposition = [0, 0, 4]\nlook_at = [0, 0, 0]\n[[light]]\ntype = \"directional\"\n\
+             direction = [0, -1, 0]\nirradiance = 1\n[[medium]]\ntype = \"convex\"\nplanes = [{}]\n\
+             sigma_t = 1\n",
+            octahedron.join(", ")
+        ),
+    )
+    .unwrap();
+    let out = nimbus(&["render", path.to_str().unwrap(), "--explain"]);
+    let stdout = text(&out.stdout);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    assert!(stdout.contains("[on ]   SC_HAS_CONVEX"), "{stdout}");
+    assert!(stdout.contains("up to 4 trapezoid pieces"), "{stdout}");
+
+    let out = nimbus(&["render", "--explain"]);
+    let stdout = text(&out.stdout);
+    assert!(stdout.contains("[off]   SC_HAS_CONVEX"), "{stdout}");
+    assert!(
+        stdout.contains("3 trapezoid pieces per segment"),
+        "{stdout}"
+    );
+}
+
 #[test]
 fn render_writes_exr_and_png() {
     let dir = scratch("render");
@@ -123,6 +161,11 @@ fn bad_scenes_give_clear_errors() {
             "point.toml",
             "[camera]\nposition = [0, 0, 3]\nlook_at = [0, 0, 0]\n[[light]]\ntype = \"point\"\nposition = [0, 1, 0]\nintensity = 1\n",
             &["point.toml", "[[light]] #1", "not supported yet"][..],
+        ),
+        (
+            "convex-grid.toml",
+            "[camera]\nposition = [0, 0, 3]\nlook_at = [0, 0, 0]\n[[medium]]\ntype = \"grid\"\nbounds_min = [-1, -1, -1]\nbounds_max = [1, 1, 1]\ndensity = { procedural = \"cloud\", dims = [8, 8, 8] }\n[[medium]]\ntype = \"convex\"\nplanes = [[1, 0, 0, 3], [-1, 0, 0, -2], [0, 1, 0, 1], [0, -1, 0, 1], [0, 0, 1, 1], [0, 0, -1, 1]]\nsigma_t = 1\n",
+            &["convex-grid.toml", "[[medium]] #2", "convex", "not supported yet"][..],
         ),
     ];
     for (name, body, needles) in cases {

@@ -50,6 +50,7 @@ fn binding_numbers_match_the_glsl_header() {
     }
     assert_eq!(defs["STAT_NON_FINITE"], bindings::STAT_NON_FINITE as i64);
     assert_eq!(defs["STAT_STEP_CAP"], bindings::STAT_STEP_CAP as i64);
+    assert_eq!(defs["STAT_LOOPS_CUT"], bindings::STAT_LOOPS_CUT as i64);
     assert_eq!(defs["STAT_COUNT"], bindings::STAT_COUNT as i64);
     let glsl_bindings = defs.keys().filter(|k| k.starts_with("BINDING_")).count();
     assert_eq!(
@@ -371,7 +372,11 @@ fn mirrors() -> Vec<Mirror> {
                 half_size,
                 g,
                 sigma_s,
+                plane_count,
+                plane_first,
                 _pad0,
+                _pad1,
+                _pad2,
             }),
         },
         Mirror {
@@ -414,7 +419,7 @@ fn mirrors() -> Vec<Mirror> {
                 cam_up,
                 _pad1,
                 env_radiance,
-                _pad2,
+                background,
                 width,
                 height,
                 spp,
@@ -434,7 +439,7 @@ fn mirrors() -> Vec<Mirror> {
             fields: rust_fields!(PassPush {
                 frame,
                 sample_base,
-                _pad0,
+                sample_count,
                 _pad1,
             }),
         },
@@ -492,7 +497,7 @@ fn mirrors() -> Vec<Mirror> {
                 march_reuse_factor,
                 march_nee_factor,
                 march_reuse_dims,
-                _pad0,
+                candidates_per_dispatch,
                 march_nee_dims,
                 _pad1,
                 candidates,

@@ -9,19 +9,24 @@
 
 mod common;
 
+mod alpha;
 mod baseline;
 mod box_analytic;
 mod box_estimators;
 mod budget;
 mod cli;
+mod docs;
 mod envmap_gpu;
 mod grid_volume;
 mod hard_cases;
 mod image_harness;
 mod layout;
+mod pipeline;
 mod render_box;
+mod render_convex;
 mod restir;
 mod restir_golden;
 mod sampling_gpu;
+mod slurm;
 mod study;
 mod vdb_render;

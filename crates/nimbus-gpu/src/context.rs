@@ -102,6 +102,15 @@ pub struct DeviceInfo {
 }
 
 impl DeviceInfo {
+    /// The most loop iterations one shader invocation may run, where the device limits
+    /// them: llvmpipe (lavapipe) silently ends every loop of an invocation once 65535
+    /// iterations have run in it (`LP_MAX_TGSI_LOOP_ITERATIONS`, shared by all its
+    /// loops). `None` where there is no such limit.
+    pub fn loop_budget(&self) -> Option<u32> {
+        let llvmpipe = self.driver_name.contains("llvmpipe") || self.name.contains("llvmpipe");
+        llvmpipe.then_some(65_535)
+    }
+
     /// Human name of the device type ("discrete GPU", "CPU", ...).
     pub fn device_type_name(&self) -> &'static str {
         match self.device_type {

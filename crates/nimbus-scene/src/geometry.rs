@@ -1,7 +1,9 @@
 //! Geometric checks used by validation: convex gobo polygons and medium overlap
-//! (separating-axis test on oriented boxes), computed in f64.
+//! (separating-axis test on oriented boxes, see [`crate::convex::Solid`]), computed in f64.
 
 use glam::{DMat3, DVec2, DVec3};
+
+use crate::convex::Solid;
 
 /// Most vertices a gobo polygon may have.
 pub const MAX_GOBO_POINTS: usize = 64;
@@ -107,47 +109,29 @@ impl OrientedBox {
         }
     }
 
-    /// Half the length of this box's projection on unit `axis`.
-    fn projected_radius(&self, axis: DVec3) -> f64 {
-        (0..3)
-            .map(|i| self.axes[i].dot(axis).abs() * self.half[i])
-            .sum()
-    }
-
-    /// Whether the two boxes share a volume: they overlap by more than a tolerance of
-    /// 1e-6 times the scene scale (their half extents and centre coordinates) along
-    /// every one of the 15 separating axes. Boxes touching at a face, edge or corner
-    /// do not overlap.
+    /// Whether the two boxes share a volume (see [`Solid::overlaps`]): boxes touching
+    /// at a face, edge or corner do not overlap.
+    #[cfg(test)]
     pub fn overlaps(&self, other: &Self) -> bool {
-        let scale = self
-            .half
-            .max_element()
-            .max(other.half.max_element())
-            .max(self.center.abs().max_element())
-            .max(other.center.abs().max_element());
-        let tolerance = 1e-6 * scale;
-        let offset = other.center - self.center;
-        let mut axes = Vec::with_capacity(15);
-        axes.extend_from_slice(&self.axes);
-        axes.extend_from_slice(&other.axes);
-        for a in &self.axes {
-            for b in &other.axes {
-                axes.push(a.cross(*b));
-            }
+        Solid::from(self).overlaps(&Solid::from(other))
+    }
+}
+
+impl From<&OrientedBox> for Solid {
+    fn from(b: &OrientedBox) -> Self {
+        let vertices = (0..8)
+            .map(|corner| {
+                (0..3).fold(b.center, |v, i| {
+                    let sign = if corner & (1 << i) != 0 { 1.0 } else { -1.0 };
+                    v + sign * b.half[i] * b.axes[i]
+                })
+            })
+            .collect();
+        Self {
+            vertices,
+            normals: b.axes.to_vec(),
+            edges: b.axes.to_vec(),
         }
-        for axis in axes {
-            // Cross products of (nearly) parallel edges give no new axis.
-            let length = axis.length();
-            if length < 1e-6 {
-                continue;
-            }
-            let axis = axis / length;
-            let reach = self.projected_radius(axis) + other.projected_radius(axis);
-            if offset.dot(axis).abs() >= reach - tolerance {
-                return false;
-            }
-        }
-        true
     }
 }
 

@@ -67,7 +67,8 @@
 //! | environment `file` | ends in `.exr` (any case) and exists |
 //! | gobo | 3..=64 `[u, v]` points, convex, non-zero area, no repeated consecutive point; clockwise input is reversed to counter-clockwise |
 //! | quad | `edge_u`, `edge_v` non-zero and not parallel (sin angle > 1e-6) |
-//! | media | no two share volume: exact separating-axis test on (rotated) boxes and grid AABBs; touching within 1e-6 × the scene scale is allowed |
+//! | convex `planes` | 4..=64 `[nx, ny, nz, d]`, no zero normal; their intersection bounded (within 1e3·max|d| + 1e8 m), with a non-empty interior, spanning at most 1e7 m (see [`convex`]) |
+//! | media | no two share volume: exact separating-axis test on (rotated) boxes, convex polyhedra and grid AABBs; touching within 1e-6 × the scene scale is allowed |
 //! | `max_bounces` | 1..=1024 |
 //! | `volume` | `"restir"`, `"baseline"` |
 //! | `box_estimator` | `"mcwvds"`, `"reds"`, `"rees"`, `"rm"`, `"mcds"` |
@@ -77,6 +78,9 @@
 //! | restir `spatial_radius_px` | [0, 16384] |
 //! | restir `spatial_rounds` | 0..=16 |
 //! | restir `mip_candidates`, `mip_indirect`, `mip_reuse` | 0..=16 |
+//! | restir `mis` | `"talbot"`, `"pairwise"` |
+//! | restir `temporal_history` | `"spatial"`, `"temporal"` |
+//! | restir `sigma_star_floor` | [0, 1] |
 //! | grid `procedural` | `"cloud"` (not allowed for `velocity`) |
 //!
 //! # Voxel grids
@@ -126,6 +130,7 @@
 //! It is not yet wired into the scene's `[[shape]] type = "mesh"`.
 
 pub mod bricks;
+pub mod convex;
 mod envmap;
 mod fields;
 mod files;
@@ -162,7 +167,8 @@ pub use mesh::{
 };
 pub use overrides::FieldOverride;
 pub use parse::{
-    MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_LENGTH_M, MAX_SIGMA_T, MAX_SPATIAL_NEIGHBORS, RESTIR_KEYS,
+    scene_tables, TableFields, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_LENGTH_M, MAX_SIGMA_T,
+    MAX_SPATIAL_NEIGHBORS, RESTIR_KEYS,
 };
 pub use procedural::procedural_cloud;
 pub use types::*;

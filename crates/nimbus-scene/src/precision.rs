@@ -130,6 +130,10 @@ impl Scene {
                     let r = Vec3::splat(0.5 * b.size.length());
                     vec![b.center - r, b.center + r]
                 }
+                Medium::Convex(c) => {
+                    let (lo, hi) = c.polyhedron.bounds();
+                    vec![lo.as_vec3(), hi.as_vec3()]
+                }
                 Medium::Grid(g) => vec![g.bounds_min, g.bounds_max],
             };
             widen(&mut best, || format!("[[medium]] #{}", i + 1), &corners);
@@ -280,6 +284,20 @@ pub(crate) fn check_scene(source: &crate::fields::Source, scene: &Scene) -> anyh
                     return Err(fail(table, "size", p));
                 }
                 if let Some(p) = scale.sigma_t_problem(f64::from(b.sigma_t), "sigma_t") {
+                    return Err(fail(table, "sigma_t", p));
+                }
+            }
+            Medium::Convex(c) => {
+                let table = format!("[[medium]] #{} (type = \"convex\")", i + 1);
+                let width = c.polyhedron.width();
+                if let Some(p) = scale.feature_problem(width) {
+                    return Err(fail(
+                        table,
+                        "planes",
+                        format!("its width across a face, {p}"),
+                    ));
+                }
+                if let Some(p) = scale.sigma_t_problem(f64::from(c.sigma_t), "sigma_t") {
                     return Err(fail(table, "sigma_t", p));
                 }
             }

@@ -40,6 +40,11 @@ pub struct RenderSettings {
     /// centre — the radiance at the centre instead of the footprint mean, for tests
     /// and estimator studies that need the same camera ray in every sample.
     pub pixel_jitter: bool,
+    /// Nimbus setting `[render] transparent_background` (default false): camera rays
+    /// that leave the scene see nothing instead of the environment, so the image is the
+    /// foreground alone, premultiplied by its alpha, ready to composite over a plate.
+    /// The environment still lights the scene.
+    pub transparent_background: bool,
 }
 
 impl Default for RenderSettings {
@@ -51,6 +56,7 @@ impl Default for RenderSettings {
             spp: 1,
             seed: 0,
             pixel_jitter: true,
+            transparent_background: false,
         }
     }
 }
@@ -161,6 +167,8 @@ pub struct Gobo {
 #[derive(Clone, Debug, PartialEq)]
 pub enum Medium {
     Box(BoxMedium),
+    /// A homogeneous convex polyhedron (`type = "convex"`).
+    Convex(ConvexMedium),
     Grid(GridMedium),
 }
 
@@ -178,6 +186,55 @@ pub struct BoxMedium {
     pub albedo: Vec3,
     /// Henyey–Greenstein asymmetry in (-1, 1).
     pub g: f32,
+}
+
+/// A homogeneous medium filling a convex polyhedron: the intersection of the
+/// half-spaces n·x <= d of `planes`. Build one with [`ConvexMedium::new`], which
+/// checks the polyhedron.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ConvexMedium {
+    /// [nx, ny, nz, d] with a unit normal (normalized on load, d scaled alike) as the
+    /// renderer sees them (f32); 4..=64 of them.
+    pub planes: Vec<[f32; 4]>,
+    /// The polyhedron of `planes` (widened to f64): its vertices, faces and edges.
+    pub polyhedron: crate::convex::ConvexPolyhedron,
+    /// Extinction in 1/m, >= 0.
+    pub sigma_t: f32,
+    /// Single-scattering albedo per channel in [0, 1]; sigma_s = albedo * sigma_t.
+    pub albedo: Vec3,
+    /// Henyey–Greenstein asymmetry in (-1, 1).
+    pub g: f32,
+}
+
+impl ConvexMedium {
+    /// The medium of the half-spaces `planes` ([nx, ny, nz, d]: n·x <= d), or why they
+    /// do not bound one: fewer than 4 or more than 64 planes, a zero normal, an
+    /// unbounded, empty or flat region. The normals are normalized (d scaled alike) and
+    /// rounded to f32; the polyhedron is that of the rounded planes.
+    pub fn new(planes: &[[f64; 4]], sigma_t: f32, albedo: Vec3, g: f32) -> Result<Self, String> {
+        use crate::convex::{ConvexPolyhedron, MAX_CONVEX_PLANES, MIN_CONVEX_PLANES};
+        if !(MIN_CONVEX_PLANES..=MAX_CONVEX_PLANES).contains(&planes.len()) {
+            return Err(format!(
+                "{} planes; a convex medium takes {MIN_CONVEX_PLANES} to {MAX_CONVEX_PLANES}",
+                planes.len()
+            ));
+        }
+        let unit = ConvexPolyhedron::new(planes)?;
+        let rounded: Vec<[f32; 4]> = unit
+            .planes
+            .iter()
+            .map(|(n, d)| [n.x as f32, n.y as f32, n.z as f32, *d as f32])
+            .collect();
+        let widened: Vec<[f64; 4]> = rounded.iter().map(|p| p.map(f64::from)).collect();
+        let polyhedron = ConvexPolyhedron::new(&widened)?;
+        Ok(Self {
+            planes: rounded,
+            polyhedron,
+            sigma_t,
+            albedo,
+            g,
+        })
+    }
 }
 
 /// A heterogeneous voxel medium filling the box `bounds_min .. bounds_max`: `type =
@@ -355,6 +412,29 @@ pub enum ReuseMode {
     Vertex,
 }
 
+/// How ReSTIR's spatial reuse weights the reservoirs it combines (`mis`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MisMode {
+    /// Talbot's multiple importance sampling over every (sample, pixel) pair, as the
+    /// paper does: (N + 1)² target evaluations for N neighbours.
+    Talbot,
+    /// Pairwise MIS (Bitterli 2022): each neighbour against the pixel's own reservoir
+    /// only, 3N target evaluations.
+    Pairwise,
+}
+
+/// Which reservoir of a frame becomes the next frame's temporal history
+/// (`temporal_history`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum HistoryMode {
+    /// The spatial stage's output (the paper's Algorithm 1).
+    Spatial,
+    /// The temporal stage's output, before spatial reuse: spatially reused samples then
+    /// do not circulate back into the history, which keeps their correlation from
+    /// building up over frames.
+    Temporal,
+}
+
 /// `[integrator.restir]`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RestirSettings {
@@ -371,6 +451,15 @@ pub struct RestirSettings {
     /// Final shading by ratio tracking (`final_transmittance = "ratio"`) instead of the
     /// closed-form trilinear transmittance (`"analytic"`, the default).
     pub final_ratio_tracking: bool,
+    /// Spatial reuse's MIS weights (`mis`).
+    pub mis: MisMode,
+    /// What the next frame reuses temporally (`temporal_history`).
+    pub temporal_history: HistoryMode,
+    /// σ* of candidate generation is at least this fraction of the largest density in
+    /// the voxel's 3×3×3 neighbourhood (`sigma_star_floor`, in [0, 1]; 0 = the paper's
+    /// conservative grid). It bounds the ratio σ_t / σ* of the candidates' weights by
+    /// 1 / floor, cutting their heavy tail, and stays unbiased (σ* > 0 where σ_t > 0).
+    pub sigma_star_floor: f32,
 }
 
 impl Default for RestirSettings {
@@ -387,6 +476,9 @@ impl Default for RestirSettings {
             mip_indirect: 2,
             mip_reuse: 1,
             final_ratio_tracking: false,
+            mis: MisMode::Talbot,
+            temporal_history: HistoryMode::Spatial,
+            sigma_star_floor: 0.0,
         }
     }
 }
@@ -434,6 +526,18 @@ impl Scene {
                 }
             })
             .collect()
+    }
+
+    /// Whether anything changes between frames: camera keyframes, light keyframes or
+    /// density frames (`[[medium.frame]]`). A `velocity` grid alone animates nothing (it
+    /// only guides ReSTIR's reprojection). Frames of a static scene only accumulate.
+    pub fn is_animated(&self) -> bool {
+        !self.camera.keyframes.is_empty()
+            || self.lights_animated()
+            || self.media.iter().any(|m| match m {
+                Medium::Grid(g) => !g.frames.is_empty(),
+                Medium::Box(_) | Medium::Convex(_) => false,
+            })
     }
 
     /// Whether any light has `[[light.keyframe]]` entries, i.e. whether

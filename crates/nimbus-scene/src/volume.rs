@@ -135,16 +135,25 @@ impl VoxelGrid {
     /// One step of a minimum pyramid: ceil(n/2) per axis, each value the minimum of the
     /// existing 2×2×2 children (channel 0; the result has one channel).
     pub fn min_downsample(&self) -> VoxelGrid {
+        self.reduce_downsample(f32::min, f32::INFINITY)
+    }
+
+    /// One step of a maximum pyramid, like [`VoxelGrid::min_downsample`].
+    pub fn max_downsample(&self) -> VoxelGrid {
+        self.reduce_downsample(f32::max, f32::NEG_INFINITY)
+    }
+
+    fn reduce_downsample(&self, op: fn(f32, f32) -> f32, start: f32) -> VoxelGrid {
         let dims = self.dims.map(|n| n.div_ceil(2).max(1));
         let mut data = Vec::with_capacity(dims.iter().map(|&d| d as usize).product());
         for k in 0..dims[2] {
             for j in 0..dims[1] {
                 for i in 0..dims[0] {
-                    let mut m = f32::INFINITY;
+                    let mut m = start;
                     for kk in (2 * k)..(2 * k + 2).min(self.dims[2]) {
                         for jj in (2 * j)..(2 * j + 2).min(self.dims[1]) {
                             for ii in (2 * i)..(2 * i + 2).min(self.dims[0]) {
-                                m = m.min(self.get(ii, jj, kk));
+                                m = op(m, self.get(ii, jj, kk));
                             }
                         }
                     }
@@ -156,6 +165,36 @@ impl VoxelGrid {
             dims,
             channels: 1,
             data,
+        }
+    }
+
+    /// The largest value of each voxel's 3×3×3 neighbourhood (clipped at the faces),
+    /// channel 0: a bound of the trilinear density anywhere in the voxel's cell.
+    pub fn neighbourhood_max(&self) -> VoxelGrid {
+        let [nx, ny, nz] = self.dims.map(|d| d as usize);
+        let mut out: Vec<f32> = (0..nx * ny * nz)
+            .map(|v| self.data[v * self.channels as usize])
+            .collect();
+        // Separable: a 3-wide running maximum along x, then y, then z.
+        let strides = [1usize, nx, nx * ny];
+        let counts = [nx, ny, nz];
+        for axis in 0..3 {
+            let (stride, n) = (strides[axis], counts[axis]);
+            let src = out.clone();
+            for (v, value) in out.iter_mut().enumerate() {
+                let c = (v / stride) % n;
+                if c > 0 {
+                    *value = value.max(src[v - stride]);
+                }
+                if c + 1 < n {
+                    *value = value.max(src[v + stride]);
+                }
+            }
+        }
+        VoxelGrid {
+            dims: self.dims,
+            channels: 1,
+            data: out,
         }
     }
 

@@ -34,7 +34,7 @@ use crate::plan::RestirPlan;
 pub use crate::gpu::reservoir_bytes;
 
 /// The specialization constants of the ReSTIR shaders for a plan.
-pub fn specialization(plan: &RestirPlan) -> [(u32, SpecValue); 8] {
+pub fn specialization(plan: &RestirPlan) -> [(u32, SpecValue); 9] {
     [
         (SC_ID_HAS_ENV, SpecValue::Bool(plan.has_env)),
         (SC_ID_MAX_BOUNCES, SpecValue::U32(plan.max_bounces)),
@@ -47,7 +47,36 @@ pub fn specialization(plan: &RestirPlan) -> [(u32, SpecValue); 8] {
             SpecValue::Bool(plan.final_ratio_tracking),
         ),
         (SC_ID_HAS_VELOCITY, SpecValue::Bool(plan.has_velocity)),
+        (SC_ID_MIS_PAIRWISE, SpecValue::Bool(plan.pairwise_mis)),
     ]
+}
+
+/// Loop iterations one candidate walk costs, per segment: the blocks of the
+/// piecewise-constant level it tracks through (camera segment, then scattered ones), the
+/// NEE ray march, and the loops over the lights (nearest emitter, selection, shadow).
+pub struct CandidateCost {
+    pub pc_blocks: [u32; 2],
+    pub march_steps: u32,
+    pub lights: u32,
+}
+
+/// How many candidates one initial dispatch may draw so that an invocation stays within
+/// the device's loop budget (half of it: the other loops of the invocation and a margin),
+/// or all M where the device has none. At least 1: one candidate's walk is far below the
+/// budget for every grid the loader admits (dims ≤ 4096 per axis).
+pub fn candidates_per_dispatch(
+    budget: Option<u32>,
+    plan: &RestirPlan,
+    cost: &CandidateCost,
+) -> u32 {
+    let Some(budget) = budget else {
+        return plan.candidates;
+    };
+    let segment = |blocks: u32| u64::from(blocks + cost.march_steps + 3 * cost.lights + 64);
+    let k = u64::from(plan.max_bounces.max(1));
+    let per_candidate = segment(cost.pc_blocks[0]) + (k - 1) * segment(cost.pc_blocks[1]) + k;
+    let fit = (u64::from(budget / 2) / per_candidate.max(1)).max(1);
+    u32::try_from(fit).unwrap_or(u32::MAX).min(plan.candidates)
 }
 
 /// The four stages, what they read, and the state carried from frame to frame.
@@ -96,11 +125,25 @@ impl RestirPass {
         // The density moves into `volumes`; the rest of the grid records are uploaded.
         let density = std::mem::take(&mut grid_gpu.density);
         let dims = density.dims;
+        let size = grid.bounds_max - grid.bounds_min;
         let volumes = Volumes::load(density, grid, plan, &scene.position_scale(), &grid_label)?;
         let first = volumes.base()?;
         let levels = volumes.levels;
         // Voxels per block edge of a mip level.
         let factor = |level: u32| 1 << level.min(last_level(dims));
+        let candidates_per_dispatch = candidates_per_dispatch(
+            ctx.info().loop_budget(),
+            plan,
+            &CandidateCost {
+                pc_blocks: [first.pc_primary_dims, first.pc_indirect_dims]
+                    .map(|d| d.iter().sum::<u32>() + 3),
+                march_steps: (size.length() / march_step(grid, dims, levels.indirect))
+                    .ceil()
+                    .min(crate::gpu::features::MARCH_MAX_STEPS as f32)
+                    as u32,
+                lights: grid_gpu.lights.len() as u32,
+            },
+        );
         let restir_uniforms = RestirUniformsGpu {
             pc_primary_dims: first.pc_primary_dims,
             pc_primary_offset: 0,
@@ -116,6 +159,7 @@ impl RestirPass {
             temporal_limit: plan.temporal_limit,
             spatial_neighbors: plan.spatial_neighbors,
             reservoir_stride: (stride_bytes / 4) as u32,
+            candidates_per_dispatch,
             spatial_radius: plan.spatial_radius_px,
             march_reuse_step: march_step(grid, dims, levels.reuse),
             march_nee_step: march_step(grid, dims, levels.indirect),
@@ -140,6 +184,9 @@ impl RestirPass {
                 temporal: plan.temporal,
                 spatial_neighbors: plan.spatial_neighbors,
                 spatial_rounds: plan.spatial_rounds,
+                candidates: plan.candidates,
+                candidates_per_dispatch,
+                history_before_spatial: plan.history_before_spatial,
             },
             constants: FrameConstants {
                 env_radiance: grid_gpu.env_radiance,
@@ -228,8 +275,13 @@ impl Pass for RestirPass {
 
     /// Uploads what changes per frame: the lights of this frame and the previous one,
     /// the previous camera, and the density grids of both frames when they change.
-    fn prepare(&mut self, ctx: &Context, scene: &Scene, scene_frame: u32) -> Result<()> {
-        let prev_frame = scene_frame.saturating_sub(1);
+    fn prepare(
+        &mut self,
+        ctx: &Context,
+        scene: &Scene,
+        scene_frame: u32,
+        prev_frame: u32,
+    ) -> Result<()> {
         self.upload_lights(ctx, scene, scene_frame, prev_frame)?;
         // The previous frame's camera (the first frame's own camera on frame 0).
         let camera = scene.camera.frame_at(prev_frame);

@@ -46,6 +46,13 @@ pub struct ScheduleSettings {
     pub temporal: bool,
     pub spatial_neighbors: u32,
     pub spatial_rounds: u32,
+    /// M, and how many of them one initial dispatch draws (the initial stage is
+    /// dispatched ceil(M / per dispatch) times; `aux` is each dispatch's first).
+    pub candidates: u32,
+    pub candidates_per_dispatch: u32,
+    /// The temporal stage's slot (before spatial reuse), not the last one, is what the
+    /// next frame reuses.
+    pub history_before_spatial: bool,
 }
 
 /// One dispatch: a stage and its push constants (`src`, `dst` slots; `aux` is the
@@ -57,7 +64,8 @@ pub struct Dispatch {
 }
 
 /// The dispatches of frame `frame` (counting warm-up frames) given the slot holding the
-/// previous frame's final reservoirs, and the slot this frame's final reservoirs end in.
+/// previous frame's history, and the slot of this frame's history: its final reservoirs,
+/// or with `history_before_spatial` the temporal stage's.
 /// Frame 0 has no previous frame, whatever `previous` says.
 pub fn schedule(
     frame: u32,
@@ -74,20 +82,35 @@ pub fn schedule(
         dst,
         aux,
     };
-    let mut dispatches = vec![Dispatch {
-        stage: Stage::Initial,
-        push: push(first, first, 0),
-    }];
+    let chunk = settings.candidates_per_dispatch.max(1);
+    let mut dispatches: Vec<Dispatch> = (0..settings.candidates.max(1))
+        .step_by(chunk as usize)
+        .map(|m0| Dispatch {
+            stage: Stage::Initial,
+            push: push(first, first, m0),
+        })
+        .collect();
     if let (true, Some(p)) = (settings.temporal, previous) {
         dispatches.push(Dispatch {
             stage: Stage::Temporal,
             push: push(first, first, p),
         });
     }
+    // Spatial rounds ping-pong between two slots. With the history taken before spatial
+    // reuse, `first` must survive the frame: the rounds use the other two (the previous
+    // frame's history is no longer needed once the temporal stage has read it).
+    let third = (0..SLOTS)
+        .find(|s| *s != first && *s != second)
+        .unwrap_or(2);
+    let pair = if settings.history_before_spatial {
+        [second, third]
+    } else {
+        [second, first]
+    };
     let mut at = first;
     if settings.spatial_neighbors > 0 {
         for round in 0..settings.spatial_rounds {
-            let other = if at == first { second } else { first };
+            let other = pair[(round % 2) as usize];
             dispatches.push(Dispatch {
                 stage: Stage::Spatial,
                 push: push(at, other, round),
@@ -99,7 +122,12 @@ pub fn schedule(
         stage: Stage::Shade,
         push: push(at, at, 0),
     });
-    (dispatches, at)
+    let history = if settings.history_before_spatial {
+        first
+    } else {
+        at
+    };
+    (dispatches, history)
 }
 
 #[cfg(test)]
@@ -111,7 +139,45 @@ mod tests {
             temporal,
             spatial_neighbors: neighbors,
             spatial_rounds: rounds,
+            candidates: 4,
+            candidates_per_dispatch: 4,
+            history_before_spatial: false,
         }
+    }
+
+    #[test]
+    fn the_history_can_be_the_reservoir_before_spatial_reuse() {
+        let s = ScheduleSettings {
+            history_before_spatial: true,
+            ..settings(true, 3, 2)
+        };
+        let mut previous = None;
+        for frame in 0..6 {
+            let (d, history) = schedule(frame, previous, &s);
+            let initial = d[0].push.dst;
+            assert_eq!(history, initial, "frame {frame}");
+            // Spatial rounds never write the slot that becomes the history.
+            for x in d.iter().filter(|x| x.stage == Stage::Spatial) {
+                assert_ne!(x.push.dst, history);
+            }
+            previous = Some(history);
+        }
+    }
+
+    #[test]
+    fn candidates_split_over_initial_dispatches() {
+        let s = ScheduleSettings {
+            candidates: 10,
+            candidates_per_dispatch: 4,
+            ..settings(false, 0, 0)
+        };
+        let (d, _) = schedule(0, None, &s);
+        let firsts: Vec<_> = d
+            .iter()
+            .filter(|d| d.stage == Stage::Initial)
+            .map(|d| (d.push.dst, d.push.aux))
+            .collect();
+        assert_eq!(firsts, [(0, 0), (0, 4), (0, 8)]);
     }
 
     fn stages(d: &[Dispatch]) -> Vec<Stage> {
@@ -199,39 +265,65 @@ mod tests {
     /// a frame is what the next frame's temporal stage reads.
     #[test]
     fn slots_never_clobber_the_previous_result() {
-        for temporal in [false, true] {
-            for neighbors in [0, 1, 3] {
-                for rounds in 0..5 {
-                    let s = settings(temporal, neighbors, rounds);
-                    let mut previous = None;
-                    for frame in 0..12 {
-                        let (d, last) = schedule(frame, previous, &s);
-                        let mut sorted = stages(&d);
-                        sorted.sort();
-                        assert_eq!(sorted, stages(&d), "stages in order");
-                        assert_eq!(d.last().map(|d| d.stage), Some(Stage::Shade));
-                        for x in &d {
-                            assert!(x.push.src < SLOTS && x.push.dst < SLOTS);
-                            assert_eq!(x.push.frame, frame);
-                            if frame > 0 {
-                                assert_ne!(Some(x.push.dst), previous, "{s:?} frame {frame}");
-                            }
-                            match x.stage {
-                                Stage::Temporal => assert_eq!(Some(x.push.aux), previous),
-                                Stage::Spatial => assert_ne!(x.push.src, x.push.dst),
-                                _ => assert_eq!(x.push.src, x.push.dst),
-                            }
-                        }
-                        let temporal_ran = d.iter().any(|x| x.stage == Stage::Temporal);
-                        assert_eq!(temporal_ran, temporal && frame > 0);
-                        let spatial = d.iter().filter(|x| x.stage == Stage::Spatial).count();
-                        let want = if neighbors > 0 { rounds as usize } else { 0 };
-                        assert_eq!(spatial, want);
-                        assert_eq!(d.last().map(|d| d.push.src), Some(last));
-                        previous = Some(last);
+        for before_spatial in [false, true] {
+            for temporal in [false, true] {
+                for neighbors in [0, 1, 3] {
+                    for rounds in 0..5 {
+                        let s = ScheduleSettings {
+                            history_before_spatial: before_spatial,
+                            ..settings(temporal, neighbors, rounds)
+                        };
+                        check_frames(&s, temporal, neighbors, rounds);
                     }
                 }
             }
+        }
+    }
+
+    /// Twelve frames of `s`: stages in order; nothing overwrites the previous history
+    /// before the temporal stage has read it (nothing at all with the spatial history);
+    /// the history slot survives the frame; counts of stages right.
+    fn check_frames(s: &ScheduleSettings, temporal: bool, neighbors: u32, rounds: u32) {
+        let mut previous = None;
+        for frame in 0..12 {
+            let (d, history) = schedule(frame, previous, s);
+            let mut sorted = stages(&d);
+            sorted.sort();
+            assert_eq!(sorted, stages(&d), "stages in order");
+            assert_eq!(d.last().map(|d| d.stage), Some(Stage::Shade));
+            for x in &d {
+                assert!(x.push.src < SLOTS && x.push.dst < SLOTS);
+                assert_eq!(x.push.frame, frame);
+                let may_reuse_previous = s.history_before_spatial && x.stage >= Stage::Spatial;
+                if frame > 0 && !may_reuse_previous {
+                    assert_ne!(Some(x.push.dst), previous, "{s:?} frame {frame}");
+                }
+                match x.stage {
+                    Stage::Temporal => assert_eq!(Some(x.push.aux), previous),
+                    Stage::Spatial => assert_ne!(x.push.src, x.push.dst),
+                    _ => assert_eq!(x.push.src, x.push.dst),
+                }
+            }
+            // After the stage that produced it, nothing writes the history slot.
+            let producer = if s.history_before_spatial {
+                d.iter().rposition(|x| x.stage <= Stage::Temporal)
+            } else {
+                Some(d.len() - 1)
+            };
+            if let Some(p) = producer {
+                assert!(d[p + 1..]
+                    .iter()
+                    .all(|x| x.push.dst != history || x.stage == Stage::Shade));
+            }
+            let temporal_ran = d.iter().any(|x| x.stage == Stage::Temporal);
+            assert_eq!(temporal_ran, temporal && frame > 0);
+            let spatial = d.iter().filter(|x| x.stage == Stage::Spatial).count();
+            let want = if neighbors > 0 { rounds as usize } else { 0 };
+            assert_eq!(spatial, want);
+            if !s.history_before_spatial {
+                assert_eq!(d.last().map(|d| d.push.src), Some(history));
+            }
+            previous = Some(history);
         }
     }
 }

@@ -140,6 +140,36 @@ fn allowed_level(grid: &VoxelGrid, scale: f32, voxel_diagonal: f32, requested: u
     requested
 }
 
+/// Level `level` of the conservative piecewise-constant grid (the mean of its children),
+/// raised to `floor` times the largest density that can reach each block (the maximum of
+/// the voxels' 3×3×3 neighbourhoods over the block) when `floor` > 0: then σ_t / σ* ≤
+/// 1 / floor everywhere in the block, which bounds the candidates' weights.
+fn floored_level(
+    conservative: &VoxelGrid,
+    density: &VoxelGrid,
+    level: u32,
+    floor: f32,
+) -> VoxelGrid {
+    let mean = conservative.mip_level(level).into_owned();
+    if floor.is_nan() || floor <= 0.0 {
+        return mean;
+    }
+    let mut reach = density.neighbourhood_max();
+    for _ in 0..level {
+        if reach.dims == [1, 1, 1] {
+            break;
+        }
+        reach = reach.max_downsample();
+    }
+    let data = mean
+        .data
+        .iter()
+        .zip(&reach.data)
+        .map(|(m, r)| m.max(floor * r))
+        .collect();
+    VoxelGrid { data, ..mean }
+}
+
 /// What the passes read for one density grid.
 pub struct DerivedVolume {
     /// σ_t* (scaled) of the primary level, then of the indirect level.
@@ -163,11 +193,12 @@ impl DerivedVolume {
         scale: f32,
         levels: &Levels,
         format: MarchFormat,
+        floor: f32,
     ) -> DerivedVolume {
         let (pc, pc_primary_dims, pc_indirect_dims, pc_indirect_offset) = {
             let conservative = density.conservative_piecewise_constant();
-            let primary = conservative.mip_level(levels.candidates);
-            let indirect = conservative.mip_level(levels.indirect);
+            let primary = floored_level(&conservative, &density, levels.candidates, floor);
+            let indirect = floored_level(&conservative, &density, levels.indirect, floor);
             let mut pc: Vec<f32> = primary.data.iter().map(|v| v * scale).collect();
             let offset = pc.len() as u32;
             pc.extend(indirect.data.iter().map(|v| v * scale));
@@ -239,7 +270,13 @@ impl Volumes {
             .map(|(i, g)| {
                 (
                     i,
-                    DerivedVolume::build(g, grid.density_scale, &levels, format),
+                    DerivedVolume::build(
+                        g,
+                        grid.density_scale,
+                        &levels,
+                        format,
+                        plan.sigma_star_floor,
+                    ),
                 )
             })
             .collect();
@@ -338,6 +375,9 @@ mod level_tests {
             mip_candidates: level,
             mip_indirect: level,
             mip_reuse: level,
+            pairwise_mis: false,
+            history_before_spatial: false,
+            sigma_star_floor: 0.0,
         }
     }
 

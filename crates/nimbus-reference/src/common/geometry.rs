@@ -4,7 +4,7 @@ use std::f64::consts::PI;
 
 use anyhow::ensure;
 use glam::{DMat3, DVec2, DVec3, Vec3};
-use nimbus_scene::Gobo;
+use nimbus_scene::{ConvexMedium, Gobo, Medium};
 
 /// Rotation `rotation_deg` (about X, then Y, then Z) in f64: world = Rz·Ry·Rx·local.
 pub(crate) fn rotation_xyz_deg_f64(rotation_deg: Vec3) -> DMat3 {
@@ -103,12 +103,6 @@ impl OrientedBox {
         (t0 < t1).then_some((t0, t1))
     }
 
-    /// Length of o + t·d, t ∈ [t_min, t_max], inside the box.
-    pub(crate) fn chord_length(&self, o: DVec3, d: DVec3, t_min: f64, t_max: f64) -> f64 {
-        self.clip(o, d, t_min, t_max)
-            .map_or(0.0, |(t0, t1)| t1 - t0)
-    }
-
     /// Unit outward normal of the faces perpendicular to local `axis` (sign open).
     pub(crate) fn axis_world(&self, axis: usize) -> DVec3 {
         self.world_from_local.col(axis)
@@ -117,6 +111,129 @@ impl OrientedBox {
     /// World point `x` in the box's local frame.
     pub(crate) fn local_point(&self, x: DVec3) -> DVec3 {
         self.local_from_world * (x - self.center)
+    }
+}
+
+/// A convex polyhedron {x : n·x <= d for every plane}, from the scene's f32 planes
+/// widened to f64 (the set does not depend on the normals' lengths, so the oracle sees
+/// exactly the region the renderer's planes describe).
+#[derive(Clone, Debug)]
+pub(crate) struct ConvexF64 {
+    planes: Vec<(DVec3, f64)>,
+    /// The polyhedron's edges as vertex pairs (for the quadrature's hints).
+    pub(crate) edges: Vec<(DVec3, DVec3)>,
+}
+
+impl ConvexF64 {
+    pub(crate) fn from_scene(medium: &ConvexMedium) -> Self {
+        let planes: Vec<(DVec3, f64)> = medium
+            .planes
+            .iter()
+            .map(|p| {
+                (
+                    DVec3::new(p[0].into(), p[1].into(), p[2].into()),
+                    p[3].into(),
+                )
+            })
+            .collect();
+        // Two vertices on the same two face planes bound an edge.
+        let poly = &medium.polyhedron;
+        let scale = poly
+            .vertices
+            .iter()
+            .map(|v| v.abs().max_element())
+            .fold(1e-30, f64::max);
+        let on = |v: DVec3| -> Vec<usize> {
+            poly.faces
+                .iter()
+                .copied()
+                .filter(|&i| {
+                    let (n, d) = poly.planes[i];
+                    (n.dot(v) - d).abs() <= 1e-9 * scale
+                })
+                .collect()
+        };
+        let incident: Vec<Vec<usize>> = poly.vertices.iter().map(|v| on(*v)).collect();
+        let mut edges = Vec::new();
+        for a in 0..poly.vertices.len() {
+            for b in a + 1..poly.vertices.len() {
+                let shared = incident[a]
+                    .iter()
+                    .filter(|i| incident[b].contains(i))
+                    .count();
+                if shared >= 2 {
+                    edges.push((poly.vertices[a], poly.vertices[b]));
+                }
+            }
+        }
+        Self { planes, edges }
+    }
+
+    /// The part of [t_min, t_max] where o + t·d is inside, if longer than zero: the
+    /// ray clipped by every half-space in turn.
+    pub(crate) fn clip(&self, o: DVec3, d: DVec3, t_min: f64, t_max: f64) -> Option<(f64, f64)> {
+        let (mut t0, mut t1) = (t_min, t_max);
+        for (n, offset) in &self.planes {
+            let (num, denom) = (offset - n.dot(o), n.dot(d));
+            if denom == 0.0 {
+                if num < 0.0 {
+                    return None;
+                }
+                continue;
+            }
+            let t = num / denom;
+            if denom > 0.0 {
+                t1 = t1.min(t);
+            } else {
+                t0 = t0.max(t);
+            }
+        }
+        (t0 < t1).then_some((t0, t1))
+    }
+}
+
+/// σt, albedo and g of a homogeneous (box or convex) medium; `None` for a grid.
+pub(crate) fn homogeneous(medium: &Medium) -> Option<(f64, DVec3, f64)> {
+    match medium {
+        Medium::Box(m) => Some((m.sigma_t.into(), m.albedo.as_dvec3(), m.g.into())),
+        Medium::Convex(m) => Some((m.sigma_t.into(), m.albedo.as_dvec3(), m.g.into())),
+        Medium::Grid(_) => None,
+    }
+}
+
+/// The region of a homogeneous medium: an oriented box or a convex polyhedron.
+#[derive(Clone, Debug)]
+pub(crate) enum Region {
+    Box(OrientedBox),
+    Convex(ConvexF64),
+}
+
+impl Region {
+    /// The region of a box or convex medium; `None` for a grid.
+    pub(crate) fn of(medium: &Medium) -> Option<Self> {
+        match medium {
+            Medium::Box(m) => Some(Self::Box(OrientedBox::from_scene(
+                m.center,
+                m.size,
+                m.rotation_deg,
+            ))),
+            Medium::Convex(m) => Some(Self::Convex(ConvexF64::from_scene(m))),
+            Medium::Grid(_) => None,
+        }
+    }
+
+    /// The part of [t_min, t_max] where o + t·d is inside, if longer than zero.
+    pub(crate) fn clip(&self, o: DVec3, d: DVec3, t_min: f64, t_max: f64) -> Option<(f64, f64)> {
+        match self {
+            Self::Box(b) => b.clip(o, d, t_min, t_max),
+            Self::Convex(c) => c.clip(o, d, t_min, t_max),
+        }
+    }
+
+    /// Length of o + t·d, t ∈ [t_min, t_max], inside the region.
+    pub(crate) fn chord_length(&self, o: DVec3, d: DVec3, t_min: f64, t_max: f64) -> f64 {
+        self.clip(o, d, t_min, t_max)
+            .map_or(0.0, |(t0, t1)| t1 - t0)
     }
 }
 

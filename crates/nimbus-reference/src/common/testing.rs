@@ -1,7 +1,7 @@
 //! Scenes and checks for the oracles' unit tests.
 
 use glam::Vec3;
-use nimbus_scene::{BoxMedium, Light, Medium, Scene, Shape};
+use nimbus_scene::{BoxMedium, ConvexMedium, Light, Medium, Scene, Shape};
 
 use super::estimate::McEstimate;
 
@@ -63,6 +63,27 @@ pub(crate) fn box_medium(
         albedo: Vec3::new(0.9, 0.5, 0.25),
         g,
     }
+}
+
+/// A homogeneous convex medium of albedo (0.9, 0.5, 0.25): the half-spaces n·x <= d
+/// of `planes`.
+pub(crate) fn convex_medium(planes: &[[f64; 4]], sigma_t: f32, g: f32) -> ConvexMedium {
+    ConvexMedium::new(planes, sigma_t, Vec3::new(0.9, 0.5, 0.25), g).unwrap()
+}
+
+/// The 12 planes of a regular dodecahedron of inradius `r` about `center`.
+pub(crate) fn dodecahedron_planes(center: Vec3, r: f64) -> Vec<[f64; 4]> {
+    let phi = (1.0 + 5f64.sqrt()) / 2.0;
+    let mut planes = Vec::new();
+    for a in [-1.0, 1.0] {
+        for b in [-phi, phi] {
+            for n in [[0.0, a, b], [a, b, 0.0], [b, 0.0, a]] {
+                let n = glam::DVec3::from_array(n).normalize();
+                planes.push([n.x, n.y, n.z, r + n.dot(center.as_dvec3())]);
+            }
+        }
+    }
+    planes
 }
 
 /// A directional light without a gobo.

@@ -5,7 +5,7 @@ use anyhow::{bail, ensure};
 use glam::{DMat3, DVec3};
 use nimbus_scene::{load_grid, GridMedium, GridSource, Medium, Scene, VoxelGrid};
 
-use crate::common::geometry::OrientedBox;
+use crate::common::geometry::{homogeneous, OrientedBox, Region};
 use crate::common::rng::Rng;
 
 /// A grid medium in f64 with its grids loaded.
@@ -47,7 +47,7 @@ impl GridF64 {
 }
 
 pub(super) enum MediumKind {
-    Homogeneous { bounds: OrientedBox, sigma_t: f64 },
+    Homogeneous { bounds: Region, sigma_t: f64 },
     Grid(GridF64),
 }
 
@@ -66,14 +66,18 @@ impl MediumF64 {
         what: &str,
     ) -> anyhow::Result<Self> {
         Ok(match (medium, loaded) {
-            (Medium::Box(m), _) => MediumF64 {
-                kind: MediumKind::Homogeneous {
-                    bounds: OrientedBox::from_scene(m.center, m.size, m.rotation_deg),
-                    sigma_t: f64::from(m.sigma_t),
-                },
-                albedo: m.albedo.as_dvec3(),
-                g: f64::from(m.g),
-            },
+            (Medium::Box(_) | Medium::Convex(_), _) => {
+                let (Some(bounds), Some((sigma_t, albedo, g))) =
+                    (Region::of(medium), homogeneous(medium))
+                else {
+                    bail!("{what}: internal: a homogeneous medium without a region");
+                };
+                MediumF64 {
+                    kind: MediumKind::Homogeneous { bounds, sigma_t },
+                    albedo,
+                    g,
+                }
+            }
             (Medium::Grid(m), Some((density, emission))) => {
                 let (lo, hi) = (m.bounds_min.as_dvec3(), m.bounds_max.as_dvec3());
                 ensure!(hi.cmpgt(lo).all(), "{what}: empty grid bounds {lo} .. {hi}");
@@ -191,7 +195,7 @@ pub(super) fn load_grids(scene: &Scene) -> anyhow::Result<Vec<Option<LoadedGrid>
     let mut grids = Vec::new();
     for (i, medium) in scene.media.iter().enumerate() {
         grids.push(match medium {
-            Medium::Box(_) => None,
+            Medium::Box(_) | Medium::Convex(_) => None,
             Medium::Grid(m) => {
                 let what = format!("{source}: [[medium]] #{}", i + 1);
                 let density = load_grid(frame0_density(m), 1, &format!("{what} > density"))?;

@@ -52,7 +52,7 @@ fn tracer(s: &Scene, mut grids: Vec<LoadedGrid>) -> Tracer {
         .media
         .iter()
         .map(|m| match m {
-            Medium::Box(_) => None,
+            Medium::Box(_) | Medium::Convex(_) => None,
             Medium::Grid(_) => grids.pop(),
         })
         .collect();

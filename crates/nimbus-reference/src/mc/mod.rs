@@ -16,7 +16,8 @@
 //! The same as the renderer's box pass and [`crate::quadrature`]:
 //!
 //! - **Media**: homogeneous boxes, world = center + R·local, R =
-//!   `rotation_xyz_deg(rotation_deg)`, local ∈ [−size/2, size/2]; scalar σt, σs =
+//!   `rotation_xyz_deg(rotation_deg)`, local ∈ [−size/2, size/2], and homogeneous
+//!   convex polyhedra (the half-spaces n·x <= d of their f32 planes); scalar σt, σs =
 //!   albedo·σt per RGB channel, Henyey–Greenstein phase p(cosθ) with θ the angle between
 //!   the travel directions before and after scattering. Disjoint; vacuum elsewhere; no
 //!   refraction at boundaries.

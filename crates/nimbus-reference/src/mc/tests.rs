@@ -9,7 +9,10 @@ use nimbus_scene::{Gobo, GridMedium, GridSource, Light, Medium, Scene, Shape};
 
 use super::*;
 use crate::common::sampling::henyey_greenstein;
-use crate::common::testing::{assert_within, box_medium, box_scene, constant_env, sun};
+use crate::common::testing::{
+    assert_within, box_medium, box_scene, constant_env, convex_medium, dodecahedron_planes, sun,
+    test_scene,
+};
 use crate::quadrature::{self, ReferenceOptions};
 
 const QUADRATURE: ReferenceOptions = ReferenceOptions {
@@ -413,4 +416,53 @@ fn time_per_million_segments() {
         sums.segments as f64 / sums.moments.n as f64,
         seconds / (sums.segments as f64 * 1e-6)
     );
+}
+
+#[test]
+fn a_dodecahedron_agrees_with_the_quadrature_reference() {
+    // A dodecahedron lit obliquely, half shadowed by a sphere up the beam.
+    let omega = Vec3::new(0.3, -1.0, 0.4).normalize();
+    let planes = dodecahedron_planes(Vec3::new(0.1, -0.2, 0.0), 0.9);
+    let medium = convex_medium(&planes, 1.1, 0.4);
+    let sphere = Shape::Sphere {
+        center: Vec3::new(0.5, -0.2, 0.0) - 2.5 * omega,
+        radius: 0.5,
+        albedo: Vec3::ZERO,
+    };
+    let s = test_scene(
+        vec![Medium::Convex(medium)],
+        vec![sphere],
+        vec![sun(omega, Vec3::new(2.0, 1.5, 1.0))],
+        (6, 4),
+        40.0,
+    );
+    let origin = DVec3::new(0.0, 0.2, 5.0);
+    for (j, target) in [
+        DVec3::new(0.1, -0.2, 0.0),
+        DVec3::new(0.6, 0.1, 0.2),
+        DVec3::new(-0.5, -0.6, -0.3),
+        DVec3::new(-0.2, 0.4, 0.3),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let opts = McOptions {
+            max_bounces: 1,
+            paths: 200_000,
+            seed: 70 + j as u64,
+        };
+        let dir = target - origin;
+        let expected = quadrature::radiance(&s, origin, dir, &QUADRATURE).unwrap();
+        assert!(
+            expected[0] > 0.0,
+            "towards {target}: the ray must see light"
+        );
+        let mc = radiance_mc(&s, origin, dir, &opts).unwrap();
+        assert_within(
+            &mc,
+            expected,
+            4.0,
+            &format!("dodecahedron, towards {target}"),
+        );
+    }
 }

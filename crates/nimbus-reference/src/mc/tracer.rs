@@ -4,11 +4,11 @@ use std::f64::consts::PI;
 
 use anyhow::bail;
 use glam::DVec3;
-use nimbus_scene::{Medium, Scene};
+use nimbus_scene::Scene;
 
 use super::{McOptions, WHAT};
 use crate::common::estimate::{radiance_paths, McEstimate, Moments, PathSums};
-use crate::common::geometry::{spans_by_entry, OrientedBox};
+use crate::common::geometry::{homogeneous, spans_by_entry, Region};
 use crate::common::lights::{suns_and_sky, Sun};
 use crate::common::rng::Rng;
 use crate::common::sampling::{henyey_greenstein, sample_cosine, sample_hg};
@@ -18,7 +18,7 @@ use crate::common::surface::{leave_surface, nearest_surface, Surface};
 const CHUNK_PATHS: u32 = 4096;
 
 struct BoxMediumF64 {
-    bounds: OrientedBox,
+    bounds: Region,
     sigma_t: f64,
     albedo: DVec3,
     g: f64,
@@ -66,17 +66,19 @@ impl Tracer {
         let source = scene.source.display();
         let mut media = Vec::new();
         for (i, medium) in scene.media.iter().enumerate() {
-            let Medium::Box(m) = medium else {
+            let (Some(bounds), Some((sigma_t, albedo, g))) =
+                (Region::of(medium), homogeneous(medium))
+            else {
                 bail!(
                     "{source}: medium {i}: grid media are not supported by the Monte Carlo \
-                     reference (homogeneous boxes only)"
+                     reference (homogeneous boxes and convex media only)"
                 );
             };
             media.push(BoxMediumF64 {
-                bounds: OrientedBox::from_scene(m.center, m.size, m.rotation_deg),
-                sigma_t: f64::from(m.sigma_t),
-                albedo: m.albedo.as_dvec3(),
-                g: f64::from(m.g),
+                bounds,
+                sigma_t,
+                albedo,
+                g,
             });
         }
 

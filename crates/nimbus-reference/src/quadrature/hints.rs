@@ -5,7 +5,7 @@
 
 use glam::DVec3;
 
-use crate::common::geometry::{GoboF64, OrientedBox};
+use crate::common::geometry::{GoboF64, OrientedBox, Region};
 
 /// Pushes the t where o + t·d crosses the plane through `point` with normal `normal`
 /// (skipped when the normal vanishes or the ray is parallel to the plane).
@@ -42,6 +42,25 @@ pub(super) fn push_box_edge_crossings(
                 + s1 * bounds.half[a1] * bounds.axis_world(a1)
                 + s2 * bounds.half[a2] * bounds.axis_world(a2);
             push_plane_crossing(o, d, point, edge.cross(omega), cuts);
+        }
+    }
+}
+
+/// Pushes the t where o + t·d crosses each plane that contains ω and an edge of the
+/// medium's region (a box's 12, a convex polyhedron's).
+pub(super) fn push_region_edge_crossings(
+    region: &Region,
+    o: DVec3,
+    d: DVec3,
+    omega: DVec3,
+    cuts: &mut Vec<f64>,
+) {
+    match region {
+        Region::Box(bounds) => push_box_edge_crossings(bounds, o, d, omega, cuts),
+        Region::Convex(convex) => {
+            for (a, b) in &convex.edges {
+                push_plane_crossing(o, d, *a, (*b - *a).cross(omega), cuts);
+            }
         }
     }
 }

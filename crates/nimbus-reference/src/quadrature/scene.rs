@@ -7,18 +7,18 @@ use std::f64::consts::PI;
 
 use anyhow::{bail, ensure};
 use glam::DVec3;
-use nimbus_scene::{Medium, Scene};
+use nimbus_scene::Scene;
 
-use super::hints::{push_box_edge_crossings, push_gobo_crossings};
+use super::hints::{push_gobo_crossings, push_region_edge_crossings};
 use super::integrate::{integrate_adaptive_tagged, split_interval};
 use super::shapes::{intersect, push_shadow_crossings, SurfaceHit};
-use crate::common::geometry::OrientedBox;
+use crate::common::geometry::{homogeneous, Region};
 use crate::common::lights::{suns_and_sky, Sun};
 use crate::common::sampling::henyey_greenstein;
 use crate::common::surface::{surface_offset, Surface};
 
 struct PreparedMedium {
-    bounds: OrientedBox,
+    bounds: Region,
     sigma_t: f64,
     sigma_s: DVec3,
     g: f64,
@@ -57,14 +57,16 @@ impl PreparedScene {
 
         let mut media = Vec::new();
         for (i, medium) in scene.media.iter().enumerate() {
-            let Medium::Box(m) = medium else {
+            let (Some(bounds), Some((sigma_t, albedo, g))) =
+                (Region::of(medium), homogeneous(medium))
+            else {
                 bail!("{source}: medium {i}: grid media are not supported by the reference");
             };
             media.push(PreparedMedium {
-                bounds: OrientedBox::from_scene(m.center, m.size, m.rotation_deg),
-                sigma_t: f64::from(m.sigma_t),
-                sigma_s: m.albedo.as_dvec3() * f64::from(m.sigma_t),
-                g: f64::from(m.g),
+                bounds,
+                sigma_t,
+                sigma_s: albedo * sigma_t,
+                g,
             });
         }
 
@@ -161,7 +163,7 @@ impl PreparedScene {
             let mut cuts = Vec::new();
             for light in &self.lights {
                 for m in &self.media {
-                    push_box_edge_crossings(&m.bounds, o, d, light.omega, &mut cuts);
+                    push_region_edge_crossings(&m.bounds, o, d, light.omega, &mut cuts);
                 }
                 for shape in &self.shapes {
                     push_shadow_crossings(shape, o, d, light.omega, &mut cuts);

@@ -7,7 +7,7 @@ use toml::Value;
 use super::*;
 use crate::fields::{non_negative, positive_up_to, radiometric, type_name, Fields, Source};
 
-const LIGHT_TYPES: &[(&str, &[&str])] = &[
+pub(super) const LIGHT_TYPES: &[(&str, &[&str])] = &[
     (
         "directional",
         &[
@@ -32,7 +32,7 @@ const LIGHT_TYPES: &[(&str, &[&str])] = &[
 ];
 /// What a `[[light.keyframe]]` may set, per light type: `frame`, then the animated
 /// vector (a direction or a position), then the animated colour.
-const LIGHT_KEYFRAME_KEYS: &[(&str, [&str; 3])] = &[
+pub(super) const LIGHT_KEYFRAME_KEYS: &[(&str, [&str; 3])] = &[
     ("directional", ["frame", "direction", "irradiance"]),
     ("point", ["frame", "position", "intensity"]),
     ("sphere", ["frame", "center", "radiance"]),

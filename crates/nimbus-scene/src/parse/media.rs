@@ -5,13 +5,14 @@ use glam::Vec3;
 use toml::Value;
 
 use super::*;
+use crate::convex::Solid;
 use crate::fields::{
     open_interval, positive_up_to, radiometric, type_name, unit_interval, Fields, Source,
 };
 use crate::files::{check_grid_dims, file_size, read_vol_header};
 use crate::geometry::OrientedBox;
 
-const MEDIUM_TYPES: &[(&str, &[&str])] = &[
+pub(super) const MEDIUM_TYPES: &[(&str, &[&str])] = &[
     (
         "box",
         &[
@@ -24,6 +25,7 @@ const MEDIUM_TYPES: &[(&str, &[&str])] = &[
             "g",
         ],
     ),
+    ("convex", &["type", "planes", "sigma_t", "albedo", "g"]),
     (
         "grid",
         &[
@@ -42,14 +44,14 @@ const MEDIUM_TYPES: &[(&str, &[&str])] = &[
     ),
     ("vdb", super::vdb::VDB_KEYS),
 ];
-const GRID_KEYS: &[&str] = &["file", "dims", "procedural", "noise_seed"];
-const GRID_FRAME_KEYS: &[&str] = &["frame", "density"];
+pub(super) const GRID_KEYS: &[&str] = &["file", "dims", "procedural", "noise_seed"];
+pub(super) const GRID_FRAME_KEYS: &[&str] = &["frame", "density"];
 
 pub(super) fn parse_medium(
     source: &Source,
     index: usize,
     table: &toml::Table,
-) -> Result<(Medium, String, OrientedBox)> {
+) -> Result<(Medium, String, Solid)> {
     let (kind, f) = typed_fields(source, "medium", index, table, MEDIUM_TYPES)?;
     let albedo = f.color("albedo", Some(Vec3::ONE), unit_interval)?;
     let g = f.f32_with("g", Some(0.0), open_interval(-1.0, 1.0))?;
@@ -67,10 +69,29 @@ pub(super) fn parse_medium(
             medium.size.as_dvec3(),
             medium.rotation_deg.as_dvec3(),
         );
-        return Ok((Medium::Box(medium), f.name, bounds));
+        return Ok((Medium::Box(medium), f.name, Solid::from(&bounds)));
+    }
+    if kind == "convex" {
+        let planes = parse_planes(&f)?;
+        let sigma_t = f.f32_in("sigma_t", None, 0.0..=MAX_SIGMA_T)?;
+        let medium = ConvexMedium::new(&planes, sigma_t, albedo, g)
+            .map_err(|message| f.error("planes", message))?;
+        let extent = {
+            let (lo, hi) = medium.polyhedron.bounds();
+            (hi - lo).max_element()
+        };
+        if extent > MAX_LENGTH_M {
+            return Err(f.error(
+                "planes",
+                format!("the polyhedron spans {extent:e} m, more than {MAX_LENGTH_M:e} m"),
+            ));
+        }
+        let bounds = Solid::from(&medium.polyhedron);
+        return Ok((Medium::Convex(medium), f.name, bounds));
     }
     if kind == "vdb" {
-        return super::vdb::parse_vdb_medium(&f, albedo, g);
+        let (medium, name, bounds) = super::vdb::parse_vdb_medium(&f, albedo, g)?;
+        return Ok((medium, name, Solid::from(&bounds)));
     }
 
     let bounds_min = f.vec3("bounds_min", None)?;
@@ -153,7 +174,31 @@ pub(super) fn parse_medium(
         vdb: None,
     };
     let bounds = OrientedBox::aabb(bounds_min.as_dvec3(), bounds_max.as_dvec3());
-    Ok((Medium::Grid(medium), f.name, bounds))
+    Ok((Medium::Grid(medium), f.name, Solid::from(&bounds)))
+}
+
+/// `planes = [[nx, ny, nz, d], ...]`.
+fn parse_planes(f: &Fields) -> Result<Vec<[f64; 4]>> {
+    let value = f
+        .value("planes")
+        .ok_or_else(|| f.error("planes", "missing required field"))?;
+    let Value::Array(items) = value else {
+        return Err(f.error(
+            "planes",
+            format!(
+                "expected an array of [nx, ny, nz, d] planes, found {}",
+                type_name(value)
+            ),
+        ));
+    };
+    items
+        .iter()
+        .enumerate()
+        .map(|(i, item)| {
+            crate::fields::parse_numbers::<4>(item)
+                .map_err(|message| f.error("planes", format!("plane {i}: {message}")))
+        })
+        .collect()
 }
 
 /// What a grid holds per voxel.

@@ -6,9 +6,10 @@ use anyhow::Result;
 use glam::{DVec3, Vec3};
 use toml::Value;
 
+use crate::convex::Solid;
 use crate::fields::{open_interval, positive_up_to, type_name, unit_interval, Fields, Source};
 use crate::files::file_size;
-use crate::geometry::{convex_ccw_polygon, OrientedBox};
+use crate::geometry::convex_ccw_polygon;
 use crate::overrides::FieldOverride;
 use crate::types::*;
 
@@ -33,7 +34,15 @@ pub const MAX_IMAGE_SIDE: u32 = 16384;
 pub const MAX_IMAGE_PIXELS: u64 = 64 << 20;
 
 const TOP_KEYS: &[&str] = &["render", "camera", "light", "medium", "shape", "integrator"];
-const RENDER_KEYS: &[&str] = &["width", "height", "frames", "spp", "seed", "pixel_jitter"];
+const RENDER_KEYS: &[&str] = &[
+    "width",
+    "height",
+    "frames",
+    "spp",
+    "seed",
+    "pixel_jitter",
+    "transparent_background",
+];
 const CAMERA_KEYS: &[&str] = &[
     "position",
     "look_at",
@@ -67,7 +76,55 @@ pub const RESTIR_KEYS: &[&str] = &[
     "mip_indirect",
     "mip_reuse",
     "final_transmittance",
+    "mis",
+    "temporal_history",
+    "sigma_star_floor",
 ];
+
+/// One table of the scene format and every field the parser accepts in it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct TableFields {
+    /// The table as `docs/scene-format.md` heads it: `[render]`, `[[light]] type =
+    /// "point"`, `[[light.keyframe]] of a "sphere" light`, `grid source`, ...
+    pub table: String,
+    pub fields: Vec<&'static str>,
+}
+
+/// Every table of the scene format with the fields the parser accepts in it, from the
+/// same lists the parser checks unknown fields against (so the reference
+/// documentation can be tested against them).
+pub fn scene_tables() -> Vec<TableFields> {
+    let table = |name: &str, fields: &[&'static str]| TableFields {
+        table: name.to_string(),
+        fields: fields.to_vec(),
+    };
+    let mut tables = vec![
+        table("top level", TOP_KEYS),
+        table("[render]", RENDER_KEYS),
+        table("[camera]", CAMERA_KEYS),
+        table("[[camera.keyframe]]", KEYFRAME_KEYS),
+    ];
+    for (kind, fields) in lights::LIGHT_TYPES {
+        tables.push(table(&format!("[[light]] type = \"{kind}\""), fields));
+    }
+    for (kind, fields) in lights::LIGHT_KEYFRAME_KEYS {
+        tables.push(table(
+            &format!("[[light.keyframe]] of a \"{kind}\" light"),
+            fields,
+        ));
+    }
+    for (kind, fields) in media::MEDIUM_TYPES {
+        tables.push(table(&format!("[[medium]] type = \"{kind}\""), fields));
+    }
+    tables.push(table("grid source", media::GRID_KEYS));
+    tables.push(table("[[medium.frame]]", media::GRID_FRAME_KEYS));
+    for (kind, fields) in SHAPE_TYPES {
+        tables.push(table(&format!("[[shape]] type = \"{kind}\""), fields));
+    }
+    tables.push(table("[integrator]", INTEGRATOR_KEYS));
+    tables.push(table("[integrator.restir]", RESTIR_KEYS));
+    tables
+}
 
 /// Parses and validates the scene in `text`; `file` names it in errors and anchors
 /// relative paths.
@@ -95,7 +152,7 @@ pub(crate) fn parse_scene(text: &str, file: &Path, overrides: &[FieldOverride]) 
         .collect::<Result<(Vec<_>, Vec<_>)>>()?;
 
     let mut media = Vec::new();
-    let mut medium_bounds: Vec<(String, OrientedBox)> = Vec::new();
+    let mut medium_bounds: Vec<(String, Solid)> = Vec::new();
     for (i, table) in top.tables("medium")?.into_iter().enumerate() {
         let (medium, name, bounds) = parse_medium(&source, i + 1, table)?;
         media.push(medium);
@@ -157,6 +214,9 @@ fn parse_render(source: &Source, table: &toml::Table) -> Result<RenderSettings> 
         spp: f.u32_in("spp", Some(defaults.spp), 1..=65536)?,
         seed: f.int_in("seed", Some(0), 0..=i64::MAX)? as u64,
         pixel_jitter: f.opt_bool("pixel_jitter")?.unwrap_or(defaults.pixel_jitter),
+        transparent_background: f
+            .opt_bool("transparent_background")?
+            .unwrap_or(defaults.transparent_background),
     })
 }
 
@@ -429,5 +489,19 @@ fn parse_restir(source: &Source, table: &toml::Table) -> Result<RestirSettings> 
             Some(d.final_ratio_tracking),
             &[("analytic", false), ("ratio", true)],
         )?,
+        mis: f.choice(
+            "mis",
+            Some(d.mis),
+            &[("talbot", MisMode::Talbot), ("pairwise", MisMode::Pairwise)],
+        )?,
+        temporal_history: f.choice(
+            "temporal_history",
+            Some(d.temporal_history),
+            &[
+                ("spatial", HistoryMode::Spatial),
+                ("temporal", HistoryMode::Temporal),
+            ],
+        )?,
+        sigma_star_floor: f.f32_in("sigma_star_floor", Some(d.sigma_star_floor), 0.0..=1.0)?,
     })
 }

@@ -240,7 +240,12 @@ fn unknown_type_strings_list_the_valid_ones() {
     let error = parse_err("[[medium]]\ntype = \"fog\"\n");
     assert_contains(
         &error,
-        &[SCENE, "[[medium]] #1", "field `type`", "\"box\", \"grid\""],
+        &[
+            SCENE,
+            "[[medium]] #1",
+            "field `type`",
+            "\"box\", \"convex\", \"grid\"",
+        ],
     );
     let error = parse_err("[integrator]\nbox_estimator = \"best\"\n");
     assert_contains(
@@ -779,4 +784,63 @@ fn no_panic_on_odd_inputs() {
     for input in inputs {
         let _ = parse(input);
     }
+}
+
+#[test]
+fn convex_media_that_are_not_bounded_polyhedra_are_rejected() {
+    let convex =
+        |planes: &str| format!("[[medium]]\ntype = \"convex\"\nplanes = {planes}\nsigma_t = 1\n");
+    let table = "[[medium]] #1 (type = \"convex\")";
+    let cube = "[1, 0, 0, 1], [-1, 0, 0, 1], [0, 1, 0, 1], [0, -1, 0, 1], [0, 0, 1, 1]";
+    let check = |planes: String, needles: &[&str]| {
+        let error = parse_err(&convex(&planes));
+        assert_contains(&error, &[SCENE, table, "field `planes`"]);
+        assert_contains(&error, needles);
+    };
+    check(format!("[{cube}]"), &["bounded"]);
+    check(
+        "[[1, 0, 0, 1], [0, 1, 0, 1], [0, 0, 1, 1]]".into(),
+        &["3 planes", "4 to 64"],
+    );
+    let many: Vec<String> = (0..65)
+        .map(|i| {
+            let a = f64::from(i) * 0.7;
+            format!("[{}, {}, {}, 1]", a.cos(), a.sin(), (a * 1.3).sin())
+        })
+        .collect();
+    check(format!("[{}]", many.join(", ")), &["65 planes"]);
+    check(
+        format!("[{cube}, [0, 0, 0, 1]]"),
+        &["plane 5", "no direction"],
+    );
+    check(format!("[{cube}, [0, 0, -1, -2]]"), &["empty"]);
+    check(format!("[{cube}, [0, 0, -1, -1]]"), &["interior"]);
+    check(format!("[{cube}, [0, 0, -1]]"), &["plane 5"]);
+    check(format!("[{cube}, [0, 0, -1, nan]]"), &["plane 5", "finite"]);
+    check("[0, 1, 2, 3]".into(), &["plane 0"]);
+    check("\"cube\"".into(), &["expected an array"]);
+    let error = parse_err("[[medium]]\ntype = \"convex\"\nsigma_t = 1\n");
+    assert_contains(&error, &[table, "field `planes`", "missing"]);
+    // A sliver 20 nm thick at 1 m from the origin is below what f32 positions resolve.
+    let error = parse_err(&convex(
+        "[[1, 0, 0, 1e-8], [-1, 0, 0, 1e-8], [0, 1, 0, 1], [0, -1, 0, 1], [0, 0, 1, 1], [0, 0, -1, 1]]",
+    ));
+    assert_contains(
+        &error,
+        &[table, "field `planes`", "width across a face", "32-bit"],
+    );
+    // A dodecahedron overlapping a box is refused, one beside it is not (it reaches
+    // 1.176 r below its centre, the box 0.5 above the origin).
+    let error = parse_err(&format!(
+        "{}{BOX}sigma_t = 1\n",
+        dodecahedron([0.0, 1.0, 0.0], 1.0, 1.0)
+    ));
+    assert_contains(
+        &error,
+        &["#1 (type = \"convex\")", "#2 (type = \"box\")", "overlap"],
+    );
+    parse_ok(&format!(
+        "{}{BOX}sigma_t = 1\n",
+        dodecahedron([0.0, 1.7, 0.0], 1.0, 1.0)
+    ));
 }

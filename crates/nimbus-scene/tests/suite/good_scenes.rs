@@ -214,6 +214,9 @@ mip_candidates = 2
 mip_indirect = 3
 mip_reuse = 0
 final_transmittance = "ratio"
+mis = "pairwise"
+temporal_history = "temporal"
+sigma_star_floor = 0.125
 "#;
     let scene_path = dir.write("scene.toml", text.as_bytes());
     let scene = load(&scene_path).unwrap_or_else(|e| panic!("{e:#}"));
@@ -227,7 +230,8 @@ final_transmittance = "ratio"
             frames: 8,
             spp: 4,
             seed: 42,
-            pixel_jitter: false
+            pixel_jitter: false,
+            transparent_background: false,
         }
     );
     let camera = &scene.camera;
@@ -400,6 +404,9 @@ final_transmittance = "ratio"
                 mip_indirect: 3,
                 mip_reuse: 0,
                 final_ratio_tracking: true,
+                mis: MisMode::Pairwise,
+                temporal_history: HistoryMode::Temporal,
+                sigma_star_floor: 0.125,
             },
         }
     );
@@ -649,4 +656,36 @@ fn integers_are_accepted_as_floats() {
     let scene = parse_ok("[integrator.restir]\nspatial_radius_px = 4\n");
     assert_eq!(scene.integrator.restir.spatial_radius_px, 4.0);
     assert_eq!(scene.integrator.restir.candidates, 4);
+}
+
+#[test]
+fn convex_medium_loads_normalized_with_its_polyhedron() {
+    let scene = parse_ok(&format!(
+        "{}albedo = 0.5\ng = 0.2\n",
+        dodecahedron([1.0, 0.0, -2.0], 0.8, 1.5)
+    ));
+    let Medium::Convex(m) = &scene.media[0] else {
+        panic!("expected a convex medium, got {:?}", scene.media[0]);
+    };
+    assert_eq!(m.planes.len(), 12);
+    assert_eq!((m.sigma_t, m.albedo, m.g), (1.5, Vec3::splat(0.5), 0.2));
+    for p in &m.planes {
+        let n = Vec3::new(p[0], p[1], p[2]);
+        assert!((n.length() - 1.0).abs() < 1e-6, "{p:?}");
+        // Every face is at the inradius from the centre.
+        let d = p[3] - n.dot(Vec3::new(1.0, 0.0, -2.0));
+        assert!((d - 0.8).abs() < 1e-5, "{p:?}");
+    }
+    let poly = &m.polyhedron;
+    assert_eq!(
+        (poly.vertices.len(), poly.faces.len(), poly.edges.len()),
+        (20, 12, 30)
+    );
+    assert!((poly.width() - 1.6).abs() < 1e-5);
+    assert!((poly.centroid() - glam::DVec3::new(1.0, 0.0, -2.0)).length() < 1e-6);
+    // A box beside it (the dodecahedron reaches 1.176 r = 0.94 above its centre).
+    parse_ok(&format!(
+        "{}[[medium]]\ntype = \"box\"\ncenter = [1, 2, -2]\nsize = [1, 0.4, 1]\nsigma_t = 1\n",
+        dodecahedron([1.0, 0.0, -2.0], 0.8, 1.5)
+    ));
 }

@@ -28,7 +28,7 @@ fn medium(body: &str) -> String {
 fn grid_of(scene: &nimbus_scene::Scene) -> &nimbus_scene::GridMedium {
     match &scene.media[0] {
         Medium::Grid(g) => g,
-        Medium::Box(_) => panic!("a grid medium"),
+        Medium::Box(_) | Medium::Convex(_) => panic!("a grid medium"),
     }
 }
 

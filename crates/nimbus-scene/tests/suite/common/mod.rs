@@ -97,3 +97,30 @@ pub fn vol_file(dims: [i32; 3], channels: i32) -> Vec<u8> {
     bytes.extend(raw_floats(n));
     bytes
 }
+
+/// A regular dodecahedron of inradius `r` centred at `center` as `[[medium]] type =
+/// "convex"` planes (face normals along the icosahedron's vertices, not normalized, so
+/// the loader's normalization is exercised), with extinction `sigma_t`.
+pub fn dodecahedron(center: [f64; 3], r: f64, sigma_t: f64) -> String {
+    let phi = (1.0 + 5f64.sqrt()) / 2.0;
+    let mut normals = Vec::new();
+    for a in [-1.0, 1.0] {
+        for b in [-phi, phi] {
+            normals.push([0.0, a, b]);
+            normals.push([a, b, 0.0]);
+            normals.push([b, 0.0, a]);
+        }
+    }
+    let planes: Vec<String> = normals
+        .iter()
+        .map(|n| {
+            let length = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+            let d = r * length + n[0] * center[0] + n[1] * center[1] + n[2] * center[2];
+            format!("[{}, {}, {}, {d}]", n[0], n[1], n[2])
+        })
+        .collect();
+    format!(
+        "[[medium]]\ntype = \"convex\"\nplanes = [{}]\nsigma_t = {sigma_t}\n",
+        planes.join(", ")
+    )
+}

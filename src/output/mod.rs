@@ -4,15 +4,25 @@
 //! row-major with pixel (0, 0) at the top left (`shared/SCENE_FORMAT.md`).
 //!
 //! - `.exr`: linear float32 RGB, lossless ZIP compression, exactly the stored values.
-//! - `.png`: 8-bit sRGB after `exposure` and the ACES filmic fit of Narkowicz (2015),
-//!   see [`tonemap_srgb8`].
+//! - `.png`: 8-bit sRGB after an exposure and a tone curve ([`Display`], default the
+//!   ACES filmic fit of Narkowicz 2015), with an sRGB chunk ([`tonemap`]).
+//!
+//! A render's own file carries more: [`layers`] writes the EXR a compositor reads
+//! (premultiplied RGBA, a `stderr` layer, optional AOVs and the render's metadata in
+//! the header) and reads it back for `nimbus merge`.
 //!
 //! Writers refuse images holding NaN or infinity: a non-finite pixel is a renderer bug,
 //! and a file is no place to hide it.
 
+pub mod layers;
+pub mod tonemap;
+
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, ensure, Context};
+
+pub use layers::{read_layers, write_layers, Layers};
+pub use tonemap::{tonemap_srgb8, tonemap_srgb8_with, Display, Tonemap};
 
 /// File extensions [`write_image`] understands.
 pub const SUPPORTED_EXTENSIONS: [&str; 2] = ["exr", "png"];
@@ -104,12 +114,66 @@ impl ImageRgb {
 }
 
 /// Writes `img` to `path`; the extension picks the format (`.exr` linear float32,
-/// `.png` tonemapped 8-bit sRGB with `exposure`, see [`tonemap_srgb8`]).
+/// `.png` tonemapped 8-bit sRGB with `exposure` and the ACES curve, see
+/// [`tonemap_srgb8`]).
 ///
 /// Fails, naming the file, on an unknown extension, a pixel count that does not match
 /// the size, or any non-finite pixel.
 pub fn write_image(path: &Path, img: &ImageRgb, exposure: f32) -> anyhow::Result<()> {
+    write_image_with(
+        path,
+        img,
+        &Display {
+            exposure,
+            tonemap: Tonemap::Aces,
+        },
+    )
+}
+
+/// [`write_image`] with any [`Display`] for a `.png`.
+pub fn write_image_with(path: &Path, img: &ImageRgb, display: &Display) -> anyhow::Result<()> {
     let extension = image_extension(path).context("cannot write")?;
+    check_image(path, img)?;
+    write_atomically(path, |tmp| match extension.as_str() {
+        "exr" => write_exr(tmp, img),
+        _ => tonemap::write_png(tmp, img, display, &[software_text()]),
+    })
+}
+
+/// Writes `img` as a tonemapped sRGB PNG with `metadata` as tEXt chunks named
+/// `nimbus/<key>` (beside `Software`).
+pub fn write_png_with_metadata(
+    path: &Path,
+    img: &ImageRgb,
+    display: &Display,
+    metadata: &std::collections::BTreeMap<String, String>,
+) -> anyhow::Result<()> {
+    ensure!(
+        image_extension(path)? == "png",
+        "{}: expected a .png file",
+        path.display()
+    );
+    check_image(path, img)?;
+    let mut text = vec![software_text()];
+    text.extend(
+        metadata
+            .iter()
+            .map(|(k, v)| (format!("{}{k}", layers::ATTRIBUTE_PREFIX), v.clone())),
+    );
+    write_atomically(path, |tmp| tonemap::write_png(tmp, img, display, &text))
+}
+
+/// The PNG `Software` text: Nimbus and its version.
+pub(crate) fn software_text() -> (String, String) {
+    (
+        "Software".to_string(),
+        format!("Nimbus {}", env!("CARGO_PKG_VERSION")),
+    )
+}
+
+/// Refuses an image whose pixel count does not match its size, or with a non-finite
+/// pixel, naming `path`.
+fn check_image(path: &Path, img: &ImageRgb) -> anyhow::Result<()> {
     ensure!(
         img.data.len() == img.width as usize * img.height as usize,
         "cannot write {}: {} pixels for a {}x{} image",
@@ -125,14 +189,11 @@ pub fn write_image(path: &Path, img: &ImageRgb, exposure: f32) -> anyhow::Result
             path.display()
         );
     }
-    write_atomically(path, |tmp| match extension.as_str() {
-        "exr" => write_exr(tmp, img),
-        _ => write_png(tmp, img, exposure),
-    })
+    Ok(())
 }
 
 /// The lower-case extension of an image path, if Nimbus writes that format.
-fn image_extension(path: &Path) -> anyhow::Result<String> {
+pub(crate) fn image_extension(path: &Path) -> anyhow::Result<String> {
     let extension = path
         .extension()
         .and_then(|e| e.to_str())
@@ -234,19 +295,6 @@ fn write_exr(path: &Path, img: &ImageRgb) -> anyhow::Result<()> {
     .with_context(|| format!("write EXR {}", path.display()))
 }
 
-fn write_png(path: &Path, img: &ImageRgb, exposure: f32) -> anyhow::Result<()> {
-    let bytes: Vec<u8> = tonemap_srgb8(img, exposure).into_iter().flatten().collect();
-    image::save_buffer_with_format(
-        path,
-        &bytes,
-        img.width,
-        img.height,
-        image::ExtendedColorType::Rgb8,
-        image::ImageFormat::Png,
-    )
-    .with_context(|| format!("write PNG {}", path.display()))
-}
-
 /// Reads the R, G and B channels of the first RGB layer of an EXR file (any sample
 /// type, converted to f32; alpha ignored).
 pub fn read_exr(path: &Path) -> anyhow::Result<ImageRgb> {
@@ -260,39 +308,6 @@ pub fn read_exr(path: &Path) -> anyhow::Result<ImageRgb> {
     )
     .with_context(|| format!("read EXR {}", path.display()))?;
     Ok(image.layer_data.channel_data.pixels)
-}
-
-/// The ACES filmic curve fit of Krzysztof Narkowicz (2015), clamped to [0, 1].
-///
-/// x(2.51x + 0.03) / (x(2.43x + 0.59) + 0.14); the denominator is ≥ 0.14 for x ≥ 0.
-fn aces_filmic(x: f32) -> f32 {
-    // Clamp the input so x² cannot overflow; the curve is saturated long before 1e6.
-    let x = x.clamp(0.0, 1.0e6);
-    let y = (x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14);
-    y.clamp(0.0, 1.0)
-}
-
-/// The sRGB opto-electronic transfer function for linear c in [0, 1].
-fn srgb_oetf(c: f32) -> f32 {
-    if c <= 0.003_130_8 {
-        12.92 * c
-    } else {
-        1.055 * c.powf(1.0 / 2.4) - 0.055
-    }
-}
-
-/// Tonemaps linear radiance to 8-bit sRGB: multiply by `exposure`, apply the ACES
-/// filmic fit per channel, then the sRGB OETF, rounded to the nearest code.
-///
-/// Negative values and NaN map to 0 and +infinity to 255, so the result is defined
-/// for every input (the file writers reject non-finite images before this).
-pub fn tonemap_srgb8(img: &ImageRgb, exposure: f32) -> Vec<[u8; 3]> {
-    let to_code = |v: f32| {
-        let x = v * exposure;
-        let x = if x.is_nan() { 0.0 } else { x };
-        (srgb_oetf(aces_filmic(x)) * 255.0).round() as u8
-    };
-    img.data.iter().map(|p| p.map(to_code)).collect()
 }
 
 #[cfg(test)]

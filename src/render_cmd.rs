@@ -1,0 +1,330 @@
+//! `nimbus render`: which frames to render, when to stop, where the images go, what
+//! their headers record, and what an interrupt leaves behind.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+use std::time::Duration;
+
+use anyhow::{bail, ensure, Context as _, Result};
+use nimbus::merge::{settings_of, write_render, RenderInfo};
+use nimbus::output::{self, Display, Tonemap};
+use nimbus::renderer::{self, FrameSelection, RenderOptions, RenderResult, StopReason, StopRule};
+use nimbus::{load_scene, plan, DEFAULT_SCENE};
+use nimbus_gpu::{Context, ContextDesc};
+use nimbus_scene::Scene;
+
+use super::{report_validation, RenderArgs, EXIT_INTERRUPTED};
+
+/// What every image of the render records besides its own numbers.
+struct Identity {
+    scene: String,
+    scene_hash: String,
+    animated: bool,
+    device: String,
+}
+
+impl Identity {
+    fn info(&self, scene: &Scene, result: &RenderResult, selection: &str) -> RenderInfo {
+        let (settings, settings_hash) = settings_of(scene, self.animated, selection);
+        RenderInfo {
+            version: env!("CARGO_PKG_VERSION").to_string(),
+            scene: self.scene.clone(),
+            scene_hash: self.scene_hash.clone(),
+            settings_hash,
+            settings,
+            seeds: vec![scene.render.seed],
+            spp: scene.render.spp,
+            frames: u64::from(result.frames),
+            samples: u64::from(result.frames) * u64::from(scene.render.spp),
+            estimates: u64::from(result.estimates),
+            error_batch: result.error_batch,
+            rel_error: result.rel_error,
+            device: self.device.clone(),
+            gpu_ms: result.gpu_ms(),
+            wall_s: result.image_time.as_secs_f64(),
+            stop: result.stop.describe().to_string(),
+        }
+    }
+}
+
+/// Sets a flag on SIGINT and SIGTERM (Ctrl-C; Slurm's scancel and time limit) that the
+/// frames loop checks; a second signal ends the process at once.
+fn interrupt_flag() -> Result<Arc<AtomicBool>> {
+    let flag = Arc::new(AtomicBool::new(false));
+    for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        signal_hook::flag::register_conditional_shutdown(
+            signal,
+            i32::from(EXIT_INTERRUPTED),
+            Arc::clone(&flag),
+        )
+        .context("installing the interrupt handler")?;
+        signal_hook::flag::register(signal, Arc::clone(&flag))
+            .context("installing the interrupt handler")?;
+    }
+    Ok(flag)
+}
+
+/// The image path of scene frame `frame` in a sequence directory.
+fn sequence_path(dir: &Path, frame: u32, ext: &str, partial: bool) -> PathBuf {
+    let partial = if partial { ".partial" } else { "" };
+    dir.join(format!("frame_{frame:04}{partial}.{ext}"))
+}
+
+/// "wrote X (...)": the one-line summary of an image.
+fn summary(path: &Path, scene: &Scene, result: &RenderResult) -> String {
+    let r = &scene.render;
+    let error = match result.rel_error {
+        None => "unknown (fewer than 2 estimates)".to_string(),
+        Some(e) if result.error_batch > 1 && result.error_independent => format!(
+            "{e:.4} (batch means of {} correlated frames)",
+            result.error_batch
+        ),
+        Some(e) if !result.error_independent => format!(
+            "{e:.4} (from correlated frames: an underestimate; fewer than 2 batches of {})",
+            result.error_batch
+        ),
+        Some(e) => format!("{e:.4}"),
+    };
+    let dropped = match result.non_finite_samples {
+        0 => String::new(),
+        n => format!(", {n} non-finite sample(s) dropped"),
+    };
+    format!(
+        "wrote {} ({}x{}, {} frame(s) x {} spp = {} samples per pixel) in {:.2} s, \
+         GPU {:.1} ms, relative error {error}, stopped: {}{dropped}",
+        path.display(),
+        r.width,
+        r.height,
+        result.frames,
+        r.spp,
+        u64::from(result.frames) * u64::from(r.spp),
+        result.image_time.as_secs_f64(),
+        result.gpu_ms(),
+        result.stop.describe()
+    )
+}
+
+pub(super) fn render(args: RenderArgs) -> Result<ExitCode> {
+    let mut fields = args.overrides.fields(args.frames)?;
+    if args.transparent {
+        fields.insert(
+            0,
+            nimbus_scene::FieldOverride::new("render.transparent_background", true),
+        );
+    }
+    let scene = load_scene(args.scene.as_deref(), &fields)?;
+    let plan = plan::build(&scene, None)?;
+    if args.explain {
+        print!("{}", plan.explain(&scene));
+        let f = nimbus::budget::Footprint::of(&scene, &plan)?;
+        let mib = |b: u64| b as f64 / f64::from(1u32 << 20);
+        println!(
+            "  memory: {:.1} MiB of GPU buffers and images, about {:.1} MiB of host memory at the peak for the scene's data",
+            mib(f.device_bytes()),
+            mib(f.host_peak)
+        );
+        return Ok(ExitCode::SUCCESS);
+    }
+    let animated = scene.is_animated();
+    let source = scene.source.display().to_string();
+    let frames = scene.render.frames;
+
+    // Which frames make which images.
+    let picked = match (args.frame, args.frame_range) {
+        (Some(n), _) => Some((n, n)),
+        (None, Some(range)) => Some(range),
+        (None, None) => None,
+    };
+    if let Some((a, b)) = picked {
+        ensure!(
+            animated,
+            "{source}: --frame/--frame-range pick frames of an animation, and this scene is \
+             static (no [[camera.keyframe]], [[light.keyframe]] or [[medium.frame]]); its \
+             frames only accumulate: use --frames N"
+        );
+        ensure!(
+            b < frames,
+            "--frame{} {}: the animation has frames 0..{} ([render] frames = {frames} in \
+             {source})",
+            if a == b { "" } else { "-range" },
+            if a == b {
+                a.to_string()
+            } else {
+                format!("{a}..{b}")
+            },
+            frames.saturating_sub(1)
+        );
+    } else {
+        ensure!(
+            args.passes.is_none(),
+            "--passes is for --frame / --frame-range; a static scene accumulates --frames"
+        );
+        ensure!(
+            !(animated && (args.target_error.is_some() || args.time_limit.is_some())),
+            "{source} is animated: its image is the mean of the whole animation, which a \
+             target error or time limit cannot cut short; pick a frame with --frame N (or \
+             --frame-range A..B)"
+        );
+    }
+    let out = match (&args.out, args.frame_range) {
+        (Some(out), _) => {
+            output::check_writable(out).context("--out")?;
+            Some(out.clone())
+        }
+        (None, Some(_)) => None,
+        (None, None) => {
+            bail!("--out FILE is required to render (or pass --explain to print the plan)")
+        }
+    };
+    if let Some(dir) = &args.sequence {
+        ensure!(
+            args.frame.is_none(),
+            "--sequence with --frame: a single frame goes to --out"
+        );
+        std::fs::create_dir_all(dir).with_context(|| {
+            format!("--sequence {}: cannot create the directory", dir.display())
+        })?;
+    }
+    let display = Display {
+        exposure: args.exposure,
+        tonemap: Tonemap::from_name(&args.tonemap).unwrap_or_default(),
+    };
+
+    // The frames of a range still to render.
+    let mut selection = FrameSelection::Mean;
+    let mut warmup = args.warmup.unwrap_or(0);
+    if let Some((a, b)) = picked {
+        let mut list: Vec<u32> = (a..=b).collect();
+        if args.resume {
+            if let Some(dir) = &args.sequence {
+                let done = list
+                    .iter()
+                    .take_while(|&&f| sequence_path(dir, f, &args.sequence_format, false).exists())
+                    .count();
+                if done > 0 && done < list.len() {
+                    eprintln!(
+                        "resume: frames {a}..{} are in {}; rendering from frame {}",
+                        a + done as u32 - 1,
+                        dir.display(),
+                        a + done as u32
+                    );
+                }
+                list.drain(..done);
+            }
+        }
+        if list.is_empty() {
+            eprintln!("resume: every frame of {a}..{b} is already rendered");
+            return Ok(ExitCode::SUCCESS);
+        }
+        let first = list[0];
+        let history = renderer::error_batch(&plan);
+        warmup = args
+            .warmup
+            .unwrap_or(if history > 1 { first.min(history) } else { 0 });
+        selection = FrameSelection::Each {
+            frames: list,
+            passes: args.passes.unwrap_or(1),
+        };
+    }
+
+    let scene_bytes = match &args.scene {
+        Some(path) => std::fs::read(path).with_context(|| format!("reading {}", path.display()))?,
+        None => DEFAULT_SCENE.as_bytes().to_vec(),
+    };
+    let interrupt = interrupt_flag()?;
+    let ctx = Context::new(&ContextDesc::from_env())?;
+    eprintln!("device: {}", ctx.info().name);
+    let identity = Identity {
+        scene: source.clone(),
+        scene_hash: nimbus::merge::content_hash(&scene_bytes),
+        animated,
+        device: ctx.info().name.clone(),
+    };
+    let opts = RenderOptions {
+        progress: true,
+        warmup_frames: warmup,
+        sequence: if picked.is_some() {
+            None
+        } else {
+            args.sequence.clone()
+        },
+        sequence_ext: args.sequence_format.clone(),
+        sequence_display: display,
+        keep_frames: false,
+        frames: selection,
+        stop: StopRule {
+            target_error: args.target_error,
+            time_limit: args.time_limit.map(Duration::from_secs_f64),
+        },
+        interrupt: Some(interrupt),
+    };
+    let selection_words = |result: &RenderResult| match result.scene_frame {
+        Some(f) => format!("frame {f}"),
+        None if animated => format!("mean of frames 0..{}", frames.saturating_sub(1)),
+        None => "accumulated frames".to_string(),
+    };
+
+    // Each image of a frame range goes into the sequence as soon as it is done.
+    let range_dir = args.sequence.clone().filter(|_| args.frame_range.is_some());
+    let mut sink = |result: &RenderResult| -> Result<()> {
+        let (Some(dir), Some(frame)) = (&range_dir, result.scene_frame) else {
+            return Ok(());
+        };
+        let partial = result.stop == StopReason::Interrupted;
+        let path = sequence_path(dir, frame, &args.sequence_format, partial);
+        let info = identity.info(&scene, result, &selection_words(result));
+        write_render(&path, result, &info, &display)
+            .with_context(|| format!("writing frame {frame}"))?;
+        eprintln!("{}", summary(&path, &scene, result));
+        Ok(())
+    };
+    let result = renderer::render_each(&ctx, &scene, &plan, &opts, &mut sink)?;
+    let mib = |b: u64| b as f64 / f64::from(1u32 << 20);
+    let host = nimbus::budget::peak_host_bytes().map_or_else(String::new, |b| {
+        format!(", peak host memory {:.0} MiB", mib(b))
+    });
+    let memory = format!(
+        "GPU memory {:.1} MiB{host}, {:.2} s in all",
+        mib(result.device_bytes),
+        result.wall_time.as_secs_f64()
+    );
+    match &out {
+        Some(out) => {
+            let info = identity.info(&scene, &result, &selection_words(&result));
+            write_render(out, &result, &info, &display)?;
+            eprintln!("{}, {memory}", summary(out, &scene, &result));
+        }
+        None => eprintln!("rendered the frames, {memory}"),
+    }
+    if result.non_finite_samples > 0 {
+        eprintln!(
+            "warning: {} sample(s) were not finite and were dropped",
+            result.non_finite_samples
+        );
+    }
+    for note in &result.notes {
+        eprintln!("note: {note}");
+    }
+    if result.step_cap_hits > 0 {
+        eprintln!(
+            "warning: {} walk(s) through the grid stopped at the step limit; their samples are biased",
+            result.step_cap_hits
+        );
+    }
+    report_validation(&ctx)?;
+    if result.stop == StopReason::Interrupted {
+        eprintln!(
+            "interrupted: the image{} holds the {} frame(s) rendered before the signal",
+            if range_dir.is_some() {
+                " marked .partial"
+            } else {
+                ""
+            },
+            result.frames
+        );
+        return Ok(ExitCode::from(EXIT_INTERRUPTED));
+    }
+    Ok(ExitCode::SUCCESS)
+}
