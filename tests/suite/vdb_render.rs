@@ -116,13 +116,15 @@ fn raw_twin(dir: &Path) -> String {
 }
 
 fn scene_text(medium: &str, volume: &str) -> String {
+    // ReSTIR draws one path per pixel per frame (the plan refuses spp > 1 for it).
+    let spp = if volume == "restir" { 1 } else { 2 };
     format!(
         r#"
 [render]
 width = 40
 height = 30
 frames = 8
-spp = 2
+spp = {spp}
 seed = 5
 [camera]
 position = [0.6, 1.0, 9.0]
