@@ -125,6 +125,9 @@ fn alpha_is_one_minus_the_camera_rays_transmittance_through_the_grid() {
             "render.pixel_jitter=false",
             "--set",
             &format!("integrator.volume={volume}"),
+            // cloud.toml takes 2 spp; ReSTIR draws one path per pixel per frame.
+            "--spp",
+            "1",
             "--out",
             path.to_str().unwrap(),
         ]);
