@@ -3,9 +3,10 @@
 # timings, and the equal-time studies of both papers (error against a converged
 # reference versus GPU milliseconds, several seeds with their spread).
 #
-#   tools/gpu-check.sh [--quick] [OUT_DIR]
+#   tools/gpu-check.sh [--quick] [--no-tests] [OUT_DIR]
 #
-# OUT_DIR (default gpu-check-<date>) receives devices.txt, profile-*.txt, one
+# OUT_DIR (default gpu-check-<date>) receives devices.txt, tests.txt (the whole test
+# suite on this machine's default device, validation layers on), profile-*.txt, one
 # study-*/ folder per study (study.csv, study.md, study.png) and summary.md, which
 # collects the equal-time ratios of every study. --quick shrinks images, frames and
 # references so that the whole run fits a few minutes on lavapipe (a smoke test of
@@ -17,10 +18,15 @@
 set -euo pipefail
 
 quick=0
-if [[ "${1:-}" == "--quick" ]]; then
-    quick=1
+tests=1
+while [[ "${1:-}" == --* ]]; do
+    case "$1" in
+        --quick) quick=1 ;;
+        --no-tests) tests=0 ;;
+        *) echo "unknown option $1" >&2; exit 2 ;;
+    esac
     shift
-fi
+done
 out="${1:-gpu-check-$(date +%Y%m%d-%H%M%S)}"
 mkdir -p "$out"
 root="$(cd "$(dirname "$0")/.." && pwd)"
@@ -35,6 +41,7 @@ nimbus() { "$NIMBUS_BIN" "$@"; }
 # Sizes: the papers' studies on a GPU, a smoke test on lavapipe.
 if ((quick)); then
     size=(--width 48 --height 36)
+    hd=(--width 64 --height 36)
     frames=2
     ref=(--reference-frames 8 --reference-spp 4)
     seeds=2
@@ -43,6 +50,7 @@ if ((quick)); then
     bounces_list=1
 else
     size=(--width 640 --height 480)
+    hd=(--width 1920 --height 1080)
     frames=16
     ref=(--reference-frames 1024 --reference-spp 16)
     seeds=3
@@ -54,10 +62,25 @@ cache=(--cache-dir "$out/references")
 
 nimbus devices | tee "$out/devices.txt"
 
-# Per-pass GPU timings (timestamp queries) of the shipped scenes.
+# The test suite on this device (goldens, statistical tests, validation layers).
+if ((tests)); then
+    if cargo test --release >"$out/tests.txt" 2>&1; then
+        echo "tests passed" | tee -a "$out/tests.txt"
+    else
+        echo "tests FAILED (see $out/tests.txt)"
+    fi
+fi
+
+# Per-pass GPU timings (timestamp queries): the shipped scenes, and ReSTIR at 1920x1080
+# with K = 1 and 3.
 for scene in cloud-restir box-sphere window; do
     nimbus profile "assets/scenes/$scene.toml" "${size[@]}" --frames "$frames" \
         >"$out/profile-$scene.txt" 2>&1 || echo "profile $scene failed (see $out/profile-$scene.txt)"
+done
+for k in 1 3; do
+    nimbus profile assets/scenes/cloud-restir.toml "${hd[@]}" --frames "$frames" \
+        --set "integrator.max_bounces=$k" >"$out/profile-cloud-restir-hd-k$k.txt" 2>&1 ||
+        echo "profile K=$k failed (see $out/profile-cloud-restir-hd-k$k.txt)"
 done
 
 # Volumetric ReSTIR against its equal-time baseline (decomposition + residual ratio
