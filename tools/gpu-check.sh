@@ -97,6 +97,27 @@ for k in $bounces_list; do
         --out-dir "$out/study-restir-k$k"
 done
 
+# The benchmark scenes (assets/scenes/bench: 256x160x256 cumulus with g = 0 and 0.8,
+# an HDR sky with a small sun, emissive explosions with matched and mismatched
+# colours) at 320x240, ReSTIR with the paper's defaults against the baseline.
+[[ -f target/bench/sky-sun.exr ]] || cargo run --release --quiet --example make_sky -- target/bench/sky-sun.exr
+if ((quick)); then
+    bench=(cloud-g08)
+    bench_size=("${size[@]}")
+else
+    bench=(cloud-g0 cloud-g08 sky-sun explosion-matched explosion-mismatched)
+    bench_size=() # the scenes' own 320x240
+fi
+for scene in "${bench[@]}"; do
+    for k in $bounces_list; do
+        nimbus study "assets/scenes/bench/$scene.toml" "${bench_size[@]}" "${ref[@]}" "${cache[@]}" \
+            --seeds "$seeds" --warmup 16 \
+            --vary "max_bounces=$k" --vary volume=baseline,restir --vary "frames=$frames_list" \
+            --baseline volume=baseline \
+            --out-dir "$out/study-bench-$scene-k$k"
+    done
+done
+
 # The box-medium paper's estimators at equal time (RM is the baseline of the ratios).
 for scene in box-sphere window; do
     nimbus study "assets/scenes/$scene.toml" "${size[@]}" "${ref[@]}" "${cache[@]}" \

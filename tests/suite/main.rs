@@ -11,6 +11,7 @@ mod common;
 
 mod alpha;
 mod baseline;
+mod bench_scenes;
 mod box_analytic;
 mod box_estimators;
 mod budget;

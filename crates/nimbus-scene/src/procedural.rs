@@ -26,6 +26,8 @@
 //!
 //! At 64³, 7–12 % of the voxels are non-zero depending on the seed (seed 0: 12.1 %).
 
+use glam::Vec3;
+
 use crate::volume::VoxelGrid;
 
 /// SplitMix64 finalizer: a well-mixed 64-bit hash step.
@@ -150,9 +152,110 @@ pub(crate) fn cloud_voxel(dims: [u32; 3], seed: u64, ijk: [u32; 3]) -> f32 {
     cloud_density(seed, p) as f32
 }
 
+/// A daylight sky for benchmarks, as `w` x `h` equirectangular texels (row-major, the
+/// mapping of [`crate::EnvMap`]: −Z the centre column, +Y the top row): a smooth
+/// horizon-to-zenith gradient over a dark ground, and a sun of angular `diameter`
+/// (radians) towards `sun` (need not be normalized) whose texels alone give an
+/// irradiance of `sun_irradiance` W/m² at normal incidence — the small, very bright
+/// source that decides an environment map's importance sampling.
+pub fn daylight_sky(
+    w: usize,
+    h: usize,
+    sun: Vec3,
+    diameter: f64,
+    sun_irradiance: f64,
+) -> Vec<[f32; 3]> {
+    let sun = sun.normalize_or(Vec3::Y);
+    let half = diameter / 2.0;
+    let sun_solid_angle = 2.0 * std::f64::consts::PI * (1.0 - half.cos());
+    let sun_radiance = (sun_irradiance / sun_solid_angle.max(1e-12)) as f32;
+    let sun_colour = Vec3::new(1.0, 0.92, 0.8);
+    let zenith = Vec3::new(0.12, 0.2, 0.3);
+    let horizon = Vec3::new(0.35, 0.4, 0.45);
+    let ground = Vec3::new(0.08, 0.07, 0.06);
+    let cos_half = half.cos() as f32;
+    let mut texels = Vec::with_capacity(w * h);
+    for y in 0..h {
+        for x in 0..w {
+            // The direction through the texel centre.
+            let d = crate::envmap::uv_to_direction(
+                (x as f64 + 0.5) / w as f64,
+                (y as f64 + 0.5) / h as f64,
+            )
+            .as_vec3();
+            let mut c = if d.y >= 0.0 {
+                let glow = 0.18 * d.dot(sun).max(0.0).powi(8);
+                horizon.lerp(zenith, d.y.powf(0.4)) + glow * sun_colour
+            } else {
+                ground
+            };
+            if d.dot(sun) >= cos_half {
+                c += sun_radiance * sun_colour;
+            }
+            texels.push(c.to_array());
+        }
+    }
+    texels
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Irradiance at normal incidence towards `n` from equirectangular `texels`.
+    fn irradiance(texels: &[[f32; 3]], w: usize, h: usize, n: Vec3) -> f64 {
+        let mut e = 0.0;
+        for y in 0..h {
+            let (t0, t1) = (
+                std::f64::consts::PI * y as f64 / h as f64,
+                std::f64::consts::PI * (y + 1) as f64 / h as f64,
+            );
+            let d_omega = 2.0 * std::f64::consts::PI / w as f64 * (t0.cos() - t1.cos());
+            for x in 0..w {
+                let d = crate::envmap::uv_to_direction(
+                    (x as f64 + 0.5) / w as f64,
+                    (y as f64 + 0.5) / h as f64,
+                )
+                .as_vec3();
+                let l = f64::from(texels[y * w + x][1]);
+                e += l * f64::from(d.dot(n).max(0.0)) * d_omega;
+            }
+        }
+        e
+    }
+
+    /// The sun's texels give the irradiance asked for (green channel: the sun colour's
+    /// is 0.92), within the map's discretization of a 1.5-degree disc, towards the sun's
+    /// direction, which the mapping places where EnvMap expects it; everything finite
+    /// and non-negative.
+    #[test]
+    fn daylight_sky_sun_gives_its_irradiance() {
+        let (w, h) = (1024, 512);
+        let sun = Vec3::new(0.3, 0.6, -0.5).normalize();
+        let diameter = 1.5f64.to_radians();
+        let with = daylight_sky(w, h, sun, diameter, 20.0);
+        let without = daylight_sky(w, h, sun, diameter, 0.0);
+        assert!(with.iter().flatten().all(|c| c.is_finite() && *c >= 0.0));
+        let e_sun = irradiance(&with, w, h, sun) - irradiance(&without, w, h, sun);
+        assert!(
+            (e_sun / (20.0 * 0.92) - 1.0).abs() < 0.15,
+            "sun irradiance {e_sun}"
+        );
+        // Looking away from the sun, its texels add nothing.
+        let away = irradiance(&with, w, h, -sun) - irradiance(&without, w, h, -sun);
+        assert!(away.abs() < 1e-9, "{away}");
+        // The brightest texel is where EnvMap's mapping puts the sun.
+        let brightest = (0..w * h)
+            .max_by(|&a, &b| with[a][1].total_cmp(&with[b][1]))
+            .unwrap_or(0);
+        let (u, v) = crate::envmap::direction_to_uv(sun.as_dvec3());
+        let (x, y) = ((u * w as f64) as usize, (v * h as f64) as usize);
+        assert!(
+            (brightest % w).abs_diff(x) <= 3 && (brightest / w).abs_diff(y) <= 3,
+            "brightest texel {} vs the sun's ({x}, {y})",
+            brightest
+        );
+    }
 
     #[test]
     fn helpers_hit_their_endpoints() {
