@@ -32,6 +32,26 @@ CameraRay candidate_ray(uint i, uint code) {
     return camera_ray(cand_pixel[i], code, cand_set[i]);
 }
 
+// Streams reservoir ri's sample into s with resampling weight w. The sample keeps its
+// light vertex; its target becomes p_here, the target at this pixel and frame. True if
+// it was taken.
+bool combine_stream(inout Reservoir s, Reservoir ri, float p_here, float w, inout uint rng) {
+    Reservoir c = ri;
+    c.p_hat = p_here;
+    c.info = ri.info | INFO_REUSE_TARGET;
+    return res_update(s, c, w, rng);
+}
+
+// Ends a combination of M = total: a reservoir that took no sample is empty.
+void combine_finish(inout Reservoir s, float total, bool taken) {
+    s.M = total;
+    if (!taken) {
+        s.w_sum = 0.0;
+        s.p_hat = 0.0;
+        s.info = 0u;
+    }
+}
+
 // Streams candidates 0..n-1 into one reservoir for the pixel of candidate 0. Each
 // candidate i's sample lambda_i gets the Talbot weight
 //   m_i = M_i p_i(lambda_i) / sum_s M_s p_s(lambda_i)
@@ -90,20 +110,11 @@ uint combine_candidates_talbot(uint n, inout uint rng, out Reservoir s) {
         float m = p_own * k / p_sum;
         // Domain: p_hat_i > 0 (checked above).
         float w = p_here / ri.p_hat * ri.w_sum * m;
-        // The sample keeps its light vertex; its target is now p_0, the target here.
-        Reservoir c = ri;
-        c.p_hat = p_here;
-        c.info = ri.info | INFO_REUSE_TARGET;
-        if (res_update(s, c, w, rng)) {
+        if (combine_stream(s, ri, p_here, w, rng)) {
             chosen = i;
         }
     }
-    s.M = k;
-    if (chosen == n) {
-        s.w_sum = 0.0;
-        s.p_hat = 0.0;
-        s.info = 0u;
-    }
+    combine_finish(s, k, chosen != n);
     return chosen;
 }
 
@@ -175,19 +186,11 @@ uint combine_candidates_pairwise(uint n, inout uint rng, out Reservoir s) {
         // w_i = m_i p_0(y_i) W_i, W_i = w_sum_i / (M_i p_hat_i), stored scaled by the
         // total M (Algorithm 2). Domain: p_hat_i > 0 and M_i > 0 (checked above).
         float w = p_here / ri.p_hat * ri.w_sum * (m * total / ri.M);
-        Reservoir cr = ri;
-        cr.p_hat = p_here;
-        cr.info = ri.info | INFO_REUSE_TARGET;
-        if (res_update(s, cr, w, rng)) {
+        if (combine_stream(s, ri, p_here, w, rng)) {
             chosen = i;
         }
     }
-    s.M = total;
-    if (chosen == n) {
-        s.w_sum = 0.0;
-        s.p_hat = 0.0;
-        s.info = 0u;
-    }
+    combine_finish(s, total, chosen != n);
     return chosen;
 }
 
