@@ -2,7 +2,9 @@
 //! with the independent CPU delta-tracking oracle, and a golden image. Validation
 //! layers are on.
 
-use crate::common::gpu::{context, render_checked, scene, se_of_mean};
+use crate::common::gpu::{
+    assert_means_agree, channels_beyond, context, render_checked, scene, se_of_mean,
+};
 use crate::common::{compare_with_golden, SAME_DEVICE};
 
 /// A procedural cloud; `{albedo}`, `{g}`, `{bounces}`, `{scale}`, `{lights}` and the
@@ -73,33 +75,10 @@ fn check_against_oracle(
     .expect("cpu oracle");
     let cpu = ImageRgb::from_rgb_f64(w, h, &cpu_mean).unwrap();
     let cpu_se = ImageRgb::from_rgb_f64(w, h, &cpu_se).unwrap();
-    let se = (se_of_mean(&gpu.std_error).powi(2) + se_of_mean(&cpu_se).powi(2)).sqrt();
-    let (gm, cm) = (gpu.image.mean(), cpu.mean());
-    println!("{label}: gpu {gm:?} cpu {cm:?} (SE {se:.2e})");
-    for c in 0..3 {
-        assert!(
-            (gm[c] - cm[c]).abs() <= 0.01 * cm[c] + 4.0 * se,
-            "{label} channel {c}: gpu {} vs cpu {}",
-            gm[c],
-            cm[c]
-        );
-    }
-    let mut beyond = 0;
-    for ((a, b), (sa, sb)) in gpu
-        .image
-        .data
-        .iter()
-        .zip(&cpu.data)
-        .zip(gpu.std_error.data.iter().zip(&cpu_se.data))
-    {
-        for c in 0..3 {
-            let s = (f64::from(sa[c]).powi(2) + f64::from(sb[c]).powi(2)).sqrt();
-            if f64::from((a[c] - b[c]).abs()) > 4.5 * s + 1e-6 {
-                beyond += 1;
-            }
-        }
-    }
-    let channels = 3 * gpu.image.data.len();
+    let (gpu, cpu) = ((&gpu.image, &gpu.std_error), (&cpu, &cpu_se));
+    assert_means_agree(&format!("{label}: gpu vs cpu"), gpu, cpu, 4.0, 0.01);
+    let beyond = channels_beyond(gpu, cpu, 4.5);
+    let channels = 3 * gpu.0.data.len();
     println!("  {beyond} of {channels} channels beyond 4.5 SE");
     assert!(
         beyond * 50 <= channels,

@@ -3,7 +3,9 @@
 //! references, multiple scattering against the CPU Monte Carlo reference, and golden
 //! images at low sample counts. Validation layers are on.
 
-use crate::common::gpu::{context, render_checked, scene, se_of_mean};
+use crate::common::gpu::{
+    assert_means_agree, channels_beyond, context, render_checked, scene, se_of_mean,
+};
 use crate::common::{compare_with_golden, SAME_DEVICE};
 use nimbus::output::ImageRgb;
 use nimbus::DEFAULT_SCENE;
@@ -207,37 +209,11 @@ albedo = 0.6
         for estimator in [BoxEstimator::Mcwvds, BoxEstimator::Rm, BoxEstimator::Reds] {
             scene.integrator.box_estimator = estimator;
             let gpu = render_checked(&ctx, &scene, Some(8));
-            let se = (se_of_mean(&gpu.std_error).powi(2) + se_of_mean(&cpu_se).powi(2)).sqrt();
-            let (g, c) = (gpu.image.mean(), cpu.mean());
-            println!(
-                "K={k} {}: gpu {g:?} cpu {c:?} (SE {se:.2e})",
-                estimator.name()
-            );
-            for ch in 0..3 {
-                assert!(
-                    (g[ch] - c[ch]).abs() <= 4.0 * se + 0.01 * c[ch],
-                    "K={k} {} channel {ch}: gpu {} vs cpu {}",
-                    estimator.name(),
-                    g[ch],
-                    c[ch]
-                );
-            }
+            let what = format!("K={k} {}: gpu vs cpu", estimator.name());
+            let (gpu, cpu) = ((&gpu.image, &gpu.std_error), (&cpu, &cpu_se));
+            assert_means_agree(&what, gpu, cpu, 4.0, 0.01);
             // Per pixel: at most 2% of channels beyond 4.5 combined standard errors.
-            let mut beyond = 0;
-            for ((a, b), (sa, sb)) in gpu
-                .image
-                .data
-                .iter()
-                .zip(&cpu.data)
-                .zip(gpu.std_error.data.iter().zip(&cpu_se.data))
-            {
-                for ch in 0..3 {
-                    let s = (f64::from(sa[ch]).powi(2) + f64::from(sb[ch]).powi(2)).sqrt();
-                    if f64::from((a[ch] - b[ch]).abs()) > 4.5 * s + 1e-6 {
-                        beyond += 1;
-                    }
-                }
-            }
+            let beyond = channels_beyond(gpu, cpu, 4.5);
             assert!(
                 beyond * 50 <= 3 * 144,
                 "K={k} {}: {beyond} channels beyond 4.5 SE",

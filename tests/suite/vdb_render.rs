@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 use glam::{DMat4, DVec3, IVec3};
 
 use crate::common::cli::scratch;
-use crate::common::gpu::{context, render_checked, scene, se_of_mean};
+use crate::common::gpu::{assert_means_agree, channels_beyond, context, render_checked, scene};
 
 fn asset(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -164,39 +164,16 @@ fn vdb_renders_as_its_raw_float32_twin() {
     for volume in ["baseline", "restir"] {
         let a = render_checked(&ctx, &scene(&scene_text(&vdb, volume), "vdb.toml"), None);
         let b = render_checked(&ctx, &scene(&scene_text(&raw, volume), "raw.toml"), None);
-        let se = (se_of_mean(&a.std_error).powi(2) + se_of_mean(&b.std_error).powi(2)).sqrt();
-        let (ma, mb) = (a.image.mean(), b.image.mean());
-        println!("{volume}: vdb {ma:?} raw {mb:?} (SE {se:.2e})");
         // The ball fills the middle of the frame: it differs from the sky (0.2) there.
         let centre = a.image.data[15 * 40 + 20];
         assert!(
             (centre[0] - 0.2).abs() > 0.02,
             "{volume}: the ball is seen, {centre:?}"
         );
-        for c in 0..3 {
-            assert!(
-                (ma[c] - mb[c]).abs() <= 0.005 * mb[c] + 4.0 * se,
-                "{volume} channel {c}: vdb {} vs raw {}",
-                ma[c],
-                mb[c]
-            );
-        }
-        let mut beyond = 0;
-        for ((pa, pb), (sa, sb)) in a
-            .image
-            .data
-            .iter()
-            .zip(&b.image.data)
-            .zip(a.std_error.data.iter().zip(&b.std_error.data))
-        {
-            for c in 0..3 {
-                let s = (f64::from(sa[c]).powi(2) + f64::from(sb[c]).powi(2)).sqrt();
-                if f64::from((pa[c] - pb[c]).abs()) > 4.5 * s + 1e-6 {
-                    beyond += 1;
-                }
-            }
-        }
-        let channels = 3 * a.image.data.len();
+        let (a, b) = ((&a.image, &a.std_error), (&b.image, &b.std_error));
+        assert_means_agree(&format!("{volume}: vdb vs raw"), a, b, 4.0, 0.005);
+        let beyond = channels_beyond(a, b, 4.5);
+        let channels = 3 * a.0.data.len();
         println!("  {beyond} of {channels} channels beyond 4.5 SE");
         assert!(
             beyond * 50 <= channels,

@@ -2,6 +2,7 @@
 
 use std::path::Path;
 
+use nimbus::output::ImageRgb;
 use nimbus::plan;
 use nimbus::renderer::{render, RenderOptions, RenderResult};
 use nimbus_gpu::{Context, ContextDesc};
@@ -40,7 +41,7 @@ pub fn render_checked(ctx: &Context, scene: &Scene, box_samples: Option<u32>) ->
 
 /// Standard error of an image's mean (largest channel) from per-pixel standard errors,
 /// pixels independent.
-pub fn se_of_mean(se: &nimbus::output::ImageRgb) -> f64 {
+pub fn se_of_mean(se: &ImageRgb) -> f64 {
     let n = se.data.len() as f64;
     (0..3)
         .map(|c| {
@@ -68,4 +69,44 @@ pub fn assert_no_validation_errors(ctx: &Context) {
 /// Embedded SPIR-V of a test shader as words.
 pub fn spirv(bytes: &[u8]) -> Vec<u32> {
     nimbus::passes::spirv_words(bytes).expect("embedded SPIR-V is whole words")
+}
+
+/// An image with its per-pixel standard errors (of the mean).
+pub type Estimate<'a> = (&'a ImageRgb, &'a ImageRgb);
+
+/// Asserts per channel that the image means of `a` and `b` agree within `k` combined
+/// standard errors of the mean ([`se_of_mean`] of each) plus `rel` of `b`'s mean, after
+/// printing both under `what`.
+pub fn assert_means_agree(what: &str, a: Estimate, b: Estimate, k: f64, rel: f64) {
+    let se = (se_of_mean(a.1).powi(2) + se_of_mean(b.1).powi(2)).sqrt();
+    let (ma, mb) = (a.0.mean(), b.0.mean());
+    println!("{what}: {ma:?} vs {mb:?} (SE {se:.2e})");
+    for c in 0..3 {
+        assert!(
+            (ma[c] - mb[c]).abs() <= k * se + rel * mb[c],
+            "{what} channel {c}: {} vs {} (combined SE {se:.2e})",
+            ma[c],
+            mb[c]
+        );
+    }
+}
+
+/// How many pixel channels of `a` and `b` differ by more than `z` combined per-pixel
+/// standard errors (+ 1e-6 for rounding).
+pub fn channels_beyond(a: Estimate, b: Estimate, z: f64) -> usize {
+    let mut beyond = 0;
+    for ((pa, pb), (sa, sb)) in
+        a.0.data
+            .iter()
+            .zip(&b.0.data)
+            .zip(a.1.data.iter().zip(&b.1.data))
+    {
+        for c in 0..3 {
+            let s = (f64::from(sa[c]).powi(2) + f64::from(sb[c]).powi(2)).sqrt();
+            if f64::from((pa[c] - pb[c]).abs()) > z * s + 1e-6 {
+                beyond += 1;
+            }
+        }
+    }
+    beyond
 }
