@@ -15,7 +15,6 @@
 use std::path::PathBuf;
 
 use anyhow::{bail, Context, Result};
-use glam::Vec3;
 
 fn main() -> Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -44,12 +43,7 @@ fn main() -> Result<()> {
     if !(1e-3..=0.5).contains(&diameter) {
         bail!("SUN_DIAMETER_DEG must be in (0.06, 28)");
     }
-    // Towards the sun: azimuth from −Z towards +X.
-    let sun = Vec3::new(
-        (elevation.cos() * azimuth.sin()) as f32,
-        elevation.sin() as f32,
-        (-elevation.cos() * azimuth.cos()) as f32,
-    );
+    let sun = nimbus_scene::sun_direction(elevation as f32, azimuth as f32);
     let texels = nimbus_scene::daylight_sky(w, h, sun, diameter, 20.0);
     if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;

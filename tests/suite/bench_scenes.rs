@@ -15,12 +15,7 @@ fn ensure_sky(root: &Path) {
     }
     std::fs::create_dir_all(path.parent().unwrap()).unwrap();
     let (w, h) = (1024, 512);
-    let (elevation, azimuth) = (25f32.to_radians(), 40f32.to_radians());
-    let sun = glam::Vec3::new(
-        elevation.cos() * azimuth.sin(),
-        elevation.sin(),
-        -elevation.cos() * azimuth.cos(),
-    );
+    let sun = nimbus_scene::sun_direction(25f32.to_radians(), 40f32.to_radians());
     let texels = nimbus_scene::daylight_sky(w, h, sun, 1.5f64.to_radians(), 20.0);
     let tmp = path.with_extension("tmp.exr");
     exr::prelude::write_rgb_file(&tmp, w, h, |x, y| {

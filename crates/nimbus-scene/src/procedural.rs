@@ -152,6 +152,16 @@ pub(crate) fn cloud_voxel(dims: [u32; 3], seed: u64, ijk: [u32; 3]) -> f32 {
     cloud_density(seed, p) as f32
 }
 
+/// The unit direction towards a sun at `elevation` above the horizon and `azimuth`
+/// from −Z towards +X (radians), in the environment map's frame (+Y up).
+pub fn sun_direction(elevation: f32, azimuth: f32) -> Vec3 {
+    Vec3::new(
+        elevation.cos() * azimuth.sin(),
+        elevation.sin(),
+        -elevation.cos() * azimuth.cos(),
+    )
+}
+
 /// A daylight sky for benchmarks, as `w` x `h` equirectangular texels (row-major, the
 /// mapping of [`crate::EnvMap`]: −Z the centre column, +Y the top row): a smooth
 /// horizon-to-zenith gradient over a dark ground, and a sun of angular `diameter`
