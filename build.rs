@@ -62,7 +62,7 @@ fn run() -> Result<(), String> {
                 "main",
                 Some(&options),
             )
-            .map_err(|e| format!("shader compilation failed:\n{e}"))?;
+            .map_err(|e| format!("shader compilation failed: {}:\n{e}", file.display()))?;
         if artifact.get_num_warnings() > 0 {
             for line in artifact.get_warning_messages().lines() {
                 println!("cargo:warning={line}");

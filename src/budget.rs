@@ -12,8 +12,12 @@ use std::fmt::Write as _;
 
 use anyhow::{bail, Result};
 use nimbus_gpu::DeviceInfo;
-use nimbus_scene::{Light, Medium, Scene};
+use nimbus_scene::bricks::procedural_cloud_super_voxel_may_be_nonzero;
+use nimbus_scene::{BrickTopology, GridMedium, GridSource, Light, Medium, Scene};
 
+use crate::gpu::sparse::{
+    atlas_bytes, atlas_dims, atlas_slots, layer_bytes, slot_bound, TexelFormat,
+};
 use crate::gpu::FrameUniforms;
 use crate::plan::RenderPlan;
 
@@ -41,6 +45,46 @@ pub struct Footprint {
     /// Peak bytes the host holds for the scene's data while the render is built (grids,
     /// their derived levels, environment maps and tables, staging copies).
     pub host_peak: u64,
+}
+
+/// What [`Footprint::add_grid`] found, for what a pass adds on top.
+pub struct GridFootprint<'s> {
+    pub medium: &'s GridMedium,
+    /// The medium's table, e.g. `scene.toml: [[medium]] #1 (type = "grid")`.
+    pub table: String,
+    /// The base density's bricks.
+    pub density: BrickTopology,
+    /// The bound of the density's slots.
+    pub density_slots: u64,
+}
+
+/// An upper bound of the atlas slots of a density of topology `topo` read from `source`:
+/// the bricks whose super-voxel may hold density. For the procedural cloud that is its
+/// formula's own bound per super-voxel (its topology is already a bound, and growing it
+/// by every neighbour would claim nearly the whole box); otherwise the stored bricks and
+/// their 26 neighbours.
+pub fn density_slot_bound(source: &GridSource, topo: &BrickTopology) -> u64 {
+    match source {
+        GridSource::ProceduralCloud { dims, .. } => {
+            let [bx, by, bz] = topo.brick_dims().map(|d| d as i32);
+            let mut n = 0u64;
+            for z in 0..bz {
+                for y in 0..by {
+                    for x in 0..bx {
+                        let b = glam::IVec3::new(x, y, z);
+                        n += u64::from(procedural_cloud_super_voxel_may_be_nonzero(*dims, b));
+                    }
+                }
+            }
+            n
+        }
+        _ => slot_bound(topo, true),
+    }
+}
+
+/// Bytes of the values of a grid's stored bricks.
+pub fn brick_bytes(topo: &BrickTopology) -> u64 {
+    topo.bricks.len() as u64 * 512 * 4 * u64::from(topo.channels.max(1))
 }
 
 /// Bytes of a `dims` grid of `bytes_per_voxel`.
@@ -141,13 +185,13 @@ impl Footprint {
         Ok(())
     }
 
-    /// The scene's grid medium as the grid integrators upload it: the density texture,
-    /// its super-voxels, emission and the host copies. Returns the medium, its table name
-    /// and its density dims for what a pass adds on top.
-    pub fn add_grid<'s>(
-        &mut self,
-        scene: &'s Scene,
-    ) -> Result<Option<(&'s nimbus_scene::GridMedium, String, [u32; 3])>> {
+    /// The scene's grid medium as the grid integrators upload it: the density's atlas,
+    /// its super-voxel records, the emission's atlas, the indirection sections, and the
+    /// host copies. Reads the grids' topology (which bricks they store: OpenVDB files up
+    /// to their tree's topology, dense files scanned slab by slab) but keeps no values.
+    /// Slots are bounded from above by the stored bricks' neighbourhoods. Returns what a
+    /// pass adds on top.
+    pub fn add_grid<'s>(&mut self, scene: &'s Scene) -> Result<Option<GridFootprint<'s>>> {
         let file = scene.source.display();
         let Some((index, g)) = scene.media.iter().enumerate().find_map(|(i, m)| match m {
             Medium::Grid(g) => Some((i, g)),
@@ -155,32 +199,63 @@ impl Footprint {
         }) else {
             return Ok(None);
         };
-        let table = format!("{file}: [[medium]] #{} (type = \"grid\")", index + 1);
-        let dims = g.density.dims()?;
-        let voxels = grid_bytes(dims, 1);
-        let sv = dims.map(|n| n.div_ceil(nimbus_scene::SUPER_VOXEL_FACTOR));
+        let kind = if g.vdb.is_some() { "vdb" } else { "grid" };
+        let table = format!("{file}: [[medium]] #{} (type = \"{kind}\")", index + 1);
+        let what = format!("{file}: [[medium]] #{} > density", index + 1);
+        let density = BrickTopology::of(&g.density, 1, &what)?;
+        let slots = density_slot_bound(&g.density, &density);
+        let r32 = TexelFormat::R32;
+        let atlas = atlas_bytes(slots, r32)?;
         self.add(
-            format!("{table} field `density`"),
-            Binding::Image3d(dims),
-            voxels * 4,
+            format!("{table} field `density` (atlas of {slots} bricks)"),
+            Binding::Image3d(atlas_dims(atlas_slots(slots)?)),
+            atlas,
         );
         self.add(
             format!("{table} field `density` (super-voxels)"),
             Binding::Storage,
-            grid_bytes(sv, 16),
+            slots.max(1) * 16,
         );
-        // The grid as read, plus its staging copy.
-        self.host_peak += 2 * voxels * 4;
+        let mut cells = density.cells();
+        // The bricks as read, the grid's own indirection and the layout's, the
+        // super-voxels (coordinates, bounds, records), one layer being uploaded and its
+        // staging copy.
+        self.host_peak += brick_bytes(&density)
+            + 2 * density.cells() * 4
+            + slots * (12 + 12 + 16)
+            + 2 * layer_bytes(slots, r32)?;
         if let Some(emission) = &g.emission {
-            let e = emission.dims()?;
+            let what = format!("{file}: [[medium]] #{} > emission", index + 1);
+            let e = BrickTopology::of(emission, 0, &what)?;
+            let slots = slot_bound(&e, false);
+            let format = if e.channels == 3 {
+                TexelFormat::Rgba32
+            } else {
+                r32
+            };
             self.add(
-                format!("{table} field `emission`"),
-                Binding::Image3d(e),
-                grid_bytes(e, 4),
+                format!("{table} field `emission` (atlas of {slots} bricks)"),
+                Binding::Image3d(atlas_dims(atlas_slots(slots)?)),
+                atlas_bytes(slots, format)?,
             );
-            self.host_peak += 2 * grid_bytes(e, 4);
+            cells += e.cells();
+            self.host_peak +=
+                brick_bytes(&e) + 2 * e.cells() * 4 + slots * 12 + 2 * layer_bytes(slots, format)?;
+        } else {
+            cells += 1;
         }
-        Ok(Some((g, table, dims)))
+        self.add(
+            format!("{table} (brick indirection)"),
+            Binding::Storage,
+            cells * 4,
+        );
+        self.host_peak += cells * 4;
+        Ok(Some(GridFootprint {
+            medium: g,
+            table,
+            density,
+            density_slots: slots,
+        }))
     }
 
     /// Total device bytes.

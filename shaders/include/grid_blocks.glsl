@@ -4,15 +4,17 @@
 // tracking [Novák et al. 2014] and decomposition tracking [Kutz et al. 2017].
 //
 // The includer declares what grid.glsl needs and, before including this file:
-//   layout(std430, ...) readonly buffer ... { vec4 super_voxels[]; };  // (min, max, avg, 0) of sigma_t
+//   layout(std430, ...) readonly buffer ... { vec4 super_voxels[]; };  // per density slot:
+//       (min, max, avg, 0) of sigma_t over the super-voxel of the slot's brick
 #ifndef NIMBUS_GRID_BLOCKS_GLSL
 #define NIMBUS_GRID_BLOCKS_GLSL
 
 #include "grid.glsl"
 
-// Block DDA: block (I, J, K) of edge f voxels covers index-space [I f, min((I+1) f, n)] per
-// axis (`count` = ceil(n / f) blocks per axis, the last one possibly narrower). Super-voxels
-// (f = super_voxel_factor, 8) and the coarse piecewise-constant levels of ReSTIR (f = 2^mip) use it.
+// Block DDA: block (I, J, K) of edge f voxels covers p-space [I f, (I+1) f] per axis
+// (`count` blocks per axis), clipped to the grid's box. Super-voxels (f = 8: block b is the
+// super-voxel of brick b) and the coarse piecewise-constant levels of ReSTIR (f = 2^mip)
+// use it.
 
 struct GridSuperDda {
     vec3 p0;        // index-space point at s = 0 (t = t_a)
@@ -46,9 +48,8 @@ bool grid_blocks_begin(vec3 o, vec3 d, float t0, float t1, int f, ivec3 count, o
         it.len = 0.0;
         return false;
     }
-    vec3 scale = grid_index_scale();
-    it.p0 = (o + it.t_a * d - u_grid.bounds_min) * scale;
-    it.dp = d * scale;
+    it.p0 = space_to_index(u_grid.space, o + it.t_a * d);
+    it.dp = space_index_dir(u_grid.space, d);
     for (int a = 0; a < 3; ++a) {
         // Domain: f >= 1.
         float fl = floor(it.p0[a] / float(it.f));
@@ -89,18 +90,54 @@ bool grid_blocks_next(inout GridSuperDda it, out float s0, out float s1, out uin
     return true;
 }
 
-// Super-voxel walk (f = super_voxel_factor) over [t0, t1]; false if empty.
-bool grid_super_begin(vec3 o, vec3 d, float t0, float t1, out GridSuperDda it) {
-    return grid_blocks_begin(o, d, t0, t1, int(u_grid.super_voxel_factor), ivec3(u_grid.super_dims), it);
+// Moves a block walk past the brick of 8^3 blocks holding its current block (a brick whose
+// values are all 0): to where the ray leaves the brick's blocks, recomputing each axis's
+// block there.
+void grid_blocks_skip_brick(inout GridSuperDda it) {
+    ivec3 first = (it.cell >> 3) * 8;
+    ivec3 last = min(first + 7, it.count - 1);
+    vec3 s_exit;
+    for (int a = 0; a < 3; ++a) {
+        int c = it.step_dir[a] > 0 ? last[a] : first[a];
+        s_exit[a] = grid_super_crossing(it.p0[a], it.dp[a], c, it.f, it.count[a], it.s);
+    }
+    int e = s_exit.x <= s_exit.y ? (s_exit.x <= s_exit.z ? 0 : 2) : (s_exit.y <= s_exit.z ? 1 : 2);
+    float s = s_exit[e];
+    if (!(s < it.len)) {
+        it.s = it.len;
+        return;
+    }
+    it.s = s;
+    for (int a = 0; a < 3; ++a) {
+        int c;
+        if (a == e) {
+            c = (it.step_dir[a] > 0 ? last[a] : first[a]) + it.step_dir[a];
+        } else {
+            // Still inside the brick along this axis. Domain: f >= 1.
+            c = clamp(int(floor((it.p0[a] + it.dp[a] * s) / float(it.f))), first[a], last[a]);
+        }
+        it.cell[a] = c;
+        it.s_next[a] = grid_super_crossing(it.p0[a], it.dp[a], c, it.f, it.count[a], s);
+    }
+    if (it.cell[e] < 0 || it.cell[e] > it.count[e] - 1) {
+        it.s = it.len;
+    }
 }
 
-// The current span and its super-voxel's (min, max, avg, 0) of sigma_t; advances.
+// Super-voxel walk (blocks of 8, one per brick) over [t0, t1]; false if empty.
+bool grid_super_begin(vec3 o, vec3 d, float t0, float t1, out GridSuperDda it) {
+    return grid_blocks_begin(o, d, t0, t1, 8, ivec3(u_grid.space.brick_dims), it);
+}
+
+// The current span and its super-voxel's (min, max, avg, 0) of sigma_t (0 where the
+// brick is empty); advances.
 bool grid_super_next(inout GridSuperDda it, out float s0, out float s1, out vec4 bounds) {
     uint index;
     if (!grid_blocks_next(it, s0, s1, index)) {
         return false;
     }
-    bounds = super_voxels[index];
+    uint slot = grid_bricks[u_grid.space.bricks_offset + index];
+    bounds = slot == NO_BRICK ? vec4(0.0) : super_voxels[slot];
     return true;
 }
 

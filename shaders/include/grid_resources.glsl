@@ -20,11 +20,18 @@ layout(std140, set = 0, binding = BINDING_BASELINE_UNIFORMS) uniform BaselineBlo
 layout(std430, set = 0, binding = BINDING_LIGHTS) readonly buffer LightsBlock {
     Light lights[];
 };
-// Full-resolution density (unscaled, R32, texelFetch).
+// The density's atlas: 9^3-texel slots of full-resolution density (unscaled, R32F,
+// texelFetch), and the emission grid's (R32F or RGBA32F).
 layout(set = 0, binding = BINDING_GRID_DENSITY) uniform sampler3D u_density;
 layout(set = 0, binding = BINDING_GRID_EMISSION) uniform sampler3D u_emission;
+// Per density slot: (min, max, avg, 0) of sigma_t over its super-voxel.
 layout(std430, set = 0, binding = BINDING_SUPER_VOXELS) readonly buffer SuperVoxelBlock {
     vec4 super_voxels[];
+};
+// The indirection sections of every sparse grid the pass reads (GridSpace.bricks_offset
+// and GridLevel.bricks_offset say where each starts): a brick's slot or NO_BRICK.
+layout(std430, set = 0, binding = BINDING_GRID_BRICKS) readonly buffer GridBrickBlock {
+    uint grid_bricks[];
 };
 layout(std430, set = 0, binding = BINDING_ENV_TEXELS) readonly buffer EnvTexelBlock {
     vec4 env_texels[];

@@ -64,17 +64,21 @@ CameraRay camera_ray(uvec2 pixel, uint code, uint set) {
 // Media lookups for a frame's set.
 
 float sigma_t_of(uint set, vec3 x) {
-    return set == SET_CURRENT ? grid_sigma_t_in(u_density, x) : grid_sigma_t_in(u_density_prev, x);
+    return set == SET_CURRENT ? grid_sigma_t_in(u_density, x)
+                              : grid_sigma_t_at(u_density_prev, u_restir.density_prev_offset, x);
 }
 
 // The largest optical depth a ray-marched T~ reports (T~ >= e^-64, a normal float).
 #define MARCH_MAX_TAU 64.0
 
-// T~ along o + t d, t in [t0, t1]: midpoint ray marching of the mip texture `tex` (dims
-// `dims`, blocks of `factor` voxels) with steps of at most `step` metres. Deterministic, so
-// a target function is a function of the path (needed by the MIS weights).
-float march_transmittance(sampler3D tex, uvec3 dims, uint factor, float step, vec3 o, vec3 d, float t0,
-                          float t1) {
+// T~ along o + t d, t in [t0, t1]: midpoint ray marching of the mip level L (its atlas
+// `tex`, indirection section at `offset`) with steps of at most `step` metres, the texture
+// filtered linearly inside a slot (the apron holds the upper neighbours). Samples in an
+// empty brick read 0, so the march jumps over such bricks to the first sample past them
+// (the same sum). Deterministic, so a target function is a function of the path (needed by
+// the MIS weights).
+float march_transmittance(sampler3D tex, GridLevel L, uint offset, float step, vec3 o, vec3 d,
+                          float t0, float t1) {
     vec2 span = grid_span(o, d);
     float a = max(t0, span.x);
     float b = min(t1, span.y);
@@ -84,13 +88,39 @@ float march_transmittance(sampler3D tex, uvec3 dims, uint factor, float step, ve
     // Domain: step > 0 (a voxel diagonal).
     int n = int(clamp(ceil((b - a) / step), 1.0, float(MARCH_MAX_STEPS)));
     float dt = (b - a) / float(n);
-    // Texture coordinates: index space over the blocks' extent (dims * factor voxels).
-    vec3 to_uvw = grid_index_scale() / (vec3(dims) * float(factor));
-    vec3 uvw0 = (o + a * d - u_grid.bounds_min) * to_uvw;
-    vec3 duvw = d * to_uvw;
+    // The level's lattice coordinate u = p / factor - 0.5 along the ray. Domain: factor >= 1.
+    float inv_f = 1.0 / float(L.factor);
+    vec3 u0 = space_to_index(u_grid.space, o + a * d) * inv_f - 0.5;
+    vec3 du = space_index_dir(u_grid.space, d) * inv_f;
+    vec3 lo = vec3(L.lattice_min);
+    vec3 hi = vec3(L.lattice_max);
+    // Domain: the atlas has at least one slot.
+    vec3 inv_size = 1.0 / vec3(textureSize(tex, 0));
     float sum = 0.0;
     for (int j = 0; j < n; ++j) {
-        sum += textureLod(tex, uvw0 + duvw * ((float(j) + 0.5) * dt), 0.0).r;
+        float t = (float(j) + 0.5) * dt;
+        vec3 u = clamp(u0 + du * t, lo, hi);
+        ivec3 brick = ivec3(floor(u)) >> 3;
+        uint slot = grid_slot(offset, L.brick_dims, brick);
+        if (slot == NO_BRICK) {
+            // Jump to the last sample before the ray leaves the brick (clamped samples
+            // stay in it: no exit on that side).
+            float t_exit = FAR;
+            for (int k = 0; k < 3; ++k) {
+                float edge = du[k] > 0.0 ? float(brick[k] * 8 + 8) : float(brick[k] * 8);
+                bool exits = du[k] > 0.0 ? edge <= hi[k] : edge > lo[k];
+                if (abs(du[k]) > GRID_PARALLEL_EPS && exits) {
+                    // Domain: |du| > 0.
+                    t_exit = min(t_exit, (edge - u0[k]) / du[k]);
+                }
+            }
+            // Domain: dt > 0. floor keeps the jump from passing a sample in the next brick.
+            float next = floor(min(t_exit / dt - 0.5, float(n)));
+            j = max(j, int(next) - 1);
+            continue;
+        }
+        vec3 texel = vec3(grid_slot_origin(slot, L.slots_x, L.slots_y)) + (u - vec3(brick * 8)) + 0.5;
+        sum += textureLod(tex, texel * inv_size, 0.0).r;
     }
     // Domain: density_scale * sum * dt >= 0. Capped at MARCH_MAX_TAU so T~ (and with it
     // every target function) stays > 0 wherever the path contributes: RIS is unbiased
@@ -100,18 +130,18 @@ float march_transmittance(sampler3D tex, uvec3 dims, uint factor, float step, ve
 
 // T~ for target functions of reuse (mip_reuse) in a frame's set.
 float reuse_transmittance(uint set, vec3 o, vec3 d, float t1) {
-    uvec3 dims = u_restir.march_reuse_dims;
-    uint factor = u_restir.march_reuse_factor;
     float step = u_restir.march_reuse_step;
     if (set == SET_CURRENT) {
-        return march_transmittance(u_march_reuse, dims, factor, step, o, d, 0.0, t1);
+        return march_transmittance(u_march_reuse, u_restir.march_reuse, u_restir.march_reuse.bricks_offset,
+                                   step, o, d, 0.0, t1);
     }
-    return march_transmittance(u_march_reuse_prev, dims, factor, step, o, d, 0.0, t1);
+    return march_transmittance(u_march_reuse_prev, u_restir.march_reuse, u_restir.march_reuse_prev_offset,
+                               step, o, d, 0.0, t1);
 }
 
 // T~ of NEE segments of initial candidates (mip_indirect).
 float nee_transmittance(vec3 o, vec3 d, float t1) {
-    return march_transmittance(u_march_nee, u_restir.march_nee_dims, u_restir.march_nee_factor,
+    return march_transmittance(u_march_nee, u_restir.march_nee, u_restir.march_nee.bricks_offset,
                                u_restir.march_nee_step, o, d, 0.0, t1);
 }
 
@@ -138,24 +168,37 @@ float final_transmittance(vec3 o, vec3 d, float t1, inout uint rng) {
 // Walks [0, t_end) from o along d through level `level` until the optical depth reaches
 // tau_target. Returns the collision distance (FAR if the ray leaves first), sigma_t* there
 // and tau = the optical depth walked (tau_target at a collision, the total otherwise).
+// Blocks are the level's voxels (2^mip density voxels per edge); empty bricks of the level
+// (sigma_t* = 0 throughout) are crossed in one step.
 float pc_track(uint level, vec3 o, vec3 d, float t_end, float tau_target, out float sigma_star, out float tau) {
-    bool primary = level == LEVEL_PRIMARY;
-    uvec3 dims = primary ? u_restir.pc_primary_dims : u_restir.pc_indirect_dims;
-    uint offset = primary ? u_restir.pc_primary_offset : u_restir.pc_indirect_offset;
-    int f = int(primary ? u_restir.pc_primary_factor : u_restir.pc_indirect_factor);
+    // An if, not ?: — glslang's ?: on two std140 block members stores a value of the
+    // block's struct type into the local one, which the SPIR-V optimiser rejects.
+    GridLevel L;
+    if (level == LEVEL_PRIMARY) {
+        L = u_restir.pc_primary;
+    } else {
+        L = u_restir.pc_indirect;
+    }
     sigma_star = 0.0;
     tau = 0.0;
     GridSuperDda it;
-    if (!grid_blocks_begin(o, d, 0.0, t_end, f, ivec3(dims), it)) {
+    if (!grid_blocks_begin(o, d, 0.0, t_end, int(L.factor), L.lattice_max + 1, it)) {
         return FAR;
     }
     float s0;
     float s1;
     uint index;
     int steps = 0;
-    while (grid_blocks_next(it, s0, s1, index) && steps < GRID_MAX_STEPS) {
+    while (it.s < it.len && steps < GRID_MAX_STEPS) {
         ++steps;
-        float sigma = pc_grid[offset + index];
+        ivec3 cell = it.cell;
+        uint slot = grid_slot(L.bricks_offset, L.brick_dims, cell >> 3);
+        if (slot == NO_BRICK) {
+            grid_blocks_skip_brick(it);
+            continue;
+        }
+        grid_blocks_next(it, s0, s1, index);
+        float sigma = texelFetch(u_pc, grid_slot_origin(slot, L.slots_x, L.slots_y) + (cell & 7), 0).r;
         float dtau = sigma * (s1 - s0);
         if (sigma > 0.0 && tau + dtau >= tau_target) {
             sigma_star = sigma;

@@ -29,19 +29,32 @@ layout(constant_id = SC_ID_HAS_VELOCITY) const bool SC_HAS_VELOCITY = false;
 // Spatial reuse weights by pairwise MIS instead of Talbot's.
 layout(constant_id = SC_ID_MIS_PAIRWISE) const bool SC_MIS_PAIRWISE = false;
 
-// Settings of the ReSTIR passes (std140). Mirrored by RestirUniformsGpu. 128 bytes.
+// A derived level of the density (a piecewise-constant level or a ray-march mip) as a
+// sparse grid: its lattice (level voxels, `factor` density voxels per edge, lattice point j
+// at p = (j + 0.5) factor of the density's p-space), its indirection section and atlas
+// slots. Mirrored by GridLevelGpu. 64 bytes.
+struct GridLevel {
+    ivec3 lattice_min;    // lattice clamp range (inclusive)
+    uint bricks_offset;   // first indirection entry in grid_bricks[]
+    ivec3 lattice_max;
+    uint factor;          // density voxels per level voxel edge (2^level)
+    uvec3 brick_dims;     // bricks per axis of the indirection section
+    uint slots_x;         // atlas slots per axis (x, y)
+    uint slots_y;
+    uint _pad0;
+    uint _pad1;
+    uint _pad2;
+};
+
+// Settings of the ReSTIR passes (std140). Mirrored by RestirUniformsGpu. 320 bytes.
 struct RestirUniforms {
-    uvec3 pc_primary_dims;    // dims of the piecewise-constant level for camera rays
-    uint pc_primary_offset;   // its first value in pc_grid[]
-    uvec3 pc_indirect_dims;   // dims of the level for scattered rays
-    uint pc_indirect_offset;  // its first value in pc_grid[]
-    uint pc_primary_factor;   // voxels per block edge of the primary level
-    uint pc_indirect_factor;  // ... of the indirect level
-    uint march_reuse_factor;  // ... of the reuse march texture (mip_reuse)
-    uint march_nee_factor;    // ... of the NEE march texture (mip_indirect)
-    uvec3 march_reuse_dims;   // dims of the reuse march texture
+    GridLevel pc_primary;       // piecewise-constant level for camera rays (u_pc)
+    GridLevel pc_indirect;      // ... for scattered rays (u_pc)
+    GridLevel march_reuse;      // ray-march mip of reuse targets (u_march_reuse)
+    GridLevel march_nee;        // ray-march mip of NEE of initial candidates (u_march_nee)
+    uint march_reuse_prev_offset;  // the previous frame's reuse mip: its indirection section
+    uint density_prev_offset;   // the previous frame's density: its indirection section
     uint candidates_per_dispatch; // candidates one initial dispatch draws (its aux: the first)
-    uvec3 march_nee_dims;     // dims of the NEE march texture
     uint _pad1;
     uint candidates;          // M: random walks per pixel
     uint temporal_limit;      // Q: cap of the temporal M, in multiples of M
@@ -74,18 +87,19 @@ layout(push_constant) uniform PushBlock {
 layout(std140, set = 0, binding = BINDING_RESTIR_UNIFORMS) uniform RestirBlock {
     RestirUniforms u_restir;
 };
-// The previous frame's full-resolution density (the current one is grid_resources.glsl's).
+// The previous frame's full-resolution density atlas (the current one is
+// grid_resources.glsl's; the same image when the density does not change).
 layout(set = 0, binding = BINDING_GRID_DENSITY_PREV) uniform sampler3D u_density_prev;
-// Mip textures for ray marching (unscaled density, R16F, linear filtering).
+// Atlases of the mips for ray marching (unscaled density, R16F or R32F, linear filtering
+// inside a slot: the apron holds the neighbours).
 layout(set = 0, binding = BINDING_MARCH_REUSE) uniform sampler3D u_march_reuse;
 layout(set = 0, binding = BINDING_MARCH_REUSE_PREV) uniform sampler3D u_march_reuse_prev;
 layout(set = 0, binding = BINDING_MARCH_NEE) uniform sampler3D u_march_nee;
-// Velocity in metres per frame (RGBA16F, linear filtering).
+// Velocity in metres per frame over the medium's world box (dense RGBA16F, linear filtering).
 layout(set = 0, binding = BINDING_VELOCITY) uniform sampler3D u_velocity;
-// Conservative piecewise-constant sigma_t* (scaled) of the two tracking levels.
-layout(std430, set = 0, binding = BINDING_PC_GRID) readonly buffer PcGridBlock {
-    float pc_grid[];
-};
+// Atlas of the conservative piecewise-constant sigma_t* (scaled, R32F, texelFetch) of both
+// tracking levels.
+layout(set = 0, binding = BINDING_PC_GRID) uniform sampler3D u_pc;
 layout(std430, set = 0, binding = BINDING_RESERVOIRS) buffer ReservoirBlock {
     uint reservoirs[];
 };

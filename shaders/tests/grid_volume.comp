@@ -12,12 +12,17 @@
 
 layout(local_size_x = 64) in;
 
+// The density's atlas of 9^3-texel slots and, per slot, its super-voxel's (min, max,
+// avg, 0) of sigma_t; the indirection (brick -> slot) at binding 4.
 layout(set = 0, binding = 0) uniform sampler3D u_density;
 layout(std430, set = 0, binding = 1) readonly buffer SuperVoxelBlock {
     vec4 super_voxels[];
 };
+layout(std430, set = 0, binding = 4) readonly buffer GridBrickBlock {
+    uint grid_bricks[];
+};
 
-// A query. 48 bytes, mirrored in tests/grid_volume.rs.
+// A query. 48 bytes, mirrored in tests/suite/grid_volume.rs.
 struct Query {
     vec4 o_t0;     // xyz origin, w t0
     vec4 d_t1;     // xyz unit direction, w t1
@@ -38,13 +43,16 @@ struct Result {
 };
 
 layout(push_constant) uniform PushBlock {
-    GridParams grid;
     uint query_count;
     uint pad0;
     uint pad1;
     uint pad2;
 } u_push;
-#define u_grid u_push.grid
+// The medium (192 bytes: more than the 128 bytes of push constants Vulkan guarantees).
+layout(std430, set = 0, binding = 5) readonly buffer GridBlock {
+    GridParams u_grid_params;
+};
+#define u_grid u_grid_params
 
 layout(std430, set = 0, binding = 2) readonly buffer QueryBlock {
     Query queries[];

@@ -10,6 +10,7 @@ pub mod bindings;
 pub mod features;
 pub mod records;
 pub mod scene;
+pub mod sparse;
 
 pub use records::*;
 pub use scene::{

@@ -127,22 +127,53 @@ pub struct PassPush {
     pub _pad1: u32,
 }
 
+/// `GridSpace` in grid_types.glsl: where a sparse grid's p-space sits in the world and
+/// where its bricks are (see `shaders/include/grid.glsl`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+pub struct GridSpaceGpu {
+    /// Rows of the world → p-space affine map (general path).
+    pub world_to_index_x: [f32; 4],
+    pub world_to_index_y: [f32; 4],
+    pub world_to_index_z: [f32; 4],
+    /// Axis-aligned path: the world box the p-space box maps to.
+    pub box_min: [f32; 3],
+    /// 1 for the axis-aligned path.
+    pub axis_aligned: u32,
+    pub box_max: [f32; 3],
+    /// First indirection entry of the grid in `grid_bricks[]`.
+    pub bricks_offset: u32,
+    /// The p-space box the grid fills.
+    pub index_min: [f32; 3],
+    /// Atlas slots along x.
+    pub slots_x: u32,
+    pub index_max: [f32; 3],
+    /// Atlas slots along y.
+    pub slots_y: u32,
+    /// Lattice clamp range (inclusive).
+    pub lattice_min: [i32; 3],
+    /// Values per lattice point.
+    pub channels: u32,
+    pub lattice_max: [i32; 3],
+    pub _pad0: u32,
+    /// Bricks per axis of the indirection section.
+    pub brick_dims: [u32; 3],
+    pub _pad1: u32,
+}
+
 /// `GridParams` in grid_types.glsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
 pub struct GridParamsGpu {
+    /// World bounding box of the medium's extent.
     pub bounds_min: [f32; 3],
     /// sigma_t = density_scale · density.
     pub density_scale: f32,
     pub bounds_max: [f32; 3],
     /// Global max of sigma_t: the majorant of ratio / delta tracking.
     pub sigma_t_max: f32,
-    pub dims: [u32; 3],
-    /// Voxels per super-voxel edge.
-    pub super_voxel_factor: u32,
-    /// Super-voxel grid dims, ceil(dims / factor).
-    pub super_dims: [u32; 3],
-    pub _pad0: u32,
+    /// The density grid.
+    pub space: GridSpaceGpu,
 }
 
 /// `BaselineUniforms` in grid_types.glsl (std140).
@@ -162,34 +193,51 @@ pub struct BaselineUniformsGpu {
     /// Le = emission_scale · trilinear emission grid.
     pub emission_scale: [f32; 3],
     pub _pad3: f32,
-    /// Emission grid dims (its own resolution; 1 × 1 × 1 without one).
-    pub emission_dims: [u32; 3],
-    pub _pad4: u32,
+    /// The emission grid (its own index space and bricks; an empty grid without one).
+    pub emission: GridSpaceGpu,
     /// Environment map width and height (1 × 1 without a map).
     pub env_size: [u32; 2],
     pub _pad5: [u32; 2],
+}
+
+/// `GridLevel` in restir/resources.glsl: a derived level of the density as a sparse grid.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+pub struct GridLevelGpu {
+    /// Lattice clamp range (inclusive).
+    pub lattice_min: [i32; 3],
+    /// First indirection entry in `grid_bricks[]`.
+    pub bricks_offset: u32,
+    pub lattice_max: [i32; 3],
+    /// Density voxels per level voxel edge (2^level).
+    pub factor: u32,
+    /// Bricks per axis of the indirection section.
+    pub brick_dims: [u32; 3],
+    /// Atlas slots along x.
+    pub slots_x: u32,
+    /// Atlas slots along y.
+    pub slots_y: u32,
+    pub _pad0: u32,
+    pub _pad1: u32,
+    pub _pad2: u32,
 }
 
 /// `RestirUniforms` in restir/resources.glsl (std140).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
 pub struct RestirUniformsGpu {
-    /// Dims of the piecewise-constant level for camera rays, and its first value.
-    pub pc_primary_dims: [u32; 3],
-    pub pc_primary_offset: u32,
-    /// Dims of the level for scattered rays, and its first value.
-    pub pc_indirect_dims: [u32; 3],
-    pub pc_indirect_offset: u32,
-    /// Voxels per block edge of the two levels and the two march textures.
-    pub pc_primary_factor: u32,
-    pub pc_indirect_factor: u32,
-    pub march_reuse_factor: u32,
-    pub march_nee_factor: u32,
-    pub march_reuse_dims: [u32; 3],
+    /// The piecewise-constant levels of camera and scattered rays.
+    pub pc_primary: GridLevelGpu,
+    pub pc_indirect: GridLevelGpu,
+    /// The ray-march mips of reuse targets and of NEE.
+    pub march_reuse: GridLevelGpu,
+    pub march_nee: GridLevelGpu,
+    /// Indirection sections of the previous frame's reuse mip and density.
+    pub march_reuse_prev_offset: u32,
+    pub density_prev_offset: u32,
     /// Candidates one dispatch of the initial pass draws (M unless the device limits the
     /// loop iterations of an invocation).
     pub candidates_per_dispatch: u32,
-    pub march_nee_dims: [u32; 3],
     pub _pad1: u32,
     /// M.
     pub candidates: u32,

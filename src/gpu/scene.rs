@@ -6,8 +6,9 @@ use anyhow::{bail, Result};
 use bytemuck::{Pod, Zeroable};
 
 use super::records::*;
-use glam::{Mat3, Vec3};
-use nimbus_scene::{rotation_xyz_deg, CameraFrame, Gobo, Light, Medium, Scene, Shape};
+use super::sparse::{grid_space, Indirection, SparseLayout, TexelFormat};
+use glam::{DMat4, Mat3, Vec3};
+use nimbus_scene::{rotation_xyz_deg, BrickGrid, CameraFrame, Gobo, Light, Medium, Scene, Shape};
 
 /// Every record of a scene the box pass reads. Storage buffers cannot be empty, so an
 /// empty list still uploads one zeroed record; the counts say how many are real.
@@ -291,13 +292,23 @@ pub fn non_empty<T: Pod + Zeroable>(records: &[T]) -> Vec<T> {
     }
 }
 
-/// A grid medium ready for upload: the density texels (unscaled), the super-voxel
-/// bounds of sigma_t, and the uniforms.
+/// A grid medium ready for upload: the density in bricks (unscaled) with the slots its
+/// atlas gets and their super-voxel records, the emission grid, and the uniforms.
 pub struct GpuGrid {
-    pub density: nimbus_scene::VoxelGrid,
-    /// The emission grid (unscaled), if the medium emits.
-    pub emission: Option<nimbus_scene::VoxelGrid>,
+    pub density: BrickGrid,
+    /// The density's slots: every brick whose super-voxel holds density, in the order of
+    /// `super_voxels`.
+    pub density_layout: SparseLayout,
+    /// Per density slot: (min, max, avg, 0) of sigma_t over its super-voxel.
     pub super_voxels: Vec<[f32; 4]>,
+    /// The emission grid (unscaled), its slots and atlas format, if the medium emits.
+    pub emission: Option<(BrickGrid, SparseLayout, TexelFormat)>,
+    /// The density's p-space → world map.
+    pub p_to_world: DMat4,
+    /// The world box of an axis-aligned (`type = "grid"`) medium.
+    pub world_box: Option<(Vec3, Vec3)>,
+    /// The uniforms; the density's indirection section is first (offset 0), the
+    /// emission's second (see [`GpuGrid::indirection`]).
     pub uniforms: BaselineUniformsGpu,
     /// Analytic lights (directional, point, sphere), each with its selection CDF, and
     /// the constant environment radiance.
@@ -410,13 +421,27 @@ impl LightSet {
     }
 }
 
+impl GpuGrid {
+    /// The indirection sections of the baseline: the density's (at offset 0, as
+    /// `uniforms.grid.space` says), then the emission's (or one empty entry).
+    pub fn indirection(&self) -> Indirection {
+        let mut out = Indirection::default();
+        out.push(&self.density_layout.indirection);
+        match &self.emission {
+            Some((_, layout, _)) => out.push(&layout.indirection),
+            None => out.push(&[nimbus_scene::bricks::NO_BRICK]),
+        };
+        out
+    }
+}
+
 /// Luminance of a linear RGB colour.
 fn luminance(c: Vec3) -> f32 {
     0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
 }
 
 impl GpuGrid {
-    /// Load the scene's grid medium and build what the baseline path tracer reads.
+    /// Load the scene's grid medium into bricks and build what the grid passes read.
     /// Lights are selected in proportion to the power they bring to the medium's
     /// bounding sphere (radius R): directional E·πR², point 4π·I, sphere 4π²r²·L,
     /// environment 4π²R²·L (luminance of each).
@@ -432,8 +457,22 @@ impl GpuGrid {
             scene.source.display(),
             index + 1
         );
-        let density = nimbus_scene::load_grid(&grid.density, 1, &what)?;
-        grid.check_density(&density, &scene.position_scale(), &what)?;
+        let density = BrickGrid::load(&grid.density, 1, &what)?;
+        grid.check_density_bricks(&density, &scene.position_scale(), &what)?;
+        let p_to_world = grid.p_to_world(&density)?;
+        let world_box = grid
+            .vdb
+            .is_none()
+            .then_some((grid.bounds_min, grid.bounds_max));
+        let scale = grid.density_scale;
+        let (bricks, super_voxels): (Vec<_>, Vec<_>) = density
+            .super_voxels()
+            .into_iter()
+            .map(|(b, v)| (b, [v[0] * scale, v[1] * scale, v[2] * scale, 0.0]))
+            .unzip();
+        let max_sigma = super_voxels.iter().fold(0.0f32, |m, s| m.max(s[1]));
+        let density_layout = SparseLayout::new(&density, bricks, 1)?;
+        let space = grid_space(&density, &density_layout, 0, p_to_world, world_box);
         let emission = match &grid.emission {
             Some(source) => {
                 let what = format!(
@@ -441,32 +480,45 @@ impl GpuGrid {
                     scene.source.display(),
                     index + 1
                 );
-                Some(nimbus_scene::load_grid(source, 1, &what)?)
+                let e = BrickGrid::load(source, 0, &what)?;
+                let layout = SparseLayout::new(&e, e.slot_bricks(), 1)?;
+                let format = if e.channels == 3 {
+                    TexelFormat::Rgba32
+                } else {
+                    TexelFormat::R32
+                };
+                Some((e, layout, format))
             }
             None => None,
         };
-        let factor = nimbus_scene::SUPER_VOXEL_FACTOR;
-        let sv = density.super_voxels(factor);
-        let scale = grid.density_scale;
-        let super_voxels: Vec<[f32; 4]> = (0..sv.min.len())
-            .map(|i| [sv.min[i] * scale, sv.max[i] * scale, sv.avg[i] * scale, 0.0])
-            .collect();
-        let max_sigma = super_voxels.iter().fold(0.0f32, |m, s| m.max(s[1]));
+        let emission_space = match &emission {
+            Some((e, layout, _)) => grid_space(
+                e,
+                layout,
+                density_layout.indirection.len() as u32,
+                grid.p_to_world(e)?,
+                world_box,
+            ),
+            None => GridSpaceGpu {
+                brick_dims: [1, 1, 1],
+                channels: 1,
+                slots_x: 1,
+                slots_y: 1,
+                ..GridSpaceGpu::default()
+            },
+        };
         let uniforms = BaselineUniformsGpu {
             grid: GridParamsGpu {
                 bounds_min: grid.bounds_min.to_array(),
                 density_scale: scale,
                 bounds_max: grid.bounds_max.to_array(),
                 sigma_t_max: max_sigma,
-                dims: density.dims,
-                super_voxel_factor: factor,
-                super_dims: sv.dims,
-                _pad0: 0,
+                space,
             },
             albedo: grid.albedo.to_array(),
             g: grid.g,
             emission_scale: grid.emission_scale.to_array(),
-            emission_dims: emission.as_ref().map_or([1, 1, 1], |e| e.dims),
+            emission: emission_space,
             env_size: [1, 1],
             ..BaselineUniformsGpu::default()
         };
@@ -507,8 +559,11 @@ impl GpuGrid {
         uniforms.env_select = set.env_select;
         Ok(GpuGrid {
             density,
+            density_layout,
+            super_voxels: non_empty(&super_voxels),
             emission,
-            super_voxels,
+            p_to_world,
+            world_box,
             uniforms,
             lights: set.lights,
             env_radiance: set.env_radiance,

@@ -3,15 +3,16 @@
 //! ratio tracking on 8x super-voxels.
 
 use anyhow::Result;
-use nimbus_gpu::{vk, BindingDesc, Context, DescriptorWrite, GpuObjects, SamplerDesc, SpecValue};
+use nimbus_gpu::{BindingDesc, Context, DescriptorWrite, GpuObjects, SamplerDesc, SpecValue};
 use nimbus_scene::Scene;
 
 use super::{
-    compute_pipeline, image_3d, upload_env_map, upload_records, upload_uniform, FrameConstants,
+    atlas_image, compute_pipeline, upload_env_map, upload_records, upload_uniform, FrameConstants,
     ImagePass, Targets,
 };
 use crate::budget::Footprint;
 use crate::gpu::features::*;
+use crate::gpu::sparse::TexelFormat;
 use crate::gpu::{
     bindings, box_records, non_empty, shape_records, GpuGrid, PassPush, RecordCounts,
 };
@@ -63,6 +64,7 @@ pub fn create(
             BindingDesc::storage_buffer(bindings::MEDIUM_PLANES),
             BindingDesc::storage_buffer(bindings::ENV_TEXELS),
             BindingDesc::storage_buffer(bindings::ENV_CDF),
+            BindingDesc::storage_buffer(bindings::GRID_BRICKS),
         ]);
         let pipeline = compute_pipeline::<PassPush>(
             ctx,
@@ -80,25 +82,21 @@ pub fn create(
         let planes = upload_records(ctx, o, &[[0.0f32; 4]], "medium planes")?;
         let (env_texels, env_tables) = upload_env_map(ctx, o, &grid)?;
         let uniforms = upload_uniform(ctx, o, &grid.uniforms, "baseline uniforms")?;
-        let r32 = vk::Format::R32_SFLOAT;
-        let density = image_3d(
+        let bricks = upload_records(ctx, o, &grid.indirection().entries, "grid bricks")?;
+        let density = atlas_image(
             ctx,
             o,
-            grid.density.dims,
-            r32,
-            bytemuck::cast_slice(&grid.density.data),
+            &grid.density_layout,
+            &grid.density,
+            1.0,
+            TexelFormat::R32,
             "grid density",
         )?;
         // Without emission the (compiled-out) emission binding sees the density.
         let emission = match &grid.emission {
-            Some(e) => image_3d(
-                ctx,
-                o,
-                e.dims,
-                r32,
-                bytemuck::cast_slice(&e.data),
-                "grid emission",
-            )?,
+            Some((e, layout, format)) => {
+                atlas_image(ctx, o, layout, e, 1.0, *format, "grid emission")?
+            }
             None => density,
         };
         let sampler = ctx.create_sampler(&SamplerDesc::nearest(), "grid density")?;
@@ -138,6 +136,10 @@ pub fn create(
                 binding: bindings::ENV_CDF,
                 buffer: &o[env_tables],
             },
+            DescriptorWrite::StorageBuffer {
+                binding: bindings::GRID_BRICKS,
+                buffer: &o[bricks],
+            },
             DescriptorWrite::SampledImage {
                 binding: bindings::GRID_DENSITY,
                 image: &o[density],
@@ -172,7 +174,7 @@ pub fn create(
 const EXACT_SPAN_STEPS: u32 = 64;
 
 fn sample_cost(plan: &BaselinePlan, grid: &GpuGrid) -> u32 {
-    let blocks: u32 = grid.uniforms.grid.super_dims.iter().sum::<u32>() + 3;
+    let blocks: u32 = grid.uniforms.grid.space.brick_dims.iter().sum::<u32>() + 3;
     let segment = blocks + EXACT_SPAN_STEPS + 3 * grid.lights.len() as u32;
     let segments = 2 * (plan.max_bounces + 1);
     segment.saturating_mul(segments)

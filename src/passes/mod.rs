@@ -37,9 +37,10 @@ use nimbus_gpu::{
     Context, DescriptorSet, DescriptorWrite, GpuObjects, Handle, Image, ImageDesc, Profiler,
     SpecValue,
 };
-use nimbus_scene::{CameraFrame, GridMedium, Medium, Scene};
+use nimbus_scene::{BrickGrid, CameraFrame, GridMedium, Medium, Scene};
 
 use crate::budget::Footprint;
+use crate::gpu::sparse::{SparseLayout, TexelFormat};
 use crate::gpu::{bindings, frame_uniforms, FrameUniforms, GpuGrid, PassPush, RecordCounts};
 use crate::plan::{Integrator, RenderPlan};
 
@@ -394,6 +395,23 @@ pub fn image_3d(
         name,
     )?);
     ctx.upload_image(&objects[image], bytes)?;
+    Ok(image)
+}
+
+/// A 3D atlas of `layout`'s slots holding `grid`'s texels times `scale` in `format`,
+/// uploaded one layer of slots at a time, owned by `objects`.
+pub fn atlas_image(
+    ctx: &Context,
+    objects: &mut GpuObjects,
+    layout: &SparseLayout,
+    grid: &BrickGrid,
+    scale: f32,
+    format: TexelFormat,
+    name: &str,
+) -> Result<Handle<Image>> {
+    let [w, h, d] = layout.atlas_dims();
+    let image = objects.add(ctx.create_image(&ImageDesc::sampled_3d(w, h, d, format.vk()), name)?);
+    layout.upload(ctx, &objects[image], grid, scale, format)?;
     Ok(image)
 }
 

@@ -22,9 +22,11 @@
 use crate::common::kernel::{records, Arg, Kernel};
 use crate::common::rng::Pcg32;
 use bytemuck::{Pod, Zeroable};
+use glam::{DMat4, DVec3, Vec3};
+use nimbus::gpu::sparse::{grid_space, SparseLayout, TexelFormat};
 use nimbus::gpu::GridParamsGpu;
 use nimbus_gpu::{vk, BindingDesc, SamplerDesc};
-use nimbus_scene::{procedural_cloud, VoxelGrid, SUPER_VOXEL_FACTOR};
+use nimbus_scene::{procedural_cloud, BrickGrid, VoxelGrid};
 
 /// Relative tolerance on the closed-form optical depth.
 const DEPTH_REL_TOL: f64 = 1e-4;
@@ -44,11 +46,10 @@ const LOCAL_SIZE: u32 = 64;
 // GPU side: records mirrored from the test shader (its `GridParams` is the renderer's,
 // mirrored by nimbus::gpu::GridParamsGpu).
 
-/// The push constants of grid_volume.comp.
+/// The push constants of grid_volume.comp (its `GridParams` is a storage buffer).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 struct GpuPush {
-    grid: GridParamsGpu,
     query_count: u32,
     pad: [u32; 3],
 }
@@ -75,7 +76,7 @@ struct GpuResult {
     pad: [u32; 3],
 }
 
-const _: () = assert!(std::mem::size_of::<GpuPush>() == 80);
+const _: () = assert!(std::mem::size_of::<GpuPush>() == 16);
 const _: () = assert!(std::mem::size_of::<GpuQuery>() == 48);
 const _: () = assert!(std::mem::size_of::<GpuResult>() == 48);
 
@@ -89,34 +90,42 @@ struct Medium {
 }
 
 impl Medium {
-    fn params(&self) -> GridParamsGpu {
-        let sv = self.grid.super_voxels(SUPER_VOXEL_FACTOR);
+    /// The grid as the renderer stores it: 8³ bricks (those whose super-voxel holds
+    /// density) in a 3D atlas of 9³-texel slots behind an indirection grid, with one
+    /// super-voxel record per slot; the all-zero corner block of [`random_grid`] gets no
+    /// slot, so the walks must skip it.
+    fn sparse(&self) -> GpuMedium {
+        let bricks = BrickGrid::from_dense(&self.grid).expect("bricks of a test grid");
+        let (slots, super_voxels): (Vec<_>, Vec<_>) = bricks
+            .super_voxels()
+            .into_iter()
+            .map(|(b, v)| (b, [v[0], v[1], v[2], 0.0].map(|x| x * self.scale)))
+            .unzip();
+        let layout = SparseLayout::new(&bricks, slots, 1).expect("atlas layout");
+        let lo = Vec3::from_array(self.bounds_min);
+        let hi = Vec3::from_array(self.bounds_max);
+        let dims = DVec3::from_array(self.grid.dims.map(f64::from));
+        let p_to_world =
+            DMat4::from_translation(lo.as_dvec3()) * DMat4::from_scale((hi - lo).as_dvec3() / dims);
+        let space = grid_space(&bricks, &layout, 0, p_to_world, Some((lo, hi)));
         let max = self.grid.data.iter().fold(0f32, |m, &v| m.max(v));
-        GridParamsGpu {
-            bounds_min: self.bounds_min,
-            density_scale: self.scale,
-            bounds_max: self.bounds_max,
-            sigma_t_max: max * self.scale,
-            dims: self.grid.dims,
-            super_voxel_factor: sv.factor,
-            super_dims: sv.dims,
-            _pad0: 0,
+        let mut super_voxels = super_voxels;
+        if super_voxels.is_empty() {
+            super_voxels.push([0.0; 4]);
         }
-    }
-
-    /// (min, max, avg, 0) of sigma_t per super-voxel.
-    fn super_voxel_data(&self) -> Vec<[f32; 4]> {
-        let sv = self.grid.super_voxels(SUPER_VOXEL_FACTOR);
-        (0..sv.min.len())
-            .map(|i| {
-                [
-                    sv.min[i] * self.scale,
-                    sv.max[i] * self.scale,
-                    sv.avg[i] * self.scale,
-                    0.0,
-                ]
-            })
-            .collect()
+        GpuMedium {
+            params: GridParamsGpu {
+                bounds_min: self.bounds_min,
+                density_scale: self.scale,
+                bounds_max: self.bounds_max,
+                sigma_t_max: max * self.scale,
+                space,
+            },
+            atlas_dims: layout.atlas_dims(),
+            atlas: layout.atlas_texels(&bricks, 1.0, TexelFormat::R32),
+            bricks: layout.indirection.clone(),
+            super_voxels,
+        }
     }
 
     fn size(&self) -> [f64; 3] {
@@ -244,11 +253,13 @@ struct Gpu {
     kernel: Kernel,
 }
 
-/// What a run binds for a medium: its parameters, density texels and super-voxels.
+/// What a run binds for a medium: its parameters, density atlas, indirection and
+/// super-voxel records.
 struct GpuMedium {
     params: GridParamsGpu,
-    dims: [u32; 3],
-    density: Vec<f32>,
+    atlas_dims: [u32; 3],
+    atlas: Vec<u8>,
+    bricks: Vec<u32>,
     super_voxels: Vec<[f32; 4]>,
 }
 
@@ -259,6 +270,8 @@ impl Gpu {
             BindingDesc::storage_buffer(1),
             BindingDesc::storage_buffer(2),
             BindingDesc::storage_buffer(3),
+            BindingDesc::storage_buffer(4),
+            BindingDesc::storage_buffer(5),
         ];
         Self {
             kernel: Kernel::new(
@@ -272,19 +285,13 @@ impl Gpu {
     }
 
     fn upload(&self, medium: &Medium) -> GpuMedium {
-        GpuMedium {
-            params: medium.params(),
-            dims: medium.grid.dims,
-            density: medium.grid.data.clone(),
-            super_voxels: medium.super_voxel_data(),
-        }
+        medium.sparse()
     }
 
     /// Runs every query against `medium`; one result per query.
     fn run(&self, medium: &GpuMedium, queries: &[GpuQuery]) -> Vec<GpuResult> {
         let count = u32::try_from(queries.len()).expect("query count fits u32");
         let push = GpuPush {
-            grid: medium.params,
             query_count: count,
             pad: [0; 3],
         };
@@ -292,14 +299,16 @@ impl Gpu {
             &[
                 Arg::Image3d {
                     binding: 0,
-                    dims: medium.dims,
+                    dims: medium.atlas_dims,
                     format: vk::Format::R32_SFLOAT,
-                    data: bytemuck::cast_slice(&medium.density),
+                    data: &medium.atlas,
                     sampler: SamplerDesc::nearest(),
                 },
                 Arg::Storage(1, bytemuck::cast_slice(&medium.super_voxels)),
                 Arg::Storage(2, bytemuck::cast_slice(queries)),
                 Arg::Zeroed(3, queries.len() * std::mem::size_of::<GpuResult>()),
+                Arg::Storage(4, bytemuck::cast_slice(&medium.bricks)),
+                Arg::Storage(5, bytemuck::bytes_of(&medium.params)),
             ],
             bytemuck::bytes_of(&push),
             [count.div_ceil(LOCAL_SIZE), 1, 1],
@@ -652,7 +661,7 @@ fn sigma_t_equals_voxel_values_at_centres_and_zero_outside() {
             })
             .collect();
         let results = gpu.run(&handle, &queries);
-        let sigma_max = f64::from(medium.params().sigma_t_max);
+        let sigma_max = f64::from(medium.sparse().params.sigma_t_max);
         let mut worst = 0.0f64;
         for ((x, want), result) in points.iter().zip(&expected).zip(&results) {
             let got = f64::from(result.r0[2]);

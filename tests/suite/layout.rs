@@ -10,9 +10,9 @@ use std::mem::size_of;
 
 use nimbus::gpu::bindings;
 use nimbus::gpu::{
-    BaselineUniformsGpu, BoxMediumGpu, FrameUniforms, GridParamsGpu, LightGpu, PassPush,
-    RestirPush, RestirUniformsGpu, ShapeGpu, LIGHT_DIRECTIONAL, LIGHT_POINT, LIGHT_SPHERE,
-    SHAPE_BOX, SHAPE_QUAD, SHAPE_SPHERE,
+    BaselineUniformsGpu, BoxMediumGpu, FrameUniforms, GridLevelGpu, GridParamsGpu, GridSpaceGpu,
+    LightGpu, PassPush, RestirPush, RestirUniformsGpu, ShapeGpu, LIGHT_DIRECTIONAL, LIGHT_POINT,
+    LIGHT_SPHERE, SHAPE_BOX, SHAPE_QUAD, SHAPE_SPHERE,
 };
 
 const ROOT: &str = env!("CARGO_MANIFEST_DIR");
@@ -443,7 +443,33 @@ fn mirrors() -> Vec<Mirror> {
                 _pad1,
             }),
         },
-        // A std140 member of BaselineUniforms, and the std430 push constant of the
+        // A member of GridParams and BaselineUniforms (std140 and std430).
+        Mirror {
+            glsl: "GridSpace",
+            rust: "GridSpaceGpu",
+            rules: &[Std140, Std430],
+            size: size_of::<GridSpaceGpu>(),
+            fields: rust_fields!(GridSpaceGpu {
+                world_to_index_x,
+                world_to_index_y,
+                world_to_index_z,
+                box_min,
+                axis_aligned,
+                box_max,
+                bricks_offset,
+                index_min,
+                slots_x,
+                index_max,
+                slots_y,
+                lattice_min,
+                channels,
+                lattice_max,
+                _pad0,
+                brick_dims,
+                _pad1,
+            }),
+        },
+        // A std140 member of BaselineUniforms, and the std430 storage buffer of the
         // grid_volume test shader.
         Mirror {
             glsl: "GridParams",
@@ -455,10 +481,7 @@ fn mirrors() -> Vec<Mirror> {
                 density_scale,
                 bounds_max,
                 sigma_t_max,
-                dims,
-                super_voxel_factor,
-                super_dims,
-                _pad0,
+                space,
             }),
         },
         Mirror {
@@ -476,10 +499,27 @@ fn mirrors() -> Vec<Mirror> {
                 _pad2,
                 emission_scale,
                 _pad3,
-                emission_dims,
-                _pad4,
+                emission,
                 env_size,
                 _pad5,
+            }),
+        },
+        Mirror {
+            glsl: "GridLevel",
+            rust: "GridLevelGpu",
+            rules: &[Std140],
+            size: size_of::<GridLevelGpu>(),
+            fields: rust_fields!(GridLevelGpu {
+                lattice_min,
+                bricks_offset,
+                lattice_max,
+                factor,
+                brick_dims,
+                slots_x,
+                slots_y,
+                _pad0,
+                _pad1,
+                _pad2,
             }),
         },
         Mirror {
@@ -488,17 +528,13 @@ fn mirrors() -> Vec<Mirror> {
             rules: &[Std140],
             size: size_of::<RestirUniformsGpu>(),
             fields: rust_fields!(RestirUniformsGpu {
-                pc_primary_dims,
-                pc_primary_offset,
-                pc_indirect_dims,
-                pc_indirect_offset,
-                pc_primary_factor,
-                pc_indirect_factor,
-                march_reuse_factor,
-                march_nee_factor,
-                march_reuse_dims,
+                pc_primary,
+                pc_indirect,
+                march_reuse,
+                march_nee,
+                march_reuse_prev_offset,
+                density_prev_offset,
                 candidates_per_dispatch,
-                march_nee_dims,
                 _pad1,
                 candidates,
                 temporal_limit,

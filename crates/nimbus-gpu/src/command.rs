@@ -429,6 +429,67 @@ impl Context {
         })
     }
 
+    /// Writes tightly packed texels (x fastest, then y, then z) into the box of `extent`
+    /// texels at `offset` of `dst`; the rest of the image is left as it is. Large images
+    /// are uploaded region by region so that neither the host nor the staging buffer
+    /// ever holds all of them.
+    pub fn upload_image_region(
+        &self,
+        dst: &Image,
+        offset: [u32; 3],
+        extent: [u32; 3],
+        data: &[u8],
+    ) -> Result<()> {
+        let texel = Self::image_byte_size(dst)? / dst.desc.texel_count().max(1);
+        let e = dst.desc.extent;
+        let full = [e.width, e.height, e.depth];
+        if (0..3).any(|a| u64::from(offset[a]) + u64::from(extent[a]) > u64::from(full[a])) {
+            bail!(
+                "upload region {offset:?} + {extent:?} lies outside image '{}' ({full:?})",
+                dst.name
+            );
+        }
+        let size = extent.iter().map(|&n| u64::from(n)).product::<u64>() * texel;
+        if data.len() as u64 != size {
+            bail!(
+                "upload of a {extent:?} region to image '{}' needs {size} bytes, got {}",
+                dst.name,
+                data.len()
+            );
+        }
+        if data.is_empty() {
+            return Ok(());
+        }
+        if !dst.desc.usage.contains(vk::ImageUsageFlags::TRANSFER_DST) {
+            bail!(
+                "image '{}' lacks TRANSFER_DST usage; cannot upload into it",
+                dst.name
+            );
+        }
+        self.upload_staged(&dst.name, data, |cmd, staging| {
+            let mut region = whole_image_copy(dst);
+            region.image_offset = vk::Offset3D {
+                x: offset[0] as i32,
+                y: offset[1] as i32,
+                z: offset[2] as i32,
+            };
+            region.image_extent = vk::Extent3D {
+                width: extent[0],
+                height: extent[1],
+                depth: extent[2],
+            };
+            unsafe {
+                self.device().cmd_copy_buffer_to_image(
+                    cmd,
+                    staging,
+                    dst.raw,
+                    vk::ImageLayout::GENERAL,
+                    &[region],
+                )
+            };
+        })
+    }
+
     /// Reads the whole image back as tightly packed texels (x fastest, then y, then z).
     pub fn readback_image(&self, src: &Image) -> Result<Vec<u8>> {
         let size = Self::image_byte_size(src)?;

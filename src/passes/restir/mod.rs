@@ -3,8 +3,8 @@
 //!
 //! - [`schedule`]: which stages a frame dispatches on which of the three reservoir slots
 //!   (pure, unit-tested);
-//! - [`volumes`]: the piecewise-constant levels and ray-march mips derived from every
-//!   density grid of the animation;
+//! - [`volumes`]: the piecewise-constant levels and ray-march mips derived, brick by
+//!   brick, from every density grid of the animation, and their atlas layouts;
 //! - [`resources`]: the GPU objects, by name.
 //!
 //! Reservoirs live in one storage buffer of three slots of `pixels × stride` u32 each
@@ -16,20 +16,27 @@ pub mod schedule;
 pub mod volumes;
 
 use anyhow::Result;
+
 use nimbus_gpu::{compute_barrier, vk, Context, GpuObjects, Profiler, SpecValue};
 use nimbus_scene::{CameraFrame, GridMedium, Scene};
 
 use self::resources::{Inputs, Resources};
 use self::schedule::{schedule, ScheduleSettings, Stage, SLOTS};
-use self::volumes::{last_level, march_step, Volumes};
+use self::volumes::{grid_level, march_step, DerivedVolume, Volumes};
 use super::{image_groups, scene_grid, FrameConstants, Pass, Targets};
-use crate::budget::{grid_bytes, level_dims, Binding, Footprint};
+use crate::budget::{brick_bytes, grid_bytes, Binding, Footprint};
 use crate::gpu::features::*;
+use crate::gpu::sparse::{atlas_bytes, atlas_dims, atlas_slots, layer_bytes, slot_bound};
+use crate::gpu::sparse::{upload_atlas, Indirection, TexelFormat};
 use crate::gpu::{
     frame_uniforms, non_empty, BaselineUniformsGpu, FrameUniforms, GpuGrid, LightGpu, LightSet,
     RecordCounts, RestirPush, RestirUniformsGpu,
 };
 use crate::plan::RestirPlan;
+use glam::IVec3;
+use nimbus_scene::bricks::shr;
+use nimbus_scene::BrickTopology;
+use std::collections::HashSet;
 
 pub use crate::gpu::reservoir_bytes;
 
@@ -79,6 +86,74 @@ pub fn candidates_per_dispatch(
     u32::try_from(fit).unwrap_or(u32::MAX).min(plan.candidates)
 }
 
+/// Where each grid's indirection section starts in the `grid_bricks[]` buffer. Without
+/// density frames the previous frame's sections are this frame's.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Sections {
+    pub density: u32,
+    pub emission: u32,
+    pub density_prev: u32,
+    pub pc_primary: u32,
+    pub pc_indirect: u32,
+    pub march_reuse: u32,
+    pub march_reuse_prev: u32,
+    pub march_nee: u32,
+}
+
+/// The indirection buffer of frame `cur` with previous frame `prev`, and its sections.
+fn indirection(
+    cur: &DerivedVolume,
+    prev: &DerivedVolume,
+    emission: &[u32],
+    animated: bool,
+) -> (Vec<u32>, Sections) {
+    let mut ind = Indirection::default();
+    let density = ind.push(&cur.density_layout.indirection);
+    let emission = ind.push(emission);
+    let density_prev = if animated {
+        ind.push(&prev.density_layout.indirection)
+    } else {
+        density
+    };
+    let pc_primary = ind.push(&cur.pc_primary_layout.indirection);
+    let pc_indirect = ind.push(&cur.pc_indirect_layout.indirection);
+    let march_reuse = ind.push(&cur.march_reuse_layout.indirection);
+    let march_reuse_prev = if animated {
+        ind.push(&prev.march_reuse_layout.indirection)
+    } else {
+        march_reuse
+    };
+    let march_nee = ind.push(&cur.march_nee_layout.indirection);
+    (
+        ind.entries,
+        Sections {
+            density,
+            emission,
+            density_prev,
+            pc_primary,
+            pc_indirect,
+            march_reuse,
+            march_reuse_prev,
+            march_nee,
+        },
+    )
+}
+
+/// The velocity grid as dense RGBA16F texels over the medium's box (an OpenVDB one over
+/// its dense window, as the loader cuts it).
+fn velocity_texels(grid: &GridMedium, label: &str) -> Result<Option<([u32; 3], Vec<u16>)>> {
+    let Some(source) = &grid.velocity else {
+        return Ok(None);
+    };
+    let v = nimbus_scene::load_grid(source, 3, &format!("{label} > velocity"))?;
+    let texels = v
+        .data
+        .chunks_exact(3)
+        .flat_map(|c| [c[0], c[1], c[2], 0.0].map(|x| half::f16::from_f32(x).to_bits()))
+        .collect();
+    Ok(Some((v.dims, texels)))
+}
+
 /// The four stages, what they read, and the state carried from frame to frame.
 pub struct RestirPass {
     objects: GpuObjects,
@@ -87,10 +162,12 @@ pub struct RestirPass {
     constants: FrameConstants,
     grid: GridMedium,
     volumes: Volumes,
+    /// The emission's indirection section (the same for every frame).
+    emission_indirection: Vec<u32>,
     scene_lights_radius: f32,
     env_map_luminance: Option<f32>,
     base_uniforms: BaselineUniformsGpu,
-    /// Density indices loaded into the current / previous images.
+    /// Density indices loaded into the current / previous atlases.
     loaded: (usize, usize),
     /// The slot holding the previous frame's final reservoirs.
     prev_slot: Option<u32>,
@@ -114,30 +191,47 @@ impl RestirPass {
         let pixels = u64::from(r.width) * u64::from(r.height);
         let stride_bytes = reservoir_bytes(plan.max_bounces);
         let reservoir_total = u64::from(SLOTS) * pixels * stride_bytes;
-        let velocity = match &grid.velocity {
-            Some(source) if plan.has_velocity => Some(nimbus_scene::load_grid(
-                source,
-                3,
-                &format!("{grid_label} > velocity"),
-            )?),
-            _ => None,
+        let velocity = if plan.has_velocity {
+            velocity_texels(grid, &grid_label)?
+        } else {
+            None
         };
         // The density moves into `volumes`; the rest of the grid records are uploaded.
         let density = std::mem::take(&mut grid_gpu.density);
-        let dims = density.dims;
-        let size = grid.bounds_max - grid.bounds_min;
-        let volumes = Volumes::load(density, grid, plan, &scene.position_scale(), &grid_label)?;
+        let bricks = std::mem::take(&mut grid_gpu.density_layout.bricks);
+        let records = std::mem::take(&mut grid_gpu.super_voxels);
+        let volumes = Volumes::load(
+            (density, bricks, records),
+            grid,
+            plan,
+            &scene.position_scale(),
+            &grid_label,
+        )?;
         let first = volumes.base()?;
         let levels = volumes.levels;
-        // Voxels per block edge of a mip level.
-        let factor = |level: u32| 1 << level.min(last_level(dims));
+        let animated = !grid.frames.is_empty();
+        let emission_indirection = match &grid_gpu.emission {
+            Some((_, layout, _)) => layout.indirection.clone(),
+            None => vec![nimbus_scene::bricks::NO_BRICK],
+        };
+        let (bricks, sections) = indirection(first, first, &emission_indirection, animated);
+        let mut base_uniforms = grid_gpu.uniforms;
+        base_uniforms.grid.space.bricks_offset = sections.density;
+        base_uniforms.grid.space.slots_x = volumes.sizes.density[0];
+        base_uniforms.grid.space.slots_y = volumes.sizes.density[1];
+        base_uniforms.grid.sigma_t_max = volumes.sigma_t_max;
+        base_uniforms.emission.bricks_offset = sections.emission;
+        let g = &first.grids;
+        let density = &g.density;
+        let size = grid.bounds_max - grid.bounds_min;
         let candidates_per_dispatch = candidates_per_dispatch(
             ctx.info().loop_budget(),
             plan,
             &CandidateCost {
-                pc_blocks: [first.pc_primary_dims, first.pc_indirect_dims]
-                    .map(|d| d.iter().sum::<u32>() + 3),
-                march_steps: (size.length() / march_step(grid, dims, levels.indirect))
+                pc_blocks: [&g.pc_primary, &g.pc_indirect]
+                    .map(|l| (l.lattice_max - l.lattice_min + 1).max(glam::IVec3::ONE))
+                    .map(|d| (d.x + d.y + d.z) as u32 + 3),
+                march_steps: (size.length() / march_step(grid, density, levels.indirect))
                     .ceil()
                     .min(crate::gpu::features::MARCH_MAX_STEPS as f32)
                     as u32,
@@ -145,34 +239,58 @@ impl RestirPass {
             },
         );
         let restir_uniforms = RestirUniformsGpu {
-            pc_primary_dims: first.pc_primary_dims,
-            pc_primary_offset: 0,
-            pc_indirect_dims: first.pc_indirect_dims,
-            pc_indirect_offset: first.pc_indirect_offset,
-            pc_primary_factor: factor(levels.candidates),
-            pc_indirect_factor: factor(levels.indirect),
-            march_reuse_factor: factor(levels.reuse),
-            march_nee_factor: factor(levels.indirect),
-            march_reuse_dims: first.march_reuse.dims,
-            march_nee_dims: first.march_nee.dims,
+            pc_primary: grid_level(
+                density,
+                &g.pc_primary,
+                &first.pc_primary_layout,
+                levels.candidates,
+                sections.pc_primary,
+            ),
+            pc_indirect: grid_level(
+                density,
+                &g.pc_indirect,
+                &first.pc_indirect_layout,
+                levels.indirect,
+                sections.pc_indirect,
+            ),
+            march_reuse: grid_level(
+                density,
+                &g.march_reuse,
+                &first.march_reuse_layout,
+                levels.reuse,
+                sections.march_reuse,
+            ),
+            march_nee: grid_level(
+                density,
+                &g.march_nee,
+                &first.march_nee_layout,
+                levels.indirect,
+                sections.march_nee,
+            ),
+            march_reuse_prev_offset: sections.march_reuse_prev,
+            density_prev_offset: sections.density_prev,
             candidates: plan.candidates,
             temporal_limit: plan.temporal_limit,
             spatial_neighbors: plan.spatial_neighbors,
             reservoir_stride: (stride_bytes / 4) as u32,
             candidates_per_dispatch,
             spatial_radius: plan.spatial_radius_px,
-            march_reuse_step: march_step(grid, dims, levels.reuse),
-            march_nee_step: march_step(grid, dims, levels.indirect),
-            velocity_dims: velocity.as_ref().map_or([1, 1, 1], |v| v.dims),
+            march_reuse_step: march_step(grid, density, levels.reuse),
+            march_nee_step: march_step(grid, density, levels.indirect),
+            velocity_dims: velocity.as_ref().map_or([1, 1, 1], |v| v.0),
             ..RestirUniformsGpu::default()
         };
         let inputs = Inputs {
             grid: &grid_gpu,
             first,
+            base_uniforms: &base_uniforms,
             velocity: velocity.as_ref(),
             uniforms: &restir_uniforms,
+            indirection: &bricks,
             reservoir_bytes: reservoir_total,
             march_format: volumes.format,
+            sizes: volumes.sizes,
+            animated,
         };
         let spec = specialization(plan);
         let (objects, res) =
@@ -197,9 +315,10 @@ impl RestirPass {
             },
             grid: grid.clone(),
             volumes,
+            emission_indirection,
             scene_lights_radius: grid_gpu.light_radius,
             env_map_luminance: grid_gpu.env_map_luminance,
-            base_uniforms: grid_gpu.uniforms,
+            base_uniforms,
             loaded: (0, 0),
             prev_slot: None,
             prev_uploaded: None,
@@ -240,7 +359,9 @@ impl RestirPass {
         )
     }
 
-    /// Uploads the density of this frame and of the previous one when they change.
+    /// Uploads the density of this frame and of the previous one when they change: their
+    /// atlases, super-voxel records and indirection sections (offsets stay: every frame
+    /// has the same lattice).
     fn upload_density(&mut self, ctx: &Context, frame: u32, prev: u32) -> Result<()> {
         let want = (
             self.grid.density_index_at(frame),
@@ -253,12 +374,65 @@ impl RestirPass {
         let prev = self.volumes.get(want.1)?;
         let o = &self.objects;
         let r = &self.res;
-        ctx.upload_image(&o[r.density], bytemuck::cast_slice(&cur.density.data))?;
-        ctx.upload_image(&o[r.march_reuse], &cur.march_reuse.texels)?;
-        ctx.upload_image(&o[r.march_nee], &cur.march_nee.texels)?;
-        ctx.upload_buffer(&o[r.pc_grid], 0, bytemuck::cast_slice(&cur.pc))?;
-        ctx.upload_image(&o[r.density_prev], bytemuck::cast_slice(&prev.density.data))?;
-        ctx.upload_image(&o[r.march_reuse_prev], &prev.march_reuse.texels)?;
+        let sizes = self.volumes.sizes;
+        let format = self.volumes.format;
+        let scale = self.grid.density_scale;
+        let r32 = TexelFormat::R32;
+        let (c, p) = (&cur.grids, &prev.grids);
+        upload_atlas(
+            ctx,
+            &o[r.density],
+            sizes.density,
+            &[(&cur.density_layout, &c.density, 1.0)],
+            r32,
+        )?;
+        upload_atlas(
+            ctx,
+            &o[r.pc],
+            sizes.pc,
+            &[
+                (&cur.pc_primary_layout, &c.pc_primary, scale),
+                (&cur.pc_indirect_layout, &c.pc_indirect, scale),
+            ],
+            r32,
+        )?;
+        upload_atlas(
+            ctx,
+            &o[r.march_reuse],
+            sizes.march_reuse,
+            &[(&cur.march_reuse_layout, &c.march_reuse, 1.0)],
+            format,
+        )?;
+        upload_atlas(
+            ctx,
+            &o[r.march_nee],
+            sizes.march_nee,
+            &[(&cur.march_nee_layout, &c.march_nee, 1.0)],
+            format,
+        )?;
+        upload_atlas(
+            ctx,
+            &o[r.density_prev],
+            sizes.density,
+            &[(&prev.density_layout, &p.density, 1.0)],
+            r32,
+        )?;
+        upload_atlas(
+            ctx,
+            &o[r.march_reuse_prev],
+            sizes.march_reuse,
+            &[(&prev.march_reuse_layout, &p.march_reuse, 1.0)],
+            format,
+        )?;
+        let mut records = c.super_voxels.clone();
+        records.resize(
+            records.len().max(resources::slot_count(sizes.density)),
+            [0.0; 4],
+        );
+        ctx.upload_buffer(&o[r.super_voxels], 0, bytemuck::cast_slice(&records))?;
+        let animated = !self.grid.frames.is_empty();
+        let (entries, _) = indirection(cur, prev, &self.emission_indirection, animated);
+        ctx.upload_buffer(&o[r.bricks], 0, bytemuck::cast_slice(&entries))?;
         self.loaded = want;
         Ok(())
     }
@@ -380,49 +554,135 @@ impl Pass for RestirPass {
     }
 }
 
-/// What the ReSTIR passes allocate (see [`crate::budget`]).
+/// The bricks of mip `level` of a grid of topology `t` (each brick's parent at that
+/// level), after growing `t` by its 26 neighbours when `dilate` (the conservative grid's
+/// zeros next to density become positive).
+fn level_topology(t: &BrickTopology, level: u32, dilate: bool) -> BrickTopology {
+    let dims = IVec3::from_array(t.brick_dims().map(|d| d as i32));
+    let mut set = HashSet::new();
+    for b in &t.bricks {
+        let range = if dilate { -1..=1 } else { 0..=0 };
+        for z in range.clone() {
+            for y in range.clone() {
+                for x in range.clone() {
+                    let n = *b + IVec3::new(x, y, z);
+                    if n.cmpge(IVec3::ZERO).all() && n.cmplt(dims).all() {
+                        set.insert(shr(n, level));
+                    }
+                }
+            }
+        }
+    }
+    BrickTopology {
+        lattice_min: shr(t.lattice_min, level),
+        lattice_max: shr(t.lattice_max, level),
+        bricks: set.into_iter().collect(),
+        ..t.clone()
+    }
+}
+
+/// What the ReSTIR passes allocate (see [`crate::budget`]): the grid's atlases (density,
+/// piecewise-constant levels, ray-march mips, and the previous frame's where density
+/// frames change), sized for the largest frame at the plan's mip levels (a level refined
+/// by content, see [`volumes::MAX_LEVEL_EXCESS_TAU`], is finer and larger), the
+/// indirection sections, reservoirs and velocity.
 pub fn footprint(scene: &Scene, p: &RestirPlan, f: &mut Footprint) -> Result<()> {
     f.add_env_map(scene)?;
-    let Some((g, table, dims)) = f.add_grid(scene)? else {
+    let Some(gf) = f.add_grid(scene)? else {
         return Ok(());
     };
+    let (g, table) = (gf.medium, gf.table.clone());
     let file = scene.source.display();
     let r = &scene.render;
     let pixels = u64::from(r.width) * u64::from(r.height);
-    let voxels = grid_bytes(dims, 1);
     let reservoirs = 3 * pixels * reservoir_bytes(p.max_bounces);
     f.add(
         format!("{file}: [render] `width` x `height` with [integrator] `max_bounces` = {} (ReSTIR reservoirs)", p.max_bounces),
         Binding::Storage,
         reservoirs,
     );
-    let primary = level_dims(dims, p.mip_candidates);
-    let indirect = level_dims(dims, p.mip_indirect);
-    let reuse = level_dims(dims, p.mip_reuse);
-    f.add(
-        format!("{table} (piecewise-constant levels)"),
-        Binding::Storage,
-        grid_bytes(primary, 4) + grid_bytes(indirect, 4),
-    );
-    // Previous-frame density and the ray-march mips (f16, or f32 for densities f16
-    // cannot hold: counted as f32).
-    f.add(
-        format!("{table} (previous density)"),
-        Binding::Image3d(dims),
-        voxels * 4,
-    );
-    for (name, d) in [
-        ("reuse", reuse),
-        ("reuse, previous", reuse),
-        ("NEE", indirect),
-    ] {
-        f.add(
-            format!("{table} (ray-march mip, {name})"),
-            Binding::Image3d(d),
-            grid_bytes(d, 4),
+    let mut frames = vec![gf.density.clone()];
+    let mut frame_slots = vec![gf.density_slots];
+    for (i, frame) in g.frames.iter().enumerate() {
+        let what = format!(
+            "{table} > [[medium.frame]] #{} (frame {})",
+            i + 1,
+            frame.frame
         );
+        let topo = BrickTopology::of(&frame.density, 1, &what)?;
+        frame_slots.push(crate::budget::density_slot_bound(&frame.density, &topo));
+        frames.push(topo);
     }
+    let animated = frames.len() > 1;
+    let brick = 512 * 4;
+    let mut density_slots = gf.density_slots;
+    let (mut pc, mut reuse, mut nee) = (0u64, 0u64, 0u64);
+    let (mut kept, mut building) = (0u64, 0u64);
+    let mut cells = 0u64;
+    for (n, t) in frames.iter().enumerate() {
+        let primary = level_topology(t, p.mip_candidates, true);
+        let indirect = level_topology(t, p.mip_indirect, true);
+        let march_reuse = level_topology(t, p.mip_reuse, false);
+        let march_nee = level_topology(t, p.mip_indirect, false);
+        let slots = frame_slots[n];
+        if n > 0 {
+            density_slots = density_slots.max(slots);
+        }
+        let pc_n = (primary.bricks.len() + indirect.bricks.len()) as u64;
+        pc = pc.max(pc_n);
+        reuse = reuse.max(slot_bound(&march_reuse, false));
+        nee = nee.max(slot_bound(&march_nee, false));
+        let level_cells =
+            primary.cells() + indirect.cells() + march_reuse.cells() + march_nee.cells();
+        if n == 0 {
+            cells = level_cells;
+        }
+        // Kept for the whole render: the grid, its records and every level (f32 values,
+        // coordinates, indirection and layout indirection).
+        kept += brick_bytes(t)
+            + slots * (12 + 16)
+            + (pc_n + (march_reuse.bricks.len() + march_nee.bricks.len()) as u64) * (brick + 12)
+            + 2 * (t.cells() + level_cells) * 4;
+        // While a frame is derived: its conservative copy (the bricks and neighbours).
+        let conservative = level_topology(t, 0, true);
+        building = building
+            .max(conservative.bricks.len() as u64 * (brick + 12) + conservative.cells() * 4);
+    }
+    let r32 = TexelFormat::R32;
+    // The march mips as f32 (what a density beyond f16's range needs).
+    let march = TexelFormat::R32;
+    let mut atlas = |name: &str, slots: u64, format: TexelFormat| -> Result<()> {
+        f.add(
+            format!("{table} ({name}, atlas of {slots} bricks)"),
+            Binding::Image3d(atlas_dims(atlas_slots(slots)?)),
+            atlas_bytes(slots, format)?,
+        );
+        Ok(())
+    };
+    atlas("piecewise-constant levels", pc, r32)?;
+    atlas("ray-march mip, reuse", reuse, march)?;
+    atlas("ray-march mip, NEE", nee, march)?;
+    if animated {
+        atlas("previous density", density_slots, r32)?;
+        atlas("ray-march mip, reuse, previous", reuse, march)?;
+        // The base density's atlas (counted by `add_grid`) grows to the largest frame's.
+        let base = gf.density_slots;
+        if density_slots > base {
+            f.add(
+                format!("{table} (density atlas for the largest frame)"),
+                Binding::Image3d(atlas_dims(atlas_slots(density_slots)?)),
+                atlas_bytes(density_slots, r32)? - atlas_bytes(base, r32)?,
+            );
+        }
+        cells += gf.density.cells() + level_topology(&gf.density, p.mip_reuse, false).cells();
+    }
+    f.add(
+        format!("{table} (brick indirection of the derived levels)"),
+        Binding::Storage,
+        cells * 4,
+    );
     if let Some(v) = &g.velocity {
+        // Dense over the medium's box (an OpenVDB velocity over its dense window).
         let vd = v.dims()?;
         f.add(
             format!("{table} field `velocity`"),
@@ -431,21 +691,6 @@ pub fn footprint(scene: &Scene, p: &RestirPlan, f: &mut Footprint) -> Result<()>
         );
         f.host_peak += grid_bytes(vd, 12 + 8);
     }
-    // Every density frame is derived and kept: the grid, its levels and mips; while
-    // one is built, its conservative copy and one mip level are alive too.
-    let derived = |d: [u32; 3]| {
-        grid_bytes(d, 4)
-            + grid_bytes(primary, 4)
-            + grid_bytes(indirect, 4)
-            + grid_bytes(reuse, 4)
-            + grid_bytes(indirect, 4)
-    };
-    let frames: Vec<&nimbus_scene::GridSource> = g.density_sources().collect();
-    let kept: u64 = frames
-        .iter()
-        .map(|s| s.dims().map(derived))
-        .sum::<Result<u64>>()?;
-    let building = grid_bytes(dims, 4) + grid_bytes(level_dims(dims, 1), 4);
-    f.host_peak += kept + building;
+    f.host_peak += kept + building + cells * 4 + 2 * layer_bytes(pc.max(reuse).max(nee), r32)?;
     Ok(())
 }

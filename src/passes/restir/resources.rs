@@ -1,19 +1,22 @@
 //! The GPU objects of the ReSTIR passes, by name: four pipelines sharing one layout,
-//! their descriptor sets, the scene buffers, the reservoir slots and the density images
-//! of the current and the previous frame.
+//! their descriptor sets, the scene buffers, the reservoir slots and the atlases of the
+//! density and its derived levels for the current and the previous frame.
 
 use anyhow::Result;
 use nimbus_gpu::{
     vk, BindingDesc, Buffer, BufferDesc, ComputePipeline, Context, DescriptorSet, DescriptorWrite,
-    GpuObjects, Handle, Image, SamplerDesc,
+    GpuObjects, Handle, Image, ImageDesc, SamplerDesc,
 };
-use nimbus_scene::VoxelGrid;
 
 use super::schedule::Stage;
-use super::volumes::DerivedVolume;
-use crate::gpu::{bindings, non_empty, FrameUniforms, GpuGrid, RestirPush, RestirUniformsGpu};
+use super::volumes::{AtlasSizes, DerivedVolume};
+use crate::gpu::sparse::{atlas_dims, upload_atlas, TexelFormat};
+use crate::gpu::{
+    bindings, non_empty, BaselineUniformsGpu, FrameUniforms, GpuGrid, RestirPush, RestirUniformsGpu,
+};
 use crate::passes::{
-    compute_pipeline, image_3d, upload_env_map, upload_records, upload_uniform, Targets,
+    atlas_image, compute_pipeline, image_3d, upload_env_map, upload_records, upload_uniform,
+    Targets,
 };
 use crate::shaders;
 
@@ -26,13 +29,19 @@ pub struct Resources {
     pub lights: Handle<Buffer>,
     pub base_uniforms: Handle<Buffer>,
     pub prev_frame: Handle<Buffer>,
-    pub pc_grid: Handle<Buffer>,
-    /// This frame's density (full resolution) and its ray-march mips for reuse and NEE.
+    /// Every grid's indirection section ([`super::Sections`] says where each starts).
+    pub bricks: Handle<Buffer>,
+    /// Super-voxel records of this frame's density slots.
+    pub super_voxels: Handle<Buffer>,
+    /// Atlases: this frame's density, its piecewise-constant levels, its ray-march mips
+    /// for reuse and NEE.
     pub density: Handle<Image>,
+    pub pc: Handle<Image>,
     pub march_reuse: Handle<Image>,
     pub march_nee: Handle<Image>,
     /// The previous frame's density and reuse mip (the temporal stage evaluates the
-    /// previous reservoirs with them).
+    /// previous reservoirs with them); the same images as this frame's when the density
+    /// does not change.
     pub density_prev: Handle<Image>,
     pub march_reuse_prev: Handle<Image>,
 }
@@ -41,10 +50,16 @@ pub struct Resources {
 pub struct Inputs<'a> {
     pub grid: &'a GpuGrid,
     pub first: &'a DerivedVolume,
-    pub velocity: Option<&'a VoxelGrid>,
+    pub base_uniforms: &'a BaselineUniformsGpu,
+    /// The velocity grid as dense RGBA16F texels over the medium's world box.
+    pub velocity: Option<&'a ([u32; 3], Vec<u16>)>,
     pub uniforms: &'a RestirUniformsGpu,
+    pub indirection: &'a [u32],
     pub reservoir_bytes: u64,
-    pub march_format: super::volumes::MarchFormat,
+    pub march_format: TexelFormat,
+    pub sizes: AtlasSizes,
+    /// Density frames change: the previous frame gets atlases of its own.
+    pub animated: bool,
 }
 
 /// The descriptor layout all four stages share.
@@ -62,8 +77,9 @@ fn layout() -> Vec<BindingDesc> {
         BindingDesc::sampled_image(bindings::MARCH_REUSE_PREV),
         BindingDesc::sampled_image(bindings::MARCH_NEE),
         BindingDesc::sampled_image(bindings::VELOCITY),
+        BindingDesc::sampled_image(bindings::PC_GRID),
         BindingDesc::storage_buffer(bindings::SUPER_VOXELS),
-        BindingDesc::storage_buffer(bindings::PC_GRID),
+        BindingDesc::storage_buffer(bindings::GRID_BRICKS),
         BindingDesc::storage_buffer(bindings::RESERVOIRS),
         BindingDesc::storage_buffer(bindings::ENV_TEXELS),
         BindingDesc::storage_buffer(bindings::ENV_CDF),
@@ -80,6 +96,18 @@ fn spirv_of(stage: Stage) -> &'static [u8] {
     }
 }
 
+/// A 3D image for an atlas of `slots` per axis in `format`.
+fn atlas(
+    ctx: &Context,
+    o: &mut GpuObjects,
+    slots: [u32; 3],
+    format: TexelFormat,
+    name: &str,
+) -> Result<Handle<Image>> {
+    let [w, h, d] = atlas_dims(slots);
+    Ok(o.add(ctx.create_image(&ImageDesc::sampled_3d(w, h, d, format.vk()), name)?))
+}
+
 impl Resources {
     /// Creates every object of the pass in `o` (which frees them if this fails).
     pub fn create(
@@ -92,10 +120,14 @@ impl Resources {
         let Inputs {
             grid,
             first,
+            base_uniforms,
             velocity,
             uniforms,
+            indirection,
             reservoir_bytes,
             march_format,
+            sizes,
+            animated,
         } = *inputs;
         let layout = layout();
         let mut pipelines = Vec::with_capacity(4);
@@ -114,9 +146,13 @@ impl Resources {
         // records (the same until lights animate).
         let light_records = non_empty(&[grid.lights.clone(), grid.lights.clone()].concat());
         let lights = upload_records(ctx, o, &light_records, "restir lights")?;
-        let super_voxels = upload_records(ctx, o, &grid.super_voxels, "super-voxels")?;
+        let records = &first.grids.super_voxels;
+        let mut padded = records.clone();
+        padded.resize(padded.len().max(slot_count(sizes.density)), [0.0; 4]);
+        let super_voxels = upload_records(ctx, o, &padded, "super-voxels")?;
+        let bricks = upload_records(ctx, o, indirection, "grid bricks")?;
         let (env_texels, env_cdf) = upload_env_map(ctx, o, grid)?;
-        let base_uniforms = upload_uniform(ctx, o, &grid.uniforms, "grid uniforms")?;
+        let base_uniforms = upload_uniform(ctx, o, base_uniforms, "grid uniforms")?;
         let restir_uniforms = upload_uniform(ctx, o, uniforms, "restir uniforms")?;
         let prev_frame = o.add(ctx.create_buffer(
             &BufferDesc::gpu_only(
@@ -125,74 +161,96 @@ impl Resources {
             ),
             "previous frame uniforms",
         )?);
-        let pc_grid = upload_records(ctx, o, &first.pc, "piecewise-constant levels")?;
         let reservoirs = o.add(ctx.create_buffer(
             &BufferDesc::gpu_only(reservoir_bytes, vk::BufferUsageFlags::STORAGE_BUFFER),
             "reservoirs",
         )?);
         ctx.fill_buffer(&o[reservoirs], 0)?;
 
-        // Density images: the previous frame starts as a copy of the first.
-        let density: &[u8] = bytemuck::cast_slice(&first.density.data);
-        let reuse: &[u8] = &first.march_reuse.texels;
-        let nee: &[u8] = &first.march_nee.texels;
-        let (r32, march) = (vk::Format::R32_SFLOAT, march_format.vk());
-        let density_image = image_3d(ctx, o, first.density.dims, r32, density, "density")?;
-        let march_reuse = image_3d(
+        // Atlases, each sized for the largest frame.
+        let g = &first.grids;
+        let r32 = TexelFormat::R32;
+        let density = atlas(ctx, o, sizes.density, r32, "density")?;
+        upload_atlas(
             ctx,
-            o,
-            first.march_reuse.dims,
-            march,
-            reuse,
-            "march (reuse)",
+            &o[density],
+            sizes.density,
+            &[(&first.density_layout, &g.density, 1.0)],
+            r32,
         )?;
-        let march_nee = image_3d(ctx, o, first.march_nee.dims, march, nee, "march (NEE)")?;
-        let density_prev = image_3d(ctx, o, first.density.dims, r32, density, "previous density")?;
-        let march_reuse_prev = image_3d(
+        let scale = grid.uniforms.grid.density_scale;
+        let pc = atlas(ctx, o, sizes.pc, r32, "piecewise-constant levels")?;
+        upload_atlas(
             ctx,
-            o,
-            first.march_reuse.dims,
-            march,
-            reuse,
-            "previous march (reuse)",
+            &o[pc],
+            sizes.pc,
+            &[
+                (&first.pc_primary_layout, &g.pc_primary, scale),
+                (&first.pc_indirect_layout, &g.pc_indirect, scale),
+            ],
+            r32,
         )?;
+        let march_reuse = atlas(ctx, o, sizes.march_reuse, march_format, "march (reuse)")?;
+        upload_atlas(
+            ctx,
+            &o[march_reuse],
+            sizes.march_reuse,
+            &[(&first.march_reuse_layout, &g.march_reuse, 1.0)],
+            march_format,
+        )?;
+        let march_nee = atlas(ctx, o, sizes.march_nee, march_format, "march (NEE)")?;
+        upload_atlas(
+            ctx,
+            &o[march_nee],
+            sizes.march_nee,
+            &[(&first.march_nee_layout, &g.march_nee, 1.0)],
+            march_format,
+        )?;
+        // The previous frame starts as a copy of the first.
+        let (density_prev, march_reuse_prev) = if animated {
+            let d = atlas(ctx, o, sizes.density, r32, "previous density")?;
+            upload_atlas(
+                ctx,
+                &o[d],
+                sizes.density,
+                &[(&first.density_layout, &g.density, 1.0)],
+                r32,
+            )?;
+            let m = atlas(
+                ctx,
+                o,
+                sizes.march_reuse,
+                march_format,
+                "previous march (reuse)",
+            )?;
+            upload_atlas(
+                ctx,
+                &o[m],
+                sizes.march_reuse,
+                &[(&first.march_reuse_layout, &g.march_reuse, 1.0)],
+                march_format,
+            )?;
+            (d, m)
+        } else {
+            (density, march_reuse)
+        };
         let emission = match &grid.emission {
-            Some(e) => image_3d(
-                ctx,
-                o,
-                e.dims,
-                r32,
-                bytemuck::cast_slice(&e.data),
-                "grid emission",
-            )?,
-            // Without emission the (compiled-out) binding gets a 1-texel image.
-            None => image_3d(
-                ctx,
-                o,
-                [1, 1, 1],
-                r32,
-                bytemuck::bytes_of(&0.0f32),
-                "no emission",
-            )?,
+            Some((e, layout, format)) => {
+                atlas_image(ctx, o, layout, e, 1.0, *format, "grid emission")?
+            }
+            // Without emission the (compiled-out) binding sees the density.
+            None => density,
         };
         let rgba16 = vk::Format::R16G16B16A16_SFLOAT;
         let velocity = match velocity {
-            Some(v) => {
-                let texels: Vec<u16> = v
-                    .data
-                    .chunks_exact(3)
-                    .flat_map(|c| [c[0], c[1], c[2], 0.0])
-                    .map(|x| half::f16::from_f32(x).to_bits())
-                    .collect();
-                image_3d(
-                    ctx,
-                    o,
-                    v.dims,
-                    rgba16,
-                    bytemuck::cast_slice(&texels),
-                    "velocity",
-                )?
-            }
+            Some((dims, texels)) => image_3d(
+                ctx,
+                o,
+                *dims,
+                rgba16,
+                bytemuck::cast_slice(texels),
+                "velocity",
+            )?,
             None => image_3d(ctx, o, [1, 1, 1], rgba16, &[0u8; 8], "no velocity")?,
         };
         let nearest = ctx.create_sampler(&SamplerDesc::nearest(), "restir nearest")?;
@@ -223,15 +281,16 @@ impl Resources {
                     buffer(bindings::LIGHTS, lights),
                     uniform(bindings::BASELINE_UNIFORMS, base_uniforms),
                     uniform(bindings::RESTIR_UNIFORMS, restir_uniforms),
-                    image(bindings::GRID_DENSITY, density_image, nearest),
+                    image(bindings::GRID_DENSITY, density, nearest),
                     image(bindings::GRID_DENSITY_PREV, density_prev, nearest),
                     image(bindings::GRID_EMISSION, emission, nearest),
                     image(bindings::MARCH_REUSE, march_reuse, linear),
                     image(bindings::MARCH_REUSE_PREV, march_reuse_prev, linear),
                     image(bindings::MARCH_NEE, march_nee, linear),
                     image(bindings::VELOCITY, velocity, linear),
+                    image(bindings::PC_GRID, pc, nearest),
                     buffer(bindings::SUPER_VOXELS, super_voxels),
-                    buffer(bindings::PC_GRID, pc_grid),
+                    buffer(bindings::GRID_BRICKS, bricks),
                     buffer(bindings::RESERVOIRS, reservoirs),
                     buffer(bindings::ENV_TEXELS, env_texels),
                     buffer(bindings::ENV_CDF, env_cdf),
@@ -250,12 +309,19 @@ impl Resources {
             lights,
             base_uniforms,
             prev_frame,
-            pc_grid,
-            density: density_image,
+            bricks,
+            super_voxels,
+            density,
+            pc,
             march_reuse,
             march_nee,
             density_prev,
             march_reuse_prev,
         })
     }
+}
+
+/// Slots of an atlas of `slots` per axis.
+pub fn slot_count(slots: [u32; 3]) -> usize {
+    slots.iter().map(|&s| s as usize).product()
 }

@@ -1,68 +1,28 @@
-//! The densities ReSTIR derives from each density grid: the conservative
-//! piecewise-constant levels for regular tracking and the averaged mip textures for
-//! ray marching, for the base grid and every `[[medium.frame]]`.
+//! The densities ReSTIR derives from each density grid, brick by brick: the conservative
+//! piecewise-constant levels for regular tracking and the averaged mips for ray marching,
+//! for the base grid and every `[[medium.frame]]`, and their atlas layouts (one atlas
+//! size over all frames, so frames only upload).
 
 use std::collections::HashMap;
 
 use anyhow::{bail, Result};
-use nimbus_gpu::vk;
+use glam::IVec3;
 use nimbus_scene::precision::PositionScale;
-use nimbus_scene::{GridMedium, VoxelGrid};
+use nimbus_scene::{BrickGrid, GridMedium};
 
+use crate::gpu::sparse::{atlas_slots, SparseLayout, TexelFormat};
+use crate::gpu::GridLevelGpu;
 use crate::plan::RestirPlan;
 
 /// The texel format of the ray-march mips: half floats where every density of the
 /// animation fits f16 (the paper's choice, half the bandwidth), f32 otherwise. An f16
 /// texel above 65504 reads as infinity, which makes the target function 0 where the path
 /// contribution is not: a biased image (one voxel of 1e6 darkened half a cloud).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum MarchFormat {
-    Half,
-    Float,
-}
-
-impl MarchFormat {
-    /// The format that holds densities up to `max_density` (unscaled).
-    pub fn for_max(max_density: f32) -> MarchFormat {
-        if max_density <= f32::from(half::f16::MAX) {
-            MarchFormat::Half
-        } else {
-            MarchFormat::Float
-        }
-    }
-
-    pub fn vk(self) -> vk::Format {
-        match self {
-            MarchFormat::Half => vk::Format::R16_SFLOAT,
-            MarchFormat::Float => vk::Format::R32_SFLOAT,
-        }
-    }
-
-    /// `grid`'s texels in this format.
-    fn texels(self, grid: &VoxelGrid) -> Vec<u8> {
-        match self {
-            MarchFormat::Half => grid
-                .data
-                .iter()
-                .flat_map(|v| half::f16::from_f32(*v).to_bits().to_le_bytes())
-                .collect(),
-            MarchFormat::Float => bytemuck::cast_slice(&grid.data).to_vec(),
-        }
-    }
-}
-
-/// A ray-march mip level as uploaded.
-pub struct MarchLevel {
-    pub texels: Vec<u8>,
-    pub dims: [u32; 3],
-}
-
-impl MarchLevel {
-    fn of(grid: &VoxelGrid, format: MarchFormat) -> MarchLevel {
-        MarchLevel {
-            texels: format.texels(grid),
-            dims: grid.dims,
-        }
+pub fn march_format(max_density: f32) -> TexelFormat {
+    if max_density <= f32::from(half::f16::MAX) {
+        TexelFormat::R16
+    } else {
+        TexelFormat::R32
     }
 }
 
@@ -92,129 +52,242 @@ impl Levels {
     /// stay within [`MAX_LEVEL_EXCESS_TAU`] in every grid of the animation.
     pub fn choose(
         plan: &RestirPlan,
-        grids: &[VoxelGrid],
+        grids: &[&BrickGrid],
         scale: f32,
         voxel_diagonal: f32,
-    ) -> Levels {
+    ) -> Result<Levels> {
         let requested = plan
             .mip_candidates
             .max(plan.mip_indirect)
             .max(plan.mip_reuse);
-        let allowed = grids
-            .iter()
-            .map(|g| allowed_level(g, scale, voxel_diagonal, requested))
-            .min()
-            .unwrap_or(0);
-        Levels {
+        let mut allowed = requested;
+        for g in grids {
+            allowed = allowed.min(allowed_level(g, scale, voxel_diagonal, requested)?);
+        }
+        Ok(Levels {
             candidates: plan.mip_candidates.min(allowed),
             indirect: plan.mip_indirect.min(allowed),
             reuse: plan.mip_reuse.min(allowed),
-        }
+        })
     }
+}
+
+/// Whether a level's lattice is a single point (the 1×1×1 level of a dense grid).
+fn is_last(g: &BrickGrid) -> bool {
+    g.lattice_min == g.lattice_max
 }
 
 /// The coarsest level ≤ `requested` whose 2^L blocks all keep
 /// (mean − min) · scale · (voxel diagonal · 2^L) ≤ [`MAX_LEVEL_EXCESS_TAU`].
-fn allowed_level(grid: &VoxelGrid, scale: f32, voxel_diagonal: f32, requested: u32) -> u32 {
-    let mut mean = std::borrow::Cow::Borrowed(grid);
-    let mut min = std::borrow::Cow::Borrowed(grid);
+fn allowed_level(grid: &BrickGrid, scale: f32, voxel_diagonal: f32, requested: u32) -> Result<u32> {
+    if requested == 0 || is_last(grid) {
+        return Ok(requested);
+    }
+    let mut mean = grid.mip()?;
+    let mut min = grid.min_mip()?;
     for level in 1..=requested {
-        if mean.dims == [1, 1, 1] {
-            return requested;
+        if level > 1 {
+            if is_last(&mean) {
+                return Ok(requested);
+            }
+            mean = mean.mip()?;
+            min = min.min_mip()?;
         }
-        mean = std::borrow::Cow::Owned(mean.mip_level(1).into_owned());
-        min = std::borrow::Cow::Owned(min.min_downsample());
         let diagonal = f64::from(voxel_diagonal) * f64::from(1u32 << level.min(31));
-        let excess = mean
-            .data
-            .iter()
-            .zip(&min.data)
-            .map(|(m, lo)| f64::from(m - lo))
-            .fold(0.0, f64::max)
-            * f64::from(scale)
-            * diagonal;
+        let excess = mean.max_excess_over(&min) * f64::from(scale) * diagonal;
         if excess > MAX_LEVEL_EXCESS_TAU {
-            return level - 1;
+            return Ok(level - 1);
         }
     }
-    requested
+    Ok(requested)
 }
 
-/// Level `level` of the conservative piecewise-constant grid (the mean of its children),
-/// raised to `floor` times the largest density that can reach each block (the maximum of
-/// the voxels' 3×3×3 neighbourhoods over the block) when `floor` > 0: then σ_t / σ* ≤
-/// 1 / floor everywhere in the block, which bounds the candidates' weights.
-fn floored_level(
-    conservative: &VoxelGrid,
-    density: &VoxelGrid,
-    level: u32,
-    floor: f32,
-) -> VoxelGrid {
-    let mean = conservative.mip_level(level).into_owned();
+/// The mip `level` of `grid` (a copy at level 0), clamped at its single-point level.
+fn level_of(grid: &BrickGrid, level: u32) -> Result<BrickGrid> {
+    let mut g = grid.clone();
+    for _ in 0..level.min(grid.last_level()) {
+        g = g.mip()?;
+    }
+    Ok(g)
+}
+
+/// Level `level` of the conservative piecewise-constant grid (`mean`), raised to `floor`
+/// times the largest density that can reach each block (the maximum of the voxels' 3×3×3
+/// neighbourhoods over the block) when `floor` > 0: then σ_t / σ* ≤ 1 / floor everywhere
+/// in the block, which bounds the candidates' weights.
+fn floored(mean: BrickGrid, density: &BrickGrid, level: u32, floor: f32) -> Result<BrickGrid> {
     if floor.is_nan() || floor <= 0.0 {
-        return mean;
+        return Ok(mean);
     }
-    let mut reach = density.neighbourhood_max();
-    for _ in 0..level {
-        if reach.dims == [1, 1, 1] {
-            break;
-        }
-        reach = reach.max_downsample();
+    let mut reach = density.neighbourhood_max()?;
+    for _ in 0..level.min(density.last_level()) {
+        reach = reach.max_mip()?;
     }
-    let data = mean
-        .data
-        .iter()
-        .zip(&reach.data)
-        .map(|(m, r)| m.max(floor * r))
-        .collect();
-    VoxelGrid { data, ..mean }
+    mean.max_with_scaled(&reach, floor)
 }
 
-/// What the passes read for one density grid.
+/// The levels derived from one density grid, and which bricks of each get a slot.
+pub struct DerivedGrids {
+    pub density: BrickGrid,
+    /// The density's slots (its super-voxels with density) and their records.
+    pub density_bricks: Vec<IVec3>,
+    pub super_voxels: Vec<[f32; 4]>,
+    /// σ_t* (scaled at upload) of the primary and the indirect level.
+    pub pc_primary: BrickGrid,
+    pub pc_indirect: BrickGrid,
+    /// Unscaled density at mip_reuse and mip_indirect, and their slots.
+    pub march_reuse: BrickGrid,
+    pub march_reuse_bricks: Vec<IVec3>,
+    pub march_nee: BrickGrid,
+    pub march_nee_bricks: Vec<IVec3>,
+}
+
+impl DerivedGrids {
+    /// Derives the levels of `density` (moved in, not copied), whose super-voxels are
+    /// `density_bricks` / `super_voxels` (sigma_t, scaled); peak memory is the grid, its
+    /// conservative copy and two mip levels.
+    pub fn build(
+        density: BrickGrid,
+        density_bricks: Vec<IVec3>,
+        super_voxels: Vec<[f32; 4]>,
+        levels: &Levels,
+        floor: f32,
+    ) -> Result<DerivedGrids> {
+        let (pc_primary, pc_indirect) = {
+            let conservative = density.conservative()?;
+            let mut g = conservative;
+            let mut primary = None;
+            let mut indirect = None;
+            let top = levels.candidates.max(levels.indirect);
+            let last = g.last_level();
+            for level in 0..=top {
+                if level > 0 && level <= last {
+                    g = g.mip()?;
+                }
+                if level == levels.candidates {
+                    primary = Some(g.clone());
+                }
+                if level == levels.indirect {
+                    indirect = Some(g.clone());
+                }
+            }
+            match (primary, indirect) {
+                (Some(p), Some(i)) => (
+                    floored(p, &density, levels.candidates, floor)?,
+                    floored(i, &density, levels.indirect, floor)?,
+                ),
+                _ => bail!("internal: piecewise-constant levels not built"),
+            }
+        };
+        let march_reuse = level_of(&density, levels.reuse)?;
+        let march_nee = level_of(&density, levels.indirect)?;
+        Ok(DerivedGrids {
+            march_reuse_bricks: march_reuse.slot_bricks(),
+            march_nee_bricks: march_nee.slot_bricks(),
+            density,
+            density_bricks,
+            super_voxels,
+            pc_primary,
+            pc_indirect,
+            march_reuse,
+            march_nee,
+        })
+    }
+}
+
+/// What the passes read for one density grid: its levels laid out in atlases whose sizes
+/// all frames share.
 pub struct DerivedVolume {
-    /// σ_t* (scaled) of the primary level, then of the indirect level.
-    pub pc: Vec<f32>,
-    /// Dims of the primary level (its values start at 0), of the indirect level and
-    /// where its values start.
-    pub pc_primary_dims: [u32; 3],
-    pub pc_indirect_dims: [u32; 3],
-    pub pc_indirect_offset: u32,
-    /// Unscaled density at mip_reuse and mip_indirect.
-    pub march_reuse: MarchLevel,
-    pub march_nee: MarchLevel,
-    pub density: VoxelGrid,
+    pub grids: DerivedGrids,
+    pub density_layout: SparseLayout,
+    /// The piecewise-constant levels share one atlas: primary slots first.
+    pub pc_primary_layout: SparseLayout,
+    pub pc_indirect_layout: SparseLayout,
+    pub march_reuse_layout: SparseLayout,
+    pub march_nee_layout: SparseLayout,
+}
+
+/// Slots per axis of each atlas, shared by every frame.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct AtlasSizes {
+    pub density: [u32; 3],
+    pub pc: [u32; 3],
+    pub march_reuse: [u32; 3],
+    pub march_nee: [u32; 3],
+}
+
+impl AtlasSizes {
+    fn of(all: &[DerivedGrids]) -> Result<AtlasSizes> {
+        let max = |f: &dyn Fn(&DerivedGrids) -> usize| all.iter().map(f).max().unwrap_or(0) as u64;
+        Ok(AtlasSizes {
+            density: atlas_slots(max(&|g| g.density_bricks.len()))?,
+            pc: atlas_slots(max(&|g| {
+                g.pc_primary.brick_count() + g.pc_indirect.brick_count()
+            }))?,
+            march_reuse: atlas_slots(max(&|g| g.march_reuse_bricks.len()))?,
+            march_nee: atlas_slots(max(&|g| g.march_nee_bricks.len()))?,
+        })
+    }
 }
 
 impl DerivedVolume {
-    /// Derives the levels of `density` (moved in, not copied); peak memory is the grid,
-    /// its conservative copy and two mip levels.
-    pub fn build(
-        density: VoxelGrid,
-        scale: f32,
-        levels: &Levels,
-        format: MarchFormat,
-        floor: f32,
-    ) -> DerivedVolume {
-        let (pc, pc_primary_dims, pc_indirect_dims, pc_indirect_offset) = {
-            let conservative = density.conservative_piecewise_constant();
-            let primary = floored_level(&conservative, &density, levels.candidates, floor);
-            let indirect = floored_level(&conservative, &density, levels.indirect, floor);
-            let mut pc: Vec<f32> = primary.data.iter().map(|v| v * scale).collect();
-            let offset = pc.len() as u32;
-            pc.extend(indirect.data.iter().map(|v| v * scale));
-            (pc, primary.dims, indirect.dims, offset)
-        };
-        let march_reuse = MarchLevel::of(&density.mip_level(levels.reuse), format);
-        let march_nee = MarchLevel::of(&density.mip_level(levels.indirect), format);
-        DerivedVolume {
-            pc,
-            pc_primary_dims,
-            pc_indirect_dims,
-            pc_indirect_offset,
-            march_reuse,
-            march_nee,
-            density,
-        }
+    fn layout(grids: DerivedGrids, sizes: &AtlasSizes) -> Result<DerivedVolume> {
+        let g = &grids;
+        let primary_count = g.pc_primary.brick_count() as u32;
+        Ok(DerivedVolume {
+            density_layout: SparseLayout::new_at(
+                &g.density,
+                g.density_bricks.clone(),
+                0,
+                sizes.density,
+            )?,
+            pc_primary_layout: SparseLayout::new_at(
+                &g.pc_primary,
+                g.pc_primary.bricks.clone(),
+                0,
+                sizes.pc,
+            )?,
+            pc_indirect_layout: SparseLayout::new_at(
+                &g.pc_indirect,
+                g.pc_indirect.bricks.clone(),
+                primary_count,
+                sizes.pc,
+            )?,
+            march_reuse_layout: SparseLayout::new_at(
+                &g.march_reuse,
+                g.march_reuse_bricks.clone(),
+                0,
+                sizes.march_reuse,
+            )?,
+            march_nee_layout: SparseLayout::new_at(
+                &g.march_nee,
+                g.march_nee_bricks.clone(),
+                0,
+                sizes.march_nee,
+            )?,
+            grids,
+        })
+    }
+}
+
+/// The [`GridLevelGpu`] of a derived level at mip `level` of `density` (clamped at its
+/// last level), its indirection at `offset`.
+pub fn grid_level(
+    density: &BrickGrid,
+    grid: &BrickGrid,
+    layout: &SparseLayout,
+    level: u32,
+    offset: u32,
+) -> GridLevelGpu {
+    GridLevelGpu {
+        lattice_min: grid.lattice_min.to_array(),
+        bricks_offset: offset,
+        lattice_max: grid.lattice_max.to_array(),
+        factor: 1 << level.min(density.last_level()).min(31),
+        brick_dims: layout.brick_dims,
+        slots_x: layout.slots[0],
+        slots_y: layout.slots[1],
+        ..GridLevelGpu::default()
     }
 }
 
@@ -222,68 +295,91 @@ impl DerivedVolume {
 /// (0 = the medium's `density`, i + 1 = `[[medium.frame]]` i).
 pub struct Volumes {
     by_index: HashMap<usize, DerivedVolume>,
-    pub format: MarchFormat,
+    pub format: TexelFormat,
     pub levels: Levels,
+    pub sizes: AtlasSizes,
+    /// The largest sigma_t of every frame.
+    pub sigma_t_max: f32,
 }
 
 impl Volumes {
-    /// Loads every `[[medium.frame]]` (checked to have the base grid's dims and
-    /// resolvable densities), picks the march format all of them fit, and derives each,
-    /// so frames only upload. `label` names the medium in errors.
+    /// Loads every `[[medium.frame]]` into bricks (checked to share the base grid's
+    /// lattice and to have resolvable densities), picks the march format all of them fit,
+    /// and derives each, so frames only upload. `base` is the base density with its
+    /// super-voxels (`bricks`, `records`). `label` names the medium in errors.
     pub fn load(
-        base: VoxelGrid,
+        base: (BrickGrid, Vec<IVec3>, Vec<[f32; 4]>),
         grid: &GridMedium,
         plan: &RestirPlan,
         scale: &PositionScale,
         label: &str,
     ) -> Result<Volumes> {
-        let dims = base.dims;
-        let mut grids = vec![base];
+        let s = grid.density_scale;
+        let mut loaded = vec![base];
         for (i, frame) in grid.frames.iter().enumerate() {
             let what = format!(
                 "{label} > [[medium.frame]] #{} (frame {})",
                 i + 1,
                 frame.frame
             );
-            let density = nimbus_scene::load_grid(&frame.density, 1, &what)?;
-            grid.check_density(&density, scale, &what)?;
-            if density.dims != dims {
+            let density = BrickGrid::load(&frame.density, 1, &what)?;
+            grid.check_density_bricks(&density, scale, &what)?;
+            let first = &loaded[0].0;
+            if (
+                density.origin + density.lattice_min,
+                density.origin + density.lattice_max,
+            ) != (
+                first.origin + first.lattice_min,
+                first.origin + first.lattice_max,
+            ) {
                 bail!(
-                    "{what}: field `density`: dims {:?} differ from the medium's density {:?}; every frame must have the same resolution",
-                    density.dims,
-                    dims
+                    "{what}: field `density`: its lattice {} ..= {} differs from the medium's \
+                     density {} ..= {}; every frame must have the same resolution and extent",
+                    density.origin + density.lattice_min,
+                    density.origin + density.lattice_max,
+                    first.origin + first.lattice_min,
+                    first.origin + first.lattice_max
                 );
             }
-            grids.push(density);
+            let (bricks, records): (Vec<_>, Vec<_>) = density
+                .super_voxels()
+                .into_iter()
+                .map(|(b, v)| (b, [v[0] * s, v[1] * s, v[2] * s, 0.0]))
+                .unzip();
+            loaded.push((density, bricks, records));
         }
-        let max = grids
+        let max = loaded
             .iter()
-            .flat_map(|g| g.data.iter())
-            .fold(0.0f32, |m, v| m.max(*v));
-        let format = MarchFormat::for_max(max);
-        let size = grid.bounds_max - grid.bounds_min;
-        let voxel = size / glam::Vec3::from(dims.map(|d| d as f32));
-        let levels = Levels::choose(plan, &grids, grid.density_scale, voxel.length());
-        let by_index = grids
+            .map(|(g, _, _)| g.max_value().0)
+            .fold(0.0f32, f32::max);
+        let format = march_format(max);
+        let sigma_t_max = loaded
+            .iter()
+            .flat_map(|(_, _, r)| r.iter().map(|v| v[1]))
+            .fold(0.0f32, f32::max);
+        let dims = (loaded[0].0.lattice_max + 1)
+            .to_array()
+            .map(|d| d.max(1) as u32);
+        let voxel = grid.voxel_size(dims);
+        let diagonal = (voxel[0] * voxel[0] + voxel[1] * voxel[1] + voxel[2] * voxel[2]).sqrt();
+        let grids: Vec<&BrickGrid> = loaded.iter().map(|(g, _, _)| g).collect();
+        let levels = Levels::choose(plan, &grids, s, diagonal as f32)?;
+        let derived: Vec<DerivedGrids> = loaded
+            .into_iter()
+            .map(|(g, b, r)| DerivedGrids::build(g, b, r, &levels, plan.sigma_star_floor))
+            .collect::<Result<_>>()?;
+        let sizes = AtlasSizes::of(&derived)?;
+        let by_index = derived
             .into_iter()
             .enumerate()
-            .map(|(i, g)| {
-                (
-                    i,
-                    DerivedVolume::build(
-                        g,
-                        grid.density_scale,
-                        &levels,
-                        format,
-                        plan.sigma_star_floor,
-                    ),
-                )
-            })
-            .collect();
+            .map(|(i, g)| Ok((i, DerivedVolume::layout(g, &sizes)?)))
+            .collect::<Result<_>>()?;
         Ok(Volumes {
             by_index,
             format,
             levels,
+            sizes,
+            sigma_t_max,
         })
     }
 
@@ -302,58 +398,35 @@ impl Volumes {
 
 /// The ray-marching step at mip `level`: the diagonal of one of its voxels, in metres
 /// (sec. 5.1: "our step size for ray marching is the diagonal of a Mip 1 voxel").
-pub fn march_step(grid: &GridMedium, dims: [u32; 3], level: u32) -> f32 {
-    let factor = (1u64 << level.min(last_level(dims))) as f32;
-    let size = grid.bounds_max - grid.bounds_min;
-    let voxel = glam::Vec3::new(
-        size.x / dims[0] as f32,
-        size.y / dims[1] as f32,
-        size.z / dims[2] as f32,
-    ) * factor;
-    voxel.length()
-}
-
-/// ceil(log2(largest dim)): the index of the 1×1×1 level of a mip chain.
-pub fn last_level(dims: [u32; 3]) -> u32 {
-    let max = dims.iter().copied().max().unwrap_or(1).max(1);
-    32 - (max - 1).leading_zeros()
+pub fn march_step(grid: &GridMedium, density: &BrickGrid, level: u32) -> f32 {
+    let dims = (density.lattice_max + 1)
+        .to_array()
+        .map(|d| d.max(1) as u32);
+    let factor = 1u64 << level.min(density.last_level()).min(31);
+    if grid.vdb.is_none() {
+        // In f32, as the dense renderer always computed it.
+        let size = grid.bounds_max - grid.bounds_min;
+        let voxel = glam::Vec3::new(
+            size.x / dims[0] as f32,
+            size.y / dims[1] as f32,
+            size.z / dims[2] as f32,
+        ) * factor as f32;
+        return voxel.length();
+    }
+    let v = grid.voxel_size(dims);
+    ((v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt() * factor as f64) as f32
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn last_level_is_the_one_by_one_level() {
-        assert_eq!(last_level([1, 1, 1]), 0);
-        assert_eq!(last_level([2, 1, 1]), 1);
-        assert_eq!(last_level([64, 48, 64]), 6);
-        assert_eq!(last_level([65, 1, 1]), 7);
-    }
-}
-
-#[cfg(test)]
-mod format_tests {
-    use super::*;
+    use nimbus_scene::VoxelGrid;
 
     #[test]
     fn densities_beyond_f16_use_f32_texels() {
-        assert_eq!(MarchFormat::for_max(65504.0), MarchFormat::Half);
-        assert_eq!(MarchFormat::for_max(65505.0), MarchFormat::Float);
-        let grid = VoxelGrid {
-            dims: [2, 1, 1],
-            channels: 1,
-            data: vec![0.5, 1e6],
-        };
-        assert_eq!(MarchFormat::Half.texels(&grid).len(), 4);
-        let f32_texels = MarchFormat::Float.texels(&grid);
-        assert_eq!(bytemuck::cast_slice::<u8, f32>(&f32_texels), &[0.5, 1e6]);
+        assert_eq!(march_format(65504.0), TexelFormat::R16);
+        assert_eq!(march_format(65505.0), TexelFormat::R32);
     }
-}
-
-#[cfg(test)]
-mod level_tests {
-    use super::*;
 
     fn plan(level: u32) -> RestirPlan {
         RestirPlan {
@@ -389,7 +462,8 @@ mod level_tests {
             channels: 1,
             data: vec![0.5; (n * n * n) as usize],
         };
-        let smooth = Levels::choose(&plan(2), std::slice::from_ref(&grid), 1.0, 0.1);
+        let bricks = |g: &VoxelGrid| BrickGrid::from_dense(g).unwrap();
+        let smooth = Levels::choose(&plan(2), &[&bricks(&grid)], 1.0, 0.1).unwrap();
         assert_eq!(
             smooth,
             Levels {
@@ -399,7 +473,7 @@ mod level_tests {
             }
         );
         grid.data[(8 + n * (8 + n * 8)) as usize] = 1e6;
-        let hot = Levels::choose(&plan(2), &[grid], 1.0, 0.1);
+        let hot = Levels::choose(&plan(2), &[&bricks(&grid)], 1.0, 0.1).unwrap();
         assert_eq!(
             hot,
             Levels {

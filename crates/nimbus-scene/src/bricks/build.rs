@@ -378,17 +378,36 @@ impl BrickTopology {
 }
 
 /// Whether brick `b` of a procedural cloud of `dims` may hold a non-zero voxel: its voxel
-/// centres reach inside the envelope's outer bound (normalized radius < 1.2 about the
-/// cloud's centre, above its floor; see `procedural.rs`).
+/// centres reach where the density can be positive (see `procedural.rs`). The density
+/// is `2.5 (envelope (0.3 + 0.9 detail) − 0.45)` with detail ≤ 1, so it is positive only
+/// where envelope > 0.375; both smoothstep factors of the envelope are ≤ 1, so each must
+/// exceed 0.375, i.e. its argument t > 0.4155 (3t² − 2t³ = 0.375 at t = 0.41548). Hence
+/// 1 − r_displaced > 0.3 · 0.4155 with |displacement| ≤ 0.2: normalized radius r < 1.0754
+/// about the cloud's centre; and y > 0.22 + 0.06 · 0.4155 = 0.2449 above the floor. (The
+/// looser r < 1.2 of `procedural.rs` is where it stops evaluating.) The bound is tested
+/// against the dense cloud in `bricks/tests.rs`.
 pub fn procedural_cloud_brick_may_be_nonzero(dims: [u32; 3], b: IVec3) -> bool {
+    procedural_cloud_points_may_be_nonzero(dims, b * BRICK_EDGE, b * BRICK_EDGE + BRICK_EDGE - 1)
+}
+
+/// Whether the super-voxel of brick `b` of a procedural cloud may have a positive maximum
+/// (see [`BrickGrid::super_voxels`]): some lattice point of `8b − 1 ..= 8b + 8` may be
+/// non-zero (the bound of [`procedural_cloud_brick_may_be_nonzero`]). The bricks for which
+/// this holds bound the density's atlas slots.
+pub fn procedural_cloud_super_voxel_may_be_nonzero(dims: [u32; 3], b: IVec3) -> bool {
+    procedural_cloud_points_may_be_nonzero(dims, b * BRICK_EDGE - 1, b * BRICK_EDGE + BRICK_EDGE)
+}
+
+/// Whether a voxel of `first ..= last` (clamped to the grid) may be non-zero.
+fn procedural_cloud_points_may_be_nonzero(dims: [u32; 3], first: IVec3, last: IVec3) -> bool {
     const CENTER: [f64; 3] = [0.5, 0.40, 0.5];
     const RADII: [f64; 3] = [0.42, 0.32, 0.42];
     let mut r2 = 0.0;
     let mut top = 0.0;
     for axis in 0..3 {
         let n = f64::from(dims[axis]);
-        let first = f64::from(b[axis] * BRICK_EDGE);
-        let last = (first + f64::from(BRICK_EDGE - 1)).min(n - 1.0);
+        let first = f64::from(first[axis].max(0));
+        let last = f64::from(last[axis]).min(n - 1.0);
         let (lo, hi) = ((first + 0.5) / n, (last + 0.5) / n);
         let d = (CENTER[axis].clamp(lo, hi) - CENTER[axis]) / RADII[axis];
         r2 += d * d;
@@ -396,5 +415,10 @@ pub fn procedural_cloud_brick_may_be_nonzero(dims: [u32; 3], b: IVec3) -> bool {
             top = hi;
         }
     }
-    r2.sqrt() < 1.2 && top > 0.22
+    r2.sqrt() < MAX_R && top > MIN_Y
 }
+
+/// Normalized radius beyond which the procedural cloud is 0 (rounded up).
+const MAX_R: f64 = 1.0755;
+/// Normalized height below which the procedural cloud is 0 (rounded down).
+const MIN_Y: f64 = 0.2448;

@@ -11,6 +11,14 @@ use glam::IVec3;
 
 use super::{point_index, shr, BrickGrid, BRICK_EDGE, BRICK_POINTS};
 
+/// How [`BrickGrid::reduce_with`] combines a point's children.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Reduce {
+    Mean,
+    Min,
+    Max,
+}
+
 /// Bricks of `grid` and their 26 neighbours inside its indirection, each once, sorted
 /// by (z, y, x).
 fn dilated(grid: &BrickGrid) -> Vec<IVec3> {
@@ -132,6 +140,103 @@ impl BrickGrid {
         self.reduce(true)
     }
 
+    /// One level of a maximum pyramid (see [`crate::VoxelGrid::max_downsample`]): each
+    /// point the maximum of its existing children (channel 0; values are ≥ 0, so a child
+    /// no brick holds, 0, never raises it).
+    pub fn max_mip(&self) -> Result<BrickGrid> {
+        self.reduce_with(Reduce::Max)
+    }
+
+    /// The largest value of each lattice point's 3×3×3 neighbourhood inside the lattice
+    /// range (channel 0; see [`crate::VoxelGrid::neighbourhood_max`]). Bricks that come
+    /// out all zero are not stored.
+    pub fn neighbourhood_max(&self) -> Result<BrickGrid> {
+        let mut out = BrickGrid::empty(
+            self.origin,
+            self.lattice_min,
+            self.lattice_max,
+            self.index_min,
+            self.index_max,
+            1,
+        )?;
+        let mut hood = [0f32; 1000];
+        let mut inside = [false; 1000];
+        let mut values = vec![0f32; BRICK_POINTS];
+        for b in dilated(self) {
+            neighbourhood(self, b, &mut hood, &mut inside);
+            let (lo, hi) = self.brick_range(b);
+            values.iter_mut().for_each(|v| *v = 0.0);
+            let mut any = false;
+            for k in lo.z..=hi.z {
+                for j in lo.y..=hi.y {
+                    for i in lo.x..=hi.x {
+                        let local = IVec3::new(i, j, k) - b * BRICK_EDGE;
+                        let mut m = 0f32;
+                        for dz in 0..3 {
+                            for dy in 0..3 {
+                                for dx in 0..3 {
+                                    let h = local + IVec3::new(dx, dy, dz);
+                                    let n = (h.x + 10 * (h.y + 10 * h.z)) as usize;
+                                    if inside[n] {
+                                        m = m.max(hood[n]);
+                                    }
+                                }
+                            }
+                        }
+                        values[point_index(local)] = m;
+                        any |= m != 0.0;
+                    }
+                }
+            }
+            if any {
+                out.push_brick(b, &values)?;
+            }
+        }
+        Ok(out)
+    }
+
+    /// Per lattice point (channel 0) `max(self, factor · other)`, `other` a grid of the
+    /// same lattice (0 where it stores no brick).
+    pub fn max_with_scaled(&self, other: &BrickGrid, factor: f32) -> Result<BrickGrid> {
+        let mut out = BrickGrid::empty(
+            self.origin,
+            self.lattice_min,
+            self.lattice_max,
+            self.index_min,
+            self.index_max,
+            1,
+        )?;
+        let mut all: Vec<IVec3> = self
+            .bricks
+            .iter()
+            .chain(&other.bricks)
+            .copied()
+            .collect::<HashSet<_>>()
+            .into_iter()
+            .collect();
+        all.sort_unstable_by_key(|b| (b.z, b.y, b.x));
+        let mut values = vec![0f32; BRICK_POINTS];
+        for b in all {
+            let (lo, hi) = self.brick_range(b);
+            values.iter_mut().for_each(|v| *v = 0.0);
+            let mut any = false;
+            for k in lo.z..=hi.z {
+                for j in lo.y..=hi.y {
+                    for i in lo.x..=hi.x {
+                        let l = IVec3::new(i, j, k);
+                        let v = self.get(l).max(factor * other.get(l));
+                        values[point_index(l - b * BRICK_EDGE)] = v;
+                        any |= v != 0.0;
+                    }
+                }
+            }
+            if any {
+                out.push_brick(b, &values)?;
+            }
+        }
+        Ok(out)
+    }
+
     /// [`BrickGrid::mip`] `level` times (a copy of this grid at level 0).
     pub fn mip_level(&self, level: u32) -> Result<BrickGrid> {
         let mut g = self.clone();
@@ -142,6 +247,11 @@ impl BrickGrid {
     }
 
     fn reduce(&self, minimum: bool) -> Result<BrickGrid> {
+        self.reduce_with(if minimum { Reduce::Min } else { Reduce::Mean })
+    }
+
+    fn reduce_with(&self, mode: Reduce) -> Result<BrickGrid> {
+        let minimum = mode != Reduce::Mean;
         let ch = if minimum { 1 } else { self.channels as usize };
         let mut out = BrickGrid::empty(
             self.origin,
@@ -174,12 +284,18 @@ impl BrickGrid {
                         let c_hi = (first + 1).min(self.lattice_max);
                         sum.iter_mut().for_each(|s| *s = 0.0);
                         let mut count = 0u32;
-                        let mut m = f32::INFINITY;
+                        let mut m = if mode == Reduce::Max {
+                            f32::NEG_INFINITY
+                        } else {
+                            f32::INFINITY
+                        };
                         for kk in c_lo.z..=c_hi.z {
                             for jj in c_lo.y..=c_hi.y {
                                 for ii in c_lo.x..=c_hi.x {
                                     let l = IVec3::new(ii, jj, kk);
-                                    if minimum {
+                                    if mode == Reduce::Max {
+                                        m = m.max(self.get(l));
+                                    } else if minimum {
                                         m = m.min(self.get(l));
                                     } else {
                                         for (c, s) in sum.iter_mut().enumerate() {

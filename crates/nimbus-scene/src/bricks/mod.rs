@@ -39,7 +39,10 @@ mod precision;
 #[cfg(test)]
 mod tests;
 
-pub use build::{procedural_cloud_brick_may_be_nonzero, BrickTopology};
+pub use build::{
+    procedural_cloud_brick_may_be_nonzero, procedural_cloud_super_voxel_may_be_nonzero,
+    BrickTopology,
+};
 pub use precision::effective_sigma_t;
 
 use anyhow::{bail, Result};

@@ -139,6 +139,33 @@ fn streamed_and_procedural_bricks_equal_the_dense_bricks() {
     assert!(cloud.bricks.iter().all(|b| bound.bricks.contains(b)));
 }
 
+/// The procedural cloud's brick bound (derived from the density formula, not sampled)
+/// holds every non-zero voxel of dense clouds of several sizes and seeds.
+#[test]
+fn the_procedural_cloud_bound_holds_every_non_zero_voxel() {
+    for (dims, seed) in [([40, 24, 33], 1), ([64, 40, 64], 7), ([23, 48, 17], 3)] {
+        for seed in [seed, seed + 10, seed + 20] {
+            let g = crate::procedural_cloud(dims, seed);
+            let bricks = BrickGrid::from_dense(&g).unwrap();
+            for (b, _) in bricks.super_voxels() {
+                assert!(
+                    procedural_cloud_super_voxel_may_be_nonzero(dims, b),
+                    "{dims:?} seed {seed}: super-voxel {b}"
+                );
+            }
+            for (i, j, k) in dense_points(dims) {
+                if g.get(i, j, k) != 0.0 {
+                    let b = at(i, j, k) / BRICK_EDGE;
+                    assert!(
+                        procedural_cloud_brick_may_be_nonzero(dims, b),
+                        "{dims:?} seed {seed}: voxel ({i}, {j}, {k})"
+                    );
+                }
+            }
+        }
+    }
+}
+
 #[test]
 fn bad_values_are_refused_naming_the_voxel() {
     let mut g = blob([9, 9, 9], 4);
@@ -228,6 +255,32 @@ fn effective_extinction_matches_the_dense_rule() {
         for (scale, voxel) in [(1.0, [0.1, 0.2, 0.05]), (300.0, [0.01, 0.01, 0.01])] {
             let dense = grid_effective_sigma_t(&g, scale, voxel).0;
             assert_eq!(effective_sigma_t(&b, scale, voxel).0, dense);
+        }
+    }
+}
+
+#[test]
+fn neighbourhood_max_and_max_mips_match_the_dense_grid() {
+    for g in grids() {
+        let b = BrickGrid::from_dense(&g).unwrap();
+        let mut dense = g.neighbourhood_max();
+        let mut bricks = b.neighbourhood_max().unwrap();
+        loop {
+            for (i, j, k) in dense_points(dense.dims) {
+                assert_eq!(bricks.get(at(i, j, k)), dense.get(i, j, k), "{:?}", g.dims);
+            }
+            let floored = b.max_with_scaled(&bricks, 0.25).unwrap();
+            if bricks.lattice_min == b.lattice_min && bricks.lattice_max == b.lattice_max {
+                for (i, j, k) in dense_points(dense.dims) {
+                    let want = g.get(i, j, k).max(0.25 * dense.get(i, j, k));
+                    assert_eq!(floored.get(at(i, j, k)), want);
+                }
+            }
+            if dense.dims == [1, 1, 1] {
+                break;
+            }
+            dense = dense.max_downsample();
+            bricks = bricks.max_mip().unwrap();
         }
     }
 }

@@ -1,0 +1,346 @@
+//! Sparse grids as the shaders read them (`shaders/include/grid.glsl`): a
+//! [`nimbus_scene::BrickGrid`] laid out as slots of 9³ texels (a brick and its high-side
+//! apron) in one 3D atlas image, an indirection section (brick → slot) in the shared
+//! `grid_bricks[]` buffer, and the [`GridSpaceGpu`] record that says where its index space
+//! sits in the world. Atlases are uploaded one layer of slots at a time, so the host never
+//! holds a whole atlas.
+//!
+//! Limits (lavapipe's, and Vulkan's minimum maxImageDimension3D on larger devices): an
+//! atlas has at most 455 slots per axis (4095 texels); [`atlas_slots`] refuses more.
+
+use anyhow::{bail, Result};
+use glam::{DMat3, DMat4, DVec3, IVec3};
+use nimbus_gpu::{vk, Context, Image};
+use nimbus_scene::bricks::{NO_BRICK, SLOT_EDGE, SLOT_TEXELS};
+use nimbus_scene::BrickGrid;
+
+use super::GridSpaceGpu;
+
+/// Most slots along one axis of an atlas: 455 × 9 = 4095 texels.
+pub const MAX_ATLAS_SLOTS_PER_AXIS: u32 = 455;
+
+/// The texel format of an atlas.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TexelFormat {
+    /// R32F: densities, scalar emission, piecewise-constant levels.
+    R32,
+    /// R16F: the ray-march mips where every value fits a half float.
+    R16,
+    /// RGBA32F: rgb emission (alpha 0).
+    Rgba32,
+}
+
+impl TexelFormat {
+    pub fn vk(self) -> vk::Format {
+        match self {
+            TexelFormat::R32 => vk::Format::R32_SFLOAT,
+            TexelFormat::R16 => vk::Format::R16_SFLOAT,
+            TexelFormat::Rgba32 => vk::Format::R32G32B32A32_SFLOAT,
+        }
+    }
+
+    /// Bytes per texel.
+    pub fn bytes(self) -> u64 {
+        match self {
+            TexelFormat::R32 => 4,
+            TexelFormat::R16 => 2,
+            TexelFormat::Rgba32 => 16,
+        }
+    }
+}
+
+/// Slots per axis of an atlas of `n` slots (at least 1): `x = y = ⌈∛n⌉`, z what is left.
+pub fn atlas_slots(n: u64) -> Result<[u32; 3]> {
+    let n = n.max(1);
+    let mut side = (n as f64).cbrt().ceil() as u64;
+    while side * side * side < n {
+        side += 1;
+    }
+    let side = side.min(u64::from(MAX_ATLAS_SLOTS_PER_AXIS));
+    let z = n.div_ceil(side * side);
+    if z > u64::from(MAX_ATLAS_SLOTS_PER_AXIS) {
+        bail!(
+            "{n} bricks of 8³ voxels do not fit one 3D atlas ({MAX_ATLAS_SLOTS_PER_AXIS}³ slots \
+             of 9³ texels at most)"
+        );
+    }
+    Ok([side as u32, side as u32, z as u32])
+}
+
+/// Atlas texel dims for `slots` per axis.
+pub fn atlas_dims(slots: [u32; 3]) -> [u32; 3] {
+    slots.map(|s| s * SLOT_EDGE as u32)
+}
+
+/// Bytes of an atlas of `n` slots in `format`.
+pub fn atlas_bytes(n: u64, format: TexelFormat) -> Result<u64> {
+    let dims = atlas_dims(atlas_slots(n)?);
+    Ok(dims.iter().map(|&d| u64::from(d)).product::<u64>() * format.bytes())
+}
+
+/// Which bricks of a grid get a slot, in slot order, and the indirection to them.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SparseLayout {
+    /// Primed brick coordinates, slot `first_slot + i` holding `bricks[i]`.
+    pub bricks: Vec<IVec3>,
+    /// The slot of this grid's first brick (grids can share an atlas).
+    pub first_slot: u32,
+    /// Per brick of `brick_dims` (x fastest): its slot or [`NO_BRICK`].
+    pub indirection: Vec<u32>,
+    pub brick_dims: [u32; 3],
+    /// Slots per axis of the atlas.
+    pub slots: [u32; 3],
+}
+
+impl SparseLayout {
+    /// `bricks` of `grid` (each inside its indirection) in slot order, in an atlas of its
+    /// own with at least `min_slots` slots (animated grids share one atlas size over their
+    /// frames).
+    pub fn new(grid: &BrickGrid, bricks: Vec<IVec3>, min_slots: u64) -> Result<SparseLayout> {
+        let slots = atlas_slots((bricks.len() as u64).max(min_slots))?;
+        SparseLayout::new_at(grid, bricks, 0, slots)
+    }
+
+    /// `bricks` of `grid` in slots `first_slot ..` of an atlas of `slots` per axis.
+    pub fn new_at(
+        grid: &BrickGrid,
+        bricks: Vec<IVec3>,
+        first_slot: u32,
+        slots: [u32; 3],
+    ) -> Result<SparseLayout> {
+        let capacity = slots.iter().map(|&s| u64::from(s)).product::<u64>();
+        if u64::from(first_slot) + bricks.len() as u64 > capacity {
+            bail!(
+                "internal: {} bricks from slot {first_slot} overflow an atlas of {slots:?} slots",
+                bricks.len()
+            );
+        }
+        let mut indirection = vec![NO_BRICK; grid.indirection.len()];
+        for (i, b) in bricks.iter().enumerate() {
+            let Some(cell) = grid.cell(*b) else {
+                bail!("internal: brick {b} outside the grid's indirection");
+            };
+            indirection[cell] = first_slot + i as u32;
+        }
+        Ok(SparseLayout {
+            bricks,
+            first_slot,
+            indirection,
+            brick_dims: grid.brick_dims,
+            slots,
+        })
+    }
+
+    /// Atlas texel dims.
+    pub fn atlas_dims(&self) -> [u32; 3] {
+        atlas_dims(self.slots)
+    }
+
+    /// Uploads `grid`'s slot texels (times `scale`) into `atlas` (made with
+    /// [`SparseLayout::atlas_dims`] and `format`); see [`upload_atlas`].
+    pub fn upload(
+        &self,
+        ctx: &Context,
+        atlas: &Image,
+        grid: &BrickGrid,
+        scale: f32,
+        format: TexelFormat,
+    ) -> Result<()> {
+        upload_atlas(ctx, atlas, self.slots, &[(self, grid, scale)], format)
+    }
+
+    /// The whole atlas's texels (small grids and tests; [`upload_atlas`] never holds
+    /// them all).
+    pub fn atlas_texels(&self, grid: &BrickGrid, scale: f32, format: TexelFormat) -> Vec<u8> {
+        let mut out = Vec::new();
+        let mut layer = Vec::new();
+        for z in 0..self.slots[2] {
+            layer_texels(self.slots, z, &[(self, grid, scale)], format, &mut layer);
+            out.extend_from_slice(&layer);
+        }
+        out
+    }
+}
+
+/// One part of an atlas: a layout, its grid and the scale of its texels.
+pub type AtlasPart<'a> = (&'a SparseLayout, &'a BrickGrid, f32);
+
+/// The texels of slot layer `z` of an atlas of `slots` per axis holding `parts` (slots no
+/// part holds are 0), into `out`.
+fn layer_texels(
+    slots: [u32; 3],
+    z: u32,
+    parts: &[AtlasPart],
+    format: TexelFormat,
+    out: &mut Vec<u8>,
+) {
+    let [sx, sy, _] = slots.map(|s| s as usize);
+    let e = SLOT_EDGE as usize;
+    let (w, h) = (sx * e, sy * e);
+    let texel = format.bytes() as usize;
+    out.clear();
+    out.resize(w * h * e * texel, 0);
+    let mut texels = Vec::with_capacity(SLOT_TEXELS * 3);
+    for y in 0..sy {
+        for x in 0..sx {
+            let slot = ((z as usize * sy + y) * sx + x) as u32;
+            let found = parts.iter().find_map(|(layout, grid, scale)| {
+                let i = slot.checked_sub(layout.first_slot)? as usize;
+                layout.bricks.get(i).map(|b| (*b, *grid, *scale))
+            });
+            let Some((b, grid, scale)) = found else {
+                continue;
+            };
+            texels.clear();
+            grid.slot_texels(b, scale, &mut texels);
+            let ch = grid.channels as usize;
+            for (n, v) in texels.chunks_exact(ch).enumerate() {
+                let (i, j, k) = (n % e, (n / e) % e, n / (e * e));
+                let at = ((k * h + y * e + j) * w + x * e + i) * texel;
+                write_texel(&mut out[at..at + texel], v, format);
+            }
+        }
+    }
+}
+
+/// Uploads the slot texels of `parts` into `atlas` (`slots` per axis, `format`), one layer
+/// of slots at a time; slots no part holds are 0.
+pub fn upload_atlas(
+    ctx: &Context,
+    atlas: &Image,
+    slots: [u32; 3],
+    parts: &[AtlasPart],
+    format: TexelFormat,
+) -> Result<()> {
+    let [w, h, _] = atlas_dims(slots);
+    let mut layer = Vec::new();
+    for z in 0..slots[2] {
+        layer_texels(slots, z, parts, format, &mut layer);
+        ctx.upload_image_region(
+            atlas,
+            [0, 0, z * SLOT_EDGE as u32],
+            [w, h, SLOT_EDGE as u32],
+            &layer,
+        )?;
+    }
+    Ok(())
+}
+
+fn write_texel(out: &mut [u8], v: &[f32], format: TexelFormat) {
+    match format {
+        TexelFormat::R32 => out.copy_from_slice(&v[0].to_le_bytes()),
+        TexelFormat::R16 => out.copy_from_slice(&half::f16::from_f32(v[0]).to_bits().to_le_bytes()),
+        TexelFormat::Rgba32 => {
+            for c in 0..4 {
+                let x = if v.len() == 1 {
+                    if c < 3 {
+                        v[0]
+                    } else {
+                        0.0
+                    }
+                } else {
+                    v.get(c).copied().unwrap_or(0.0)
+                };
+                out[4 * c..4 * c + 4].copy_from_slice(&x.to_le_bytes());
+            }
+        }
+    }
+}
+
+/// The [`GridSpaceGpu`] of `grid` laid out as `layout`, its indirection at
+/// `bricks_offset`, p-space mapped to the world by `p_to_world`. `world_box` is the exact
+/// world box of a grid known to be axis-aligned (a `type = "grid"` medium's bounds);
+/// without it a transform whose linear part is a positive diagonal is axis-aligned too,
+/// with the box it maps the p-space box to.
+pub fn grid_space(
+    grid: &BrickGrid,
+    layout: &SparseLayout,
+    bricks_offset: u32,
+    p_to_world: DMat4,
+    world_box: Option<(glam::Vec3, glam::Vec3)>,
+) -> GridSpaceGpu {
+    let linear = DMat3::from_mat4(p_to_world);
+    let diagonal = [
+        linear.x_axis.y,
+        linear.x_axis.z,
+        linear.y_axis.x,
+        linear.y_axis.z,
+        linear.z_axis.x,
+        linear.z_axis.y,
+    ]
+    .iter()
+    .all(|v| *v == 0.0)
+        && linear.x_axis.x > 0.0
+        && linear.y_axis.y > 0.0
+        && linear.z_axis.z > 0.0;
+    let map = |p: DVec3| (p_to_world * p.extend(1.0)).truncate().as_vec3();
+    let (box_min, box_max) = match world_box {
+        Some(b) => b,
+        None => (map(grid.index_min), map(grid.index_max)),
+    };
+    let inverse = p_to_world.inverse();
+    let row = |r: usize| inverse.row(r).as_vec4().to_array();
+    GridSpaceGpu {
+        world_to_index_x: row(0),
+        world_to_index_y: row(1),
+        world_to_index_z: row(2),
+        box_min: box_min.to_array(),
+        axis_aligned: u32::from(world_box.is_some() || diagonal),
+        box_max: box_max.to_array(),
+        bricks_offset,
+        index_min: grid.index_min.as_vec3().to_array(),
+        slots_x: layout.slots[0],
+        index_max: grid.index_max.as_vec3().to_array(),
+        slots_y: layout.slots[1],
+        lattice_min: grid.lattice_min.to_array(),
+        channels: grid.channels,
+        lattice_max: grid.lattice_max.to_array(),
+        _pad0: 0,
+        brick_dims: layout.brick_dims,
+        _pad1: 0,
+    }
+}
+
+/// The indirection sections of a pass, concatenated into one `grid_bricks[]` buffer.
+#[derive(Clone, Debug, Default)]
+pub struct Indirection {
+    pub entries: Vec<u32>,
+}
+
+impl Indirection {
+    /// Appends a section; returns its offset.
+    pub fn push(&mut self, section: &[u32]) -> u32 {
+        let offset = self.entries.len() as u32;
+        self.entries.extend_from_slice(section);
+        offset
+    }
+}
+
+/// Bytes of one layer of slots of an atlas of `n` slots: what [`SparseLayout::upload`]
+/// holds at once (and its staging buffer again).
+pub fn layer_bytes(n: u64, format: TexelFormat) -> Result<u64> {
+    let [sx, sy, _] = atlas_slots(n)?;
+    Ok(u64::from(sx) * u64::from(sy) * SLOT_TEXELS as u64 * format.bytes())
+}
+
+/// An upper bound of the slots a grid of topology `topo` gets: its bricks and their 26
+/// neighbours (`all_neighbours`: the super-voxels of a density), or their 7 lower
+/// neighbours (whose aprons reach into them: the slots of any other grid).
+pub fn slot_bound(topo: &nimbus_scene::BrickTopology, all_neighbours: bool) -> u64 {
+    let dims = topo.brick_dims().map(|d| d as i32);
+    let range = if all_neighbours { -1..=1 } else { -1..=0 };
+    let mut set = std::collections::HashSet::new();
+    for b in &topo.bricks {
+        for z in range.clone() {
+            for y in range.clone() {
+                for x in range.clone() {
+                    let n = *b + IVec3::new(x, y, z);
+                    if n.cmpge(IVec3::ZERO).all() && n.cmplt(IVec3::from_array(dims)).all() {
+                        set.insert(n);
+                    }
+                }
+            }
+        }
+    }
+    set.len() as u64
+}
