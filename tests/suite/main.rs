@@ -18,6 +18,7 @@ mod budget;
 mod cli;
 mod docs;
 mod envmap_gpu;
+mod grid_sparse;
 mod grid_volume;
 mod hard_cases;
 mod image_harness;
