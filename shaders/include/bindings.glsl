@@ -28,6 +28,8 @@
 #define BINDING_PREV_FRAME_UNIFORMS 22
 #define BINDING_FILM_PARTIAL 23
 #define BINDING_MEDIUM_PLANES 24
+#define BINDING_MOMENT_MAP 25
+#define BINDING_MOMENT_FRAMES 26
 
 // Indices into the stats buffer (uint counters).
 #define STAT_NON_FINITE 0

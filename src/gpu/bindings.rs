@@ -27,6 +27,10 @@ pub const PREV_FRAME_UNIFORMS: u32 = 22;
 /// A frame's partial sums while its samples are shared among dispatches (film.glsl).
 pub const FILM_PARTIAL: u32 = 23;
 pub const MEDIUM_PLANES: u32 = 24;
+/// The ME estimator's moment shadow maps (one mip chain per directional light).
+pub const MOMENT_MAP: u32 = 25;
+/// Where each light's moment map lies in the world (`MomentFrameGpu`).
+pub const MOMENT_FRAMES: u32 = 26;
 
 /// Index of the non-finite sample counter in the stats buffer.
 pub const STAT_NON_FINITE: usize = 0;
@@ -39,7 +43,7 @@ pub const STAT_LOOPS_CUT: usize = 2;
 pub const STAT_COUNT: usize = 4;
 
 /// Every binding with its GLSL name, for the layout test.
-pub const ALL: [(&str, u32); 25] = [
+pub const ALL: [(&str, u32); 27] = [
     ("BINDING_FRAME_UNIFORMS", FRAME_UNIFORMS),
     ("BINDING_ACCUM", ACCUM),
     ("BINDING_ACCUM_SQ", ACCUM_SQ),
@@ -65,4 +69,6 @@ pub const ALL: [(&str, u32); 25] = [
     ("BINDING_PREV_FRAME_UNIFORMS", PREV_FRAME_UNIFORMS),
     ("BINDING_FILM_PARTIAL", FILM_PARTIAL),
     ("BINDING_MEDIUM_PLANES", MEDIUM_PLANES),
+    ("BINDING_MOMENT_MAP", MOMENT_MAP),
+    ("BINDING_MOMENT_FRAMES", MOMENT_FRAMES),
 ];
