@@ -4,8 +4,8 @@
 // stratified rays per texel along the light through the shapes and keeps the mean
 // moments of the first hit's normalised depth (1 where the light reaches the media's
 // downstream end unstopped); level k > 0 averages level k - 1's 2x2 texels. The render
-// plan runs this pass only for ME in scenes with shapes, before every frame's
-// crepuscular dispatch.
+// plan runs this pass only for ME in scenes with shapes, once before the first frame's
+// crepuscular dispatch (lights and shapes are static in a crepuscular render).
 
 #extension GL_GOOGLE_include_directive : require
 

@@ -253,7 +253,7 @@ mod tests {
             .map(|&(_, id)| id)
             .collect();
         estimators.sort_unstable();
-        assert_eq!(estimators, (0..5).collect::<Vec<u32>>());
+        assert_eq!(estimators, (0..6).collect::<Vec<u32>>());
     }
 
     #[test]

@@ -2,7 +2,7 @@
 //! homogeneous box media under collimated light, direct lighting of the shapes, and the
 //! background, accumulated per pixel. With the ME estimator in a scene with shapes, a
 //! moment-map stage (`shaders/box/moments.comp`) renders each directional light's
-//! moment shadow map before every frame.
+//! moment shadow map once, before the first frame.
 
 use anyhow::{bail, Result};
 use glam::Vec3;
@@ -163,10 +163,13 @@ struct MomentStage {
 }
 
 /// The crepuscular pass: the per-pixel dispatch, after the moment maps where ME needs
-/// them.
+/// them. Lights and shapes do not change during a crepuscular render, so the maps are
+/// rendered once, before the first frame (profile scope `moments` in that frame only),
+/// as a real-time renderer caches the shadow maps of static lights.
 pub struct CrepuscularPass {
     image: ImagePass,
     moments: Option<MomentStage>,
+    moments_ready: bool,
 }
 
 /// Creates the pass of `plan`.
@@ -332,6 +335,7 @@ pub fn create(
             set,
             frames,
         }),
+        moments_ready: false,
     })
 }
 
@@ -398,7 +402,8 @@ impl Pass for CrepuscularPass {
         dispatch_index: u32,
         mut profiler: Option<&mut Profiler>,
     ) -> Result<()> {
-        if let Some(stage) = &self.moments {
+        if let (Some(stage), false) = (&self.moments, self.moments_ready) {
+            self.moments_ready = true;
             if let Some(p) = profiler.as_deref_mut() {
                 p.begin_scope(ctx, cmd, "moments")?;
             }

@@ -178,8 +178,8 @@ pub(super) fn build(
             reason: if features.has_shapes && features.has_media {
                 format!(
                     "ME: a {size}x{size} moment shadow map (4 moments, mip chain) per directional \
-                     light over the media's footprint, traced through {shapes} shape(s) before \
-                     every frame; {samples_along_ray} lookups along each segment"
+                     light over the media's footprint, traced through {shapes} shape(s) once \
+                     (lights and shapes are static); {samples_along_ray} lookups along each segment"
                 )
             } else {
                 "ME without shapes: every visibility ratio is 1, no moment map is made".into()
