@@ -7,7 +7,7 @@
 use anyhow::{bail, Result};
 use glam::Vec3;
 use nimbus_gpu::{
-    compute_barrier, vk, BindingDesc, BufferDesc, ComputePipeline, Context, DescriptorSet,
+    compute_barrier, vk, BindingDesc, Buffer, BufferDesc, ComputePipeline, Context, DescriptorSet,
     DescriptorWrite, GpuObjects, Handle, Profiler, SpecValue,
 };
 use nimbus_scene::{BoxEstimator, CameraFrame, Scene, Shape};
@@ -155,6 +155,33 @@ pub fn moment_frames(records: &GpuScene, scene: &Scene, size: u32) -> Vec<Moment
         .collect()
 }
 
+/// A pipeline of push constants `P` whose set holds the film targets and the storage
+/// buffers `buffers` (binding, buffer), and that set.
+fn storage_pipeline<P>(
+    ctx: &Context,
+    o: &mut GpuObjects,
+    targets: &Targets,
+    buffers: &[(u32, Handle<Buffer>)],
+    spirv: &[u8],
+    specialization: &[(u32, SpecValue)],
+    name: &str,
+) -> Result<(Handle<ComputePipeline>, Handle<DescriptorSet>)> {
+    let mut layout = Vec::from(Targets::layout());
+    layout.extend(buffers.iter().map(|&(b, _)| BindingDesc::storage_buffer(b)));
+    let pipeline = compute_pipeline::<P>(ctx, o, spirv, &layout, specialization, name)?;
+    let mut writes = Vec::from(targets.writes());
+    writes.extend(
+        buffers
+            .iter()
+            .map(|&(binding, buffer)| DescriptorWrite::StorageBuffer {
+                binding,
+                buffer: &o[buffer],
+            }),
+    );
+    let set = ctx.create_descriptor_set(&o[pipeline], &writes, &format!("{name} set"))?;
+    Ok((pipeline, o.add(set)))
+}
+
 /// The moment-map stage: its pipeline, set and the dispatches of one frame.
 struct MomentStage {
     pipeline: Handle<ComputePipeline>,
@@ -210,24 +237,6 @@ pub fn create(
         );
     }
     let (objects, (pipeline, set, moment_stage)) = GpuObjects::build(ctx, |o| {
-        let mut layout = Vec::from(Targets::layout());
-        layout.extend([
-            BindingDesc::storage_buffer(bindings::BOX_MEDIA),
-            BindingDesc::storage_buffer(bindings::MEDIUM_PLANES),
-            BindingDesc::storage_buffer(bindings::SHAPES),
-            BindingDesc::storage_buffer(bindings::LIGHTS),
-            BindingDesc::storage_buffer(bindings::GOBO_PLANES),
-            BindingDesc::storage_buffer(bindings::MOMENT_MAP),
-            BindingDesc::storage_buffer(bindings::MOMENT_FRAMES),
-        ]);
-        let pipeline = compute_pipeline::<PassPush>(
-            ctx,
-            o,
-            shaders::BOX_CREPUSCULAR,
-            &layout,
-            &specialization(plan),
-            "crepuscular",
-        )?;
         let media = upload_records(ctx, o, &non_empty(&records.media), "box media")?;
         let planes = upload_records(ctx, o, &non_empty(&records.medium_planes), "medium planes")?;
         let shapes = upload_records(ctx, o, &non_empty(&records.shapes), "shapes")?;
@@ -238,71 +247,37 @@ pub fn create(
             "moment maps",
         )?);
         let moment_frames = upload_records(ctx, o, &non_empty(&frames), "moment frames")?;
-        let mut writes = Vec::from(targets.writes());
-        writes.extend([
-            DescriptorWrite::StorageBuffer {
-                binding: bindings::BOX_MEDIA,
-                buffer: &o[media],
-            },
-            DescriptorWrite::StorageBuffer {
-                binding: bindings::MEDIUM_PLANES,
-                buffer: &o[planes],
-            },
-            DescriptorWrite::StorageBuffer {
-                binding: bindings::SHAPES,
-                buffer: &o[shapes],
-            },
-            DescriptorWrite::StorageBuffer {
-                binding: bindings::LIGHTS,
-                buffer: &o[lights],
-            },
-            DescriptorWrite::StorageBuffer {
-                binding: bindings::GOBO_PLANES,
-                buffer: &o[gobo_planes],
-            },
-            DescriptorWrite::StorageBuffer {
-                binding: bindings::MOMENT_MAP,
-                buffer: &o[moment_map],
-            },
-            DescriptorWrite::StorageBuffer {
-                binding: bindings::MOMENT_FRAMES,
-                buffer: &o[moment_frames],
-            },
-        ]);
-        let set = ctx.create_descriptor_set(&o[pipeline], &writes, "crepuscular set")?;
-        let set = o.add(set);
+        let (pipeline, set) = storage_pipeline::<PassPush>(
+            ctx,
+            o,
+            targets,
+            &[
+                (bindings::BOX_MEDIA, media),
+                (bindings::MEDIUM_PLANES, planes),
+                (bindings::SHAPES, shapes),
+                (bindings::LIGHTS, lights),
+                (bindings::GOBO_PLANES, gobo_planes),
+                (bindings::MOMENT_MAP, moment_map),
+                (bindings::MOMENT_FRAMES, moment_frames),
+            ],
+            shaders::BOX_CREPUSCULAR,
+            &specialization(plan),
+            "crepuscular",
+        )?;
         let stage = if with_moments {
-            let mut layout = Vec::from(Targets::layout());
-            layout.extend([
-                BindingDesc::storage_buffer(bindings::SHAPES),
-                BindingDesc::storage_buffer(bindings::MOMENT_MAP),
-                BindingDesc::storage_buffer(bindings::MOMENT_FRAMES),
-            ]);
-            let m_pipeline = compute_pipeline::<MomentPush>(
+            Some(storage_pipeline::<MomentPush>(
                 ctx,
                 o,
+                targets,
+                &[
+                    (bindings::SHAPES, shapes),
+                    (bindings::MOMENT_MAP, moment_map),
+                    (bindings::MOMENT_FRAMES, moment_frames),
+                ],
                 shaders::BOX_MOMENTS,
-                &layout,
                 &[(SC_ID_HAS_SHAPES, SpecValue::Bool(plan.features.has_shapes))],
                 "moment maps",
-            )?;
-            let mut writes = Vec::from(targets.writes());
-            writes.extend([
-                DescriptorWrite::StorageBuffer {
-                    binding: bindings::SHAPES,
-                    buffer: &o[shapes],
-                },
-                DescriptorWrite::StorageBuffer {
-                    binding: bindings::MOMENT_MAP,
-                    buffer: &o[moment_map],
-                },
-                DescriptorWrite::StorageBuffer {
-                    binding: bindings::MOMENT_FRAMES,
-                    buffer: &o[moment_frames],
-                },
-            ]);
-            let m_set = ctx.create_descriptor_set(&o[m_pipeline], &writes, "moment map set")?;
-            Some((m_pipeline, o.add(m_set)))
+            )?)
         } else {
             None
         };
