@@ -118,11 +118,13 @@ for scene in "${bench[@]}"; do
     done
 done
 
-# The box-medium paper's estimators at equal time (RM is the baseline of the ratios).
-for scene in box-sphere window; do
+# The box-medium paper's estimators at equal time (RM is the baseline of the ratios),
+# ME (moment-based, approximate) beside them: its error floor where its heuristic holds
+# (me-detached) and where it fails (me-interleaved, box-sphere).
+for scene in box-sphere window me-detached me-interleaved; do
     nimbus study "assets/scenes/$scene.toml" "${size[@]}" "${ref[@]}" "${cache[@]}" \
         --seeds "$seeds" --frames "$frames" \
-        --vary box_estimator=mcwvds,reds,rees,rm,mcds --vary "box_samples=$box_samples" \
+        --vary box_estimator=mcwvds,reds,rees,rm,mcds,me --vary "box_samples=$box_samples" \
         --baseline box_estimator=rm \
         --out-dir "$out/study-$scene"
 done

@@ -14,6 +14,9 @@
 //   REES    ratio estimator, equidistant jittered samples.
 //   RM      ray marching: equidistant jittered samples.
 //   MCDS    Monte Carlo with distance sampling along the camera ray only.
+//   ME      moment-based estimation (Peters et al. 2017): the analytic unoccluded
+//           radiance times a visibility ratio reconstructed from the lights' moment
+//           shadow maps (moments.comp renders them first); deterministic, approximate.
 // Each sample picks one directional light in proportion to its analytic unoccluded
 // radiance along this segment (Sec. 4, multiple lights). A gobo offsets and limits the
 // integration to the part of the segment inside its prism, for every estimator.
@@ -60,6 +63,7 @@ layout(std430, set = 0, binding = BINDING_GOBO_PLANES) readonly buffer GoboBlock
 #include "shapes.glsl"
 #include "box_media.glsl"
 #include "directional.glsl"
+#include "moments.glsl"
 #include "estimators.glsl"
 
 // Direct light reflected by the Lambertian shape hit at x towards -d.

@@ -21,7 +21,7 @@
 //
 // The includer declares `BoxMedium media[]`, `Light lights[]`, `u_frame`, the constants
 // SC_ESTIMATOR and SC_HAS_GOBOS, and includes box_analytic.glsl, phase.glsl,
-// sampling.glsl and directional.glsl first.
+// sampling.glsl, directional.glsl and moments.glsl first.
 #ifndef NIMBUS_BOX_ESTIMATORS_GLSL
 #define NIMBUS_BOX_ESTIMATORS_GLSL
 
@@ -154,6 +154,66 @@ DistanceSample integrand_sample(BoxMedium bm, Light l, vec3 o, vec3 d, vec3 o_lo
 }
 
 // ---------------------------------------------------------------------------------------
+// ME: moment-based estimation (Velinov & Mitchell, Sec. 8, after Peters et al. 2017).
+//
+// Per light l, the analytic unoccluded radiance U_l times a visibility ratio read from the
+// light's moment shadow map (moments.glsl), with no random numbers: the n = ray_samples
+// points at the quantiles (k + 1/2) / n of the light's whole-volume pdf each carry 1/n of
+// U_l, so the ratio is the plain mean of their visibilities. ME replaces that mean by one
+// moment reconstruction: the mean of the points' filtered moments (each from the mip
+// level whose texels are as wide as the points' spacing, so together they cover the
+// segment's footprint) against the mean of their normalised depths. This is the
+// heuristic of prefiltered single scattering: exact where every occluder lies upstream
+// of the whole segment (detached shadows, the shadowed fraction is then the moments'
+// share at small depth), and wrong where occluders interleave with the segment in depth
+// (false shadows and leaks, the paper's Figs. 12-13). Other box media on the way to the
+// light multiply in their mean transmittance at the same points.
+vec3 single_scatter_me(uint m, BoxMedium bm, vec3 o, vec3 d, vec3 o_local, vec3 d_local, float t_enter,
+                       vec3 U[MAX_LIGHTS], vec2 interval[MAX_LIGHTS], uint light_count) {
+    uint n = max(u_frame.ray_samples, 1u);
+    bool other_media = SC_HAS_MEDIA && u_frame.box_media_count > 1u;
+    vec3 L = vec3(0.0);
+    for (uint l = 0u; l < light_count; ++l) {
+        if (!(U[l].r + U[l].g + U[l].b > 0.0)) {
+            continue;
+        }
+        if (!SC_HAS_SHAPES && !other_media) {
+            L += U[l];
+            continue;
+        }
+        Light light = lights[l];
+        BoxPieces pieces = light_pieces(bm, light, o_local, d_local, t_enter, interval[l]);
+        MomentFrame f = moment_frames[l];
+        // The mip level whose texels are as wide as the spacing of the n points.
+        vec2 uv_a = moment_texel(f, o + interval[l].x * d);
+        vec2 uv_b = moment_texel(f, o + interval[l].y * d);
+        float spacing = length(uv_b - uv_a) / float(n);
+        uint level = min(uint(floor(log2(max(spacing, 1.0)))), f.levels - 1u);
+        vec4 b = vec4(0.0);
+        float z = 0.0;
+        float T_other = 0.0;
+        for (uint k = 0u; k < n; ++k) {
+            float t = sample_wvds_distance(pieces, (float(k) + 0.5) / float(n));
+            vec3 x = o + t * d;
+            if (SC_HAS_SHAPES) {
+                b += moment_fetch(f, level, moment_texel(f, x));
+                z += moment_depth(f, dot(x, f.omega));
+            }
+            if (other_media) {
+                T_other += exp(-box_optical_depth_except(x, -light.direction_or_position, 0.0, FAR, m));
+            }
+        }
+        // Domain: n >= 1.
+        float V = SC_HAS_SHAPES ? 1.0 - msm_shadow_intensity(b / float(n), z / float(n)) : 1.0;
+        if (other_media) {
+            V *= T_other / float(n);
+        }
+        L += U[l] * V;
+    }
+    return L;
+}
+
+// ---------------------------------------------------------------------------------------
 // The estimator.
 
 // Single-scattered radiance towards o from box medium m along o + t d, t in
@@ -192,6 +252,9 @@ vec3 single_scatter_box(uint m, vec3 o, vec3 d, float t_enter, float t_b, inout 
     }
     if (!(w_sum > 0.0)) {
         return vec3(0.0);
+    }
+    if (SC_ESTIMATOR == ESTIMATOR_ME) {
+        return single_scatter_me(m, bm, o, d, o_local, d_local, t_enter, U, interval, light_count);
     }
 
     uint n = max(u_frame.ray_samples, 1u);

@@ -28,7 +28,9 @@
 #define BINDING_PREV_FRAME_UNIFORMS 22
 #define BINDING_FILM_PARTIAL 23
 #define BINDING_MEDIUM_PLANES 24
-#define BINDING_GRID_BRICKS 25
+#define BINDING_MOMENT_MAP 25
+#define BINDING_MOMENT_FRAMES 26
+#define BINDING_GRID_BRICKS 27
 
 // Indices into the stats buffer (uint counters).
 #define STAT_NON_FINITE 0

@@ -41,6 +41,8 @@
 #define ESTIMATOR_REES 2u
 #define ESTIMATOR_RM 3u
 #define ESTIMATOR_MCDS 4u
+// Moment-based estimation (Peters et al. 2017) of the visibility ratio.
+#define ESTIMATOR_ME 5u
 
 // ---------------------------------------------------------------------------------------
 // Limits.
@@ -55,6 +57,9 @@
 #define MAX_MEDIA 16u
 // Most planes of a convex medium (the scene loader's limit).
 #define MAX_CONVEX_PLANES 64u
+
+// Rays per side of a moment-map texel: MOMENT_MAP_RAYS² stratified rays (moments.glsl).
+#define MOMENT_MAP_RAYS 2u
 
 // Most scattering events a ReSTIR path stores (k' has 5 bits in a reservoir's info word,
 // see reservoir.glsl, so at most 31 would fit).

@@ -85,6 +85,37 @@ struct FrameUniforms {
 };
 
 // Push constants of a dispatch. 16 bytes.
+// Where light l's moment shadow map lies (the ME estimator, moments.glsl): an orthographic
+// map perpendicular to the light's travel direction over the box media's footprint.
+struct MomentFrame {
+    vec3 u_axis;       // unit world axis of the map's u
+    float u_min;       // u of the map's left edge (m)
+    vec3 v_axis;       // unit world axis of the map's v
+    float v_min;       // v of its bottom edge (m)
+    vec3 omega;        // the light's unit travel direction: depth z = omega . x
+    float trace_start; // depth at which the map's rays start, upstream of every shape
+    float texels_u;    // level-0 texels per metre along u
+    float texels_v;    // level-0 texels per metre along v
+    float depth_near;  // depth of the media's upstream end (normalised depth 0.1)
+    float depth_far;   // depth of their downstream end (normalised depth 0.9)
+    uint size;         // level-0 texels per side (a power of two)
+    uint levels;       // mip levels: log2(size) + 1
+    uint first;        // index of level 0's first texel in moment_map[]
+    uint _pad0;
+};
+
+// Push constants of the moment-map pass: one dispatch per light and mip level.
+struct MomentPush {
+    uint light;  // which light's map
+    uint level;  // 0: trace the shapes; > 0: average level - 1's 2x2 texels
+    uint size;   // texels per side of this level
+    uint dst;    // index of this level's first texel in moment_map[]
+    uint src;    // index of level - 1's first texel (level > 0)
+    uint _pad0;
+    uint _pad1;
+    uint _pad2;
+};
+
 struct PassPush {
     uint frame;        // frame index within the render
     uint sample_base;  // index of this dispatch's first sample per pixel

@@ -27,8 +27,12 @@ pub const PREV_FRAME_UNIFORMS: u32 = 22;
 /// A frame's partial sums while its samples are shared among dispatches (film.glsl).
 pub const FILM_PARTIAL: u32 = 23;
 pub const MEDIUM_PLANES: u32 = 24;
+/// The ME estimator's moment shadow maps (one mip chain per directional light).
+pub const MOMENT_MAP: u32 = 25;
+/// Where each light's moment map lies in the world (`MomentFrameGpu`).
+pub const MOMENT_FRAMES: u32 = 26;
 /// The indirection sections of the sparse grids (`uint grid_bricks[]`).
-pub const GRID_BRICKS: u32 = 25;
+pub const GRID_BRICKS: u32 = 27;
 
 /// Index of the non-finite sample counter in the stats buffer.
 pub const STAT_NON_FINITE: usize = 0;
@@ -41,7 +45,7 @@ pub const STAT_LOOPS_CUT: usize = 2;
 pub const STAT_COUNT: usize = 4;
 
 /// Every binding with its GLSL name, for the layout test.
-pub const ALL: [(&str, u32); 26] = [
+pub const ALL: [(&str, u32); 28] = [
     ("BINDING_FRAME_UNIFORMS", FRAME_UNIFORMS),
     ("BINDING_ACCUM", ACCUM),
     ("BINDING_ACCUM_SQ", ACCUM_SQ),
@@ -67,5 +71,7 @@ pub const ALL: [(&str, u32); 26] = [
     ("BINDING_PREV_FRAME_UNIFORMS", PREV_FRAME_UNIFORMS),
     ("BINDING_FILM_PARTIAL", FILM_PARTIAL),
     ("BINDING_MEDIUM_PLANES", MEDIUM_PLANES),
+    ("BINDING_MOMENT_MAP", MOMENT_MAP),
+    ("BINDING_MOMENT_FRAMES", MOMENT_FRAMES),
     ("BINDING_GRID_BRICKS", GRID_BRICKS),
 ];

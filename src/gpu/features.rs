@@ -37,6 +37,7 @@ pub const ESTIMATOR_REDS: u32 = 1;
 pub const ESTIMATOR_REES: u32 = 2;
 pub const ESTIMATOR_RM: u32 = 3;
 pub const ESTIMATOR_MCDS: u32 = 4;
+pub const ESTIMATOR_ME: u32 = 5;
 
 // ---------------------------------------------------------------------------------------
 // Limits.
@@ -51,6 +52,8 @@ pub const MAX_LIGHTS: u32 = 16;
 pub const MAX_MEDIA: u32 = 16;
 /// Most planes of a convex medium.
 pub const MAX_CONVEX_PLANES: u32 = 64;
+/// Rays per side of a moment-map texel (MOMENT_MAP_RAYS² stratified rays per texel).
+pub const MOMENT_MAP_RAYS: u32 = 2;
 /// Most scattering events a ReSTIR path stores.
 pub const MAX_RESTIR_BOUNCES: u32 = 16;
 /// Most analytic lights a ReSTIR path can name (8-bit index, 0xff = environment).
@@ -70,7 +73,7 @@ pub const MARCH_MAX_STEPS: u32 = 4096;
 pub const GRID_MAX_STEPS: u32 = 1_048_576;
 
 /// Every constant above with its GLSL name.
-pub const ALL: [(&str, u32); 33] = [
+pub const ALL: [(&str, u32); 35] = [
     ("SC_ID_HAS_SHAPES", SC_ID_HAS_SHAPES),
     ("SC_ID_HAS_GOBOS", SC_ID_HAS_GOBOS),
     ("SC_ID_HAS_ENV", SC_ID_HAS_ENV),
@@ -91,6 +94,8 @@ pub const ALL: [(&str, u32); 33] = [
     ("ESTIMATOR_REES", ESTIMATOR_REES),
     ("ESTIMATOR_RM", ESTIMATOR_RM),
     ("ESTIMATOR_MCDS", ESTIMATOR_MCDS),
+    ("ESTIMATOR_ME", ESTIMATOR_ME),
+    ("MOMENT_MAP_RAYS", MOMENT_MAP_RAYS),
     ("GROUP_SIZE_X", GROUP_SIZE_X),
     ("GROUP_SIZE_Y", GROUP_SIZE_Y),
     ("MAX_LIGHTS", MAX_LIGHTS),
@@ -248,7 +253,7 @@ mod tests {
             .map(|&(_, id)| id)
             .collect();
         estimators.sort_unstable();
-        assert_eq!(estimators, (0..5).collect::<Vec<u32>>());
+        assert_eq!(estimators, (0..6).collect::<Vec<u32>>());
     }
 
     #[test]

@@ -78,6 +78,53 @@ pub struct LightGpu {
     pub select_cdf: f32,
 }
 
+/// `MomentFrame` in scene.glsl: where a directional light's moment shadow map lies.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+pub struct MomentFrameGpu {
+    pub u_axis: [f32; 3],
+    pub u_min: f32,
+    pub v_axis: [f32; 3],
+    pub v_min: f32,
+    /// The light's unit travel direction (depth = omega · x).
+    pub omega: [f32; 3],
+    /// Depth at which the map's rays start, upstream of every shape.
+    pub trace_start: f32,
+    /// Level-0 texels per metre along u.
+    pub texels_u: f32,
+    /// Level-0 texels per metre along v.
+    pub texels_v: f32,
+    /// Depth of the box media's upstream end.
+    pub depth_near: f32,
+    /// Depth of their downstream end.
+    pub depth_far: f32,
+    /// Level-0 texels per side (a power of two).
+    pub size: u32,
+    /// Mip levels: log2(size) + 1.
+    pub levels: u32,
+    /// Index of level 0's first texel in the moment-map buffer.
+    pub first: u32,
+    pub _pad0: u32,
+}
+
+/// `MomentPush` in scene.glsl: one dispatch of the moment-map pass.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+pub struct MomentPush {
+    pub light: u32,
+    /// 0: trace the shapes; > 0: average level − 1's 2×2 texels.
+    pub level: u32,
+    /// Texels per side of this level.
+    pub size: u32,
+    /// Index of this level's first texel.
+    pub dst: u32,
+    /// Index of level − 1's first texel.
+    pub src: u32,
+    pub _pad0: u32,
+    pub _pad1: u32,
+    pub _pad2: u32,
+}
+
 /// `FrameUniforms` in scene.glsl (std140).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]

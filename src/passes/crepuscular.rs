@@ -1,15 +1,24 @@
 //! The crepuscular-ray pass (`shaders/box/crepuscular.comp`): single scattering in
 //! homogeneous box media under collimated light, direct lighting of the shapes, and the
-//! background, accumulated per pixel.
+//! background, accumulated per pixel. With the ME estimator in a scene with shapes, a
+//! moment-map stage (`shaders/box/moments.comp`) renders each directional light's
+//! moment shadow map once, before the first frame.
 
-use anyhow::Result;
-use nimbus_gpu::{BindingDesc, Context, DescriptorWrite, GpuObjects, SpecValue};
-use nimbus_scene::Scene;
+use anyhow::{bail, Result};
+use glam::Vec3;
+use nimbus_gpu::{
+    compute_barrier, vk, BindingDesc, Buffer, BufferDesc, ComputePipeline, Context, DescriptorSet,
+    DescriptorWrite, GpuObjects, Handle, Profiler, SpecValue,
+};
+use nimbus_scene::{BoxEstimator, CameraFrame, Scene, Shape};
 
-use super::{compute_pipeline, upload_records, FrameConstants, ImagePass, Targets};
+use super::{compute_pipeline, upload_records, FrameConstants, ImagePass, Pass, Targets};
 use crate::budget::{Binding, Footprint};
 use crate::gpu::features::*;
-use crate::gpu::{bindings, non_empty, GpuScene, PassPush, RecordCounts};
+use crate::gpu::{
+    bindings, non_empty, BoxMediumGpu, FrameUniforms, GpuScene, MomentFrameGpu, MomentPush,
+    PassPush, RecordCounts,
+};
 use crate::plan::{estimator_id, CrepuscularPlan};
 use crate::shaders;
 
@@ -32,13 +41,171 @@ pub fn specialization(plan: &CrepuscularPlan) -> [(u32, SpecValue); 9] {
     ]
 }
 
+/// Whether the plan runs the moment-map stage: ME in a scene whose shapes can shadow
+/// the media (without shapes every visibility ratio is 1 and no map is needed).
+pub fn needs_moment_maps(plan: &CrepuscularPlan) -> bool {
+    plan.estimator == BoxEstimator::Me && plan.features.has_shapes && plan.features.has_media
+}
+
+/// Mip levels of a moment map of `size` texels per side (a power of two).
+fn moment_levels(size: u32) -> u32 {
+    size.max(1).ilog2() + 1
+}
+
+/// Texels of one light's moment map and its mip chain.
+fn moment_texels_per_light(size: u64) -> u64 {
+    (0..moment_levels(size as u32))
+        .map(|k| (size >> k) * (size >> k))
+        .sum()
+}
+
+/// Corners of box medium `m` (of its bounding box for a convex medium) in world space.
+fn medium_corners(m: &BoxMediumGpu) -> impl Iterator<Item = Vec3> + '_ {
+    let axes = m.world_to_local.map(|r| Vec3::new(r[0], r[1], r[2]));
+    let h = Vec3::from(m.half_size);
+    (0..8).map(move |i| {
+        let s = |bit: u32| if i & (1 << bit) != 0 { 1.0 } else { -1.0 };
+        Vec3::from(m.center) + s(0) * h.x * axes[0] + s(1) * h.y * axes[1] + s(2) * h.z * axes[2]
+    })
+}
+
+/// The least depth `omega · x` over shape `s` (a bound: spheres of boxes).
+fn shape_min_depth(s: &Shape, omega: Vec3) -> f32 {
+    match s {
+        Shape::Quad {
+            corner,
+            edge_u,
+            edge_v,
+            ..
+        } => [
+            *corner,
+            *corner + *edge_u,
+            *corner + *edge_v,
+            *corner + *edge_u + *edge_v,
+        ]
+        .iter()
+        .map(|c| c.dot(omega))
+        .fold(f32::INFINITY, f32::min),
+        Shape::Box { center, size, .. } => center.dot(omega) - 0.5 * size.length(),
+        Shape::Sphere { center, radius, .. } => center.dot(omega) - radius,
+    }
+}
+
+/// Where each directional light's moment map lies: perpendicular to the light over the
+/// media's footprint (grown by 1 % and one texel so bilinear lookups at the edge stay
+/// inside), its rays starting upstream of every shape.
+pub fn moment_frames(records: &GpuScene, scene: &Scene, size: u32) -> Vec<MomentFrameGpu> {
+    let per_light = moment_texels_per_light(u64::from(size)) as u32;
+    let corners: Vec<Vec3> = records.media.iter().flat_map(medium_corners).collect();
+    records
+        .lights
+        .iter()
+        .enumerate()
+        .map(|(l, light)| {
+            let omega = Vec3::from(light.direction_or_position).normalize();
+            let (u_axis, v_axis) = omega.any_orthonormal_pair();
+            let range = |axis: Vec3| {
+                corners
+                    .iter()
+                    .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), c| {
+                        (lo.min(c.dot(axis)), hi.max(c.dot(axis)))
+                    })
+            };
+            let (u_lo, u_hi) = range(u_axis);
+            let (v_lo, v_hi) = range(v_axis);
+            let (z_lo, z_hi) = range(omega);
+            // A margin that survives f32 rounding at the media's distance from the origin.
+            let scale = corners
+                .iter()
+                .map(|c| c.abs().max_element())
+                .fold(1e-3, f32::max);
+            let grow = |lo: f32, hi: f32| {
+                let pad = 0.01 * (hi - lo) + 1e-5 * scale;
+                let (lo, hi) = (lo - pad, hi + pad);
+                // One more texel on each side.
+                let texel = (hi - lo) / size as f32;
+                (lo - texel, hi + texel)
+            };
+            let (u_lo, u_hi) = grow(u_lo, u_hi);
+            let (v_lo, v_hi) = grow(v_lo, v_hi);
+            let depth_far = z_hi.max(z_lo + 1e-6 * scale);
+            let shapes_lo = scene
+                .shapes
+                .iter()
+                .map(|s| shape_min_depth(s, omega))
+                .fold(z_lo, f32::min);
+            let trace_start = shapes_lo - 1e-3 * (depth_far - shapes_lo) - 1e-5 * scale;
+            MomentFrameGpu {
+                u_axis: u_axis.into(),
+                u_min: u_lo,
+                v_axis: v_axis.into(),
+                v_min: v_lo,
+                omega: omega.into(),
+                trace_start,
+                texels_u: size as f32 / (u_hi - u_lo),
+                texels_v: size as f32 / (v_hi - v_lo),
+                depth_near: z_lo,
+                depth_far,
+                size,
+                levels: moment_levels(size),
+                first: l as u32 * per_light,
+                _pad0: 0,
+            }
+        })
+        .collect()
+}
+
+/// A pipeline of push constants `P` whose set holds the film targets and the storage
+/// buffers `buffers` (binding, buffer), and that set.
+fn storage_pipeline<P>(
+    ctx: &Context,
+    o: &mut GpuObjects,
+    targets: &Targets,
+    buffers: &[(u32, Handle<Buffer>)],
+    spirv: &[u8],
+    specialization: &[(u32, SpecValue)],
+    name: &str,
+) -> Result<(Handle<ComputePipeline>, Handle<DescriptorSet>)> {
+    let mut layout = Vec::from(Targets::layout());
+    layout.extend(buffers.iter().map(|&(b, _)| BindingDesc::storage_buffer(b)));
+    let pipeline = compute_pipeline::<P>(ctx, o, spirv, &layout, specialization, name)?;
+    let mut writes = Vec::from(targets.writes());
+    writes.extend(
+        buffers
+            .iter()
+            .map(|&(binding, buffer)| DescriptorWrite::StorageBuffer {
+                binding,
+                buffer: &o[buffer],
+            }),
+    );
+    let set = ctx.create_descriptor_set(&o[pipeline], &writes, &format!("{name} set"))?;
+    Ok((pipeline, o.add(set)))
+}
+
+/// The moment-map stage: its pipeline, set and the dispatches of one frame.
+struct MomentStage {
+    pipeline: Handle<ComputePipeline>,
+    set: Handle<DescriptorSet>,
+    frames: Vec<MomentFrameGpu>,
+}
+
+/// The crepuscular pass: the per-pixel dispatch, after the moment maps where ME needs
+/// them. Lights and shapes do not change during a crepuscular render, so the maps are
+/// rendered once, before the first frame (profile scope `moments` in that frame only),
+/// as a real-time renderer caches the shadow maps of static lights.
+pub struct CrepuscularPass {
+    image: ImagePass,
+    moments: Option<MomentStage>,
+    moments_ready: bool,
+}
+
 /// Creates the pass of `plan`.
 pub fn create(
     ctx: &Context,
     plan: &CrepuscularPlan,
     scene: &Scene,
     targets: &Targets,
-) -> Result<ImagePass> {
+) -> Result<CrepuscularPass> {
     let records = GpuScene::build(scene)?;
     let constants = FrameConstants {
         env_radiance: records.env_radiance,
@@ -49,79 +216,201 @@ pub fn create(
             ray_samples: plan.samples_along_ray,
         },
     };
-    let (objects, (pipeline, set)) = GpuObjects::build(ctx, |o| {
-        let mut layout = Vec::from(Targets::layout());
-        layout.extend([
-            BindingDesc::storage_buffer(bindings::BOX_MEDIA),
-            BindingDesc::storage_buffer(bindings::MEDIUM_PLANES),
-            BindingDesc::storage_buffer(bindings::SHAPES),
-            BindingDesc::storage_buffer(bindings::LIGHTS),
-            BindingDesc::storage_buffer(bindings::GOBO_PLANES),
-        ]);
-        let pipeline = compute_pipeline::<PassPush>(
-            ctx,
-            o,
-            shaders::BOX_CREPUSCULAR,
-            &layout,
-            &specialization(plan),
-            "crepuscular",
-        )?;
+    let with_moments = needs_moment_maps(plan);
+    let frames = if with_moments {
+        moment_frames(&records, scene, plan.moment_map_size)
+    } else {
+        Vec::new()
+    };
+    let map_texels = if with_moments {
+        moment_texels_per_light(u64::from(plan.moment_map_size)) * frames.len() as u64
+    } else {
+        1
+    };
+    if map_texels > u64::from(u32::MAX) {
+        bail!(
+            "{}: [integrator] moment_map_size = {}: {} lights' moment maps take {map_texels} \
+             texels, more than a shader can index",
+            scene.source.display(),
+            plan.moment_map_size,
+            frames.len()
+        );
+    }
+    let (objects, (pipeline, set, moment_stage)) = GpuObjects::build(ctx, |o| {
         let media = upload_records(ctx, o, &non_empty(&records.media), "box media")?;
         let planes = upload_records(ctx, o, &non_empty(&records.medium_planes), "medium planes")?;
         let shapes = upload_records(ctx, o, &non_empty(&records.shapes), "shapes")?;
         let lights = upload_records(ctx, o, &non_empty(&records.lights), "lights")?;
         let gobo_planes = upload_records(ctx, o, &non_empty(&records.gobo_planes), "gobo planes")?;
-        let mut writes = Vec::from(targets.writes());
-        writes.extend([
-            DescriptorWrite::StorageBuffer {
-                binding: bindings::BOX_MEDIA,
-                buffer: &o[media],
-            },
-            DescriptorWrite::StorageBuffer {
-                binding: bindings::MEDIUM_PLANES,
-                buffer: &o[planes],
-            },
-            DescriptorWrite::StorageBuffer {
-                binding: bindings::SHAPES,
-                buffer: &o[shapes],
-            },
-            DescriptorWrite::StorageBuffer {
-                binding: bindings::LIGHTS,
-                buffer: &o[lights],
-            },
-            DescriptorWrite::StorageBuffer {
-                binding: bindings::GOBO_PLANES,
-                buffer: &o[gobo_planes],
-            },
-        ]);
-        let set = ctx.create_descriptor_set(&o[pipeline], &writes, "crepuscular set")?;
-        Ok((pipeline, o.add(set)))
+        let moment_map = o.add(ctx.create_buffer(
+            &BufferDesc::gpu_only(map_texels * 16, vk::BufferUsageFlags::STORAGE_BUFFER),
+            "moment maps",
+        )?);
+        let moment_frames = upload_records(ctx, o, &non_empty(&frames), "moment frames")?;
+        let (pipeline, set) = storage_pipeline::<PassPush>(
+            ctx,
+            o,
+            targets,
+            &[
+                (bindings::BOX_MEDIA, media),
+                (bindings::MEDIUM_PLANES, planes),
+                (bindings::SHAPES, shapes),
+                (bindings::LIGHTS, lights),
+                (bindings::GOBO_PLANES, gobo_planes),
+                (bindings::MOMENT_MAP, moment_map),
+                (bindings::MOMENT_FRAMES, moment_frames),
+            ],
+            shaders::BOX_CREPUSCULAR,
+            &specialization(plan),
+            "crepuscular",
+        )?;
+        let stage = if with_moments {
+            Some(storage_pipeline::<MomentPush>(
+                ctx,
+                o,
+                targets,
+                &[
+                    (bindings::SHAPES, shapes),
+                    (bindings::MOMENT_MAP, moment_map),
+                    (bindings::MOMENT_FRAMES, moment_frames),
+                ],
+                shaders::BOX_MOMENTS,
+                &[(SC_ID_HAS_SHAPES, SpecValue::Bool(plan.features.has_shapes))],
+                "moment maps",
+            )?)
+        } else {
+            None
+        };
+        Ok((pipeline, set, stage))
     })?;
     let c = constants.counts;
     // Per segment: the media (and their planes) and shapes it crosses, and per light its
     // shadow and estimator loops (ray-marching samples, gobo and media crossings, and the
-    // trapezoid-piece tables: pieces x planes per medium).
+    // trapezoid-piece tables: pieces x planes per medium; ME adds its mip-level walk).
     let planes = records.medium_planes.len() as u32;
     let tables = c.box_media * plan.features.max_pieces.max(3) * (planes.max(6) + 4);
+    let per_sample = if with_moments { 14 } else { 1 };
     let per_segment = c.box_media
         + planes
         + c.shapes
-        + c.lights * (c.ray_samples + c.box_media + planes + c.shapes + tables + 16);
+        + c.lights * (c.ray_samples * per_sample + c.box_media + planes + c.shapes + tables + 16);
     let sample_cost = per_segment.saturating_mul(plan.max_bounces + 1);
-    Ok(ImagePass::new(
-        ctx,
-        "crepuscular",
-        objects,
-        pipeline,
-        set,
-        constants,
-        sample_cost,
-    ))
+    Ok(CrepuscularPass {
+        image: ImagePass::new(
+            ctx,
+            "crepuscular",
+            objects,
+            pipeline,
+            set,
+            constants,
+            sample_cost,
+        ),
+        moments: moment_stage.map(|(pipeline, set)| MomentStage {
+            pipeline,
+            set,
+            frames,
+        }),
+        moments_ready: false,
+    })
+}
+
+impl CrepuscularPass {
+    /// Records the moment maps of every light: level 0 traced, then each coarser level
+    /// averaged from the one before, a barrier between levels.
+    fn record_moments(
+        &self,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        stage: &MomentStage,
+    ) -> Result<()> {
+        let objects = &self.image.objects;
+        let Some(first) = stage.frames.first() else {
+            return Ok(());
+        };
+        let (size, levels) = (first.size, first.levels);
+        for level in 0..levels {
+            let level_size = size >> level;
+            for (light, frame) in stage.frames.iter().enumerate() {
+                let offset = |k: u32| -> u32 {
+                    frame.first + (0..k).map(|i| (size >> i) * (size >> i)).sum::<u32>()
+                };
+                let push = MomentPush {
+                    light: light as u32,
+                    level,
+                    size: level_size,
+                    dst: offset(level),
+                    src: if level > 0 { offset(level - 1) } else { 0 },
+                    ..Default::default()
+                };
+                objects[stage.pipeline].dispatch(
+                    ctx,
+                    cmd,
+                    &objects[stage.set],
+                    bytemuck::bytes_of(&push),
+                    [
+                        level_size.div_ceil(super::GROUP_SIZE[0]),
+                        level_size.div_ceil(super::GROUP_SIZE[1]),
+                        1,
+                    ],
+                )?;
+            }
+            compute_barrier(ctx, cmd);
+        }
+        Ok(())
+    }
+}
+
+impl Pass for CrepuscularPass {
+    fn label(&self) -> &'static str {
+        self.image.label()
+    }
+
+    fn frame_uniforms(&self, scene: &Scene, camera: &CameraFrame) -> FrameUniforms {
+        self.image.frame_uniforms(scene, camera)
+    }
+
+    fn record(
+        &mut self,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        uniforms: &FrameUniforms,
+        dispatch_index: u32,
+        mut profiler: Option<&mut Profiler>,
+    ) -> Result<()> {
+        if let (Some(stage), false) = (&self.moments, self.moments_ready) {
+            self.moments_ready = true;
+            if let Some(p) = profiler.as_deref_mut() {
+                p.begin_scope(ctx, cmd, "moments")?;
+            }
+            self.record_moments(ctx, cmd, stage)?;
+            if let Some(p) = profiler.as_deref_mut() {
+                p.end_scope(ctx, cmd)?;
+                p.begin_scope(ctx, cmd, "scatter")?;
+            }
+            self.image
+                .record(ctx, cmd, uniforms, dispatch_index, profiler.as_deref_mut())?;
+            if let Some(p) = profiler {
+                p.end_scope(ctx, cmd)?;
+            }
+            return Ok(());
+        }
+        self.image
+            .record(ctx, cmd, uniforms, dispatch_index, profiler)
+    }
+
+    fn device_bytes(&self) -> u64 {
+        self.image.device_bytes()
+    }
+
+    fn destroy(self: Box<Self>, ctx: &Context) {
+        Box::new(self.image).destroy(ctx);
+    }
 }
 
 /// What the crepuscular pass allocates besides the render targets: its scene records
-/// (a few KiB; counted so that every pass reports its footprint).
-pub fn footprint(scene: &Scene, f: &mut Footprint) -> Result<()> {
+/// (a few KiB; counted so that every pass reports its footprint) and, for ME, the
+/// moment maps (16 bytes per texel, a mip chain per directional light).
+pub fn footprint(scene: &Scene, plan: &CrepuscularPlan, f: &mut Footprint) -> Result<()> {
     let records = GpuScene::build(scene)?;
     let bytes = std::mem::size_of_val(records.media.as_slice())
         + std::mem::size_of_val(records.medium_planes.as_slice())
@@ -136,5 +425,17 @@ pub fn footprint(scene: &Scene, f: &mut Footprint) -> Result<()> {
         Binding::Storage,
         bytes as u64,
     );
+    if needs_moment_maps(plan) {
+        let size = u64::from(plan.moment_map_size);
+        f.add(
+            format!(
+                "{}: ME moment maps, {} light(s) x {size}² texels with mips",
+                scene.source.display(),
+                records.lights.len()
+            ),
+            Binding::Storage,
+            moment_texels_per_light(size) * records.lights.len() as u64 * 16,
+        );
+    }
     Ok(())
 }

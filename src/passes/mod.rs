@@ -129,7 +129,7 @@ pub fn create(
 /// headers only (checked before anything is allocated, see [`crate::budget`]).
 pub fn footprint(scene: &Scene, plan: &RenderPlan, footprint: &mut Footprint) -> Result<()> {
     match &plan.integrator {
-        Integrator::Crepuscular(_) => crepuscular::footprint(scene, footprint),
+        Integrator::Crepuscular(p) => crepuscular::footprint(scene, p, footprint),
         Integrator::Baseline(_) => baseline::footprint(scene, footprint),
         Integrator::Restir(p) => restir::footprint(scene, p, footprint),
     }

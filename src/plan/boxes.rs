@@ -2,7 +2,7 @@
 //! shapes and the background under directional lights.
 
 use anyhow::{bail, Result};
-use nimbus_scene::{Light, Medium, Scene};
+use nimbus_scene::{BoxEstimator, Light, Medium, Scene};
 
 use super::{
     CrepuscularFeatures, CrepuscularPlan, Decision, Integrator, MAX_BOX_MEDIA,
@@ -170,9 +170,26 @@ pub(super) fn build(
             "[render] pixel_jitter = false: every ray through the pixel centre".into()
         },
     });
+    if estimator == BoxEstimator::Me {
+        let size = integrator.moment_map_size;
+        decisions.push(Decision {
+            name: "  pass moments",
+            enabled: features.has_shapes && features.has_media,
+            reason: if features.has_shapes && features.has_media {
+                format!(
+                    "ME: a {size}x{size} moment shadow map (4 moments, mip chain) per directional \
+                     light over the media's footprint, traced through {shapes} shape(s) once \
+                     (lights and shapes are static); {samples_along_ray} lookups along each segment"
+                )
+            } else {
+                "ME without shapes: every visibility ratio is 1, no moment map is made".into()
+            },
+        });
+    }
     let plan = CrepuscularPlan {
         estimator,
         samples_along_ray,
+        moment_map_size: integrator.moment_map_size,
         max_bounces,
         features,
     };

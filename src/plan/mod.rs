@@ -80,6 +80,8 @@ impl Integrator {
 pub struct CrepuscularPlan {
     pub estimator: BoxEstimator,
     pub samples_along_ray: u32,
+    /// Texels per side of the ME estimator's moment maps.
+    pub moment_map_size: u32,
     /// K: scattering orders 1..=K are summed (1 = single scattering).
     pub max_bounces: u32,
     pub features: CrepuscularFeatures,
@@ -178,6 +180,7 @@ pub fn estimator_id(estimator: BoxEstimator) -> u32 {
         BoxEstimator::Rees => features::ESTIMATOR_REES,
         BoxEstimator::Rm => features::ESTIMATOR_RM,
         BoxEstimator::Mcds => features::ESTIMATOR_MCDS,
+        BoxEstimator::Me => features::ESTIMATOR_ME,
     }
 }
 

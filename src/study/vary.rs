@@ -392,7 +392,7 @@ mod tests {
         assert_eq!(s.integrator.volume, VolumeIntegrator::Baseline);
 
         let cases = [
-            ("box_estimator", "RM", "mcwvds, reds, rees, rm, mcds"),
+            ("box_estimator", "RM", "mcwvds, reds, rees, rm, mcds, me"),
             ("spp", "0", "spp: \"0\" is not an integer in 1..=65536"),
             ("spp", "many", "spp"),
             ("box_samples", "70000", "1..=65536"),

@@ -11,8 +11,8 @@ use std::mem::size_of;
 use nimbus::gpu::bindings;
 use nimbus::gpu::{
     BaselineUniformsGpu, BoxMediumGpu, FrameUniforms, GridLevelGpu, GridParamsGpu, GridSpaceGpu,
-    LightGpu, PassPush, RestirPush, RestirUniformsGpu, ShapeGpu, LIGHT_DIRECTIONAL, LIGHT_POINT,
-    LIGHT_SPHERE, SHAPE_BOX, SHAPE_QUAD, SHAPE_SPHERE,
+    LightGpu, MomentFrameGpu, MomentPush, PassPush, RestirPush, RestirUniformsGpu, ShapeGpu,
+    LIGHT_DIRECTIONAL, LIGHT_POINT, LIGHT_SPHERE, SHAPE_BOX, SHAPE_QUAD, SHAPE_SPHERE,
 };
 
 const ROOT: &str = env!("CARGO_MANIFEST_DIR");
@@ -429,6 +429,44 @@ fn mirrors() -> Vec<Mirror> {
                 light_count,
                 ray_samples,
                 _pad3,
+            }),
+        },
+        Mirror {
+            glsl: "MomentFrame",
+            rust: "MomentFrameGpu",
+            rules: &[Std430],
+            size: size_of::<MomentFrameGpu>(),
+            fields: rust_fields!(MomentFrameGpu {
+                u_axis,
+                u_min,
+                v_axis,
+                v_min,
+                omega,
+                trace_start,
+                texels_u,
+                texels_v,
+                depth_near,
+                depth_far,
+                size,
+                levels,
+                first,
+                _pad0,
+            }),
+        },
+        Mirror {
+            glsl: "MomentPush",
+            rust: "MomentPush",
+            rules: &[Std430],
+            size: size_of::<MomentPush>(),
+            fields: rust_fields!(MomentPush {
+                light,
+                level,
+                size,
+                dst,
+                src,
+                _pad0,
+                _pad1,
+                _pad2,
             }),
         },
         Mirror {

@@ -14,6 +14,7 @@ mod baseline;
 mod bench_scenes;
 mod box_analytic;
 mod box_estimators;
+mod box_me;
 mod budget;
 mod cli;
 mod docs;

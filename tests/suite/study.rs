@@ -166,7 +166,10 @@ fn study_errors_name_the_flag() {
         (vec!["--vary", "spp="], vec!["--vary spp=", "empty"]),
         (
             vec!["--vary", "box_estimator=rm,fast"],
-            vec!["--vary box_estimator=fast", "mcwvds, reds, rees, rm, mcds"],
+            vec![
+                "--vary box_estimator=fast",
+                "mcwvds, reds, rees, rm, mcds, me",
+            ],
         ),
         (vec!["--vary", "spp=0"], vec!["--vary spp=0", "1..=65536"]),
         (

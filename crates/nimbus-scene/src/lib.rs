@@ -71,7 +71,8 @@
 //! | media | no two share volume: exact separating-axis test on (rotated) boxes, convex polyhedra and grid AABBs; touching within 1e-6 × the scene scale is allowed |
 //! | `max_bounces` | 1..=1024 |
 //! | `volume` | `"restir"`, `"baseline"` |
-//! | `box_estimator` | `"mcwvds"`, `"reds"`, `"rees"`, `"rm"`, `"mcds"` |
+//! | `box_estimator` | `"mcwvds"`, `"reds"`, `"rees"`, `"rm"`, `"mcds"`, `"me"` |
+//! | `moment_map_size` | a power of two in 16..=4096 |
 //! | restir `candidates` | 1..=4096 |
 //! | restir `temporal_limit` | 1..=1024 (turn temporal reuse off with `temporal = false`) |
 //! | restir `spatial_neighbors` | 0..=16 ([`MAX_SPATIAL_NEIGHBORS`]) |

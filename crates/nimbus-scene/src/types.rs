@@ -360,6 +360,9 @@ pub struct Integrator {
     /// N_sample of the box-medium paper: samples along each camera ray taken by the
     /// box estimators (a Nimbus setting, `[integrator] box_samples`, default 16).
     pub box_samples: u32,
+    /// Texels along each side of the ME estimator's moment shadow maps (a power of two,
+    /// `[integrator] moment_map_size`, default 256).
+    pub moment_map_size: u32,
     pub restir: RestirSettings,
 }
 
@@ -370,6 +373,7 @@ impl Default for Integrator {
             volume: VolumeIntegrator::Restir,
             box_estimator: BoxEstimator::Mcwvds,
             box_samples: 16,
+            moment_map_size: 256,
             restir: RestirSettings::default(),
         }
     }
@@ -389,10 +393,23 @@ pub enum BoxEstimator {
     Rees,
     Rm,
     Mcds,
+    /// Moment-based estimation of the visibility ratio (Peters et al. 2017) times the
+    /// analytic unoccluded term: deterministic and approximate by design.
+    Me,
 }
 
 impl BoxEstimator {
-    pub const ALL: [BoxEstimator; 5] = [Self::Mcwvds, Self::Reds, Self::Rees, Self::Rm, Self::Mcds];
+    pub const ALL: [BoxEstimator; 6] = [
+        Self::Mcwvds,
+        Self::Reds,
+        Self::Rees,
+        Self::Rm,
+        Self::Mcds,
+        Self::Me,
+    ];
+    /// The estimators that converge to the exact single-scattering image (all but ME).
+    pub const EXACT: [BoxEstimator; 5] =
+        [Self::Mcwvds, Self::Reds, Self::Rees, Self::Rm, Self::Mcds];
 
     /// The name used in scene files.
     pub fn name(self) -> &'static str {
@@ -402,6 +419,7 @@ impl BoxEstimator {
             Self::Rees => "rees",
             Self::Rm => "rm",
             Self::Mcds => "mcds",
+            Self::Me => "me",
         }
     }
 }

@@ -61,6 +61,7 @@ const INTEGRATOR_KEYS: &[&str] = &[
     "volume",
     "box_estimator",
     "box_samples",
+    "moment_map_size",
     "restir",
 ];
 /// The fields of `[integrator.restir]`.
@@ -448,6 +449,7 @@ fn parse_integrator(source: &Source, table: &toml::Table) -> Result<Integrator> 
         )?,
         box_estimator: f.choice("box_estimator", Some(defaults.box_estimator), &estimators)?,
         box_samples: f.u32_in("box_samples", Some(defaults.box_samples), 1..=65536)?,
+        moment_map_size: moment_map_size(&f, defaults.moment_map_size)?,
         restir: match f.opt_table("restir")? {
             Some(table) => parse_restir(source, table)?,
             None => defaults.restir,
@@ -504,4 +506,13 @@ fn parse_restir(source: &Source, table: &toml::Table) -> Result<RestirSettings> 
         )?,
         sigma_star_floor: f.f32_in("sigma_star_floor", Some(d.sigma_star_floor), 0.0..=1.0)?,
     })
+}
+
+/// `moment_map_size`: a power of two in 16..=4096 (the moment maps' mip chain halves it).
+fn moment_map_size(f: &Fields, default: u32) -> Result<u32> {
+    let size = f.u32_in("moment_map_size", Some(default), 16..=4096)?;
+    if !size.is_power_of_two() {
+        return Err(f.error("moment_map_size", format!("{size} is not a power of two")));
+    }
+    Ok(size)
 }

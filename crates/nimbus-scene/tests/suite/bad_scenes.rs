@@ -254,7 +254,7 @@ fn unknown_type_strings_list_the_valid_ones() {
             SCENE,
             "[integrator]",
             "field `box_estimator`",
-            "\"mcwvds\", \"reds\", \"rees\", \"rm\", \"mcds\"",
+            "\"mcwvds\", \"reds\", \"rees\", \"rm\", \"mcds\", \"me\"",
         ],
     );
     let error = parse_err("[integrator]\nvolume = \"fast\"\n");

@@ -392,6 +392,7 @@ sigma_star_floor = 0.125
             volume: VolumeIntegrator::Baseline,
             box_estimator: BoxEstimator::Rees,
             box_samples: 48,
+            moment_map_size: 256,
             restir: RestirSettings {
                 candidates: 16,
                 temporal: false,
