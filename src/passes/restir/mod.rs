@@ -638,8 +638,9 @@ pub fn footprint(scene: &Scene, p: &RestirPlan, f: &mut Footprint) -> Result<()>
             cells = level_cells;
         }
         // Kept for the whole render: the grid, its records and every level (f32 values,
-        // coordinates, indirection and layout indirection).
-        kept += brick_bytes(t)
+        // coordinates, indirection and layout indirection). The base density's bricks
+        // are those `add_grid` counted (the pass moves them into its levels, no copy).
+        kept += if n == 0 { 0 } else { brick_bytes(t) }
             + slots * (12 + 16)
             + (pc_n + (march_reuse.bricks.len() + march_nee.bricks.len()) as u64) * (brick + 12)
             + 2 * (t.cells() + level_cells) * 4;
