@@ -66,6 +66,9 @@ struct RestirUniforms {
     float _pad2;
     uvec3 velocity_dims;      // dims of the velocity grid (1 x 1 x 1 without one)
     uint _pad3;
+    vec4 velocity_uvw_x;      // rows of the world -> velocity texture coordinate affine map
+    vec4 velocity_uvw_y;
+    vec4 velocity_uvw_z;
 };
 
 // Push constants of every ReSTIR dispatch. 16 bytes.

@@ -15,7 +15,9 @@
 
 // Velocity (m per frame) at world x, linearly filtered.
 vec3 velocity_at(vec3 x) {
-    vec3 uvw = (x - u_grid.bounds_min) / (u_grid.bounds_max - u_grid.bounds_min);
+    vec4 h = vec4(x, 1.0);
+    vec3 uvw = vec3(dot(u_restir.velocity_uvw_x, h), dot(u_restir.velocity_uvw_y, h),
+                    dot(u_restir.velocity_uvw_z, h));
     return textureLod(u_velocity, uvw, 0.0).xyz;
 }
 

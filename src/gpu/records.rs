@@ -302,6 +302,10 @@ pub struct RestirUniformsGpu {
     /// Velocity grid dims (1 × 1 × 1 without one).
     pub velocity_dims: [u32; 3],
     pub _pad3: u32,
+    /// Rows of the affine map from world points to the velocity texture's coordinates.
+    pub velocity_uvw_x: [f32; 4],
+    pub velocity_uvw_y: [f32; 4],
+    pub velocity_uvw_z: [f32; 4],
 }
 
 /// `RestirPush` in restir/resources.glsl.

@@ -584,6 +584,9 @@ fn mirrors() -> Vec<Mirror> {
                 _pad2,
                 velocity_dims,
                 _pad3,
+                velocity_uvw_x,
+                velocity_uvw_y,
+                velocity_uvw_z,
             }),
         },
         Mirror {

@@ -266,8 +266,8 @@ pub struct VdbPlacement {
     pub to_world: DMat4,
     /// The density grid's index-to-world transform with `to_world` applied (column
     /// vectors): voxel (i, j, k)'s value sits at `index_to_world · (i, j, k, 1)`. Every
-    /// `[[medium.frame]]` density, the emission and the velocity share it. Its linear
-    /// part is diagonal (the grid's axes along the world's).
+    /// `[[medium.frame]]` density, the emission and the velocity share it. Any invertible
+    /// affine map (rotated, mirrored or sheared).
     pub index_to_world: DMat4,
     /// Inclusive index-space bounds of the density's active voxels, over every frame.
     /// The medium's extent is this box grown by one voxel (where trilinear filtering

@@ -90,8 +90,7 @@ pub(super) fn parse_medium(
         return Ok((Medium::Convex(medium), f.name, bounds));
     }
     if kind == "vdb" {
-        let (medium, name, bounds) = super::vdb::parse_vdb_medium(&f, albedo, g)?;
-        return Ok((medium, name, Solid::from(&bounds)));
+        return super::vdb::parse_vdb_medium(&f, albedo, g);
     }
 
     let bounds_min = f.vec3("bounds_min", None)?;

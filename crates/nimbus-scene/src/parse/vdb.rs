@@ -5,11 +5,10 @@
 //! unknown compression, a transform that is not affine, a non-zero background, a level
 //! set, grids that do not share the density's transform).
 //!
-//! The medium renders through the dense grid path: its grids load as the dense
-//! [`VdbWindow`] around the density's active voxels (see [`crate::load_grid`]), so the
-//! grid's index axes must lie along the world's (a scale and a translation). Memory
-//! follows that window, not the active voxels: the memory guards refuse a window too
-//! large before anything is allocated.
+//! The density and emission load sparsely (bricks of their active voxels) and render in
+//! their own index space, so any invertible affine index-to-world transform places them:
+//! rotated, mirrored or sheared. The velocity loads as the dense [`VdbWindow`] around the
+//! density's active voxels, sampled through the same transform.
 
 use anyhow::Result;
 use std::path::PathBuf;
@@ -17,8 +16,9 @@ use std::path::PathBuf;
 use glam::{DMat3, DMat4, DVec3, IVec3, Vec3};
 
 use super::*;
+use crate::convex::Solid;
 use crate::fields::{radiometric, Fields};
-use crate::geometry::{rotation_xyz_deg_f64, OrientedBox};
+use crate::geometry::rotation_xyz_deg_f64;
 use crate::vdb::{read_vdb_topology, GridClass, VdbGridHeader, VdbGridKind};
 
 pub(super) const VDB_KEYS: &[&str] = &[
@@ -214,7 +214,7 @@ pub(super) fn parse_vdb_medium(
     f: &Fields,
     albedo: Vec3,
     g: f32,
-) -> Result<(Medium, String, OrientedBox)> {
+) -> Result<(Medium, String, Solid)> {
     let to_world = match f.opt_table("to_world")? {
         Some(table) => parse_to_world(f, table)?,
         None => DMat4::IDENTITY,
@@ -225,7 +225,14 @@ pub(super) fn parse_vdb_medium(
     let density = parse_vdb_source(f, "density", density_table, VdbGridKind::Scalar)?;
     let file_transform = density.header.index_to_world;
     let index_to_world = to_world * file_transform;
-    let Some(scale) = axis_aligned_scale(&index_to_world) else {
+    // The file's own transform is checked when its header is read; `to_world` may still
+    // flatten it.
+    let linear = DMat3::from_mat4(index_to_world);
+    let largest = [linear.x_axis, linear.y_axis, linear.z_axis]
+        .iter()
+        .fold(0.0f64, |a, c| a.max(c.length()));
+    let det = linear.determinant();
+    if det.is_nan() || det.abs() <= 1e-12 * largest.powi(3) {
         let field = if f.has("to_world") {
             "to_world"
         } else {
@@ -235,18 +242,21 @@ pub(super) fn parse_vdb_medium(
             f,
             field,
             format!(
-                "its index-to-world transform{} {:?} rotates or shears the grid; Nimbus \
-                 renders OpenVDB grids whose index axes lie along the world axes (a scale, \
-                 possibly negative, and a translation)",
+                "its index-to-world transform{} {:?} is degenerate (determinant {:e}): it \
+                 flattens the grid",
                 if f.has("to_world") {
                     " with `to_world`"
                 } else {
                     ""
                 },
-                index_to_world.to_cols_array_2d()
+                index_to_world.to_cols_array_2d(),
+                linear.determinant()
             ),
         ));
-    };
+    }
+    // A mirror along an index axis flips the dense velocity window there (the axis-aligned
+    // case, as before); a rotated or sheared grid's window stays in index order.
+    let scale = axis_aligned_scale(&index_to_world).unwrap_or(DVec3::ONE);
     let Some(mut bbox) = density.header.topology.active_bbox else {
         return Err(f.error("density", "the grid has no active voxels"));
     };
@@ -321,12 +331,21 @@ pub(super) fn parse_vdb_medium(
         vector_map: DMat3::from_mat4(to_world),
     };
     let world = |ijk: DVec3| (index_to_world * ijk.extend(1.0)).truncate();
-    // The extent (lattice points lo ..= hi) and the box of the window's cell-centred
-    // voxels around it, half a voxel wider, where the dense grid clamps to its value 0.
+    // The extent (lattice points lo ..= hi), a parallelepiped, and the world box around
+    // the window's cell-centred voxels, half a voxel wider, where the grid is 0.
     let (lo, hi) = (lo.as_dvec3(), hi.as_dvec3());
-    let (extent_a, extent_b) = (world(lo), world(hi));
-    let (box_a, box_b) = (world(lo - 0.5), world(hi + 0.5));
-    let (wmin, wmax) = (box_a.min(box_b), box_a.max(box_b));
+    let corner = |a: DVec3, b: DVec3, c: u32| {
+        world(DVec3::new(
+            if c & 1 != 0 { b.x } else { a.x },
+            if c & 2 != 0 { b.y } else { a.y },
+            if c & 4 != 0 { b.z } else { a.z },
+        ))
+    };
+    let (wmin, wmax) = (0..8)
+        .map(|c| corner(lo - 0.5, hi + 0.5, c))
+        .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(a, b), p| {
+            (a.min(p), b.max(p))
+        });
     if !(wmin.is_finite() && wmax.is_finite())
         || wmin.abs().max_element() > MAX_LENGTH_M
         || wmax.abs().max_element() > MAX_LENGTH_M
@@ -345,7 +364,7 @@ pub(super) fn parse_vdb_medium(
             ),
         ));
     }
-    let bounds = OrientedBox::aabb(extent_a.min(extent_b), extent_a.max(extent_b));
+    let bounds = parallelepiped((0..8).map(|c| corner(lo, hi, c)).collect(), &linear);
 
     let medium = GridMedium {
         bounds_min: wmin.as_vec3(),
@@ -371,4 +390,19 @@ pub(super) fn parse_vdb_medium(
         })),
     };
     Ok((Medium::Grid(medium), f.name.clone(), bounds))
+}
+
+/// The solid of a parallelepiped with corners `vertices` whose edges run along the
+/// columns of `linear` (invertible), for the media's overlap test.
+fn parallelepiped(vertices: Vec<DVec3>, linear: &DMat3) -> Solid {
+    let edges = [linear.x_axis, linear.y_axis, linear.z_axis].map(DVec3::normalize);
+    Solid {
+        vertices,
+        normals: vec![
+            edges[1].cross(edges[2]).normalize(),
+            edges[2].cross(edges[0]).normalize(),
+            edges[0].cross(edges[1]).normalize(),
+        ],
+        edges: edges.to_vec(),
+    }
 }
