@@ -18,8 +18,11 @@ fn asset(name: &str) -> PathBuf {
 
 /// For every integrator (the box pass, the baseline, ReSTIR static and animated), the
 /// estimate bounds the bytes the render created from above, and is not loose: at least
-/// half of it is really allocated. (It counts ReSTIR's half-float ray-march mips as f32,
-/// which a density beyond f16's range needs, and leaves out records of a few bytes.)
+/// half of it is really allocated; a third for the procedural cloud, whose bricks are
+/// bounded from its formula per super-voxel without evaluating it (at 256x160x256 the
+/// bound claims 5991 slots, 2.6 times the 2331 the cloud fills). (It counts ReSTIR's
+/// half-float ray-march mips as f32, which a density beyond f16's range needs, and
+/// leaves out records of a few bytes.)
 #[test]
 fn footprint_matches_what_the_passes_create() {
     let ctx = context();
@@ -40,8 +43,9 @@ fn footprint_matches_what_the_passes_create() {
         let actual = render_checked(&ctx, &scene, None).device_bytes;
         // Records the estimate leaves out: lights, uniforms, stats (< 64 KiB).
         let slack = 64 << 10;
+        let least = if name.starts_with("cloud") { 3 } else { 2 };
         assert!(
-            actual <= estimate + slack && 2 * actual >= estimate,
+            actual <= estimate + slack && least * actual >= estimate,
             "{name}: {actual} bytes allocated, {estimate} estimated"
         );
     }

@@ -55,7 +55,7 @@ fn golden_cloud_restir_last_frame() {
 fn golden_cloud_restir_emissive_vertex_reuse() {
     let ctx = context();
     let text = asset("cloud-restir.toml")
-        .replace("max_bounces = 3", "max_bounces = 2\n[integrator.restir]\nreuse = \"vertex\"")
+        .replace("max_bounces = 6", "max_bounces = 2\n[integrator.restir]\nreuse = \"vertex\"")
         .replace(
             "g = 0.6",
             "g = 0.6\nemission = { procedural = \"cloud\", dims = [32, 20, 32], noise_seed = 5 }\nemission_scale = [3.0, 1.2, 0.4]",
