@@ -4,7 +4,13 @@
 //! ```sh
 //! cargo run --release --example make_plume            # into assets/volumes/
 //! cargo run --release --example make_plume -- OUT_DIR
+//! cargo run --release --example make_plume -- target/plume 256   # at 256³, with a scene
 //! ```
+//!
+//! With a resolution N other than 32, the same plume is written at N³ with turbulent
+//! detail the 32³ grid cannot hold (the density times 0.45 + 0.9 · fractal noise of
+//! 4 octaves from 14 per metre, clamped), and `plume-anim-N.toml` next to it renders
+//! it at 640x360 (the committed 32³ assets keep their exact values).
 //!
 //! - `plume-f0.vol` .. `plume-f3.vol`: 32³ voxels, 1 channel, density in [0, 1]: a
 //!   smooth stem rising into a rounded head, with three lobes around the vertical axis
@@ -22,14 +28,14 @@
 //! written, so a reader can recompute each frame from the previous file
 //! (`crates/nimbus-scene/tests/assets.rs` does).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
-use anyhow::Result;
+use anyhow::{bail, Context, Result};
 use glam::Vec3;
 use nimbus_scene::VoxelGrid;
 
-/// Voxels per axis.
-const N: u32 = 32;
+/// Voxels per axis of the committed assets.
+const N_ASSETS: u32 = 32;
 /// Density frames written.
 const FRAMES: usize = 4;
 /// The medium's bounds in the scene (written into the .vol headers too).
@@ -37,12 +43,12 @@ const BOUNDS_MIN: Vec3 = Vec3::splat(-0.5);
 const BOUNDS_MAX: Vec3 = Vec3::splat(0.5);
 
 /// World position (m) of the centre of voxel `index`.
-fn voxel_centre(index: [u32; 3]) -> [f64; 3] {
+fn voxel_centre(n: u32, index: [u32; 3]) -> [f64; 3] {
     let mut p = [0.0; 3];
     for axis in 0..3 {
         let lo = f64::from(BOUNDS_MIN[axis]);
         let hi = f64::from(BOUNDS_MAX[axis]);
-        p[axis] = lo + (f64::from(index[axis]) + 0.5) / f64::from(N) * (hi - lo);
+        p[axis] = lo + (f64::from(index[axis]) + 0.5) / f64::from(n) * (hi - lo);
     }
     p
 }
@@ -89,17 +95,17 @@ fn plume_velocity([x, _, z]: [f64; 3]) -> [f64; 3] {
 }
 
 /// A grid of `channels` values per voxel from `f`, x fastest.
-fn grid(channels: u32, f: impl Fn([u32; 3]) -> Vec<f32>) -> VoxelGrid {
-    let mut data = Vec::with_capacity((N * N * N * channels) as usize);
-    for k in 0..N {
-        for j in 0..N {
-            for i in 0..N {
+fn grid(n: u32, channels: u32, f: impl Fn([u32; 3]) -> Vec<f32>) -> VoxelGrid {
+    let mut data = Vec::with_capacity((n * n * n * channels) as usize);
+    for k in 0..n {
+        for j in 0..n {
+            for i in 0..n {
                 data.extend(f([i, j, k]));
             }
         }
     }
     VoxelGrid {
-        dims: [N; 3],
+        dims: [n; 3],
         channels,
         data,
     }
@@ -108,10 +114,11 @@ fn grid(channels: u32, f: impl Fn([u32; 3]) -> Vec<f32>) -> VoxelGrid {
 /// One semi-Lagrangian step: each voxel takes the trilinear density of `density` at
 /// its centre minus its velocity (converted to voxel-index space).
 fn advect(density: &VoxelGrid, velocity: &VoxelGrid) -> VoxelGrid {
+    let n = density.dims[0];
     let scale: [f64; 3] = std::array::from_fn(|axis| {
-        f64::from(N) / (f64::from(BOUNDS_MAX[axis]) - f64::from(BOUNDS_MIN[axis]))
+        f64::from(n) / (f64::from(BOUNDS_MAX[axis]) - f64::from(BOUNDS_MIN[axis]))
     });
-    grid(1, |[i, j, k]| {
+    grid(n, 1, |[i, j, k]| {
         let index = [i, j, k];
         let p: [f64; 3] = std::array::from_fn(|axis| {
             let v = f64::from(velocity.get_channel(i, j, k, axis as u32));
@@ -122,34 +129,96 @@ fn advect(density: &VoxelGrid, velocity: &VoxelGrid) -> VoxelGrid {
 }
 
 fn main() -> Result<()> {
-    let out_dir = match std::env::args().nth(1) {
+    let mut args = std::env::args().skip(1);
+    let out_dir = match args.next() {
         Some(dir) => PathBuf::from(dir),
         None => PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("assets/volumes"),
     };
+    let n: u32 = match args.next() {
+        Some(text) => text
+            .parse()
+            .with_context(|| format!("N = {text:?}: expected voxels per axis"))?,
+        None => N_ASSETS,
+    };
+    if !(8..=1024).contains(&n) {
+        bail!("N = {n}: expected 8 ..= 1024 voxels per axis");
+    }
     std::fs::create_dir_all(&out_dir)?;
+    // File names: the committed ones at 32³, else with the resolution.
+    let name = |stem: &str| {
+        if n == N_ASSETS {
+            format!("plume-{stem}.vol")
+        } else {
+            format!("plume-{n}-{stem}.vol")
+        }
+    };
 
-    let velocity = grid(3, |index| {
-        plume_velocity(voxel_centre(index))
+    let velocity = grid(n, 3, |index| {
+        plume_velocity(voxel_centre(n, index))
             .iter()
             .map(|&v| v as f32)
             .collect()
     });
-    let mut density = grid(1, |index| vec![plume_density(voxel_centre(index)) as f32]);
+    let mut density = grid(n, 1, |index| {
+        let p = voxel_centre(n, index);
+        let d = plume_density(p);
+        let d = if n == N_ASSETS {
+            d
+        } else {
+            (d * (0.45 + 0.9 * nimbus_scene::fbm_noise(11, 4, 14.0, p))).clamp(0.0, 1.0)
+        };
+        vec![d as f32]
+    });
+    let mut frames = Vec::new();
     for frame in 0..FRAMES {
         if frame > 0 {
             density = advect(&density, &velocity);
         }
-        let path = out_dir.join(format!("plume-f{frame}.vol"));
+        let path = out_dir.join(name(&format!("f{frame}")));
         nimbus_scene::write_vol(&path, &density, BOUNDS_MIN, BOUNDS_MAX)?;
         let nonzero = density.data.iter().filter(|&&v| v > 0.0).count();
         let max = density.data.iter().copied().fold(0.0f32, f32::max);
         println!(
-            "wrote {} ({N}x{N}x{N}, {nonzero} non-zero voxels, max {max:.3})",
+            "wrote {} ({n}x{n}x{n}, {nonzero} non-zero voxels, max {max:.3})",
             path.display()
         );
+        frames.push(path);
     }
-    let path = out_dir.join("plume-velocity.vol");
+    let path = out_dir.join(name("velocity"));
     nimbus_scene::write_vol(&path, &velocity, BOUNDS_MIN, BOUNDS_MAX)?;
-    println!("wrote {} ({N}x{N}x{N}, 3 channels)", path.display());
+    println!("wrote {} ({n}x{n}x{n}, 3 channels)", path.display());
+    if n != N_ASSETS {
+        write_scene(&out_dir, n, &frames, &path)?;
+    }
+    Ok(())
+}
+
+/// `plume-anim-N.toml`: the committed plume-anim.toml at 640x360, reading these files.
+fn write_scene(out_dir: &Path, n: u32, frames: &[PathBuf], velocity: &Path) -> Result<()> {
+    let template = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/scenes/plume-anim.toml");
+    let mut text = std::fs::read_to_string(template)
+        .with_context(|| format!("reading {template}"))?
+        .replace("width = 96", "width = 640")
+        .replace("height = 72", "height = 360");
+    let abs = |p: &Path| -> Result<String> {
+        Ok(p.canonicalize()
+            .with_context(|| format!("resolving {}", p.display()))?
+            .display()
+            .to_string())
+    };
+    for (f, path) in frames.iter().enumerate() {
+        text = text.replace(&format!("../volumes/plume-f{f}.vol"), &abs(path)?);
+    }
+    text = text.replace("../volumes/plume-velocity.vol", &abs(velocity)?);
+    if text.contains("../volumes/") {
+        bail!("{template}: a volume path this generator does not write");
+    }
+    let path = out_dir.join(format!("plume-anim-{n}.toml"));
+    std::fs::write(
+        &path,
+        format!("# plume-anim.toml at {n}^3, written by examples/make_plume.rs.\n{text}"),
+    )
+    .with_context(|| format!("writing {}", path.display()))?;
+    println!("wrote {}", path.display());
     Ok(())
 }

@@ -19,6 +19,7 @@ mod budget;
 mod cli;
 mod docs;
 mod envmap_gpu;
+mod generators;
 mod grid_sparse;
 mod grid_volume;
 mod hard_cases;

@@ -171,7 +171,7 @@ pub use parse::{
     scene_tables, TableFields, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_LENGTH_M, MAX_SIGMA_T,
     MAX_SPATIAL_NEIGHBORS, RESTIR_KEYS,
 };
-pub use procedural::{daylight_sky, procedural_cloud, sun_direction};
+pub use procedural::{daylight_sky, fbm_noise, procedural_cloud, sun_direction};
 pub use types::*;
 pub use vdb::{
     list_grids, read_vdb_grid, read_vdb_topology, GridClass, SparseGrid, ValueType, VdbGridHeader,

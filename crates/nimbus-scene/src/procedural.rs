@@ -89,6 +89,14 @@ fn fbm(seed: u64, first_layer: u64, octaves: u32, base_frequency: f64, p: [f64; 
     sum / norm
 }
 
+/// Fractal value noise in [0, 1) at `p` (any units; lattice spacing 1 / `base_frequency`):
+/// `octaves` octaves, lacunarity 2, gain 0.5, deterministic for `seed` on every platform
+/// (the noise of the procedural cloud, on layers of its own). For the volume generators
+/// in `examples/`.
+pub fn fbm_noise(seed: u64, octaves: u32, base_frequency: f64, p: [f64; 3]) -> f64 {
+    fbm(seed, 1000, octaves, base_frequency, p)
+}
+
 /// Density in [0, 1] of the cloud at normalized position `p` ∈ [0, 1]³.
 fn cloud_density(seed: u64, p: [f64; 3]) -> f64 {
     const CENTER: [f64; 3] = [0.5, 0.40, 0.5];
