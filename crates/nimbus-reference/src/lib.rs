@@ -6,7 +6,8 @@
 //!   Deterministic; the reference for the box pass at K = 1 and for the paper's
 //!   unoccluded T_box integral ([`quadrature::unoccluded_single_scatter`]).
 //! - [`mc`]: multiple scattering in homogeneous box media by an analog path tracer
-//!   with next-event estimation; a mean and a standard error per pixel or ray.
+//!   with next-event estimation of the suns, and the environment (constant or a map)
+//!   wherever an analog path escapes; a mean and a standard error per pixel or ray.
 //! - [`grid`]: multiple scattering in voxel-grid (and box) media by delta tracking and
 //!   ratio tracking with one global majorant, with point, sphere and environment
 //!   lights and emission; a mean and a standard error per pixel or ray.

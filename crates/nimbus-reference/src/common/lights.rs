@@ -1,8 +1,9 @@
-//! Directional lights in f64, and the lights of the box oracles' scenes.
+//! Directional lights and environments in f64, and the lights of the box oracles'
+//! scenes.
 
-use anyhow::bail;
+use anyhow::{bail, Context};
 use glam::{DVec3, Vec3};
-use nimbus_scene::{Gobo, Light, Scene};
+use nimbus_scene::{EnvMap, EnvSampler, Gobo, Light, Scene};
 
 use super::geometry::{normalized, GoboF64};
 
@@ -27,6 +28,92 @@ impl Sun {
             gobo: gobo.map(|g| GoboF64::new(direction, g)),
         })
     }
+}
+
+/// An environment light: constant radiance, or an EXR map (times `radiance · scale`)
+/// with its sampler.
+pub(crate) enum Environment {
+    Constant(DVec3),
+    Map { map: EnvMap, sampler: EnvSampler },
+}
+
+impl Environment {
+    /// The radiance arriving from direction `d` (towards the environment): the map's
+    /// nearest texel (`EnvMap::lookup`, the scene format's mapping).
+    pub(crate) fn radiance(&self, d: DVec3) -> DVec3 {
+        match self {
+            Self::Constant(l) => *l,
+            Self::Map { map, .. } => {
+                let [r, g, b] = map.lookup(d);
+                DVec3::new(f64::from(r), f64::from(g), f64::from(b))
+            }
+        }
+    }
+
+    /// Whether the environment is black everywhere (then it lights nothing).
+    pub(crate) fn is_black(&self) -> bool {
+        match self {
+            Self::Constant(l) => *l == DVec3::ZERO,
+            Self::Map { map, .. } => map.texels.iter().flatten().all(|&c| c == 0.0),
+        }
+    }
+}
+
+/// The lights of a scene that may only have directional and environment lights: the
+/// suns, and the environment (the sum of the constant ones, or the one map, loaded).
+/// Any other light, or a map beside another environment light, is an error that names
+/// `what`, the oracle.
+pub(crate) fn suns_and_environment(
+    scene: &Scene,
+    what: &str,
+) -> anyhow::Result<(Vec<Sun>, Environment)> {
+    let source = scene.source.display();
+    let mut suns = Vec::new();
+    let mut constant = DVec3::ZERO;
+    let mut map = None;
+    let mut environments = 0;
+    for (i, light) in scene.lights.iter().enumerate() {
+        match light {
+            Light::Directional {
+                direction,
+                irradiance,
+                gobo,
+            } => suns.push(Sun::new(*direction, *irradiance, gobo.as_ref())?),
+            Light::Environment {
+                radiance,
+                file,
+                scale,
+            } => {
+                environments += 1;
+                match file {
+                    None => constant += radiance.as_dvec3() * scale.as_dvec3(),
+                    Some(f) => {
+                        let loaded = EnvMap::load_exr(f, *radiance * *scale)
+                            .with_context(|| format!("{source}: light {}", i + 1))?;
+                        map = Some(loaded);
+                    }
+                }
+            }
+            Light::Point { .. } => {
+                bail!("{source}: light {i}: point lights are not supported by the {what}")
+            }
+            Light::Sphere { .. } => {
+                bail!("{source}: light {i}: sphere lights are not supported by the {what}")
+            }
+        }
+    }
+    let environment = match map {
+        Some(_) if environments > 1 => bail!(
+            "{source}: an environment map cannot be combined with another environment light \
+             in the {what}"
+        ),
+        Some(map) => {
+            let sampler = EnvSampler::new(&map);
+            Environment::Map { map, sampler }
+        }
+        None => Environment::Constant(constant),
+    };
+    Ok((suns, environment))
 }
 
 /// The lights of a scene that may only have directional lights and constant

@@ -7,27 +7,9 @@ use glam::DVec3;
 use nimbus_scene::{EnvMap, EnvSampler, Light, Scene};
 
 use crate::common::geometry::hit_sphere;
-use crate::common::lights::Sun;
+use crate::common::lights::{Environment, Sun};
 use crate::common::rng::Rng;
 use crate::common::sampling::{direction_around, sample_sphere};
-
-/// An environment light: constant radiance, or an EXR map with its sampler.
-pub(super) enum Environment {
-    Constant(DVec3),
-    Map { map: EnvMap, sampler: EnvSampler },
-}
-
-impl Environment {
-    pub(super) fn radiance(&self, d: DVec3) -> DVec3 {
-        match self {
-            Self::Constant(l) => *l,
-            Self::Map { map, .. } => {
-                let [r, g, b] = map.lookup(d);
-                DVec3::new(f64::from(r), f64::from(g), f64::from(b))
-            }
-        }
-    }
-}
 
 /// A light of the scene in f64.
 pub(super) enum LightF64 {

@@ -24,13 +24,15 @@
 //! - **Shapes**: opaque two-sided Lambertian quads, oriented boxes and spheres with RGB
 //!   albedo (0 = black occluder).
 //! - **Lights**: directional lights (travel direction ω, irradiance E, optional convex
-//!   gobo), and constant environment radiance that only camera rays that escape see
-//!   (it lights nothing).
+//!   gobo), and an environment L_env(d): a constant radiance, or an equirectangular
+//!   map times `radiance · scale` looked up at its nearest texel (`EnvMap::lookup`, the
+//!   mapping of the scene format). The environment is seen by rays that escape and
+//!   lights the media and the shapes.
 //!
 //! The radiance along a camera ray is the sum over k = 1..K (K = `max_bounces`) of the
-//! light that scattered exactly k times — a scattering is a real collision in a medium
-//! or a reflection off a shape — plus the environment seen through the media by the
-//! camera ray itself.
+//! light (the suns' and the environment's) that scattered exactly k times — a
+//! scattering is a real collision in a medium or a reflection off a shape — plus the
+//! environment seen through the media by the camera ray itself.
 //!
 //! # Estimator
 //!
@@ -49,17 +51,27 @@
 //!    max(0, n·(−ω)) · E · V_ω(x) · T_ω(x) with n facing the incoming ray. Stop if k = K,
 //!    else continue in a cosine-distributed direction around n (weight 1, the albedo is
 //!    already in β).
-//! 4. **Escape**: add the environment radiance only if k = 0 (the camera ray itself).
+//! 4. **Escape**: add β·L_env(d), d the direction of the ray that escaped (k = 0: the
+//!    camera ray sees the environment; k ≥ 1: the environment's light scattered k
+//!    times). After the K-th scattering a path under a non-black environment traces
+//!    one more free flight in its sampled direction: it adds β·L_env(d) if it escapes
+//!    and nothing if it collides or meets a shape.
 //!
 //! V_ω is the gobo mask times shape visibility towards −ω, T_ω = exp(−Σ σt·ℓ) the
-//! transmittance through every medium to infinity. The estimate of order k is added at
-//! the k-th scattering, so a path with K scatterings estimates exactly orders 1..K; no
-//! Russian roulette, no path is cut early except when β is exactly 0.
+//! transmittance through every medium to infinity. The suns' light of order k is added
+//! at the k-th scattering by next-event estimation; the environment's only by analog
+//! escape (no next-event estimation, no importance sampling of the map: independent of
+//! the renderer's environment sampling, and noisy for small bright sources). So a path
+//! with at most K scatterings estimates exactly orders 1..K; no Russian roulette, no
+//! path is cut early except when β is exactly 0.
 //!
 //! Every path has its own random stream (xoshiro256** seeded through SplitMix64 from
 //! the seed and the path's index), so results are bit-for-bit deterministic for a seed,
 //! whatever the thread count, and runs with different K but the same seed use common
 //! random numbers: each path's K = 1 estimate is a prefix of its K = 4 estimate.
+//!
+//! Under an albedo-1 medium and a constant environment L with nothing else, every path
+//! escapes with β = 1 unless it scatters more than K times: the furnace, L exactly.
 
 mod tracer;
 

@@ -20,7 +20,8 @@ const QUADRATURE: ReferenceOptions = ReferenceOptions {
     footprint_samples: 1,
 };
 
-/// A rotated box in front of the camera, lit obliquely, in front of an environment.
+/// A rotated box in front of the camera, lit obliquely (no environment: the
+/// quadrature has none to light the box).
 fn lit_box(shapes: Vec<Shape>, gobo: Option<Gobo>) -> Scene {
     let m = box_medium(
         Vec3::new(0.1, -0.2, 0.0),
@@ -34,8 +35,7 @@ fn lit_box(shapes: Vec<Shape>, gobo: Option<Gobo>) -> Scene {
         irradiance: Vec3::new(2.0, 1.5, 1.0),
         gobo,
     };
-    let env = constant_env(Vec3::new(0.1, 0.2, 0.3));
-    box_scene(vec![m], shapes, vec![light, env])
+    box_scene(vec![m], shapes, vec![light])
 }
 
 #[test]
@@ -88,7 +88,8 @@ fn single_scattering_agrees_with_the_quadrature_reference() {
 #[test]
 fn without_albedo_higher_orders_add_nothing() {
     // Black medium and black shapes: every path stops at its first scattering, so
-    // K = 3 draws the same numbers as K = 1 and gives the same bits.
+    // K = 3 draws the same numbers as K = 1 and gives the same bits (the environment
+    // lights nothing black).
     let mut s = lit_box(
         vec![Shape::Quad {
             corner: Vec3::new(-3.0, -1.5, 3.0),
@@ -102,6 +103,7 @@ fn without_albedo_higher_orders_add_nothing() {
         unreachable!()
     };
     m.albedo = Vec3::ZERO;
+    s.lights.push(constant_env(Vec3::new(0.1, 0.2, 0.3)));
     let (origin, dir) = (DVec3::new(0.0, 0.2, 5.0), DVec3::new(0.02, -0.08, -1.0));
     let one = McOptions {
         max_bounces: 1,
@@ -338,15 +340,15 @@ fn unsupported_scenes_and_options_are_errors() {
         radius: 1.0,
         radiance: Vec3::ONE,
     };
-    let env_map = Light::Environment {
+    let missing_map = Light::Environment {
         radiance: Vec3::ONE,
-        file: Some(PathBuf::from("sky.exr")),
+        file: Some(PathBuf::from("no-such-sky.exr")),
         scale: Vec3::ONE,
     };
     for (light, words) in [
         (point, "point lights"),
         (sphere, "sphere lights"),
-        (env_map, "environment maps"),
+        (missing_map, "light 1"),
     ] {
         let message = ray(&box_scene(Vec::new(), Vec::new(), vec![light]), &opts).unwrap_err();
         assert!(message.contains(words), "{message}");
@@ -464,5 +466,160 @@ fn a_dodecahedron_agrees_with_the_quadrature_reference() {
             4.0,
             &format!("dodecahedron, towards {target}"),
         );
+    }
+}
+
+#[test]
+fn an_albedo_one_furnace_returns_the_sky() {
+    // A white box (g = 0.5) over a white floor under a constant sky and nothing else:
+    // β stays 1 and every path escapes after a few scatterings, so each one returns
+    // the sky exactly (K = 200 is far beyond the scatterings a path makes here). A
+    // path that did not add the sky after scattering would fall short.
+    let mut m = box_medium(
+        Vec3::ZERO,
+        Vec3::new(2.0, 1.0, 1.5),
+        Vec3::new(0.0, 30.0, 10.0),
+        2.5,
+        0.5,
+    );
+    m.albedo = Vec3::ONE;
+    let floor = Shape::Quad {
+        corner: Vec3::new(-4.0, -1.0, 4.0),
+        edge_u: Vec3::new(8.0, 0.0, 0.0),
+        edge_v: Vec3::new(0.0, 0.0, -8.0),
+        albedo: Vec3::ONE,
+    };
+    let sky = Vec3::new(1.0, 0.5, 0.25);
+    let s = box_scene(vec![m], vec![floor], vec![constant_env(sky)]);
+    let (origin, dir) = DENSE_BOX_RAY;
+    let opts = McOptions {
+        max_bounces: 200,
+        paths: 20_000,
+        seed: 17,
+    };
+    let mc = radiance_mc(&s, origin, dir, &opts).unwrap();
+    for c in 0..3 {
+        crate::common::testing::assert_close(mc.mean[c], f64::from(sky[c]), 1e-12);
+    }
+    // At K = 1 most paths scatter more than once before they escape: much less.
+    let once = radiance_mc(
+        &s,
+        origin,
+        dir,
+        &McOptions {
+            max_bounces: 1,
+            ..opts
+        },
+    )
+    .unwrap();
+    assert!(once.mean[0] < 0.8 * f64::from(sky[0]), "{once:?}");
+}
+
+#[test]
+fn a_constant_sky_single_scattered_in_a_slab_matches_a_two_dimensional_integral() {
+    // A wide slab z ∈ [0, H] under a constant sky L, seen along d = +z from below,
+    // K = 1. Sky light from direction w (μ = w·z) reaches depth z through the slab
+    // length R(μ) = (H − z)/μ for μ > 0 and z/(−μ) for μ < 0, travels along −w and
+    // scatters into −d with the phase p(d·w) = p(μ):
+    //   L = L_sky e^{−σH} + σs L_sky 2π ∫_0^H e^{−σz} ∫_{−1}^{1} p(μ) e^{−σR(μ)} dμ dz,
+    // the first term the sky the camera ray sees through the slab.
+    let (sigma, h, g) = (1.0f64, 1.0f64, 0.6f64);
+    let mut m = box_medium(
+        Vec3::new(0.0, 0.0, 0.5),
+        Vec3::new(400.0, 400.0, 1.0),
+        Vec3::ZERO,
+        sigma as f32,
+        g as f32,
+    );
+    m.albedo = Vec3::new(0.95, 0.6, 0.3);
+    let albedo = m.albedo.as_dvec3();
+    let sky = DVec3::new(1.0, 2.0, 0.5);
+    let s = box_scene(vec![m], Vec::new(), vec![constant_env(sky.as_vec3())]);
+
+    let inner = |z: f64, mu: f64| {
+        let r = if mu > 0.0 { (h - z) / mu } else { z / -mu };
+        henyey_greenstein(mu, g) * (-sigma * r).exp()
+    };
+    // μ = ±s² (dμ = 2s ds) resolves the edge near μ = 0, where R → ∞.
+    let single = 2.0
+        * PI
+        * gauss_legendre(
+            |z| {
+                let up = gauss_legendre(|s| 2.0 * s * inner(z, s * s), 0.0, 1.0, 60);
+                let down = gauss_legendre(|s| 2.0 * s * inner(z, -s * s), 0.0, 1.0, 60);
+                (-sigma * z).exp() * (up + down)
+            },
+            0.0,
+            h,
+            60,
+        );
+    let expected: [f64; 3] =
+        std::array::from_fn(|c| sky[c] * (-sigma * h).exp() + albedo[c] * sigma * sky[c] * single);
+
+    let opts = McOptions {
+        max_bounces: 1,
+        paths: 400_000,
+        seed: 23,
+    };
+    let mc = radiance_mc(&s, DVec3::new(0.0, 0.0, -1.0), DVec3::Z, &opts).unwrap();
+    assert_within(&mc, expected, 4.0, "sky in a slab, K = 1");
+    // The scattered sky is a sizeable part of the answer, so the test can see it.
+    assert!(
+        albedo[0] * sigma * single > 0.3 * (-sigma * h).exp(),
+        "{single}"
+    );
+}
+
+/// Writes an 8 × 4 equirectangular map: radiance `upper` in the top two rows (every
+/// direction with y > 0), black below.
+fn write_half_sky(name: &str, upper: [f32; 3]) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("nimbus-reference-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join(name);
+    exr::prelude::write_rgb_file(&path, 8, 4, |_, y| {
+        if y < 2 {
+            (upper[0], upper[1], upper[2])
+        } else {
+            (0.0, 0.0, 0.0)
+        }
+    })
+    .unwrap();
+    path
+}
+
+#[test]
+fn a_map_lights_a_floor_from_above_only() {
+    // A Lambertian floor under a map that is white above the horizon and black below:
+    // every reflected path of the floor's upper side escapes upwards into the white
+    // half (E = π L, so L_out = albedo · L exactly), every one of its lower side into
+    // the black half; a camera ray that misses the floor upwards sees the white half.
+    let path = write_half_sky("half-sky.exr", [1.0, 0.5, 2.0]);
+    let floor = Shape::Quad {
+        corner: Vec3::new(-2.0, 0.0, -2.0),
+        edge_u: Vec3::new(4.0, 0.0, 0.0),
+        edge_v: Vec3::new(0.0, 0.0, 4.0),
+        albedo: Vec3::new(0.6, 0.3, 0.9),
+    };
+    let map = Light::Environment {
+        radiance: Vec3::ONE,
+        file: Some(path),
+        scale: Vec3::splat(2.0),
+    };
+    let s = box_scene(Vec::new(), vec![floor], vec![map]);
+    let opts = McOptions {
+        max_bounces: 2,
+        paths: 2_000,
+        seed: 4,
+    };
+    let ray = |o: DVec3, d: DVec3| radiance_mc(&s, o, d, &opts).unwrap().mean;
+    let above = ray(DVec3::new(0.3, 2.0, 1.0), DVec3::new(0.1, -1.0, -0.4));
+    let below = ray(DVec3::new(0.3, -2.0, 1.0), DVec3::new(0.1, 1.0, -0.4));
+    let sky = ray(DVec3::new(0.3, -2.0, 1.0), DVec3::new(0.1, 1.0, 3.0));
+    let upper = [1.0, 0.5, 2.0].map(|l| 2.0 * l);
+    for c in 0..3 {
+        let albedo = [0.6, 0.3, 0.9][c];
+        crate::common::testing::assert_close(above[c], albedo * upper[c], 1e-6);
+        assert_eq!(below[c], 0.0);
+        crate::common::testing::assert_close(sky[c], upper[c], 1e-12);
     }
 }

@@ -9,7 +9,7 @@ use nimbus_scene::Scene;
 use super::{McOptions, WHAT};
 use crate::common::estimate::{radiance_paths, McEstimate, Moments, PathSums};
 use crate::common::geometry::{homogeneous, spans_by_entry, Region};
-use crate::common::lights::{suns_and_sky, Sun};
+use crate::common::lights::{suns_and_environment, Environment, Sun};
 use crate::common::rng::Rng;
 use crate::common::sampling::{henyey_greenstein, sample_cosine, sample_hg};
 use crate::common::surface::{leave_surface, nearest_surface, Surface};
@@ -29,7 +29,10 @@ pub(super) struct Tracer {
     media: Vec<BoxMediumF64>,
     surfaces: Vec<Surface>,
     suns: Vec<Sun>,
-    environment: DVec3,
+    environment: Environment,
+    /// The environment is not black: paths go on after their K-th scattering to see
+    /// whether they escape.
+    sky: bool,
 }
 
 /// Running moments over paths, with the number of free-flight rays traced (camera ray
@@ -84,12 +87,14 @@ impl Tracer {
 
         let surfaces = scene.shapes.iter().map(Surface::from_shape).collect();
 
-        let (suns, environment) = suns_and_sky(scene, WHAT)?;
+        let (suns, environment) = suns_and_environment(scene, WHAT)?;
+        let sky = !environment.is_black();
         Ok(Self {
             media,
             surfaces,
             suns,
             environment,
+            sky,
         })
     }
 
@@ -139,7 +144,9 @@ impl Tracer {
     }
 
     /// One path from o along unit d with at most `k_max` scatterings: its radiance
-    /// estimate and the number of free-flight rays it traced.
+    /// estimate and the number of free-flight rays it traced. After the K-th scattering
+    /// a path under a non-black environment traces one more ray, which counts only if it
+    /// escapes (the environment's light scattered K times).
     pub(super) fn trace_path(&self, o: DVec3, d: DVec3, k_max: u32, rng: &mut Rng) -> (DVec3, u32) {
         let (mut x, mut d) = (o, d);
         let mut beta = DVec3::ONE;
@@ -151,6 +158,10 @@ impl Tracer {
             let surface = nearest_surface(&self.surfaces, x, d);
             let t_surface = surface.map_or(f64::INFINITY, |(t, _, _)| t);
             if let Some((t, i)) = self.sample_collision(x, d, t_surface, rng) {
+                // A (K+1)-th scattering carries nothing more.
+                if scatterings == k_max {
+                    break;
+                }
                 // Medium collision: weight σs/σt, NEE with the phase of ω → −d.
                 let medium = &self.media[i];
                 let p = x + t * d;
@@ -160,12 +171,15 @@ impl Tracer {
                     radiance += beta * phase * self.sunlight_at(p, sun);
                 }
                 scatterings += 1;
-                if scatterings == k_max || beta == DVec3::ZERO {
+                if beta == DVec3::ZERO || (scatterings == k_max && !self.sky) {
                     break;
                 }
                 d = sample_hg(d, medium.g, rng);
                 x = p;
             } else if let Some((t, normal, albedo)) = surface {
+                if scatterings == k_max {
+                    break;
+                }
                 // Lambertian reflection: weight albedo, NEE with the cosine at the normal
                 // facing the incoming ray.
                 let (p, n) = leave_surface(x + t * d, normal, d);
@@ -177,16 +191,15 @@ impl Tracer {
                     }
                 }
                 scatterings += 1;
-                if scatterings == k_max || beta == DVec3::ZERO {
+                if beta == DVec3::ZERO || (scatterings == k_max && !self.sky) {
                     break;
                 }
                 d = sample_cosine(n, rng);
                 x = p;
             } else {
-                // Escape: the environment counts only for the camera ray.
-                if scatterings == 0 {
-                    radiance += beta * self.environment;
-                }
+                // Escape: the environment, seen by the camera ray or arriving after
+                // 1..=K scatterings.
+                radiance += beta * self.environment.radiance(d);
                 break;
             }
         }

@@ -23,9 +23,10 @@
 //!   optional gobo (x is lit only if its projection (u, v) = ((x − origin)·U,
 //!   (x − origin)·V), (U, V) = `Gobo::basis(ω)`, lies in the convex polygon, boundary
 //!   included). Constant environment lights (`radiance · scale`, no file) are seen only
-//!   by rays that escape; in this single-scattering model they light neither media nor
-//!   surfaces. Any other light, grid media, animated cameras and `max_bounces` ≠ 1 are
-//!   errors.
+//!   by rays that escape; this model has no environment lighting, so a scene whose
+//!   environment would light a scattering medium or a reflecting shape (as the renderer
+//!   does) is an error: [`crate::mc`] is the oracle for those. Any other light, grid
+//!   media, animated cameras and `max_bounces` ≠ 1 are errors.
 //! - **Transmittance** T(a→b) = exp(−Σ_media σt·ℓ_media), ℓ the length of the segment
 //!   inside each box. Light transmittance T_ω(x) is T along x − s·ω, s ∈ [0, ∞), and the
 //!   visibility V_ω(x) is 0 if x − s·ω hits a shape for some s > ε, times the gobo mask.

@@ -70,9 +70,20 @@ impl PreparedScene {
             });
         }
 
-        let shapes = scene.shapes.iter().map(Surface::from_shape).collect();
+        let shapes: Vec<Surface> = scene.shapes.iter().map(Surface::from_shape).collect();
 
         let (lights, environment) = suns_and_sky(scene, "reference")?;
+        // The renderer's environment lights media and surfaces; this model has it only
+        // as the background, which is the whole answer only when nothing scatters.
+        let scatters = media.iter().any(|m| m.sigma_s != DVec3::ZERO)
+            || shapes.iter().any(|s| s.albedo != DVec3::ZERO);
+        ensure!(
+            environment == DVec3::ZERO || !scatters,
+            "{source}: the reference has the environment only as the background that \
+             escaping rays see, but here it would light scattering media or reflecting \
+             shapes: use the Monte Carlo reference (nimbus_reference::mc), or black media \
+             and shapes"
+        );
 
         Ok(Self {
             media,
@@ -211,7 +222,8 @@ mod tests {
 
     #[test]
     fn radiance_includes_albedo_phase_and_environment() {
-        // Backlit slab along −z (ω = d, cosθ = −1) in front of a constant environment.
+        // Backlit slab along −z (ω = d, cosθ = −1); the environment behind it is seen
+        // through it where the slab is black, and refused where it would be lit.
         let sigma_t = 0.6f32;
         let medium = box_medium(
             Vec3::ZERO,
@@ -221,22 +233,34 @@ mod tests {
             0.5,
         );
         let environment = constant_env(Vec3::new(0.5, 1.0, 2.0));
-        let s = box_scene(
-            vec![medium.clone()],
-            Vec::new(),
-            vec![sun(Vec3::NEG_Z, Vec3::splat(3.0)), environment],
-        );
+        let lit = sun(Vec3::NEG_Z, Vec3::splat(3.0));
+        let s = box_scene(vec![medium.clone()], Vec::new(), vec![lit.clone()]);
         let (origin, dir) = (DVec3::new(0.1, 0.2, 5.0), DVec3::NEG_Z);
         let actual = radiance(&s, origin, dir, &TIGHT).unwrap();
 
         let (sigma, len) = (f64::from(sigma_t), 3.0);
         let t_box = (1.0 - (-2.0 * sigma * len).exp()) / (2.0 * sigma);
         let phase = (1.0 - 0.25) / (4.0 * PI * 1.5f64.powi(3));
-        for c in 0..3 {
+        for (c, a) in actual.into_iter().enumerate() {
             let sigma_s = f64::from(medium.albedo[c]) * sigma;
-            let background = [0.5, 1.0, 2.0][c] * (-sigma * len).exp();
-            assert_close(actual[c], sigma_s * phase * 3.0 * t_box + background, 1e-9);
+            assert_close(a, sigma_s * phase * 3.0 * t_box, 1e-9);
         }
+
+        let mut black = medium.clone();
+        black.albedo = Vec3::ZERO;
+        let s = box_scene(
+            vec![black],
+            Vec::new(),
+            vec![lit.clone(), environment.clone()],
+        );
+        let actual = radiance(&s, origin, dir, &TIGHT).unwrap();
+        for (a, l) in actual.into_iter().zip([0.5, 1.0, 2.0]) {
+            assert_close(a, l * (-sigma * len).exp(), 1e-9);
+        }
+
+        let s = box_scene(vec![medium], Vec::new(), vec![lit, environment]);
+        let message = format!("{:#}", radiance(&s, origin, dir, &TIGHT).unwrap_err());
+        assert!(message.contains("Monte Carlo reference"), "{message}");
     }
 
     #[test]
