@@ -24,6 +24,10 @@
 // With SC_MAX_BOUNCES = K > 1 the camera ray continues as a path: a free-flight
 // collision (or a Lambertian surface) starts the next segment, whose single-scattered
 // light again comes from the estimator, so scattering orders 1..K are summed.
+//
+// With an environment (SC_HAS_ENV; a map with SC_HAS_ENV_MAP) camera rays that escape
+// see it through the media, and every segment adds its light scattered in the media
+// and reflected by the surface it ends on, by next-event estimation (environment.glsl).
 
 #extension GL_GOOGLE_include_directive : require
 
@@ -46,6 +50,7 @@ layout(constant_id = SC_ID_ESTIMATOR) const uint SC_ESTIMATOR = 0u;
 layout(constant_id = SC_ID_HAS_MEDIA) const bool SC_HAS_MEDIA = true;
 layout(constant_id = SC_ID_MAX_BOUNCES) const uint SC_MAX_BOUNCES = 1u;
 layout(constant_id = SC_ID_PIXEL_JITTER) const bool SC_PIXEL_JITTER = true;
+layout(constant_id = SC_ID_HAS_ENV_MAP) const bool SC_HAS_ENV_MAP = false;
 
 #include "film.glsl"
 
@@ -65,6 +70,7 @@ layout(std430, set = 0, binding = BINDING_GOBO_PLANES) readonly buffer GoboBlock
 #include "directional.glsl"
 #include "moments.glsl"
 #include "estimators.glsl"
+#include "environment.glsl"
 
 // Direct light reflected by the Lambertian shape hit at x towards -d.
 vec3 surface_direct(Shape s, vec3 x, vec3 n) {
@@ -146,22 +152,31 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
             float t_b = min(span.y, t_surface);
             if (t_b > t_enter && media[m].sigma_t > 0.0) {
                 float T_before = exp(-box_optical_depth_except(o, d, 0.0, t_enter, m));
-                L += beta * T_before * single_scatter_box(m, o, d, t_enter, t_b, rng);
+                vec3 L_m = single_scatter_box(m, o, d, t_enter, t_b, rng);
+                if (SC_HAS_ENV) {
+                    L_m += sky_scatter_box(m, o, d, t_enter, t_b, rng);
+                }
+                L += beta * T_before * L_m;
             }
         }
 
         vec3 n = vec3(0.0);
         if (t_surface < FAR) {
-            // Add the Lambertian reflection of direct light at the surface.
+            // Add the Lambertian reflection of direct light and the environment at the surface.
             Shape s = shapes[shape_index];
             vec3 x = o + t_surface * d;
             n = shape_normal(s, x, d);
             if (any(greaterThan(s.albedo, vec3(0.0)))) {
-                L += beta * exp(-box_optical_depth(o, d, 0.0, t_surface)) * surface_direct(s, x, n);
+                vec3 L_s = surface_direct(s, x, n);
+                if (SC_HAS_ENV) {
+                    L_s += sky_reflect(s, x, n, rng);
+                }
+                L += beta * exp(-box_optical_depth(o, d, 0.0, t_surface)) * L_s;
             }
         } else if (SC_HAS_ENV && bounce == 0u) {
-            // Add the environment seen through the media by the camera ray.
-            L += exp(-box_optical_depth(o, d, 0.0, FAR)) * u_frame.env_radiance * u_frame.background;
+            // Add the environment seen through the media by the camera ray (after a
+            // scattering it arrives by next-event estimation only).
+            L += exp(-box_optical_depth(o, d, 0.0, FAR)) * sky_radiance(d) * u_frame.background;
         }
         if (bounce + 1u >= SC_MAX_BOUNCES) {
             break;

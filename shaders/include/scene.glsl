@@ -71,7 +71,7 @@ struct FrameUniforms {
     float _pad0;
     vec3 cam_up;
     float _pad1;
-    vec3 env_radiance;      // rgb radiance of the constant environment (escaping rays)
+    vec3 env_radiance;      // rgb radiance of the constant environment
     float background;       // weight of the environment camera rays see directly: 1, or 0 (transparent film)
     uint width;             // image width in pixels
     uint height;            // image height in pixels
@@ -81,7 +81,8 @@ struct FrameUniforms {
     uint shape_count;       // records in shapes[]
     uint light_count;       // analytic lights in one light set of lights[]
     uint ray_samples;       // box estimators: samples N along one camera segment
-    vec4 _pad3;
+    uvec2 env_size;         // environment map width and height (1 x 1 without a map; the crepuscular pass)
+    uvec2 _pad3;
 };
 
 // Push constants of a dispatch. 16 bytes.

@@ -14,6 +14,6 @@ pub mod sparse;
 
 pub use records::*;
 pub use scene::{
-    box_records, frame_uniforms, gobo_half_planes, non_empty, shape_records, GpuGrid, GpuScene,
-    LightSet, RecordCounts,
+    box_records, frame_uniforms, gobo_half_planes, non_empty, shape_records, GpuEnvMap, GpuGrid,
+    GpuScene, LightSet, RecordCounts,
 };

@@ -158,7 +158,10 @@ pub struct FrameUniforms {
     pub light_count: u32,
     /// Box estimators: samples along one camera segment (N).
     pub ray_samples: u32,
-    pub _pad3: [f32; 4],
+    /// Environment map width and height (1 × 1 without a map); the crepuscular pass
+    /// reads it (the grid passes read `BaselineUniformsGpu::env_size`).
+    pub env_size: [u32; 2],
+    pub _pad3: [u32; 2],
 }
 
 /// `PassPush` in scene.glsl: the push constants of every dispatch.

@@ -40,8 +40,9 @@ fn world_to_local_rows(rotation: Mat3) -> [[f32; 4]; 3] {
 
 impl GpuScene {
     /// Convert the parts of `scene` the box pass renders. Media other than boxes and
-    /// lights other than directional and constant environment are rejected by the
-    /// render plan before this is called; here they are an internal error.
+    /// lights other than directional and environment are rejected by the render plan
+    /// before this is called; here they are an internal error. An environment map is
+    /// loaded separately ([`GpuEnvMap::load`]); `env_radiance` sums the constant ones.
     pub fn build(scene: &Scene) -> Result<GpuScene> {
         if scene.media.iter().any(|m| matches!(m, Medium::Grid(_))) {
             bail!("internal: the box pass was given a grid medium");
@@ -93,6 +94,8 @@ impl GpuScene {
                     file: None,
                     scale,
                 } => env_radiance += *radiance * *scale,
+                // The map's radiance lives in its texels (`GpuEnvMap`).
+                Light::Environment { file: Some(_), .. } => {}
                 other => bail!("internal: the box pass was given an unsupported light {other:?}"),
             }
         }
@@ -211,7 +214,8 @@ pub fn frame_uniforms(
         shape_count: counts.shapes,
         light_count: counts.lights,
         ray_samples: counts.ray_samples,
-        _pad3: [0.0; 4],
+        env_size: [1, 1],
+        _pad3: [0; 2],
     }
 }
 
@@ -314,13 +318,57 @@ pub struct GpuGrid {
     /// the constant environment radiance.
     pub lights: Vec<LightGpu>,
     pub env_radiance: Vec3,
-    /// The environment map's texels (rgb, w unused) and its sampling tables (marginal
-    /// CDF then conditional rows), if the environment has a `file`.
-    pub env_map: Option<(Vec<[f32; 4]>, Vec<f32>)>,
+    /// The environment map, if the environment has a `file`.
+    pub env_map: Option<GpuEnvMap>,
     /// The radius of the medium's bounding sphere (light selection weights).
     pub light_radius: f32,
     /// Mean luminance of the environment map over the sphere, if there is one.
     pub env_map_luminance: Option<f32>,
+}
+
+/// An environment map as `shaders/include/envmap.glsl` reads it.
+#[derive(Clone, Debug)]
+pub struct GpuEnvMap {
+    /// Texels (rgb radiance times `radiance · scale`, w unused), row-major from the top.
+    pub texels: Vec<[f32; 4]>,
+    /// The sampling tables: the marginal CDF, then the conditional rows.
+    pub tables: Vec<f32>,
+    /// Width and height in texels.
+    pub size: [u32; 2],
+    /// Mean luminance of the radiance over the sphere.
+    pub mean_luminance: f32,
+}
+
+impl GpuEnvMap {
+    /// Loads the map of the scene's environment light with a `file`, if there is one
+    /// (the plans refuse a map beside another environment light).
+    pub fn load(scene: &Scene) -> Result<Option<GpuEnvMap>> {
+        let mut found = None;
+        for light in &scene.lights {
+            if let Light::Environment {
+                radiance,
+                scale,
+                file: Some(file),
+            } = light
+            {
+                let map = nimbus_scene::EnvMap::load_exr(file, *radiance * *scale)?;
+                let sampler = nimbus_scene::EnvSampler::new(&map);
+                // Mean radiance luminance over the sphere: integral() is the mean of
+                // luminance x sin(theta) over the texel grid, which covers 2 pi^2 in
+                // (phi, theta); the sphere is 4 pi.
+                let mean_luminance = (sampler.integral() * 2.0 * std::f64::consts::PI.powi(2)
+                    / (4.0 * std::f64::consts::PI)) as f32;
+                let (marginal, conditional) = sampler.to_gpu_tables();
+                found = Some(GpuEnvMap {
+                    texels: map.texels.iter().map(|t| [t[0], t[1], t[2], 0.0]).collect(),
+                    tables: [marginal, conditional].concat(),
+                    size: [map.width, map.height],
+                    mean_luminance,
+                });
+            }
+        }
+        Ok(found)
+    }
 }
 
 /// The analytic lights of one frame with their selection CDF (`select_cdf`), the
@@ -524,36 +572,11 @@ impl GpuGrid {
         };
 
         let radius = 0.5 * (grid.bounds_max - grid.bounds_min).length();
-        let mut env_map = None;
-        let mut env_map_luminance = None;
-        for light in &scene.lights {
-            if let Light::Environment {
-                radiance,
-                scale,
-                file: Some(file),
-            } = light
-            {
-                let map = nimbus_scene::EnvMap::load_exr(file, *radiance * *scale)?;
-                let sampler = nimbus_scene::EnvSampler::new(&map);
-                // Mean radiance luminance over the sphere: integral() is the mean of
-                // luminance x sin(theta) over the texel grid, which covers 2 pi^2 in
-                // (phi, theta); the sphere is 4 pi.
-                env_map_luminance = Some(
-                    (sampler.integral() * 2.0 * std::f64::consts::PI.powi(2)
-                        / (4.0 * std::f64::consts::PI)) as f32,
-                );
-                let (marginal, conditional) = sampler.to_gpu_tables();
-                let texels = map.texels.iter().map(|t| [t[0], t[1], t[2], 0.0]).collect();
-                env_map = Some((
-                    texels,
-                    [marginal, conditional].concat(),
-                    [map.width, map.height],
-                ));
-            }
-        }
+        let env_map = GpuEnvMap::load(scene)?;
+        let env_map_luminance = env_map.as_ref().map(|m| m.mean_luminance);
         let mut uniforms = uniforms;
-        if let Some((_, _, size)) = &env_map {
-            uniforms.env_size = *size;
+        if let Some(map) = &env_map {
+            uniforms.env_size = map.size;
         }
         let set = LightSet::build(&scene.lights, radius, env_map_luminance);
         uniforms.env_select = set.env_select;
@@ -567,7 +590,7 @@ impl GpuGrid {
             uniforms,
             lights: set.lights,
             env_radiance: set.env_radiance,
-            env_map: env_map.map(|(texels, tables, _)| (texels, tables)),
+            env_map,
             light_radius: radius,
             env_map_luminance,
         })

@@ -44,6 +44,7 @@ pub fn create(
     let boxes = box_records(scene);
     let constants = FrameConstants {
         env_radiance: grid.env_radiance,
+        env_size: grid.uniforms.env_size,
         counts: RecordCounts {
             box_media: boxes.len() as u32,
             shapes: shapes.len() as u32,
@@ -80,7 +81,7 @@ pub fn create(
         let boxes = upload_records(ctx, o, &non_empty(&boxes), "box media")?;
         // Convex media are refused beside grids: their (compiled-out) planes are empty.
         let planes = upload_records(ctx, o, &[[0.0f32; 4]], "medium planes")?;
-        let (env_texels, env_tables) = upload_env_map(ctx, o, &grid)?;
+        let (env_texels, env_tables) = upload_env_map(ctx, o, grid.env_map.as_ref())?;
         let uniforms = upload_uniform(ctx, o, &grid.uniforms, "baseline uniforms")?;
         let bricks = upload_records(ctx, o, &grid.indirection().entries, "grid bricks")?;
         let density = atlas_image(

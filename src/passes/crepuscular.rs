@@ -1,6 +1,7 @@
 //! The crepuscular-ray pass (`shaders/box/crepuscular.comp`): single scattering in
-//! homogeneous box media under collimated light, direct lighting of the shapes, and the
-//! background, accumulated per pixel. With the ME estimator in a scene with shapes, a
+//! homogeneous box media under collimated light, direct lighting of the shapes, the
+//! environment's light on both (`shaders/box/environment.glsl`), and the background,
+//! accumulated per pixel. With the ME estimator in a scene with shapes, a
 //! moment-map stage (`shaders/box/moments.comp`) renders each directional light's
 //! moment shadow map once, before the first frame.
 
@@ -12,20 +13,23 @@ use nimbus_gpu::{
 };
 use nimbus_scene::{BoxEstimator, CameraFrame, Scene, Shape};
 
-use super::{compute_pipeline, upload_records, FrameConstants, ImagePass, Pass, Targets};
+use super::{
+    compute_pipeline, upload_env_map, upload_records, FrameConstants, ImagePass, Pass, Targets,
+};
 use crate::budget::{Binding, Footprint};
 use crate::gpu::features::*;
 use crate::gpu::{
-    bindings, non_empty, BoxMediumGpu, FrameUniforms, GpuScene, MomentFrameGpu, MomentPush,
-    PassPush, RecordCounts,
+    bindings, non_empty, BoxMediumGpu, FrameUniforms, GpuEnvMap, GpuScene, MomentFrameGpu,
+    MomentPush, PassPush, RecordCounts,
 };
 use crate::plan::{estimator_id, CrepuscularPlan};
 use crate::shaders;
 
 /// The specialization constants of `crepuscular.comp` for a plan.
-pub fn specialization(plan: &CrepuscularPlan) -> [(u32, SpecValue); 9] {
+pub fn specialization(plan: &CrepuscularPlan) -> [(u32, SpecValue); 10] {
     let f = plan.features;
     [
+        (SC_ID_HAS_ENV_MAP, SpecValue::Bool(f.has_env_map)),
         (SC_ID_HAS_SHAPES, SpecValue::Bool(f.has_shapes)),
         (SC_ID_HAS_GOBOS, SpecValue::Bool(f.has_gobos)),
         (SC_ID_HAS_ENV, SpecValue::Bool(f.has_env)),
@@ -207,8 +211,14 @@ pub fn create(
     targets: &Targets,
 ) -> Result<CrepuscularPass> {
     let records = GpuScene::build(scene)?;
+    let env_map = if plan.features.has_env_map {
+        GpuEnvMap::load(scene)?
+    } else {
+        None
+    };
     let constants = FrameConstants {
         env_radiance: records.env_radiance,
+        env_size: env_map.as_ref().map_or([1, 1], |m| m.size),
         counts: RecordCounts {
             box_media: records.media.len() as u32,
             shapes: records.shapes.len() as u32,
@@ -247,6 +257,7 @@ pub fn create(
             "moment maps",
         )?);
         let moment_frames = upload_records(ctx, o, &non_empty(&frames), "moment frames")?;
+        let (env_texels, env_tables) = upload_env_map(ctx, o, env_map.as_ref())?;
         let (pipeline, set) = storage_pipeline::<PassPush>(
             ctx,
             o,
@@ -259,6 +270,8 @@ pub fn create(
                 (bindings::GOBO_PLANES, gobo_planes),
                 (bindings::MOMENT_MAP, moment_map),
                 (bindings::MOMENT_FRAMES, moment_frames),
+                (bindings::ENV_TEXELS, env_texels),
+                (bindings::ENV_CDF, env_tables),
             ],
             shaders::BOX_CREPUSCULAR,
             &specialization(plan),
@@ -290,9 +303,17 @@ pub fn create(
     let planes = records.medium_planes.len() as u32;
     let tables = c.box_media * plan.features.max_pieces.max(3) * (planes.max(6) + 4);
     let per_sample = if with_moments { 14 } else { 1 };
+    // The environment: per sample along the segment and at its surface, a shadow ray
+    // (media, planes, shapes) and the map's two binary searches.
+    let env = if plan.features.has_env {
+        2 * c.ray_samples * (c.box_media + planes + c.shapes + 2 * 32)
+    } else {
+        0
+    };
     let per_segment = c.box_media
         + planes
         + c.shapes
+        + env
         + c.lights * (c.ray_samples * per_sample + c.box_media + planes + c.shapes + tables + 16);
     let sample_cost = per_segment.saturating_mul(plan.max_bounces + 1);
     Ok(CrepuscularPass {
@@ -408,9 +429,11 @@ impl Pass for CrepuscularPass {
 }
 
 /// What the crepuscular pass allocates besides the render targets: its scene records
-/// (a few KiB; counted so that every pass reports its footprint) and, for ME, the
-/// moment maps (16 bytes per texel, a mip chain per directional light).
+/// (a few KiB; counted so that every pass reports its footprint), the environment map
+/// and its tables, and, for ME, the moment maps (16 bytes per texel, a mip chain per
+/// directional light).
 pub fn footprint(scene: &Scene, plan: &CrepuscularPlan, f: &mut Footprint) -> Result<()> {
+    f.add_env_map(scene)?;
     let records = GpuScene::build(scene)?;
     let bytes = std::mem::size_of_val(records.media.as_slice())
         + std::mem::size_of_val(records.medium_planes.as_slice())

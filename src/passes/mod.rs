@@ -41,7 +41,9 @@ use nimbus_scene::{BrickGrid, CameraFrame, GridMedium, Medium, Scene};
 
 use crate::budget::Footprint;
 use crate::gpu::sparse::{SparseLayout, TexelFormat};
-use crate::gpu::{bindings, frame_uniforms, FrameUniforms, GpuGrid, PassPush, RecordCounts};
+use crate::gpu::{
+    bindings, frame_uniforms, FrameUniforms, GpuEnvMap, GpuGrid, PassPush, RecordCounts,
+};
 use crate::plan::{Integrator, RenderPlan};
 
 /// Workgroup size of every image-space shader (`local_size_x`, `local_size_y`).
@@ -187,16 +189,21 @@ impl<'a> Targets<'a> {
 }
 
 /// The per-frame constants every pass puts into [`FrameUniforms`]: the constant
-/// environment radiance and the pass's record counts.
+/// environment radiance, the environment map's size (1 × 1 without one) and the pass's
+/// record counts.
 #[derive(Clone, Copy, Debug)]
 pub struct FrameConstants {
     pub env_radiance: Vec3,
+    pub env_size: [u32; 2],
     pub counts: RecordCounts,
 }
 
 impl FrameConstants {
     pub fn uniforms(&self, scene: &Scene, camera: &CameraFrame) -> FrameUniforms {
-        frame_uniforms(scene, camera, self.env_radiance, self.counts)
+        FrameUniforms {
+            env_size: self.env_size,
+            ..frame_uniforms(scene, camera, self.env_radiance, self.counts)
+        }
     }
 }
 
@@ -420,10 +427,10 @@ pub fn atlas_image(
 pub fn upload_env_map(
     ctx: &Context,
     objects: &mut GpuObjects,
-    grid: &GpuGrid,
+    env_map: Option<&GpuEnvMap>,
 ) -> Result<(Handle<Buffer>, Handle<Buffer>)> {
-    let (texels, tables): (&[[f32; 4]], &[f32]) = match &grid.env_map {
-        Some((texels, tables)) => (texels, tables),
+    let (texels, tables): (&[[f32; 4]], &[f32]) = match env_map {
+        Some(map) => (&map.texels, &map.tables),
         None => (&[[0.0; 4]], &[0.0]),
     };
     Ok((

@@ -1,5 +1,5 @@
 //! The plan of scenes without grid media: the crepuscular pass renders box media,
-//! shapes and the background under directional lights.
+//! shapes and the background under directional and environment lights.
 
 use anyhow::{bail, Result};
 use nimbus_scene::{BoxEstimator, Light, Medium, Scene};
@@ -20,15 +20,28 @@ pub(super) fn build(
     // Reject what the crepuscular pass does not render, naming where it is.
     for (i, light) in scene.lights.iter().enumerate() {
         let kind = match light {
-            Light::Directional { .. } => continue,
-            Light::Environment { file: None, .. } => continue,
-            Light::Environment { file: Some(_), .. } => "type = \"environment\" with a `file`",
+            Light::Directional { .. } | Light::Environment { .. } => continue,
             Light::Point { .. } => "type = \"point\"",
             Light::Sphere { .. } => "type = \"sphere\"",
         };
         bail!(
             "{file}: [[light]] #{} ({kind}): not supported yet by the crepuscular pass \
-             (directional lights and constant environments are)",
+             (directional and environment lights are)",
+            i + 1
+        );
+    }
+    let envs = scene
+        .lights
+        .iter()
+        .filter(|l| matches!(l, Light::Environment { .. }))
+        .count();
+    let env_map = scene
+        .lights
+        .iter()
+        .position(|l| matches!(l, Light::Environment { file: Some(_), .. }));
+    if let (Some(i), true) = (env_map, envs > 1) {
+        bail!(
+            "{file}: [[light]] #{}: an environment map cannot be combined with another environment light",
             i + 1
         );
     }
@@ -62,10 +75,7 @@ pub(super) fn build(
         .iter()
         .filter(|l| matches!(l, Light::Directional { gobo: Some(_), .. }))
         .count();
-    let env = scene
-        .lights
-        .iter()
-        .any(|l| matches!(l, Light::Environment { .. }));
+    let env = envs > 0;
 
     let convex = scene
         .media
@@ -80,6 +90,7 @@ pub(super) fn build(
         has_shapes: shapes > 0,
         has_gobos: gobos > 0,
         has_env: env,
+        has_env_map: env_map.is_some(),
         pixel_jitter: scene.render.pixel_jitter,
     };
     let max_bounces = integrator.max_bounces;
@@ -141,15 +152,36 @@ pub(super) fn build(
             "no light has a gobo".into()
         },
     });
+    let lit = match (media > 0, shapes > 0) {
+        (true, true) => "the media and the surfaces",
+        (true, false) => "the media",
+        (false, true) => "the surfaces",
+        (false, false) => "nothing",
+    };
     decisions.push(Decision {
         name: "  SC_HAS_ENV",
         enabled: features.has_env,
         reason: if features.has_env {
-            "constant environment seen by escaping rays (it does not light the medium or surfaces \
-             in the single-scattering box pass)"
-                .into()
+            format!(
+                "{} environment: seen by camera rays, lights {lit} by next-event estimation \
+                 ({samples_along_ray} samples along each in-medium stretch and at each surface hit)",
+                if features.has_env_map { "map" } else { "constant" }
+            )
         } else {
-            "no environment: escaping rays see black".into()
+            "no environment: escaping rays see black, environment lighting compiled out".into()
+        },
+    });
+    decisions.push(Decision {
+        name: "  SC_HAS_ENV_MAP",
+        enabled: features.has_env_map,
+        reason: if features.has_env_map {
+            "environment map: directions by a one-sample mixture of the map's importance \
+             sampling and the phase function or cosine lobe (balance heuristic)"
+                .into()
+        } else if features.has_env {
+            "constant environment: directions by the phase function or cosine lobe alone".into()
+        } else {
+            "no environment map".into()
         },
     });
     decisions.push(Decision {

@@ -98,7 +98,10 @@ pub struct CrepuscularFeatures {
     pub max_pieces: u32,
     pub has_shapes: bool,
     pub has_gobos: bool,
+    /// An environment light: seen by camera rays, and lighting media and surfaces.
     pub has_env: bool,
+    /// The environment is an importance-sampled map (else a constant radiance).
+    pub has_env_map: bool,
     pub pixel_jitter: bool,
 }
 

@@ -428,6 +428,7 @@ fn mirrors() -> Vec<Mirror> {
                 shape_count,
                 light_count,
                 ray_samples,
+                env_size,
                 _pad3,
             }),
         },

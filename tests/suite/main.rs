@@ -13,6 +13,7 @@ mod alpha;
 mod baseline;
 mod bench_scenes;
 mod box_analytic;
+mod box_env;
 mod box_estimators;
 mod box_me;
 mod budget;

@@ -12,7 +12,7 @@ use nimbus_scene::BoxEstimator;
 
 /// `[[medium]]` planes of a regular dodecahedron of inradius `r` about `center`, turned
 /// by `turn` radians about Y (so no face is axis-aligned), as TOML.
-fn dodecahedron_planes(center: [f64; 3], r: f64, turn: f64) -> String {
+pub fn dodecahedron_planes(center: [f64; 3], r: f64, turn: f64) -> String {
     let phi = (1.0 + 5f64.sqrt()) / 2.0;
     let mut planes = Vec::new();
     for a in [-1.0, 1.0] {

@@ -29,8 +29,8 @@ use crate::gpu::features::*;
 use crate::gpu::sparse::{atlas_bytes, atlas_dims, atlas_slots, layer_bytes, slot_bound};
 use crate::gpu::sparse::{upload_atlas, Indirection, TexelFormat};
 use crate::gpu::{
-    frame_uniforms, non_empty, BaselineUniformsGpu, FrameUniforms, GpuGrid, LightGpu, LightSet,
-    RecordCounts, RestirPush, RestirUniformsGpu,
+    non_empty, BaselineUniformsGpu, FrameUniforms, GpuGrid, LightGpu, LightSet, RecordCounts,
+    RestirPush, RestirUniformsGpu,
 };
 use crate::plan::RestirPlan;
 use glam::IVec3;
@@ -343,6 +343,7 @@ impl RestirPass {
             },
             constants: FrameConstants {
                 env_radiance: grid_gpu.env_radiance,
+                env_size: grid_gpu.uniforms.env_size,
                 counts: RecordCounts {
                     lights: grid_gpu.lights.len() as u32,
                     ..RecordCounts::default()
@@ -494,12 +495,7 @@ impl Pass for RestirPass {
         self.upload_lights(ctx, scene, scene_frame, prev_frame)?;
         // The previous frame's camera (the first frame's own camera on frame 0).
         let camera = scene.camera.frame_at(prev_frame);
-        let prev = frame_uniforms(
-            scene,
-            &camera,
-            self.constants.env_radiance,
-            self.constants.counts,
-        );
+        let prev = self.constants.uniforms(scene, &camera);
         if self.prev_uploaded.map(|u| bytemuck::bytes_of(&u).to_vec())
             != Some(bytemuck::bytes_of(&prev).to_vec())
         {

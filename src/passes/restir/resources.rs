@@ -151,7 +151,7 @@ impl Resources {
         padded.resize(padded.len().max(slot_count(sizes.density)), [0.0; 4]);
         let super_voxels = upload_records(ctx, o, &padded, "super-voxels")?;
         let bricks = upload_records(ctx, o, indirection, "grid bricks")?;
-        let (env_texels, env_cdf) = upload_env_map(ctx, o, grid)?;
+        let (env_texels, env_cdf) = upload_env_map(ctx, o, grid.env_map.as_ref())?;
         let base_uniforms = upload_uniform(ctx, o, base_uniforms, "grid uniforms")?;
         let restir_uniforms = upload_uniform(ctx, o, uniforms, "restir uniforms")?;
         let prev_frame = o.add(ctx.create_buffer(
