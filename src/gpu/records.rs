@@ -38,6 +38,7 @@ pub struct BoxMediumGpu {
 pub const SHAPE_QUAD: u32 = 0;
 pub const SHAPE_BOX: u32 = 1;
 pub const SHAPE_SPHERE: u32 = 2;
+pub const SHAPE_MESH: u32 = 3;
 
 /// `Shape` in scene.glsl: an opaque Lambertian shape. `p` is a tagged union on `type`
 /// (see scene.glsl for what each shape keeps there).
@@ -46,7 +47,7 @@ pub const SHAPE_SPHERE: u32 = 2;
 pub struct ShapeGpu {
     pub p: [[f32; 4]; 5],
     pub albedo: [f32; 3],
-    /// `SHAPE_QUAD`, `SHAPE_BOX` or `SHAPE_SPHERE`.
+    /// `SHAPE_QUAD`, `SHAPE_BOX`, `SHAPE_SPHERE` or `SHAPE_MESH`.
     pub r#type: u32,
 }
 

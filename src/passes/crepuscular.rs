@@ -88,6 +88,10 @@ fn shape_min_depth(s: &Shape, omega: Vec3) -> f32 {
         .fold(f32::INFINITY, f32::min),
         Shape::Box { center, size, .. } => center.dot(omega) - 0.5 * size.length(),
         Shape::Sphere { center, radius, .. } => center.dot(omega) - radius,
+        Shape::Mesh { mesh, .. } => {
+            let (lo, hi) = mesh.bounds();
+            (lo + hi).dot(omega) * 0.5 - 0.5 * (hi - lo).length()
+        }
     }
 }
 

@@ -187,6 +187,17 @@ pub fn estimator_id(estimator: BoxEstimator) -> u32 {
 /// Build the plan for `scene`, or say which part of it cannot be rendered yet.
 /// `samples_along_ray` overrides the scene's `[integrator] box_samples`.
 pub fn build(scene: &Scene, samples_along_ray: Option<u32>) -> Result<RenderPlan> {
+    if let Some(i) = scene
+        .shapes
+        .iter()
+        .position(|s| matches!(s, nimbus_scene::Shape::Mesh { .. }))
+    {
+        anyhow::bail!(
+            "{}: [[shape]] #{} (type = \"mesh\"): mesh shapes are loaded but not rendered yet",
+            scene.source.display(),
+            i + 1
+        );
+    }
     let (integrator, rows) = if scene.media.iter().any(|m| matches!(m, Medium::Grid(_))) {
         volume::build(scene)?
     } else {
