@@ -51,6 +51,20 @@ pub struct ShapeGpu {
     pub r#type: u32,
 }
 
+/// `MeshTriangle` in scene.glsl: one triangle of a mesh in BVH leaf order (the node
+/// buffer is `nimbus_scene::BvhNode`, already the GLSL `BvhNode`'s layout).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct MeshTriangleGpu {
+    pub p0: [f32; 3],
+    /// Its index in its mesh as loaded.
+    pub triangle: u32,
+    pub p1: [f32; 3],
+    pub _pad0: u32,
+    pub p2: [f32; 3],
+    pub _pad1: u32,
+}
+
 /// Values of `LightGpu::type`.
 pub const LIGHT_DIRECTIONAL: u32 = 0;
 pub const LIGHT_POINT: u32 = 1;

@@ -225,8 +225,13 @@ pub fn shape_records(scene: &Scene) -> Vec<ShapeGpu> {
         .map(|shape| {
             let placement = next;
             if let Shape::Mesh { mesh, .. } = shape {
-                next.first_node += mesh.bvh.nodes().len() as u32;
-                next.first_triangle += mesh.triangle_count() as u32;
+                // No wrap: the budget refuses buffers beyond maxStorageBufferRange first.
+                next.first_node = next
+                    .first_node
+                    .saturating_add(mesh.bvh.nodes().len() as u32);
+                next.first_triangle = next
+                    .first_triangle
+                    .saturating_add(mesh.triangle_count() as u32);
             }
             shape_record(shape, placement)
         })

@@ -16,16 +16,17 @@ use super::{compute_pipeline, upload_records, FrameConstants, ImagePass, Pass, T
 use crate::budget::{Binding, Footprint};
 use crate::gpu::features::*;
 use crate::gpu::{
-    bindings, non_empty, BoxMediumGpu, FrameUniforms, GpuScene, MomentFrameGpu, MomentPush,
-    PassPush, RecordCounts,
+    bindings, non_empty, BoxMediumGpu, FrameUniforms, GpuScene, MeshBuffers, MomentFrameGpu,
+    MomentPush, PassPush, RecordCounts,
 };
 use crate::plan::{estimator_id, CrepuscularPlan};
 use crate::shaders;
 
 /// The specialization constants of `crepuscular.comp` for a plan.
-pub fn specialization(plan: &CrepuscularPlan) -> [(u32, SpecValue); 9] {
+pub fn specialization(plan: &CrepuscularPlan) -> [(u32, SpecValue); 10] {
     let f = plan.features;
     [
+        (SC_ID_HAS_MESHES, SpecValue::Bool(f.has_meshes)),
         (SC_ID_HAS_SHAPES, SpecValue::Bool(f.has_shapes)),
         (SC_ID_HAS_GOBOS, SpecValue::Bool(f.has_gobos)),
         (SC_ID_HAS_ENV, SpecValue::Bool(f.has_env)),
@@ -211,6 +212,7 @@ pub fn create(
     targets: &Targets,
 ) -> Result<CrepuscularPass> {
     let records = GpuScene::build(scene)?;
+    let meshes = MeshBuffers::build(scene);
     let constants = FrameConstants {
         env_radiance: records.env_radiance,
         counts: RecordCounts {
@@ -244,6 +246,8 @@ pub fn create(
         let media = upload_records(ctx, o, &non_empty(&records.media), "box media")?;
         let planes = upload_records(ctx, o, &non_empty(&records.medium_planes), "medium planes")?;
         let shapes = upload_records(ctx, o, &non_empty(&records.shapes), "shapes")?;
+        let bvh_nodes = upload_records(ctx, o, &meshes.nodes, "mesh BVH nodes")?;
+        let mesh_triangles = upload_records(ctx, o, &meshes.triangles, "mesh triangles")?;
         let lights = upload_records(ctx, o, &non_empty(&records.lights), "lights")?;
         let gobo_planes = upload_records(ctx, o, &non_empty(&records.gobo_planes), "gobo planes")?;
         let moment_map = o.add(ctx.create_buffer(
@@ -259,6 +263,8 @@ pub fn create(
                 (bindings::BOX_MEDIA, media),
                 (bindings::MEDIUM_PLANES, planes),
                 (bindings::SHAPES, shapes),
+                (bindings::BVH_NODES, bvh_nodes),
+                (bindings::MESH_TRIANGLES, mesh_triangles),
                 (bindings::LIGHTS, lights),
                 (bindings::GOBO_PLANES, gobo_planes),
                 (bindings::MOMENT_MAP, moment_map),
@@ -275,11 +281,16 @@ pub fn create(
                 targets,
                 &[
                     (bindings::SHAPES, shapes),
+                    (bindings::BVH_NODES, bvh_nodes),
+                    (bindings::MESH_TRIANGLES, mesh_triangles),
                     (bindings::MOMENT_MAP, moment_map),
                     (bindings::MOMENT_FRAMES, moment_frames),
                 ],
                 shaders::BOX_MOMENTS,
-                &[(SC_ID_HAS_SHAPES, SpecValue::Bool(plan.features.has_shapes))],
+                &[
+                    (SC_ID_HAS_SHAPES, SpecValue::Bool(plan.features.has_shapes)),
+                    (SC_ID_HAS_MESHES, SpecValue::Bool(plan.features.has_meshes)),
+                ],
                 "moment maps",
             )?)
         } else {
@@ -294,10 +305,20 @@ pub fn create(
     let planes = records.medium_planes.len() as u32;
     let tables = c.box_media * plan.features.max_pieces.max(3) * (planes.max(6) + 4);
     let per_sample = if with_moments { 14 } else { 1 };
+    // A mesh costs a BVH traversal per ray: the segment's, and each shadow ray's.
+    let mesh = super::mesh_ray_cost(scene);
     let per_segment = c.box_media
         + planes
         + c.shapes
-        + c.lights * (c.ray_samples * per_sample + c.box_media + planes + c.shapes + tables + 16);
+        + mesh
+        + c.lights
+            * (c.ray_samples * (per_sample + mesh)
+                + c.box_media
+                + planes
+                + c.shapes
+                + mesh
+                + tables
+                + 16);
     let sample_cost = per_segment.saturating_mul(plan.max_bounces + 1);
     Ok(CrepuscularPass {
         image: ImagePass::new(
@@ -415,6 +436,7 @@ impl Pass for CrepuscularPass {
 /// (a few KiB; counted so that every pass reports its footprint) and, for ME, the
 /// moment maps (16 bytes per texel, a mip chain per directional light).
 pub fn footprint(scene: &Scene, plan: &CrepuscularPlan, f: &mut Footprint) -> Result<()> {
+    f.add_meshes(scene);
     let records = GpuScene::build(scene)?;
     let bytes = std::mem::size_of_val(records.media.as_slice())
         + std::mem::size_of_val(records.medium_planes.as_slice())

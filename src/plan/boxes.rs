@@ -78,6 +78,10 @@ pub(super) fn build(
         has_convex: convex > 0,
         max_pieces,
         has_shapes: shapes > 0,
+        has_meshes: scene
+            .shapes
+            .iter()
+            .any(|s| matches!(s, nimbus_scene::Shape::Mesh { .. })),
         has_gobos: gobos > 0,
         has_env: env,
         pixel_jitter: scene.render.pixel_jitter,
@@ -132,6 +136,7 @@ pub(super) fn build(
             "no shapes: shadow rays compiled out".into()
         },
     });
+    decisions.push(super::meshes_decision(scene));
     decisions.push(Decision {
         name: "  SC_HAS_GOBOS",
         enabled: features.has_gobos,

@@ -97,6 +97,8 @@ pub struct CrepuscularFeatures {
     /// and light (3 for boxes).
     pub max_pieces: u32,
     pub has_shapes: bool,
+    /// Some shapes are triangle meshes (BVH traversal compiled in).
+    pub has_meshes: bool,
     pub has_gobos: bool,
     pub has_env: bool,
     pub pixel_jitter: bool,
@@ -112,6 +114,8 @@ pub struct BaselinePlan {
     pub has_boxes: bool,
     pub has_emission: bool,
     pub has_shapes: bool,
+    /// Some shapes are triangle meshes.
+    pub has_meshes: bool,
     pub has_env: bool,
     pub has_env_map: bool,
     pub pixel_jitter: bool,
@@ -172,6 +176,38 @@ impl Decision {
     }
 }
 
+/// The `SC_HAS_MESHES` row of a plan: on with the scene's meshes, their triangles and
+/// BVH nodes, else why the traversal is compiled out.
+pub fn meshes_decision(scene: &Scene) -> Decision {
+    let meshes: Vec<&nimbus_scene::MeshShape> = scene
+        .shapes
+        .iter()
+        .filter_map(|s| match s {
+            nimbus_scene::Shape::Mesh { mesh, .. } => Some(mesh.as_ref()),
+            _ => None,
+        })
+        .collect();
+    if meshes.is_empty() {
+        return Decision::new(
+            "  SC_HAS_MESHES",
+            false,
+            "no mesh shapes: BVH traversal compiled out",
+        );
+    }
+    let (nodes, triangles) = crate::gpu::meshes::mesh_counts(scene);
+    let depth = meshes.iter().map(|m| m.bvh.depth()).max().unwrap_or(0);
+    let dropped: u64 = meshes.iter().map(|m| m.dropped_degenerate).sum();
+    let mut reason = format!(
+        "{} mesh(es), {triangles} triangles, {nodes} BVH nodes (deepest leaf at depth {depth}): \
+         stack traversal, watertight ray-triangle test",
+        meshes.len()
+    );
+    if dropped > 0 {
+        reason += &format!("; {dropped} degenerate triangle(s) dropped on load");
+    }
+    Decision::new("  SC_HAS_MESHES", true, reason)
+}
+
 /// The estimator ids of `SC_ESTIMATOR` in `shaders/box/crepuscular.comp`.
 pub fn estimator_id(estimator: BoxEstimator) -> u32 {
     match estimator {
@@ -187,17 +223,6 @@ pub fn estimator_id(estimator: BoxEstimator) -> u32 {
 /// Build the plan for `scene`, or say which part of it cannot be rendered yet.
 /// `samples_along_ray` overrides the scene's `[integrator] box_samples`.
 pub fn build(scene: &Scene, samples_along_ray: Option<u32>) -> Result<RenderPlan> {
-    if let Some(i) = scene
-        .shapes
-        .iter()
-        .position(|s| matches!(s, nimbus_scene::Shape::Mesh { .. }))
-    {
-        anyhow::bail!(
-            "{}: [[shape]] #{} (type = \"mesh\"): mesh shapes are loaded but not rendered yet",
-            scene.source.display(),
-            i + 1
-        );
-    }
     let (integrator, rows) = if scene.media.iter().any(|m| matches!(m, Medium::Grid(_))) {
         volume::build(scene)?
     } else {
