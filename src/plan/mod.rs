@@ -197,9 +197,10 @@ pub fn meshes_decision(scene: &Scene) -> Decision {
     let (nodes, triangles) = crate::gpu::meshes::mesh_counts(scene);
     let depth = meshes.iter().map(|m| m.bvh.depth()).max().unwrap_or(0);
     let dropped: u64 = meshes.iter().map(|m| m.dropped_degenerate).sum();
+    let build_ms: f64 = meshes.iter().map(|m| m.bvh_build_seconds).sum::<f64>() * 1e3;
     let mut reason = format!(
-        "{} mesh(es), {triangles} triangles, {nodes} BVH nodes (deepest leaf at depth {depth}): \
-         stack traversal, watertight ray-triangle test",
+        "{} mesh(es), {triangles} triangles, {nodes} BVH nodes (deepest leaf at depth {depth}, \
+         built in {build_ms:.0} ms on load): stack traversal, watertight ray-triangle test",
         meshes.len()
     );
     if dropped > 0 {

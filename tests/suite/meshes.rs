@@ -229,8 +229,9 @@ fn binary_ply(mesh: &TriangleMesh) -> Vec<u8> {
 /// (the crepuscular pass without media, deterministic): the facets' normals differ from
 /// the sphere's by at most half a facet (0.01 rad), so pixels agree within 3 % of the
 /// brightest, except where the silhouette or the shadow's edge crosses a pixel centre
-/// differently (at most 1 % of the pixels); the means agree within 0.5 %. Measured: the
-/// largest difference 1.1 % of the peak, no pixel beyond 3 %. The budget's estimate
+/// differently (at most 0.2 % of the pixels: the tessellation's radius is short by
+/// 5e-5 of the sphere's, a thousandth of a pixel here); the means agree within 0.5 %.
+/// Measured: the largest difference 1.1 % of the peak, no pixel beyond 3 %. The budget's estimate
 /// holds what the render allocates.
 #[test]
 fn a_tessellated_sphere_of_100k_triangles_renders_as_a_sphere_shape() {
@@ -275,7 +276,7 @@ irradiance = 3.0
         largest / peak,
         a.image.data.len()
     );
-    assert!(beyond * 100 <= a.image.data.len(), "{beyond} pixels differ");
+    assert!(beyond * 500 <= a.image.data.len(), "{beyond} pixels differ");
     let (ma, mb) = (a.image.mean(), b.image.mean());
     for c in 0..3 {
         assert!(
