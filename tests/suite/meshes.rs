@@ -2,7 +2,9 @@
 //! shape of the same size and rotation (the crepuscular pass in a box medium, the
 //! baseline path tracer beside a grid medium), a tessellated sphere of 100 480 triangles
 //! (written as binary PLY) as a `type = "sphere"` shape, and bad mesh files refused
-//! naming the scene, the shape, the field and the mesh file. Validation layers are on.
+//! naming the scene, the shape, the field and the mesh file; ReSTIR's refusal of
+//! surfaces names a mesh, and `--explain` says whether the traversal is compiled in.
+//! Validation layers are on.
 //!
 //! The cube renders with the box's random numbers: same seed, same pixel-centre camera
 //! rays (`pixel_jitter = false`), and geometry equal up to rounding, so every path makes
@@ -67,16 +69,18 @@ fn pixel_differences(a: &ImageRgb, b: &ImageRgb, tol: f32) -> (f32, usize) {
 }
 
 /// In a box medium under a directional light (single scattering, then K = 3 with
-/// reflections off the cube), the mesh cube renders as the box shape pixel by pixel:
+/// reflections off the cube, then the ME estimator, whose moment shadow maps trace the
+/// cube along the light), the mesh cube renders as the box shape pixel by pixel:
 /// within 1e-4 of the image's brightest pixel, except in at most 0.2 % of the pixels
 /// (where a ray could pass an edge or a shadow boundary within rounding; measured:
-/// none, the largest difference 2e-7 of the peak), and the means within noise.
+/// none, the largest difference 2e-7 of the peak, 5.6e-6 with ME), and the means within
+/// noise.
 #[test]
 fn a_mesh_cube_renders_as_a_box_shape_in_the_crepuscular_pass() {
     let ctx = context();
     let dir = scratch("meshes", "crepuscular-cube");
     std::fs::write(dir.join("cube.obj"), CUBE_OBJ).unwrap();
-    for bounces in [1, 3] {
+    for (bounces, estimator) in [(1, "mcwvds"), (3, "mcwvds"), (1, "me")] {
         let text = |mesh: bool| {
             format!(
                 r#"
@@ -103,6 +107,7 @@ albedo = 0.8
 g = 0.3
 [integrator]
 max_bounces = {bounces}
+box_estimator = "{estimator}"
 {FLOOR}{}"#,
                 cube(mesh)
             )
@@ -113,17 +118,18 @@ max_bounces = {bounces}
         let b = render_checked(&ctx, &mesh_scene, None);
         let peak = a.image.data.iter().flatten().fold(0.0f32, |m, v| m.max(*v));
         let (largest, beyond) = pixel_differences(&a.image, &b.image, 1e-4 * peak);
+        let what = format!("crepuscular {estimator} K = {bounces}");
         println!(
-            "crepuscular K = {bounces}: largest difference {:.2e} of the peak, {beyond} of {} pixels beyond 1e-4",
+            "{what}: largest difference {:.2e} of the peak, {beyond} of {} pixels beyond 1e-4",
             largest / peak,
             a.image.data.len()
         );
         assert!(
             beyond * 500 <= a.image.data.len(),
-            "K = {bounces}: {beyond} pixels differ by more than 1e-4 of the peak"
+            "{what}: {beyond} pixels differ by more than 1e-4 of the peak"
         );
         assert_means_agree(
-            &format!("crepuscular K = {bounces}"),
+            &what,
             (&b.image, &b.std_error),
             (&a.image, &a.std_error),
             4.0,
@@ -345,5 +351,60 @@ fn bad_mesh_files_are_refused_naming_scene_shape_field_and_mesh_file() {
             stderr.contains("field `file`") && stderr.contains(file) && stderr.contains(what),
             "{scene_name}: {stderr}"
         );
+    }
+}
+
+/// Volumetric ReSTIR does not render surfaces yet: a mesh beside a ReSTIR grid is
+/// refused naming the shape and its type, and the way out.
+#[test]
+fn restir_refuses_mesh_shapes_naming_them() {
+    let dir = scratch("meshes", "restir");
+    std::fs::write(dir.join("cube.obj"), CUBE_OBJ).unwrap();
+    let text = format!(
+        "[camera]\nposition = [0, 1, 5]\nlook_at = [0, 0, 0]\n\
+         [[light]]\ntype = \"directional\"\ndirection = [0, -1, 0]\nirradiance = 1\n\
+         [[medium]]\ntype = \"grid\"\nbounds_min = [-1, 1, -1]\nbounds_max = [1, 2, 1]\n\
+         density = {{ procedural = \"cloud\", dims = [8, 8, 8] }}\n{}",
+        cube(true)
+    );
+    let scene = load(&dir, "restir.toml", &text);
+    let error = format!("{:#}", nimbus::plan::build(&scene, None).unwrap_err());
+    for needle in [
+        "restir.toml",
+        "[[shape]] #1 (type = \"mesh\")",
+        "Volumetric ReSTIR does not render surfaces",
+        "volume = \"baseline\"",
+    ] {
+        assert!(error.contains(needle), "{needle:?} missing from: {error}");
+    }
+}
+
+/// `--explain` says whether the BVH traversal is compiled in, and what the meshes hold.
+#[test]
+fn explain_says_whether_the_mesh_traversal_is_compiled_in() {
+    let dir = scratch("meshes", "explain");
+    std::fs::write(dir.join("cube.obj"), CUBE_OBJ).unwrap();
+    let base = "[camera]\nposition = [0, 1, 5]\nlook_at = [0, 0, 0]\n\
+                [[light]]\ntype = \"directional\"\ndirection = [0, -1, 0]\nirradiance = 1\n";
+    for mesh in [false, true] {
+        let scene = load(
+            &dir,
+            "explain.toml",
+            &format!("{base}{FLOOR}{}", cube(mesh)),
+        );
+        let plan = nimbus::plan::build(&scene, None).unwrap();
+        let row = plan
+            .decisions
+            .iter()
+            .find(|d| d.name.trim() == "SC_HAS_MESHES")
+            .expect("an SC_HAS_MESHES row");
+        assert_eq!(row.enabled, mesh, "{row:?}");
+        let expected = if mesh {
+            "1 mesh(es), 12 triangles"
+        } else {
+            "BVH traversal compiled out"
+        };
+        assert!(row.reason.contains(expected), "{row:?}");
+        assert!(plan.explain(&scene).contains("SC_HAS_MESHES"));
     }
 }
