@@ -185,6 +185,30 @@ impl Footprint {
         Ok(())
     }
 
+    /// The scene's meshes: one buffer of every mesh's BVH nodes and one of their leaf
+    /// triangles (`crate::gpu::meshes`), known exactly from the BVHs built when the
+    /// scene loaded; at least one record each. The host holds both once more while
+    /// they are uploaded (the meshes themselves are part of the loaded scene).
+    pub fn add_meshes(&mut self, scene: &Scene) {
+        use crate::gpu::meshes::{mesh_counts, BVH_NODE_BYTES, MESH_TRIANGLE_BYTES};
+        let (nodes, triangles) = mesh_counts(scene);
+        let file = scene.source.display();
+        let what = |kind: &str| format!("{file}: [[shape]] type = \"mesh\" ({kind})");
+        let node_bytes = nodes.max(1) * BVH_NODE_BYTES;
+        let triangle_bytes = triangles.max(1) * MESH_TRIANGLE_BYTES;
+        self.add(
+            what(&format!("{nodes} BVH nodes")),
+            Binding::Storage,
+            node_bytes,
+        );
+        self.add(
+            what(&format!("{triangles} triangles")),
+            Binding::Storage,
+            triangle_bytes,
+        );
+        self.host_peak += node_bytes + triangle_bytes;
+    }
+
     /// The scene's grid medium as the grid integrators upload it: the density's atlas,
     /// its super-voxel records, the emission's atlas, the indirection sections, and the
     /// host copies. Reads the grids' topology (which bricks they store: OpenVDB files up

@@ -31,6 +31,8 @@
 #define BINDING_MOMENT_MAP 25
 #define BINDING_MOMENT_FRAMES 26
 #define BINDING_GRID_BRICKS 27
+#define BINDING_BVH_NODES 28
+#define BINDING_MESH_TRIANGLES 29
 
 // Indices into the stats buffer (uint counters).
 #define STAT_NON_FINITE 0

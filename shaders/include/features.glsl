@@ -32,6 +32,8 @@
 #define SC_ID_MAX_PIECES 13
 // Box media: some media are convex polyhedra (planes in medium_planes[]).
 #define SC_ID_HAS_CONVEX 14
+// Shapes: some are triangle meshes (BVH traversal in bvh.glsl; declared by shapes.glsl).
+#define SC_ID_HAS_MESHES 15
 
 // ---------------------------------------------------------------------------------------
 // Values of SC_ESTIMATOR: the box-medium estimators of Velinov & Mitchell.
@@ -57,6 +59,11 @@
 #define MAX_MEDIA 16u
 // Most planes of a convex medium (the scene loader's limit).
 #define MAX_CONVEX_PLANES 64u
+
+// A mesh BVH's traversal stack: one entry per level below the root (the CPU build
+// bounds the depth by it, nimbus_scene::BVH_STACK_SIZE), and the most triangles in a leaf.
+#define BVH_STACK_SIZE 32u
+#define BVH_MAX_LEAF_TRIANGLES 4u
 
 // Rays per side of a moment-map texel: MOMENT_MAP_RAYS² stratified rays (moments.glsl).
 #define MOMENT_MAP_RAYS 2u

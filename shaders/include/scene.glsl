@@ -29,16 +29,42 @@ struct BoxMedium {
 #define SHAPE_QUAD 0u
 #define SHAPE_BOX 1u
 #define SHAPE_SPHERE 2u
+#define SHAPE_MESH 3u
 
 // An opaque Lambertian shape. 96 bytes. `p` is a tagged union on `type` (GLSL has no
 // unions; one named member per shape's parameter would more than double the record):
 //   quad:   p[0] corner, p[1] edge_u, p[2] edge_v, p[3].xyz w = n / dot(n, n), n = cross(edge_u, edge_v)
 //   box:    p[0..2] rows of R^T (w 0), p[3].xyz centre, p[4].xyz half extents
 //   sphere: p[0].xyz centre, p[0].w radius
+//   mesh:   p[0] uints bit-cast to floats (floatBitsToUint): x its root's index in
+//           bvh_nodes[], y its first triangle's in mesh_triangles[], z its triangle
+//           count, w its node count
 struct Shape {
     vec4 p[5];
     vec3 albedo;  // rgb Lambertian albedo
-    uint type;    // SHAPE_QUAD, SHAPE_BOX or SHAPE_SPHERE
+    uint type;    // SHAPE_QUAD, SHAPE_BOX, SHAPE_SPHERE or SHAPE_MESH
+};
+
+// A node of a mesh's BVH (bvh.glsl). 32 bytes. The box [min, max] bounds its subtree.
+// Interior (count 0): its children are nodes left_or_first and left_or_first + 1; leaf:
+// triangles left_or_first .. left_or_first + count - 1 of mesh_triangles[]. Indices are
+// into the scene's concatenated buffers (every mesh's rebased on upload).
+struct BvhNode {
+    vec3 min;            // lower corner of the box (world, m)
+    uint left_or_first;  // interior: first child; leaf: first triangle
+    vec3 max;            // upper corner
+    uint count;          // leaf: triangles (1..BVH_MAX_LEAF_TRIANGLES); 0: interior
+};
+
+// A mesh triangle in BVH leaf order. 48 bytes. Counter-clockwise seen from the side its
+// normal cross(p1 - p0, p2 - p0) points to.
+struct MeshTriangle {
+    vec3 p0;        // corners (world, m)
+    uint triangle;  // its index in its mesh as loaded (for per-triangle data)
+    vec3 p1;
+    uint _pad0;
+    vec3 p2;
+    uint _pad1;
 };
 
 // Light.type

@@ -1,20 +1,38 @@
 // Opaque shapes: their buffer, nearest hit with normal, and occlusion queries. Needs
 // `u_frame` (shape_count = number of shapes) and the bool constant SC_HAS_SHAPES to be
-// declared by the including pass.
+// declared by the including pass; declares SC_HAS_MESHES itself (meshes traverse their
+// BVH, bvh.glsl; without meshes the traversal is compiled out).
 #ifndef NIMBUS_SHAPES_GLSL
 #define NIMBUS_SHAPES_GLSL
 
 #include "bindings.glsl"
+#include "features.glsl"
 #include "geometry.glsl"
 #include "scene.glsl"
+#include "bvh.glsl"
+
+// Some shapes are triangle meshes.
+layout(constant_id = SC_ID_HAS_MESHES) const bool SC_HAS_MESHES = false;
 
 layout(std430, set = 0, binding = BINDING_SHAPES) readonly buffer ShapesBlock {
     Shape shapes[];
 };
 
-// Hit distance of one shape along o + t d within (t_min, t_max); FAR if none.
-float intersect_shape(Shape s, vec3 o, vec3 d, float t_min, float t_max) {
+// The mesh triangle (index into mesh_triangles[]) of the last hit nearest_shape
+// returned, if that was a mesh: shape_normal reads its normal.
+uint g_nearest_triangle = NO_INDEX;
+
+// Hit distance of one shape along o + t d within (t_min, t_max); FAR if none. For a
+// mesh, `triangle` is the hit triangle; with any_hit, any hit ends its traversal.
+float intersect_shape(Shape s, vec3 o, vec3 d, float t_min, float t_max, bool any_hit, out uint triangle) {
     uint type = s.type;
+    triangle = NO_INDEX;
+    if (SC_HAS_MESHES && type == SHAPE_MESH) {
+        uint root = floatBitsToUint(s.p[0].x);
+        uint node_count = floatBitsToUint(s.p[0].w);
+        float t = bvh_trace(root, node_count, o, d, t_min, t_max, any_hit, triangle);
+        return t;
+    }
     if (type == SHAPE_QUAD) {
         return intersect_quad(s.p[0].xyz, s.p[1].xyz, s.p[2].xyz, s.p[3].xyz, o, d, t_min, t_max);
     }
@@ -38,11 +56,18 @@ float intersect_shape(Shape s, vec3 o, vec3 d, float t_min, float t_max) {
     return FAR;
 }
 
-// Geometric normal of shape `s` at the surface point x, facing against d.
+// Geometric normal of shape `s` at the surface point x, facing against d. For a mesh:
+// of the triangle the last nearest_shape hit, so call it for that hit.
 vec3 shape_normal(Shape s, vec3 x, vec3 d) {
     uint type = s.type;
     vec3 n;
-    if (type == SHAPE_QUAD) {
+    if (SC_HAS_MESHES && type == SHAPE_MESH) {
+        // The hit triangle's geometric normal (set by nearest_shape); -d if it has none.
+        n = g_nearest_triangle == NO_INDEX ? vec3(0.0) : mesh_triangle_normal(g_nearest_triangle);
+        if (n == vec3(0.0)) {
+            n = -d;
+        }
+    } else if (type == SHAPE_QUAD) {
         n = cross(s.p[1].xyz, s.p[2].xyz);
     } else if (type == SHAPE_SPHERE) {
         n = x - s.p[0].xyz;
@@ -67,10 +92,12 @@ float nearest_shape(vec3 o, vec3 d, float t_min, float t_max, out uint index) {
     if (SC_HAS_SHAPES) {
         uint count = u_frame.shape_count;
         for (uint s = 0u; s < count; ++s) {
-            float t = intersect_shape(shapes[s], o, d, t_min, t_hit);
+            uint triangle;
+            float t = intersect_shape(shapes[s], o, d, t_min, t_hit, false, triangle);
             if (t < t_hit) {
                 t_hit = t;
                 index = s;
+                g_nearest_triangle = triangle;
             }
         }
     }
@@ -84,7 +111,8 @@ bool occluded_before(vec3 o, vec3 d, float t_min, float t_max) {
     }
     uint count = u_frame.shape_count;
     for (uint s = 0u; s < count; ++s) {
-        if (intersect_shape(shapes[s], o, d, t_min, t_max) < FAR) {
+        uint triangle;
+        if (intersect_shape(shapes[s], o, d, t_min, t_max, true, triangle) < FAR) {
             return true;
         }
     }

@@ -33,6 +33,10 @@ pub const MOMENT_MAP: u32 = 25;
 pub const MOMENT_FRAMES: u32 = 26;
 /// The indirection sections of the sparse grids (`uint grid_bricks[]`).
 pub const GRID_BRICKS: u32 = 27;
+/// The BVH nodes of every mesh of the scene (`BvhNode bvh_nodes[]`, bvh.glsl).
+pub const BVH_NODES: u32 = 28;
+/// Their leaf triangles (`MeshTriangle mesh_triangles[]`).
+pub const MESH_TRIANGLES: u32 = 29;
 
 /// Index of the non-finite sample counter in the stats buffer.
 pub const STAT_NON_FINITE: usize = 0;
@@ -45,7 +49,7 @@ pub const STAT_LOOPS_CUT: usize = 2;
 pub const STAT_COUNT: usize = 4;
 
 /// Every binding with its GLSL name, for the layout test.
-pub const ALL: [(&str, u32); 28] = [
+pub const ALL: [(&str, u32); 30] = [
     ("BINDING_FRAME_UNIFORMS", FRAME_UNIFORMS),
     ("BINDING_ACCUM", ACCUM),
     ("BINDING_ACCUM_SQ", ACCUM_SQ),
@@ -74,4 +78,6 @@ pub const ALL: [(&str, u32); 28] = [
     ("BINDING_MOMENT_MAP", MOMENT_MAP),
     ("BINDING_MOMENT_FRAMES", MOMENT_FRAMES),
     ("BINDING_GRID_BRICKS", GRID_BRICKS),
+    ("BINDING_BVH_NODES", BVH_NODES),
+    ("BINDING_MESH_TRIANGLES", MESH_TRIANGLES),
 ];

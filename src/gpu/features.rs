@@ -28,6 +28,8 @@ pub const SC_ID_MIS_PAIRWISE: u32 = 12;
 pub const SC_ID_MAX_PIECES: u32 = 13;
 /// Box media: some are convex polyhedra.
 pub const SC_ID_HAS_CONVEX: u32 = 14;
+/// Shapes: some are triangle meshes (BVH traversal compiled in).
+pub const SC_ID_HAS_MESHES: u32 = 15;
 
 // ---------------------------------------------------------------------------------------
 // Values of `SC_ESTIMATOR` in `shaders/box/crepuscular.comp`.
@@ -52,6 +54,10 @@ pub const MAX_LIGHTS: u32 = 16;
 pub const MAX_MEDIA: u32 = 16;
 /// Most planes of a convex medium.
 pub const MAX_CONVEX_PLANES: u32 = 64;
+/// Entries of a mesh BVH traversal's stack.
+pub const BVH_STACK_SIZE: u32 = 32;
+/// Most triangles in a BVH leaf.
+pub const BVH_MAX_LEAF_TRIANGLES: u32 = 4;
 /// Rays per side of a moment-map texel (MOMENT_MAP_RAYS² stratified rays per texel).
 pub const MOMENT_MAP_RAYS: u32 = 2;
 /// Most scattering events a ReSTIR path stores.
@@ -73,7 +79,7 @@ pub const MARCH_MAX_STEPS: u32 = 4096;
 pub const GRID_MAX_STEPS: u32 = 1_048_576;
 
 /// Every constant above with its GLSL name.
-pub const ALL: [(&str, u32); 35] = [
+pub const ALL: [(&str, u32); 38] = [
     ("SC_ID_HAS_SHAPES", SC_ID_HAS_SHAPES),
     ("SC_ID_HAS_GOBOS", SC_ID_HAS_GOBOS),
     ("SC_ID_HAS_ENV", SC_ID_HAS_ENV),
@@ -89,6 +95,7 @@ pub const ALL: [(&str, u32); 35] = [
     ("SC_ID_MIS_PAIRWISE", SC_ID_MIS_PAIRWISE),
     ("SC_ID_MAX_PIECES", SC_ID_MAX_PIECES),
     ("SC_ID_HAS_CONVEX", SC_ID_HAS_CONVEX),
+    ("SC_ID_HAS_MESHES", SC_ID_HAS_MESHES),
     ("ESTIMATOR_MCWVDS", ESTIMATOR_MCWVDS),
     ("ESTIMATOR_REDS", ESTIMATOR_REDS),
     ("ESTIMATOR_REES", ESTIMATOR_REES),
@@ -96,6 +103,8 @@ pub const ALL: [(&str, u32); 35] = [
     ("ESTIMATOR_MCDS", ESTIMATOR_MCDS),
     ("ESTIMATOR_ME", ESTIMATOR_ME),
     ("MOMENT_MAP_RAYS", MOMENT_MAP_RAYS),
+    ("BVH_STACK_SIZE", BVH_STACK_SIZE),
+    ("BVH_MAX_LEAF_TRIANGLES", BVH_MAX_LEAF_TRIANGLES),
     ("GROUP_SIZE_X", GROUP_SIZE_X),
     ("GROUP_SIZE_Y", GROUP_SIZE_Y),
     ("MAX_LIGHTS", MAX_LIGHTS),
@@ -117,6 +126,9 @@ const _: () = assert!(MAX_CANDIDATES == MAX_SPATIAL_NEIGHBORS + 1);
 const _: () = assert!(MAX_SPATIAL_NEIGHBORS == nimbus_scene::MAX_SPATIAL_NEIGHBORS);
 // The scene loader validates convex media against its own copy of the limit.
 const _: () = assert!(MAX_CONVEX_PLANES as usize == nimbus_scene::convex::MAX_CONVEX_PLANES);
+// The CPU BVH build bounds the depth, and the leaves, by what the shaders assume.
+const _: () = assert!(BVH_STACK_SIZE as usize == nimbus_scene::BVH_STACK_SIZE);
+const _: () = assert!(BVH_MAX_LEAF_TRIANGLES == nimbus_scene::BVH_MAX_LEAF_TRIANGLES);
 // k' has 5 bits in a reservoir's info word.
 const _: () = assert!(MAX_RESTIR_BOUNCES <= 31);
 

@@ -4,14 +4,17 @@
 //!   constants), checked against the GLSL by `tests/layout.rs`;
 //! - [`bindings`]: descriptor binding numbers, mirrored from `bindings.glsl`;
 //! - [`scene`]: turning a [`nimbus_scene::Scene`] into those records (box media, shapes,
-//!   lights with their selection CDF, grids with their super-voxels, environment maps).
+//!   lights with their selection CDF, grids with their super-voxels, environment maps);
+//! - [`meshes`]: the BVH node and triangle buffers of the scene's meshes.
 
 pub mod bindings;
 pub mod features;
+pub mod meshes;
 pub mod records;
 pub mod scene;
 pub mod sparse;
 
+pub use meshes::MeshBuffers;
 pub use records::*;
 pub use scene::{
     box_records, frame_uniforms, gobo_half_planes, non_empty, shape_records, GpuEnvMap, GpuGrid,

@@ -38,6 +38,7 @@ pub struct BoxMediumGpu {
 pub const SHAPE_QUAD: u32 = 0;
 pub const SHAPE_BOX: u32 = 1;
 pub const SHAPE_SPHERE: u32 = 2;
+pub const SHAPE_MESH: u32 = 3;
 
 /// `Shape` in scene.glsl: an opaque Lambertian shape. `p` is a tagged union on `type`
 /// (see scene.glsl for what each shape keeps there).
@@ -46,8 +47,22 @@ pub const SHAPE_SPHERE: u32 = 2;
 pub struct ShapeGpu {
     pub p: [[f32; 4]; 5],
     pub albedo: [f32; 3],
-    /// `SHAPE_QUAD`, `SHAPE_BOX` or `SHAPE_SPHERE`.
+    /// `SHAPE_QUAD`, `SHAPE_BOX`, `SHAPE_SPHERE` or `SHAPE_MESH`.
     pub r#type: u32,
+}
+
+/// `MeshTriangle` in scene.glsl: one triangle of a mesh in BVH leaf order (the node
+/// buffer is `nimbus_scene::BvhNode`, already the GLSL `BvhNode`'s layout).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct MeshTriangleGpu {
+    pub p0: [f32; 3],
+    /// Its index in its mesh as loaded.
+    pub triangle: u32,
+    pub p1: [f32; 3],
+    pub _pad0: u32,
+    pub p2: [f32; 3],
+    pub _pad1: u32,
 }
 
 /// Values of `LightGpu::type`.

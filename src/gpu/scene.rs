@@ -52,7 +52,7 @@ impl GpuScene {
             planes: medium_planes,
         } = medium_records(scene);
 
-        let shapes = scene.shapes.iter().map(shape_record).collect();
+        let shapes = shape_records(scene);
 
         let mut lights = Vec::new();
         let mut gobo_planes = Vec::new();
@@ -219,13 +219,40 @@ pub fn frame_uniforms(
     }
 }
 
-/// The shape records of a scene.
+/// The shape records of a scene. A mesh's record names where its BVH lies in the
+/// scene's mesh buffers ([`MeshPlacement`]): meshes are concatenated in shape order.
 pub fn shape_records(scene: &Scene) -> Vec<ShapeGpu> {
-    scene.shapes.iter().map(shape_record).collect()
+    let mut next = MeshPlacement::default();
+    scene
+        .shapes
+        .iter()
+        .map(|shape| {
+            let placement = next;
+            if let Shape::Mesh { mesh, .. } = shape {
+                // No wrap: the budget refuses buffers beyond maxStorageBufferRange first.
+                next.first_node = next
+                    .first_node
+                    .saturating_add(mesh.bvh.nodes().len() as u32);
+                next.first_triangle = next
+                    .first_triangle
+                    .saturating_add(mesh.triangle_count() as u32);
+            }
+            shape_record(shape, placement)
+        })
+        .collect()
 }
 
-/// The GPU record of one shape.
-fn shape_record(shape: &Shape) -> ShapeGpu {
+/// Where a mesh's BVH starts in the scene's concatenated node and triangle buffers.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct MeshPlacement {
+    /// Its root node's index in the node buffer.
+    pub first_node: u32,
+    /// Its first leaf triangle's index in the triangle buffer.
+    pub first_triangle: u32,
+}
+
+/// The GPU record of one shape; `mesh` places a mesh's BVH (ignored for other shapes).
+fn shape_record(shape: &Shape, mesh_at: MeshPlacement) -> ShapeGpu {
     let mut p = [[0.0f32; 4]; 5];
     let (albedo, kind) = match shape {
         Shape::Quad {
@@ -264,6 +291,16 @@ fn shape_record(shape: &Shape) -> ShapeGpu {
         } => {
             p[0] = v4(*center, *radius);
             (*albedo, SHAPE_SPHERE)
+        }
+        Shape::Mesh { mesh, albedo } => {
+            // Indices bit-cast into floats: root node, first triangle, counts.
+            p[0] = [
+                f32::from_bits(mesh_at.first_node),
+                f32::from_bits(mesh_at.first_triangle),
+                f32::from_bits(mesh.triangle_count() as u32),
+                f32::from_bits(mesh.bvh.nodes().len() as u32),
+            ];
+            (*albedo, SHAPE_MESH)
         }
     };
     ShapeGpu {

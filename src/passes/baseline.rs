@@ -14,14 +14,15 @@ use crate::budget::Footprint;
 use crate::gpu::features::*;
 use crate::gpu::sparse::TexelFormat;
 use crate::gpu::{
-    bindings, box_records, non_empty, shape_records, GpuGrid, PassPush, RecordCounts,
+    bindings, box_records, non_empty, shape_records, GpuGrid, MeshBuffers, PassPush, RecordCounts,
 };
 use crate::plan::BaselinePlan;
 use crate::shaders;
 
 /// The specialization constants of `pathtrace.comp` for a plan.
-pub fn specialization(plan: &BaselinePlan) -> [(u32, SpecValue); 7] {
+pub fn specialization(plan: &BaselinePlan) -> [(u32, SpecValue); 8] {
     [
+        (SC_ID_HAS_MESHES, SpecValue::Bool(plan.has_meshes)),
         (SC_ID_HAS_ENV_MAP, SpecValue::Bool(plan.has_env_map)),
         (SC_ID_HAS_MEDIA, SpecValue::Bool(plan.has_boxes)),
         (SC_ID_HAS_SHAPES, SpecValue::Bool(plan.has_shapes)),
@@ -41,6 +42,7 @@ pub fn create(
     targets: &Targets,
 ) -> Result<ImagePass> {
     let shapes = shape_records(scene);
+    let meshes = MeshBuffers::build(scene);
     let boxes = box_records(scene);
     let constants = FrameConstants {
         env_radiance: grid.env_radiance,
@@ -66,6 +68,8 @@ pub fn create(
             BindingDesc::storage_buffer(bindings::ENV_TEXELS),
             BindingDesc::storage_buffer(bindings::ENV_CDF),
             BindingDesc::storage_buffer(bindings::GRID_BRICKS),
+            BindingDesc::storage_buffer(bindings::BVH_NODES),
+            BindingDesc::storage_buffer(bindings::MESH_TRIANGLES),
         ]);
         let pipeline = compute_pipeline::<PassPush>(
             ctx,
@@ -76,6 +80,8 @@ pub fn create(
             "baseline path tracer",
         )?;
         let shapes = upload_records(ctx, o, &non_empty(&shapes), "shapes")?;
+        let bvh_nodes = upload_records(ctx, o, &meshes.nodes, "mesh BVH nodes")?;
+        let mesh_triangles = upload_records(ctx, o, &meshes.triangles, "mesh triangles")?;
         let lights = upload_records(ctx, o, &non_empty(&grid.lights), "lights")?;
         let super_voxels = upload_records(ctx, o, &grid.super_voxels, "super-voxels")?;
         let boxes = upload_records(ctx, o, &non_empty(&boxes), "box media")?;
@@ -108,6 +114,14 @@ pub fn create(
             DescriptorWrite::StorageBuffer {
                 binding: bindings::SHAPES,
                 buffer: &o[shapes],
+            },
+            DescriptorWrite::StorageBuffer {
+                binding: bindings::BVH_NODES,
+                buffer: &o[bvh_nodes],
+            },
+            DescriptorWrite::StorageBuffer {
+                binding: bindings::MESH_TRIANGLES,
+                buffer: &o[mesh_triangles],
             },
             DescriptorWrite::StorageBuffer {
                 binding: bindings::LIGHTS,
@@ -162,27 +176,30 @@ pub fn create(
         pipeline,
         set,
         constants,
-        sample_cost(plan, &grid),
+        sample_cost(plan, &grid, scene),
     ))
 }
 
 /// Loop iterations one camera sample may typically run (see
 /// [`super::samples_per_dispatch`]): K + 1 segments, each with its shadow rays, each
 /// crossing the super-voxel grid (blocks, an exact span of up to
-/// `GRID_EXACT_SPAN_STEPS`) and looping over the lights. Collisions are random; the
+/// `GRID_EXACT_SPAN_STEPS`), looping over the lights and traversing the meshes. Collisions are random; the
 /// loop sentinel refuses an image a rare long walk would cut.
 /// `GRID_EXACT_SPAN_STEPS` of grid_blocks.glsl.
 const EXACT_SPAN_STEPS: u32 = 64;
 
-fn sample_cost(plan: &BaselinePlan, grid: &GpuGrid) -> u32 {
+fn sample_cost(plan: &BaselinePlan, grid: &GpuGrid, scene: &Scene) -> u32 {
     let blocks: u32 = grid.uniforms.grid.space.brick_dims.iter().sum::<u32>() + 3;
-    let segment = blocks + EXACT_SPAN_STEPS + 3 * grid.lights.len() as u32;
+    // A segment's closest-hit ray and each light's shadow ray through the meshes.
+    let mesh_rays = (1 + grid.lights.len() as u32) * super::mesh_ray_cost(scene);
+    let segment = blocks + EXACT_SPAN_STEPS + 3 * grid.lights.len() as u32 + mesh_rays;
     let segments = 2 * (plan.max_bounces + 1);
     segment.saturating_mul(segments)
 }
 
 /// What the baseline pass allocates (see [`crate::budget`]).
 pub fn footprint(scene: &Scene, f: &mut Footprint) -> Result<()> {
+    f.add_meshes(scene);
     f.add_env_map(scene)?;
     f.add_grid(scene)?;
     Ok(())

@@ -19,17 +19,18 @@ use super::{
 use crate::budget::{Binding, Footprint};
 use crate::gpu::features::*;
 use crate::gpu::{
-    bindings, non_empty, BoxMediumGpu, FrameUniforms, GpuEnvMap, GpuScene, MomentFrameGpu,
-    MomentPush, PassPush, RecordCounts,
+    bindings, non_empty, BoxMediumGpu, FrameUniforms, GpuEnvMap, GpuScene, MeshBuffers,
+    MomentFrameGpu, MomentPush, PassPush, RecordCounts,
 };
 use crate::plan::{estimator_id, CrepuscularPlan};
 use crate::shaders;
 
 /// The specialization constants of `crepuscular.comp` for a plan.
-pub fn specialization(plan: &CrepuscularPlan) -> [(u32, SpecValue); 10] {
+pub fn specialization(plan: &CrepuscularPlan) -> [(u32, SpecValue); 11] {
     let f = plan.features;
     [
         (SC_ID_HAS_ENV_MAP, SpecValue::Bool(f.has_env_map)),
+        (SC_ID_HAS_MESHES, SpecValue::Bool(f.has_meshes)),
         (SC_ID_HAS_SHAPES, SpecValue::Bool(f.has_shapes)),
         (SC_ID_HAS_GOBOS, SpecValue::Bool(f.has_gobos)),
         (SC_ID_HAS_ENV, SpecValue::Bool(f.has_env)),
@@ -92,6 +93,10 @@ fn shape_min_depth(s: &Shape, omega: Vec3) -> f32 {
         .fold(f32::INFINITY, f32::min),
         Shape::Box { center, size, .. } => center.dot(omega) - 0.5 * size.length(),
         Shape::Sphere { center, radius, .. } => center.dot(omega) - radius,
+        Shape::Mesh { mesh, .. } => {
+            let (lo, hi) = mesh.bounds();
+            (lo + hi).dot(omega) * 0.5 - 0.5 * (hi - lo).length()
+        }
     }
 }
 
@@ -216,6 +221,7 @@ pub fn create(
     } else {
         None
     };
+    let meshes = MeshBuffers::build(scene);
     let constants = FrameConstants {
         env_radiance: records.env_radiance,
         env_size: env_map.as_ref().map_or([1, 1], |m| m.size),
@@ -250,6 +256,8 @@ pub fn create(
         let media = upload_records(ctx, o, &non_empty(&records.media), "box media")?;
         let planes = upload_records(ctx, o, &non_empty(&records.medium_planes), "medium planes")?;
         let shapes = upload_records(ctx, o, &non_empty(&records.shapes), "shapes")?;
+        let bvh_nodes = upload_records(ctx, o, &meshes.nodes, "mesh BVH nodes")?;
+        let mesh_triangles = upload_records(ctx, o, &meshes.triangles, "mesh triangles")?;
         let lights = upload_records(ctx, o, &non_empty(&records.lights), "lights")?;
         let gobo_planes = upload_records(ctx, o, &non_empty(&records.gobo_planes), "gobo planes")?;
         let moment_map = o.add(ctx.create_buffer(
@@ -266,6 +274,8 @@ pub fn create(
                 (bindings::BOX_MEDIA, media),
                 (bindings::MEDIUM_PLANES, planes),
                 (bindings::SHAPES, shapes),
+                (bindings::BVH_NODES, bvh_nodes),
+                (bindings::MESH_TRIANGLES, mesh_triangles),
                 (bindings::LIGHTS, lights),
                 (bindings::GOBO_PLANES, gobo_planes),
                 (bindings::MOMENT_MAP, moment_map),
@@ -284,11 +294,16 @@ pub fn create(
                 targets,
                 &[
                     (bindings::SHAPES, shapes),
+                    (bindings::BVH_NODES, bvh_nodes),
+                    (bindings::MESH_TRIANGLES, mesh_triangles),
                     (bindings::MOMENT_MAP, moment_map),
                     (bindings::MOMENT_FRAMES, moment_frames),
                 ],
                 shaders::BOX_MOMENTS,
-                &[(SC_ID_HAS_SHAPES, SpecValue::Bool(plan.features.has_shapes))],
+                &[
+                    (SC_ID_HAS_SHAPES, SpecValue::Bool(plan.features.has_shapes)),
+                    (SC_ID_HAS_MESHES, SpecValue::Bool(plan.features.has_meshes)),
+                ],
                 "moment maps",
             )?)
         } else {
@@ -310,11 +325,27 @@ pub fn create(
     } else {
         0
     };
+    // A mesh costs a BVH traversal per ray: the segment's, and each shadow ray's.
+    let mesh = super::mesh_ray_cost(scene);
+    let env_mesh = if plan.features.has_env {
+        2 * c.ray_samples * mesh
+    } else {
+        0
+    };
     let per_segment = c.box_media
         + planes
         + c.shapes
+        + mesh
         + env
-        + c.lights * (c.ray_samples * per_sample + c.box_media + planes + c.shapes + tables + 16);
+        + env_mesh
+        + c.lights
+            * (c.ray_samples * (per_sample + mesh)
+                + c.box_media
+                + planes
+                + c.shapes
+                + mesh
+                + tables
+                + 16);
     let sample_cost = per_segment.saturating_mul(plan.max_bounces + 1);
     Ok(CrepuscularPass {
         image: ImagePass::new(
@@ -434,6 +465,7 @@ impl Pass for CrepuscularPass {
 /// directional light).
 pub fn footprint(scene: &Scene, plan: &CrepuscularPlan, f: &mut Footprint) -> Result<()> {
     f.add_env_map(scene)?;
+    f.add_meshes(scene);
     let records = GpuScene::build(scene)?;
     let bytes = std::mem::size_of_val(records.media.as_slice())
         + std::mem::size_of_val(records.medium_planes.as_slice())

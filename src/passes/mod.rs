@@ -223,6 +223,21 @@ pub struct ImagePass {
     samples_per_dispatch: u32,
 }
 
+/// Loop iterations one ray may typically run through the scene's meshes, for the
+/// passes' sample costs: per mesh, 8 node visits (each with its leaf's triangle loop)
+/// per level of its BVH, a few times the one path to a leaf that a ray needs at the
+/// least. 0 without meshes.
+pub fn mesh_ray_cost(scene: &Scene) -> u32 {
+    scene
+        .shapes
+        .iter()
+        .map(|s| match s {
+            nimbus_scene::Shape::Mesh { mesh, .. } => 8 * (mesh.bvh.depth() + 1),
+            _ => 0,
+        })
+        .fold(0u32, u32::saturating_add)
+}
+
 /// Camera samples one dispatch may take on a device with a loop budget (see
 /// [`nimbus_gpu::DeviceInfo::loop_budget`]) when one sample may run `sample_cost` loop
 /// iterations: a quarter of the budget (the walk's random collisions and a margin), at

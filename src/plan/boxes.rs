@@ -88,6 +88,10 @@ pub(super) fn build(
         has_convex: convex > 0,
         max_pieces,
         has_shapes: shapes > 0,
+        has_meshes: scene
+            .shapes
+            .iter()
+            .any(|s| matches!(s, nimbus_scene::Shape::Mesh { .. })),
         has_gobos: gobos > 0,
         has_env: env,
         has_env_map: env_map.is_some(),
@@ -143,6 +147,7 @@ pub(super) fn build(
             "no shapes: shadow rays compiled out".into()
         },
     });
+    decisions.push(super::meshes_decision(scene));
     decisions.push(Decision {
         name: "  SC_HAS_GOBOS",
         enabled: features.has_gobos,

@@ -97,6 +97,8 @@ pub struct CrepuscularFeatures {
     /// and light (3 for boxes).
     pub max_pieces: u32,
     pub has_shapes: bool,
+    /// Some shapes are triangle meshes (BVH traversal compiled in).
+    pub has_meshes: bool,
     pub has_gobos: bool,
     /// An environment light: seen by camera rays, and lighting media and surfaces.
     pub has_env: bool,
@@ -115,6 +117,8 @@ pub struct BaselinePlan {
     pub has_boxes: bool,
     pub has_emission: bool,
     pub has_shapes: bool,
+    /// Some shapes are triangle meshes.
+    pub has_meshes: bool,
     pub has_env: bool,
     pub has_env_map: bool,
     pub pixel_jitter: bool,
@@ -173,6 +177,39 @@ impl Decision {
             reason: reason.into(),
         }
     }
+}
+
+/// The `SC_HAS_MESHES` row of a plan: on with the scene's meshes, their triangles and
+/// BVH nodes, else why the traversal is compiled out.
+pub fn meshes_decision(scene: &Scene) -> Decision {
+    let meshes: Vec<&nimbus_scene::MeshShape> = scene
+        .shapes
+        .iter()
+        .filter_map(|s| match s {
+            nimbus_scene::Shape::Mesh { mesh, .. } => Some(mesh.as_ref()),
+            _ => None,
+        })
+        .collect();
+    if meshes.is_empty() {
+        return Decision::new(
+            "  SC_HAS_MESHES",
+            false,
+            "no mesh shapes: BVH traversal compiled out",
+        );
+    }
+    let (nodes, triangles) = crate::gpu::meshes::mesh_counts(scene);
+    let depth = meshes.iter().map(|m| m.bvh.depth()).max().unwrap_or(0);
+    let dropped: u64 = meshes.iter().map(|m| m.dropped_degenerate).sum();
+    let build_ms: f64 = meshes.iter().map(|m| m.bvh_build_seconds).sum::<f64>() * 1e3;
+    let mut reason = format!(
+        "{} mesh(es), {triangles} triangles, {nodes} BVH nodes (deepest leaf at depth {depth}, \
+         built in {build_ms:.0} ms on load): stack traversal, watertight ray-triangle test",
+        meshes.len()
+    );
+    if dropped > 0 {
+        reason += &format!("; {dropped} degenerate triangle(s) dropped on load");
+    }
+    Decision::new("  SC_HAS_MESHES", true, reason)
 }
 
 /// The estimator ids of `SC_ESTIMATOR` in `shaders/box/crepuscular.comp`.

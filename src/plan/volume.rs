@@ -75,9 +75,11 @@ pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
                 i + 1
             );
         }
-        if !scene.shapes.is_empty() {
+        if let Some(shape) = scene.shapes.first() {
             bail!(
-                "{file}: [[shape]] #1: Volumetric ReSTIR does not render surfaces yet; use [integrator] volume = \"baseline\""
+                "{file}: [[shape]] #1 (type = \"{}\"): Volumetric ReSTIR does not render surfaces \
+                 (quads, boxes, spheres or meshes) yet; use [integrator] volume = \"baseline\"",
+                shape.type_name()
             );
         }
         if scene.render.spp > 1 {
@@ -150,6 +152,10 @@ pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
         has_boxes: boxes > 0,
         has_emission: grid.emission.is_some(),
         has_shapes: !scene.shapes.is_empty(),
+        has_meshes: scene
+            .shapes
+            .iter()
+            .any(|s| matches!(s, nimbus_scene::Shape::Mesh { .. })),
         has_env,
         has_env_map: env_map.is_some(),
         pixel_jitter: scene.render.pixel_jitter,
@@ -171,6 +177,7 @@ pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
             enabled: baseline.has_shapes,
             reason: format!("{} shape(s)", scene.shapes.len()),
         },
+        super::meshes_decision(scene),
         Decision {
             name: "  SC_HAS_MEDIA (boxes)",
             enabled: boxes > 0,

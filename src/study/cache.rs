@@ -130,9 +130,12 @@ fn scene_files(scene: &Scene) -> Vec<(String, &Path)> {
             | Light::Sphere { .. } => {}
         }
     }
-    for shape in shapes {
+    for (i, shape) in shapes.iter().enumerate() {
         match shape {
             Shape::Quad { .. } | Shape::Box { .. } | Shape::Sphere { .. } => {}
+            Shape::Mesh { mesh, albedo: _ } => {
+                out.push((format!("[[shape]] #{} file", i + 1), mesh.file.as_path()));
+            }
         }
     }
     out

@@ -11,9 +11,11 @@ use std::mem::size_of;
 use nimbus::gpu::bindings;
 use nimbus::gpu::{
     BaselineUniformsGpu, BoxMediumGpu, FrameUniforms, GridLevelGpu, GridParamsGpu, GridSpaceGpu,
-    LightGpu, MomentFrameGpu, MomentPush, PassPush, RestirPush, RestirUniformsGpu, ShapeGpu,
-    LIGHT_DIRECTIONAL, LIGHT_POINT, LIGHT_SPHERE, SHAPE_BOX, SHAPE_QUAD, SHAPE_SPHERE,
+    LightGpu, MeshTriangleGpu, MomentFrameGpu, MomentPush, PassPush, RestirPush, RestirUniformsGpu,
+    ShapeGpu, LIGHT_DIRECTIONAL, LIGHT_POINT, LIGHT_SPHERE, SHAPE_BOX, SHAPE_MESH, SHAPE_QUAD,
+    SHAPE_SPHERE,
 };
+use nimbus_scene::BvhNode;
 
 const ROOT: &str = env!("CARGO_MANIFEST_DIR");
 
@@ -78,6 +80,7 @@ fn record_type_tags_match_the_glsl_defines() {
         ("SHAPE_QUAD", SHAPE_QUAD),
         ("SHAPE_BOX", SHAPE_BOX),
         ("SHAPE_SPHERE", SHAPE_SPHERE),
+        ("SHAPE_MESH", SHAPE_MESH),
         ("LIGHT_DIRECTIONAL", LIGHT_DIRECTIONAL),
         ("LIGHT_POINT", LIGHT_POINT),
         ("LIGHT_SPHERE", LIGHT_SPHERE),
@@ -385,6 +388,32 @@ fn mirrors() -> Vec<Mirror> {
             rules: &[Std430],
             size: size_of::<ShapeGpu>(),
             fields: rust_fields!(ShapeGpu { p, albedo, r#type }),
+        },
+        Mirror {
+            glsl: "BvhNode",
+            rust: "BvhNode",
+            rules: &[Std430],
+            size: size_of::<BvhNode>(),
+            fields: rust_fields!(BvhNode {
+                min,
+                left_or_first,
+                max,
+                count,
+            }),
+        },
+        Mirror {
+            glsl: "MeshTriangle",
+            rust: "MeshTriangleGpu",
+            rules: &[Std430],
+            size: size_of::<MeshTriangleGpu>(),
+            fields: rust_fields!(MeshTriangleGpu {
+                p0,
+                triangle,
+                p1,
+                _pad0,
+                p2,
+                _pad1,
+            }),
         },
         Mirror {
             glsl: "Light",

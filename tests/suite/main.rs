@@ -26,6 +26,8 @@ mod grid_volume;
 mod hard_cases;
 mod image_harness;
 mod layout;
+mod mesh_bvh_gpu;
+mod meshes;
 mod pipeline;
 mod render_box;
 mod render_convex;

@@ -128,7 +128,10 @@
 //! [`TriangleMesh`] ([`load_mesh`], placed by a [`ToWorld`]), builds a [`Bvh`] of
 //! 32-byte [`BvhNode`]s for the GPU, and answers rays on the CPU
 //! ([`Bvh::closest_hit`], [`Bvh::any_hit`]) as the reference for the GPU traversal.
-//! It is not yet wired into the scene's `[[shape]] type = "mesh"`.
+//! `[[shape]] type = "mesh"` (`file`, optional `to_world` as for vdb media, `albedo`)
+//! loads its file and builds its BVH when the scene loads, into a [`MeshShape`] that
+//! [`Shape::Mesh`] shares (`Arc`); errors name the scene file, the shape, the field
+//! and the mesh file.
 
 pub mod bricks;
 pub mod convex;
@@ -161,8 +164,8 @@ pub use files::{
 };
 pub use geometry::MAX_GOBO_POINTS;
 pub use mesh::{
-    intersect_triangle, load_mesh, read_mesh, Bvh, BvhNode, Hit, LoadedMesh, MeshFormat, Ray,
-    ToWorld, TriangleMesh, BVH_MAX_DEPTH, BVH_MAX_LEAF_TRIANGLES, BVH_STACK_SIZE,
+    intersect_triangle, load_mesh, read_mesh, Bvh, BvhNode, Hit, LoadedMesh, MeshFormat, MeshShape,
+    Ray, ToWorld, TriangleMesh, BVH_MAX_DEPTH, BVH_MAX_LEAF_TRIANGLES, BVH_STACK_SIZE,
     MAX_FACE_NONPLANARITY, MAX_FACE_VERTICES, MAX_LINE_BYTES, MAX_MESH_TRIANGLES,
     MAX_MESH_VERTICES,
 };

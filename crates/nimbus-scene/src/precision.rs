@@ -161,6 +161,10 @@ impl Scene {
                         *center + Vec3::splat(*radius),
                     ]
                 }
+                Shape::Mesh { mesh, .. } => {
+                    let (lo, hi) = mesh.bounds();
+                    vec![lo, hi]
+                }
             };
             widen(&mut best, || format!("[[shape]] #{}", i + 1), &corners);
         }
@@ -328,6 +332,12 @@ pub(crate) fn check_scene(source: &crate::fields::Source, scene: &Scene) -> anyh
             }
             Shape::Box { size, .. } => ("box", "size", size.min_element()),
             Shape::Sphere { radius, .. } => ("sphere", "radius", *radius),
+            // The mesh as a whole (its largest extent): triangles finer than the
+            // resolution are merely approximated.
+            Shape::Mesh { mesh, .. } => {
+                let (lo, hi) = mesh.bounds();
+                ("mesh", "file", (hi - lo).max_element())
+            }
         };
         if let Some(p) = scale.feature_problem(f64::from(size)) {
             return Err(fail(

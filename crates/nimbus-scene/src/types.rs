@@ -348,6 +348,34 @@ pub enum Shape {
         radius: f32,
         albedo: Vec3,
     },
+    /// A triangle mesh, loaded with its BVH when the scene loads and shared by every
+    /// copy of the scene.
+    Mesh {
+        mesh: std::sync::Arc<crate::mesh::MeshShape>,
+        albedo: Vec3,
+    },
+}
+
+impl Shape {
+    /// The shape's Lambertian albedo.
+    pub fn albedo(&self) -> Vec3 {
+        match self {
+            Shape::Quad { albedo, .. }
+            | Shape::Box { albedo, .. }
+            | Shape::Sphere { albedo, .. }
+            | Shape::Mesh { albedo, .. } => *albedo,
+        }
+    }
+
+    /// The `type` name of the shape in scene files.
+    pub fn type_name(&self) -> &'static str {
+        match self {
+            Shape::Quad { .. } => "quad",
+            Shape::Box { .. } => "box",
+            Shape::Sphere { .. } => "sphere",
+            Shape::Mesh { .. } => "mesh",
+        }
+    }
 }
 
 /// `[integrator]`.

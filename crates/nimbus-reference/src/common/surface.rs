@@ -1,9 +1,14 @@
 //! The scene's shapes in f64: opaque two-sided Lambertian surfaces. The intersection
 //! here ([`Surface::hit`], rays from t > 0) is the Monte Carlo oracles'; the quadrature
-//! intersects the same data its own way (`quadrature::shapes`).
+//! intersects the same data its own way (`quadrature::shapes`). Meshes are the
+//! exception: both ask the CPU BVH (`nimbus_scene::Bvh::closest_hit`, f32 vertices as
+//! the scene stores them, its own watertight test with f64 edge functions), which is
+//! independent of the GPU traversal it checks.
+
+use std::sync::Arc;
 
 use glam::DVec3;
-use nimbus_scene::Shape;
+use nimbus_scene::{MeshShape, Ray, Shape};
 
 use super::geometry::{hit_sphere, OrientedBox};
 
@@ -21,6 +26,8 @@ pub(crate) enum ShapeGeometry {
         center: DVec3,
         radius: f64,
     },
+    /// A triangle mesh and its BVH (world space, f32).
+    Mesh(Arc<MeshShape>),
 }
 
 /// An opaque two-sided Lambertian shape of the scene, in f64.
@@ -32,6 +39,10 @@ pub(crate) struct Surface {
 impl Surface {
     pub(crate) fn from_shape(shape: &Shape) -> Self {
         match *shape {
+            Shape::Mesh { ref mesh, albedo } => Surface {
+                geometry: ShapeGeometry::Mesh(Arc::clone(mesh)),
+                albedo: albedo.as_dvec3(),
+            },
             Shape::Quad {
                 corner,
                 edge_u,
@@ -117,8 +128,25 @@ impl Surface {
                 let t = hit_sphere(center, radius, o, d)?;
                 Some((t, (o + t * d - center) / radius))
             }
+            ShapeGeometry::Mesh(ref mesh) => mesh_hit(mesh, o, d),
         }
     }
+}
+
+/// The nearest hit of o + t·d (t > 0) with a mesh: t and the hit triangle's unit
+/// geometric normal, from the CPU BVH (the ray rounded to f32, as the mesh is stored).
+pub(crate) fn mesh_hit(mesh: &MeshShape, o: DVec3, d: DVec3) -> Option<(f64, DVec3)> {
+    let ray = Ray {
+        origin: o.as_vec3(),
+        dir: d.as_vec3(),
+    };
+    let hit = mesh.bvh.closest_hit(&ray, f32::INFINITY)?;
+    let [p0, p1, p2] = mesh
+        .mesh
+        .triangle(hit.triangle as usize)?
+        .map(|p| p.as_dvec3());
+    let n = (p1 - p0).cross(p2 - p0);
+    (n.length() > 0.0).then(|| (f64::from(hit.t), n.normalize()))
 }
 
 /// The nearest surface hit of o + t·d, t > 0: (t, unit normal, albedo).

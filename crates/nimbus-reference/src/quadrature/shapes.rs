@@ -8,7 +8,7 @@
 use glam::DVec3;
 
 use super::hints::{push_box_edge_crossings, push_plane_crossing};
-use crate::common::surface::{ShapeGeometry, Surface};
+use crate::common::surface::{mesh_hit, ShapeGeometry, Surface};
 
 /// A ray–shape intersection: distance and a unit normal of either orientation.
 pub(super) struct SurfaceHit {
@@ -78,6 +78,12 @@ pub(super) fn intersect(shape: &Surface, o: DVec3, d: DVec3, t_min: f64) -> Opti
             };
             (t, (o + t * d - center) / radius)
         }
+        ShapeGeometry::Mesh(ref mesh) => {
+            // From o + t_min·d on (the BVH's rays start at t > 0).
+            let start = t_min.max(0.0);
+            let (t, normal) = mesh_hit(mesh, o + start * d, d)?;
+            (start + t, normal)
+        }
     };
     Some(SurfaceHit {
         t,
@@ -125,5 +131,8 @@ pub(super) fn push_shadow_crossings(
                 cuts.push((-qb + disc.sqrt()) / qa);
             }
         }
+        // A mesh's shadow edges are its silhouette's, one plane per edge: none are
+        // given as hints, so the quadrature resolves them by refinement alone.
+        ShapeGeometry::Mesh(_) => {}
     }
 }

@@ -65,6 +65,11 @@
 //! [`Ray`] / [`intersect_triangle`] for the watertight ray–triangle test shared by
 //! [`Bvh::closest_hit`], [`Bvh::any_hit`] and the brute-force references
 //! [`TriangleMesh::closest_hit_brute_force`] / [`TriangleMesh::any_hit_brute_force`].
+//!
+//! # In a scene
+//! `[[shape]] type = "mesh"` loads its file into a [`MeshShape`] (triangles and BVH)
+//! when the scene loads; the renderer uploads the BVHs of all of a scene's meshes
+//! into one node buffer and one triangle buffer.
 
 mod bvh;
 mod generate;
@@ -72,6 +77,7 @@ mod lines;
 mod obj;
 mod ply;
 mod polygon;
+mod shape;
 mod traverse;
 
 use std::fs::File;
@@ -86,6 +92,7 @@ use crate::types::rotation_xyz_deg;
 pub use bvh::{Bvh, BvhNode, BVH_MAX_DEPTH, BVH_MAX_LEAF_TRIANGLES, BVH_STACK_SIZE};
 pub use lines::MAX_LINE_BYTES;
 pub use polygon::MAX_FACE_NONPLANARITY;
+pub use shape::MeshShape;
 pub use traverse::{intersect_triangle, Hit, Ray};
 
 /// Most triangles in one mesh (after fanning polygons): 2^26.

@@ -15,6 +15,7 @@ use crate::types::*;
 
 mod lights;
 mod media;
+mod mesh;
 mod vdb;
 
 use lights::parse_light;
@@ -55,6 +56,7 @@ const SHAPE_TYPES: &[(&str, &[&str])] = &[
     ("quad", &["type", "corner", "edge_u", "edge_v", "albedo"]),
     ("box", &["type", "center", "size", "rotation_deg", "albedo"]),
     ("sphere", &["type", "center", "radius", "albedo"]),
+    ("mesh", mesh::MESH_KEYS),
 ];
 const INTEGRATOR_KEYS: &[&str] = &[
     "max_bounces",
@@ -424,11 +426,12 @@ fn parse_shape(source: &Source, index: usize, table: &toml::Table) -> Result<Sha
             rotation_deg: f.vec3("rotation_deg", Some(Vec3::ZERO))?,
             albedo,
         },
-        _ => Shape::Sphere {
+        "sphere" => Shape::Sphere {
             center: f.vec3("center", None)?,
             radius: f.f32_with("radius", None, positive_up_to(MAX_LENGTH_M))?,
             albedo,
         },
+        _ => mesh::parse_mesh_shape(&f, albedo)?,
     })
 }
 

@@ -40,6 +40,19 @@ const TO_WORLD_KEYS: &[&str] = &["scale", "rotate_deg", "translate"];
 /// `to_world = { scale, rotate_deg, translate }`: scale, then rotate about X, Y, Z, then
 /// translate.
 fn parse_to_world(parent: &Fields, table: &toml::Table) -> Result<DMat4> {
+    let (scale, rotate, translate) = to_world_parts(parent, table)?;
+    Ok(DMat4::from_translation(translate)
+        * DMat4::from_mat3(rotation_xyz_deg_f64(rotate))
+        * DMat4::from_scale(scale))
+}
+
+/// The checked parts of `to_world = { scale, rotate_deg, translate }` (field `to_world`
+/// of `parent`): each scale non-zero with magnitude at most [`MAX_LENGTH_M`], translations
+/// within ±[`MAX_LENGTH_M`].
+pub(super) fn to_world_parts(
+    parent: &Fields,
+    table: &toml::Table,
+) -> Result<(DVec3, DVec3, DVec3)> {
     let f = Fields::new(
         parent.source,
         format!("{} > to_world", parent.name),
@@ -75,9 +88,7 @@ fn parse_to_world(parent: &Fields, table: &toml::Table) -> Result<DMat4> {
             format!("components must be within ±{MAX_LENGTH_M:e} m"),
         ));
     }
-    Ok(DMat4::from_translation(translate)
-        * DMat4::from_mat3(rotation_xyz_deg_f64(rotate))
-        * DMat4::from_scale(scale))
+    Ok((scale, rotate, translate))
 }
 
 /// A grid table `{ file, grid }` (field `key` of `parent`): its file, the grid's name

@@ -14,6 +14,7 @@ mod fuzz;
 mod good_scenes;
 mod mesh_bvh;
 mod mesh_load;
+mod mesh_scenes;
 mod vdb;
 mod vdb_scenes;
 mod volume;
