@@ -30,21 +30,7 @@ pub(super) fn build(
             i + 1
         );
     }
-    let envs = scene
-        .lights
-        .iter()
-        .filter(|l| matches!(l, Light::Environment { .. }))
-        .count();
-    let env_map = scene
-        .lights
-        .iter()
-        .position(|l| matches!(l, Light::Environment { file: Some(_), .. }));
-    if let (Some(i), true) = (env_map, envs > 1) {
-        bail!(
-            "{file}: [[light]] #{}: an environment map cannot be combined with another environment light",
-            i + 1
-        );
-    }
+    let env_map = super::environment_map(scene)?;
     let integrator = &scene.integrator;
     let box_media = scene.media.len();
     if box_media > MAX_BOX_MEDIA {
@@ -75,7 +61,10 @@ pub(super) fn build(
         .iter()
         .filter(|l| matches!(l, Light::Directional { gobo: Some(_), .. }))
         .count();
-    let env = envs > 0;
+    let env = scene
+        .lights
+        .iter()
+        .any(|l| matches!(l, Light::Environment { .. }));
 
     let convex = scene
         .media

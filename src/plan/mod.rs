@@ -212,6 +212,29 @@ pub fn meshes_decision(scene: &Scene) -> Decision {
     Decision::new("  SC_HAS_MESHES", true, reason)
 }
 
+/// The index of the scene's environment-map light, if it has one; a map beside another
+/// environment light is refused (each pass samples one environment), naming the light.
+pub fn environment_map(scene: &Scene) -> Result<Option<usize>> {
+    use nimbus_scene::Light;
+    let envs = scene
+        .lights
+        .iter()
+        .filter(|l| matches!(l, Light::Environment { .. }))
+        .count();
+    let env_map = scene
+        .lights
+        .iter()
+        .position(|l| matches!(l, Light::Environment { file: Some(_), .. }));
+    if let (Some(i), true) = (env_map, envs > 1) {
+        anyhow::bail!(
+            "{}: [[light]] #{}: an environment map cannot be combined with another environment light",
+            scene.source.display(),
+            i + 1
+        );
+    }
+    Ok(env_map)
+}
+
 /// The estimator ids of `SC_ESTIMATOR` in `shaders/box/crepuscular.comp`.
 pub fn estimator_id(estimator: BoxEstimator) -> u32 {
     match estimator {

@@ -98,21 +98,7 @@ pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
             );
         }
     }
-    let envs = scene
-        .lights
-        .iter()
-        .filter(|l| matches!(l, Light::Environment { .. }))
-        .count();
-    let env_map = scene
-        .lights
-        .iter()
-        .position(|l| matches!(l, Light::Environment { file: Some(_), .. }));
-    if let (Some(i), true) = (env_map, envs > 1) {
-        bail!(
-            "{file}: [[light]] #{}: an environment map cannot be combined with another environment light",
-            i + 1
-        );
-    }
+    let env_map = super::environment_map(scene)?;
     for (i, light) in scene.lights.iter().enumerate() {
         let kind = match light {
             Light::Directional { gobo: Some(_), .. } => "a directional light with a gobo",
