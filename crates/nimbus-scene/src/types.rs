@@ -357,16 +357,6 @@ pub enum Shape {
 }
 
 impl Shape {
-    /// The shape's Lambertian albedo.
-    pub fn albedo(&self) -> Vec3 {
-        match self {
-            Shape::Quad { albedo, .. }
-            | Shape::Box { albedo, .. }
-            | Shape::Sphere { albedo, .. }
-            | Shape::Mesh { albedo, .. } => *albedo,
-        }
-    }
-
     /// The `type` name of the shape in scene files.
     pub fn type_name(&self) -> &'static str {
         match self {
