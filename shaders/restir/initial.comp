@@ -4,7 +4,9 @@
 // the camera segment, mip_indirect after), each vertex spawning a scattering candidate
 // (NEE, transmittance ray marched on mip_indirect) and, where the medium emits, an
 // emission candidate; a camera ray that leaves the media spawns the "direct" candidate
-// (what it sees). One reservoir per pixel by streaming RIS.
+// (what it sees). A segment that meets a shape before a collision ends on it: a surface
+// vertex (path.glsl), with its own NEE candidate, continuing by cosine sampling. One
+// reservoir per pixel by streaming RIS.
 //
 // Per candidate the target p_hat is F with T* on the walked segments and T~ on the NEE
 // segment, so the T* in p_hat and in the walk's pdf p cancel in w = p_hat / p (eq. 24-25);
@@ -13,8 +15,6 @@
 
 #extension GL_GOOGLE_include_directive : require
 #include "path.glsl"
-// Russian roulette (not this folder's path.glsl).
-#include "../include/path.glsl"
 
 // The walk's vertices so far (z_i, omega_i), copied into the reservoir when one of its
 // candidates is selected.
@@ -81,27 +81,74 @@ void restir_main() {
         vec3 Fhat = vec3(1.0);
         vec3 beta = vec3(1.0);
         for (uint i = 1u; i <= SC_MAX_BOUNCES; ++i) {
-            // Where the segment ends without a collision: an emitting sphere or far away.
+            // Where the segment ends without a collision: an emitting sphere, a shape or far
+            // away.
             uint sphere;
-            float t_end = nearest_sphere_light(0u, x, w, 1e-6, FAR, sphere);
+            float t_sphere = nearest_sphere_light(0u, x, w, 1e-6, FAR, sphere);
+            SurfacePoint surface = surface_along(x, w, t_sphere);
+            float t_end = min(t_sphere, surface.t);
             // Regular tracking: an exponential optical depth through sigma_t*.
             float tau_target = sample_exponential(rng_next(rng), 1.0);
             float sigma_star;
             float tau;
             float z = pc_track(i == 1u ? LEVEL_PRIMARY : LEVEL_INDIRECT, x, w, t_end, tau_target, sigma_star, tau);
             if (z >= FAR) {
-                // Left the media with probability T* = exp(-tau): the direct candidate of
-                // the camera segment (p = T*, p_hat = L T*, so w = L); later segments
-                // reach lights through NEE only.
+                // Reached the segment's end with probability T* = exp(-tau). Domain: tau >= 0.
+                float T_star = exp(-tau);
                 if (i == 1u) {
+                    // The direct candidate of the camera segment (p = T*, p_hat = L T*, so
+                    // w = L); later segments reach lights through NEE only.
                     float t_seen;
-                    vec3 L = light_seen(0u, x, w, t_seen);
-                    // Domain: tau >= 0, so exp(-tau) in (0, 1].
-                    float T_star = exp(-tau);
+                    vec3 L = camera_end(SET_CURRENT, x, w, t_seen);
                     add_candidate(at, r, rng, luminance(L), luminance(L * T_star), 0u,
                                   jitter_bits | (sphere == NO_INDEX ? (LIGHT_ENV << 8u) : (sphere << 8u)), vec3(0.0), 0u);
                 }
-                break;
+                if (surface.shape == NO_INDEX) {
+                    break;
+                }
+                // A surface vertex: p *= T*, Fhat *= T* (beta is unchanged).
+                walk_z[i - 1u] = -surface.t;
+                Fhat *= T_star;
+                if (!any(greaterThan(surface.albedo, vec3(0.0)))) {
+                    break;
+                }
+                x = surface.x;
+                // Scattering candidate by next-event estimation: albedo cos / pi.
+                float u_light = rng_next(rng);
+                vec2 u2 = vec2(rng_next(rng), rng_next(rng));
+                LightSample ls = light_sample(0u, x, u_light, u2);
+                vec3 brdf = surface_reflect(surface, ls.wi);
+                if (ls.pdf > 0.0 && any(greaterThan(brdf, vec3(0.0))) && !light_blocked(0u, x, ls.wi, ls.dist) &&
+                    !shapes_block(x, ls.wi, ls.dist)) {
+                    float T_nee = nee_transmittance(x, ls.wi, ls.dist);
+                    vec3 Fs = Fhat * brdf * ls.L * T_nee;
+                    vec3 bs = beta * brdf * ls.L_over_pdf * T_nee;
+                    add_candidate(at, r, rng, luminance(bs), luminance(Fs), i, jitter_bits | (ls.index << 8u),
+                                  ls.point, oct_encode(ls.wi));
+                }
+                if (i == SC_MAX_BOUNCES) {
+                    break;
+                }
+                // Next direction by cosine sampling, stored quantized (as for the medium).
+                vec3 w_sampled = sample_cosine_hemisphere(surface.n, vec2(rng_next(rng), rng_next(rng)));
+                uint omega = oct_encode(w_sampled);
+                vec3 w_next = oct_decode(omega);
+                float cos_sampled = dot(surface.n, w_sampled);
+                float cos_next = dot(surface.n, w_next);
+                // Domain: a cosine-sampled direction has cos > 0; quantization may tip a
+                // grazing one under the surface, which ends the walk.
+                if (!(cos_sampled > 0.0 && cos_next > 0.0)) {
+                    break;
+                }
+                walk_omega[i - 1u] = omega;
+                Fhat *= surface_reflect(surface, w_next);
+                // p *= cos_sampled / pi.
+                beta *= surface.albedo * (cos_next / cos_sampled);
+                w = w_next;
+                if (i >= 3u && !russian_roulette(beta, rng)) {
+                    break;
+                }
+                continue;
             }
             x += z * w;
             walk_z[i - 1u] = z;
@@ -125,7 +172,7 @@ void restir_main() {
             float u_light = rng_next(rng);
             vec2 u2 = vec2(rng_next(rng), rng_next(rng));
             LightSample ls = light_sample(0u, x, u_light, u2);
-            if (ls.pdf > 0.0 && !light_blocked(0u, x, ls.wi, ls.dist)) {
+            if (ls.pdf > 0.0 && !light_blocked(0u, x, ls.wi, ls.dist) && !shapes_block(x, ls.wi, ls.dist)) {
                 float rho = hg_phase(dot(w, ls.wi), g);
                 float T_nee = nee_transmittance(x, ls.wi, ls.dist);
                 vec3 Fs = Fhat * sigma_s * rho * ls.L * T_nee;

@@ -16,6 +16,10 @@
 // path ends at x_k', where the medium emits. Measures: (z, omega) per segment, solid angle
 // for the environment, area for sphere lights, delta for directional and point lights.
 //
+// Surfaces (SC_HAS_SHAPES): a vertex may lie on an opaque Lambertian shape; its stored z is
+// negative (see "Surface vertices" below), so a reservoir holds the same bytes with
+// surfaces as without.
+//
 // (Not to be confused with include/path.glsl, the path bookkeeping of every integrator;
 // an #include "path.glsl" from this folder finds this file first.)
 #ifndef NIMBUS_RESTIR_PATH_GLSL
@@ -26,6 +30,8 @@
 #include "resources.glsl"
 #include "camera.glsl"
 #include "phase.glsl"
+// offset_ray_origin and Russian roulette (not this folder's path.glsl).
+#include "../include/path.glsl"
 
 // Scalar target from an RGB contribution: luminance (positive weights, so > 0 exactly
 // when some channel is > 0 for non-negative colours).
@@ -213,6 +219,108 @@ float pc_track(uint level, vec3 o, vec3 d, float t_end, float tau_target, out fl
 }
 
 // ---------------------------------------------------------------------------------------
+// Surface vertices. A stored vertex with z < 0 lies on a surface: it is where the ray from
+// the previous vertex along the stored direction first meets a shape, found again by ray
+// casting at every evaluation, so under direction reuse it moves with the path as a medium
+// vertex does and the shift's Jacobian stays 1 (|z| is the distance it was found at, kept
+// for inspection only). In the (z, omega) measure a surface vertex has no z: the walk
+// reaches it with probability T* (no collision before it), and the path's value gains the
+// transmittance up to it (no sigma_s) and then the Lambertian BRDF times the cosine of the
+// direction that leaves it (albedo cos / pi, solid angle). Every segment is checked for
+// visibility: a medium vertex must be seen from the previous vertex, a light vertex from
+// the last. Vertex reuse with surfaces is refused by the plan (x_2 on a surface would need
+// an area-measure geometry term).
+
+// A surface point a ray arrives at.
+struct SurfacePoint {
+    vec3 x;       // origin of rays leaving it (moved off the surface along n)
+    float t;      // distance along the ray (FAR: none)
+    vec3 n;       // unit geometric normal on the side the ray arrived from
+    uint shape;   // shape index, NO_INDEX if the ray meets none
+    vec3 albedo;  // Lambertian albedo
+};
+
+// No surface: a ray from o along d that meets no shape.
+SurfacePoint surface_none(vec3 o, vec3 d) {
+    SurfacePoint s;
+    s.x = o;
+    s.t = FAR;
+    s.n = -d;
+    s.shape = NO_INDEX;
+    s.albedo = vec3(0.0);
+    return s;
+}
+
+// The nearest shape along o + t d for t in (0, t_max).
+SurfacePoint surface_along(vec3 o, vec3 d, float t_max) {
+    SurfacePoint s = surface_none(o, d);
+    if (!SC_HAS_SHAPES) {
+        return s;
+    }
+    uint index;
+    float t = nearest_shape(o, d, 0.0, t_max, index);
+    if (index == NO_INDEX) {
+        return s;
+    }
+    // shape_normal reads the triangle nearest_shape just hit (meshes).
+    Shape shape = shapes[index];
+    vec3 p = o + t * d;
+    s.n = shape_normal(shape, p, d);
+    s.x = offset_ray_origin(p, s.n);
+    s.t = t;
+    s.shape = index;
+    s.albedo = shape.albedo;
+    return s;
+}
+
+// The Lambertian BRDF times the cosine towards the leaving direction wo: albedo cos / pi,
+// 0 for a direction into the surface.
+vec3 surface_reflect(SurfacePoint s, vec3 wo) {
+    float c = dot(s.n, wo);
+    return c > 0.0 ? s.albedo * (INV_PI * c) : vec3(0.0);
+}
+
+// True if a shape cuts x + t wi for t in (0, dist), short of a vertex at dist (a light
+// vertex on a shape lies at dist itself; FAR: the whole ray).
+bool shapes_block(vec3 x, vec3 wi, float dist) {
+    if (!SC_HAS_SHAPES) {
+        return false;
+    }
+    float t_max = dist >= FAR ? FAR : dist * (1.0 - 1e-4);
+    return occluded_before(x, wi, 0.0, t_max);
+}
+
+// What a camera ray from o along d sees where it leaves the media: the radiance arriving
+// from its end (an emitting sphere or the environment, both weighted as light_seen does;
+// a shape is dark) and where it ends (t_end, FAR if it escapes).
+vec3 camera_end(uint set, vec3 o, vec3 d, out float t_end) {
+    vec3 L = light_seen(light_base(set), o, d, t_end);
+    SurfacePoint s = surface_along(o, d, t_end);
+    if (s.shape != NO_INDEX) {
+        t_end = s.t;
+        return vec3(0.0);
+    }
+    return L;
+}
+
+// x_1 of the path stored at `at` (header r) on camera ray `cam`: on the ray at z_1, or the
+// surface the ray meets. False if it has none (no vertex, or the surface is gone).
+bool path_x1(uint at, Reservoir r, CameraRay cam, out vec3 x1) {
+    x1 = cam.o;
+    if (!res_valid(r) || res_vertices(r) < 1u) {
+        return false;
+    }
+    float z = res_z(at, 1u);
+    if (z >= 0.0) {
+        x1 = cam.o + z * cam.d;
+        return true;
+    }
+    SurfacePoint s = surface_along(cam.o, cam.d, FAR);
+    x1 = cam.o + s.t * cam.d;
+    return s.shape != NO_INDEX;
+}
+
+// ---------------------------------------------------------------------------------------
 // Path values (Algorithm 4 for targets, Algorithm 6's F for final shading).
 
 #define MODE_TARGET 0u
@@ -239,7 +347,10 @@ vec3 path_value(uint at, Reservoir r, CameraRay cam, CameraRay src, uint mode, i
     if (kp == 0u) {
         // The camera ray ends on a light: L^s times the transmittance of the whole ray.
         float t_end;
-        vec3 L = light_seen(lbase, cam.o, cam.d, t_end);
+        vec3 L = camera_end(set, cam.o, cam.d, t_end);
+        if (!any(greaterThan(L, vec3(0.0)))) {
+            return vec3(0.0);
+        }
         float T = mode == MODE_FINAL ? final_transmittance(cam.o, cam.d, t_end, rng)
                                      : reuse_transmittance(set, cam.o, cam.d, t_end);
         return L * T;
@@ -258,6 +369,8 @@ vec3 path_value(uint at, Reservoir r, CameraRay cam, CameraRay src, uint mode, i
     vec3 w = cam.d;
     // The volume-measure geometry term of x_2 under vertex reuse, else 1.
     float geometry = 1.0;
+    // The surface the last vertex lies on (shape NO_INDEX: a medium vertex).
+    SurfacePoint surface = surface_none(x, w);
     for (uint i = 1u; i <= kp; ++i) {
         float z = res_z(at, i);
         if (i >= 2u) {
@@ -275,20 +388,51 @@ vec3 path_value(uint at, Reservoir r, CameraRay cam, CameraRay src, uint mode, i
             } else {
                 w_next = oct_decode(res_omega(at, i - 1u));
             }
-            // Phase at x_{i-1}: from the travel direction w to w_next.
-            f *= hg_phase(dot(w, w_next), g);
+            // Scattering at x_{i-1} from the travel direction w to w_next: the BRDF on a
+            // surface, the phase function in the medium.
+            if (surface.shape != NO_INDEX) {
+                f *= surface_reflect(surface, w_next);
+            } else {
+                f *= hg_phase(dot(w, w_next), g);
+            }
             w = w_next;
         }
-        if (!(z >= 0.0 && z < FAR)) {
-            return vec3(0.0);
+        bool on_surface = SC_HAS_SHAPES && z < 0.0;
+        if (on_surface) {
+            // The vertex is where the ray meets a shape (none: the path is gone).
+            surface = surface_along(x, w, FAR);
+            if (surface.shape == NO_INDEX) {
+                return vec3(0.0);
+            }
+            z = surface.t;
+        } else {
+            if (!(z >= 0.0 && z < FAR)) {
+                return vec3(0.0);
+            }
+            // A medium vertex behind a shape is not on this path.
+            if (shapes_block(x, w, z)) {
+                return vec3(0.0);
+            }
+            surface.shape = NO_INDEX;
         }
         if (segment_hits_light(set, x, w, z)) {
             return vec3(0.0);
         }
         float T = mode == MODE_FINAL ? final_transmittance(x, w, z, rng) : reuse_transmittance(set, x, w, z);
+        f *= T;
+        if (on_surface) {
+            // Surfaces emit nothing along stored paths; they reflect by their albedo.
+            if (res_emission(r) && i == kp) {
+                return vec3(0.0);
+            }
+            x = surface.x;
+            if (!any(greaterThan(f * surface.albedo, vec3(0.0)))) {
+                return vec3(0.0);
+            }
+            continue;
+        }
         x += z * w;
         float sigma_t = mode == MODE_FINAL ? grid_sigma_t_in(u_density, x) : sigma_t_of(set, x);
-        f *= T;
         if (i == kp && res_emission(r)) {
             if (!SC_HAS_EMISSION) {
                 return vec3(0.0);
@@ -309,10 +453,14 @@ vec3 path_value(uint at, Reservoir r, CameraRay cam, CameraRay src, uint mode, i
     if (!any(greaterThan(L, vec3(0.0)))) {
         return vec3(0.0);
     }
-    if (light_blocked(lbase, x, wi, dist)) {
+    if (light_blocked(lbase, x, wi, dist) || shapes_block(x, wi, dist)) {
         return vec3(0.0);
     }
-    f *= hg_phase(dot(w, wi), g) * L;
+    if (surface.shape != NO_INDEX) {
+        f *= surface_reflect(surface, wi) * L;
+    } else {
+        f *= hg_phase(dot(w, wi), g) * L;
+    }
     float T = mode == MODE_FINAL ? final_transmittance(x, wi, dist, rng) : reuse_transmittance(set, x, wi, dist);
     return f * T * geometry;
 }

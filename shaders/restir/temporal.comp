@@ -5,7 +5,9 @@
 // medium's velocity field and projected by the previous camera. Where x_1 is not in the
 // medium (the path is empty or ends on a light seen directly), velocity resampling
 // (sec. 5.2) draws a point along the camera ray by regular tracking restricted to the
-// medium instead. The previous reservoir's M is clamped to Q M (temporal limit).
+// medium instead. An x_1 on a surface (shapes are static) is projected without the
+// velocity, and so is the surface a ray meets before any medium. The previous reservoir's
+// M is clamped to Q M (temporal limit).
 //
 // Reads and writes slot u_push.src (= dst, in place: each pixel touches only its own
 // entry there) and reads the previous frame's slot u_push.aux.
@@ -42,13 +44,15 @@ void restir_main() {
 
     // The motion vector's particle: x_1 of the selected path, else velocity resampling.
     vec3 x1 = vec3(0.0);
-    bool in_medium = false;
-    if (res_valid(cur) && res_vertices(cur) >= 1u) {
-        x1 = cam.o + res_z(at, 1u) * cam.d;
-        in_medium = true;
-    } else {
+    // x1 exists (anchored); it is a point of the medium, which moves with the velocity
+    // field (in_medium), or of a static surface.
+    bool anchored = path_x1(at, cur, cam, x1);
+    bool in_medium = anchored && res_z(at, 1u) >= 0.0;
+    if (!anchored) {
         uint sphere;
         float t_end = nearest_sphere_light(0u, cam.o, cam.d, 1e-6, FAR, sphere);
+        SurfacePoint surface = surface_along(cam.o, cam.d, t_end);
+        t_end = min(t_end, surface.t);
         float sigma_star;
         float tau_total;
         pc_track(LEVEL_PRIMARY, cam.o, cam.d, t_end, FAR, sigma_star, tau_total);
@@ -61,15 +65,21 @@ void restir_main() {
             float z = pc_track(LEVEL_PRIMARY, cam.o, cam.d, t_end, min(tau_target, tau_total), sigma_star, tau);
             if (z < FAR) {
                 x1 = cam.o + z * cam.d;
+                anchored = true;
                 in_medium = true;
             }
+        }
+        if (!anchored && surface.shape != NO_INDEX) {
+            // The ray crosses no medium before a shape: follow the surface point.
+            x1 = cam.o + surface.t * cam.d;
+            anchored = true;
         }
     }
     vec3 x_prev;
     vec2 px;
     bool on_screen;
-    if (in_medium) {
-        x_prev = SC_HAS_VELOCITY ? x1 - velocity_at(x1) : x1;
+    if (anchored) {
+        x_prev = SC_HAS_VELOCITY && in_medium ? x1 - velocity_at(x1) : x1;
         on_screen = camera_project(u_prev_frame, x_prev, px);
     } else {
         // Nothing in the medium along the ray: follow the background (a far point).

@@ -159,6 +159,10 @@ pub struct RestirPlan {
     pub history_before_spatial: bool,
     /// σ* ≥ this fraction of the local maximum density.
     pub sigma_star_floor: f32,
+    /// Opaque shapes beside the grid: paths get surface vertices (SC_HAS_SHAPES).
+    pub has_shapes: bool,
+    /// Some shapes are triangle meshes (SC_HAS_MESHES).
+    pub has_meshes: bool,
 }
 
 /// One line of `--explain`: a pass or feature, in or out, and the reason.

@@ -76,11 +76,15 @@ pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
             );
         }
         if let Some(shape) = scene.shapes.first() {
-            bail!(
-                "{file}: [[shape]] #1 (type = \"{}\"): Volumetric ReSTIR does not render surfaces \
-                 (quads, boxes, spheres or meshes) yet; use [integrator] volume = \"baseline\"",
-                shape.type_name()
-            );
+            if integrator.restir.reuse == nimbus_scene::ReuseMode::Vertex {
+                bail!(
+                    "{file}: [integrator.restir] field `reuse` = \"vertex\": vertex reuse keeps x2 in \
+                     world space with a volume-measure geometry term, which a surface vertex \
+                     ([[shape]] #1, type = \"{}\") does not have; use reuse = \"direction\" (the default) \
+                     with shapes",
+                    shape.type_name()
+                );
+            }
         }
         if scene.render.spp > 1 {
             bail!(
@@ -228,6 +232,11 @@ fn restir_plan(
         pairwise_mis: s.mis == nimbus_scene::MisMode::Pairwise,
         history_before_spatial: s.temporal_history == nimbus_scene::HistoryMode::Temporal,
         sigma_star_floor: s.sigma_star_floor,
+        has_shapes: !scene.shapes.is_empty(),
+        has_meshes: scene
+            .shapes
+            .iter()
+            .any(|s| matches!(s, nimbus_scene::Shape::Mesh { .. })),
     };
     let frames = scene.render.frames;
     let spatial = plan.spatial_neighbors > 0 && plan.spatial_rounds > 0;
@@ -304,6 +313,20 @@ fn restir_plan(
                 "F with closed-form transmittance through the trilinear grid".into()
             },
         ),
+        on(
+            "  SC_HAS_SHAPES",
+            plan.has_shapes,
+            if plan.has_shapes {
+                format!(
+                    "{} shape(s): surface vertices in the walks and the stored paths, visibility in \
+                     every target and in final shading",
+                    scene.shapes.len()
+                )
+            } else {
+                "no shapes: surface code compiled out".into()
+            },
+        ),
+        super::meshes_decision(scene),
         on(
             "  SC_HAS_EMISSION",
             plan.has_emission,

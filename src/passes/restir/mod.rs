@@ -29,8 +29,8 @@ use crate::gpu::features::*;
 use crate::gpu::sparse::{atlas_bytes, atlas_dims, atlas_slots, layer_bytes, slot_bound};
 use crate::gpu::sparse::{upload_atlas, Indirection, TexelFormat};
 use crate::gpu::{
-    non_empty, BaselineUniformsGpu, FrameUniforms, GpuGrid, LightGpu, LightSet, RecordCounts,
-    RestirPush, RestirUniformsGpu,
+    non_empty, shape_records, BaselineUniformsGpu, FrameUniforms, GpuGrid, LightGpu, LightSet,
+    MeshBuffers, RecordCounts, RestirPush, RestirUniformsGpu,
 };
 use crate::plan::RestirPlan;
 use glam::IVec3;
@@ -41,8 +41,10 @@ use std::collections::HashSet;
 pub use crate::gpu::reservoir_bytes;
 
 /// The specialization constants of the ReSTIR shaders for a plan.
-pub fn specialization(plan: &RestirPlan) -> [(u32, SpecValue); 9] {
+pub fn specialization(plan: &RestirPlan) -> [(u32, SpecValue); 11] {
     [
+        (SC_ID_HAS_SHAPES, SpecValue::Bool(plan.has_shapes)),
+        (SC_ID_HAS_MESHES, SpecValue::Bool(plan.has_meshes)),
         (SC_ID_HAS_ENV, SpecValue::Bool(plan.has_env)),
         (SC_ID_MAX_BOUNCES, SpecValue::U32(plan.max_bounces)),
         (SC_ID_PIXEL_JITTER, SpecValue::Bool(plan.pixel_jitter)),
@@ -65,6 +67,8 @@ pub struct CandidateCost {
     pub pc_blocks: [u32; 2],
     pub march_steps: u32,
     pub lights: u32,
+    /// Loop iterations of one ray through the meshes ([`crate::passes::mesh_ray_cost`]).
+    pub mesh_rays: u32,
 }
 
 /// How many candidates one initial dispatch may draw so that an invocation stays within
@@ -79,7 +83,10 @@ pub fn candidates_per_dispatch(
     let Some(budget) = budget else {
         return plan.candidates;
     };
-    let segment = |blocks: u32| u64::from(blocks + cost.march_steps + 3 * cost.lights + 64);
+    // A segment's nearest-shape ray and its NEE shadow ray cross the meshes.
+    let segment = |blocks: u32| {
+        u64::from(blocks + cost.march_steps + 3 * cost.lights + 64) + 2 * u64::from(cost.mesh_rays)
+    };
     let k = u64::from(plan.max_bounces.max(1));
     let per_candidate = segment(cost.pc_blocks[0]) + (k - 1) * segment(cost.pc_blocks[1]) + k;
     let fit = (u64::from(budget / 2) / per_candidate.max(1)).max(1);
@@ -268,6 +275,7 @@ impl RestirPass {
                     .min(crate::gpu::features::MARCH_MAX_STEPS as f32)
                     as u32,
                 lights: grid_gpu.lights.len() as u32,
+                mesh_rays: crate::passes::mesh_ray_cost(scene),
             },
         );
         let restir_uniforms = RestirUniformsGpu {
@@ -315,8 +323,12 @@ impl RestirPass {
             velocity_uvw_z: velocity_uvw[2],
             ..RestirUniformsGpu::default()
         };
+        let shapes = shape_records(scene);
+        let meshes = MeshBuffers::build(scene);
         let inputs = Inputs {
             grid: &grid_gpu,
+            shapes: &shapes,
+            meshes: &meshes,
             first,
             base_uniforms: &base_uniforms,
             velocity: velocity.as_ref(),
@@ -346,6 +358,7 @@ impl RestirPass {
                 env_size: grid_gpu.uniforms.env_size,
                 counts: RecordCounts {
                     lights: grid_gpu.lights.len() as u32,
+                    shapes: shapes.len() as u32,
                     ..RecordCounts::default()
                 },
             },
@@ -618,6 +631,7 @@ fn level_topology(t: &BrickTopology, level: u32, dilate: bool) -> BrickTopology 
 /// by content, see [`volumes::MAX_LEVEL_EXCESS_TAU`], is finer and larger), the
 /// indirection sections, reservoirs and velocity.
 pub fn footprint(scene: &Scene, p: &RestirPlan, f: &mut Footprint) -> Result<()> {
+    f.add_meshes(scene);
     f.add_env_map(scene)?;
     let Some(gf) = f.add_grid(scene)? else {
         return Ok(());

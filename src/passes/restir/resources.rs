@@ -12,7 +12,8 @@ use super::schedule::Stage;
 use super::volumes::{AtlasSizes, DerivedVolume};
 use crate::gpu::sparse::{atlas_dims, upload_atlas, TexelFormat};
 use crate::gpu::{
-    bindings, non_empty, BaselineUniformsGpu, FrameUniforms, GpuGrid, RestirPush, RestirUniformsGpu,
+    bindings, non_empty, BaselineUniformsGpu, FrameUniforms, GpuGrid, MeshBuffers, RestirPush,
+    RestirUniformsGpu, ShapeGpu,
 };
 use crate::passes::{
     atlas_image, compute_pipeline, image_3d, upload_env_map, upload_records, upload_uniform,
@@ -49,6 +50,9 @@ pub struct Resources {
 /// What [`Resources::create`] uploads.
 pub struct Inputs<'a> {
     pub grid: &'a GpuGrid,
+    /// The scene's shapes and its meshes' BVHs (surface vertices).
+    pub shapes: &'a [ShapeGpu],
+    pub meshes: &'a MeshBuffers,
     pub first: &'a DerivedVolume,
     pub base_uniforms: &'a BaselineUniformsGpu,
     /// The velocity grid as dense RGBA16F texels over the medium's world box.
@@ -83,6 +87,9 @@ fn layout() -> Vec<BindingDesc> {
         BindingDesc::storage_buffer(bindings::RESERVOIRS),
         BindingDesc::storage_buffer(bindings::ENV_TEXELS),
         BindingDesc::storage_buffer(bindings::ENV_CDF),
+        BindingDesc::storage_buffer(bindings::SHAPES),
+        BindingDesc::storage_buffer(bindings::BVH_NODES),
+        BindingDesc::storage_buffer(bindings::MESH_TRIANGLES),
     ]);
     layout
 }
@@ -119,6 +126,8 @@ impl Resources {
     ) -> Result<Resources> {
         let Inputs {
             grid,
+            shapes,
+            meshes,
             first,
             base_uniforms,
             velocity,
@@ -146,6 +155,9 @@ impl Resources {
         // records (the same until lights animate).
         let light_records = non_empty(&[grid.lights.clone(), grid.lights.clone()].concat());
         let lights = upload_records(ctx, o, &light_records, "restir lights")?;
+        let shapes = upload_records(ctx, o, &non_empty(shapes), "shapes")?;
+        let bvh_nodes = upload_records(ctx, o, &meshes.nodes, "mesh BVH nodes")?;
+        let mesh_triangles = upload_records(ctx, o, &meshes.triangles, "mesh triangles")?;
         let records = &first.grids.super_voxels;
         let mut padded = records.clone();
         padded.resize(padded.len().max(slot_count(sizes.density)), [0.0; 4]);
@@ -294,6 +306,9 @@ impl Resources {
                     buffer(bindings::RESERVOIRS, reservoirs),
                     buffer(bindings::ENV_TEXELS, env_texels),
                     buffer(bindings::ENV_CDF, env_cdf),
+                    buffer(bindings::SHAPES, shapes),
+                    buffer(bindings::BVH_NODES, bvh_nodes),
+                    buffer(bindings::MESH_TRIANGLES, mesh_triangles),
                 ]);
                 ctx.create_descriptor_set(
                     &o[*pipeline],

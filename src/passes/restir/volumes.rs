@@ -451,6 +451,8 @@ mod tests {
             pairwise_mis: false,
             history_before_spatial: false,
             sigma_star_floor: 0.0,
+            has_shapes: false,
+            has_meshes: false,
         }
     }
 
