@@ -90,8 +90,40 @@ void restir_main() {
             // Regular tracking: an exponential optical depth through sigma_t*.
             float tau_target = sample_exponential(rng_next(rng), 1.0);
             float sigma_star;
+            float sigma_star_unused;
             float tau;
-            float z = pc_track(i == 1u ? LEVEL_PRIMARY : LEVEL_INDIRECT, x, w, t_end, tau_target, sigma_star, tau);
+            uint level = i == 1u ? LEVEL_PRIMARY : LEVEL_INDIRECT;
+            float z = pc_track(level, x, w, t_end, tau_target, sigma_star, tau);
+            // The box media: independent first collisions at their sigma_t; the earliest of
+            // all wins (the media are disjoint, so the walk tracks their summed majorant).
+            uint box = NO_INDEX;
+            if (SC_HAS_MEDIA) {
+                float z_box = min(z, t_end);
+                uint count = u_frame.box_media_count;
+                for (uint m = 0u; m < count; ++m) {
+                    vec2 span = box_medium_span(m, x, w);
+                    float a = max(span.x, 0.0);
+                    float b = min(span.y, z_box);
+                    float sigma_m = media[m].sigma_t;
+                    if (b <= a || !(sigma_m > 0.0)) {
+                        continue;
+                    }
+                    // Domain: sigma_m > 0.
+                    float t = a + sample_exponential(rng_next(rng), sigma_m);
+                    if (t < b) {
+                        z_box = t;
+                        box = m;
+                    }
+                }
+                if (box != NO_INDEX) {
+                    // The grid's tau* up to the box's collision.
+                    z = z_box;
+                    sigma_star = media[box].sigma_t;
+                    pc_track(level, x, w, z, FAR, sigma_star_unused, tau);
+                }
+                // tau* of the whole walked span: the grid's and the boxes'.
+                tau += box_optical_depth(x, w, 0.0, min(z, t_end));
+            }
             if (z >= FAR) {
                 // Reached the segment's end with probability T* = exp(-tau). Domain: tau >= 0.
                 float T_star = exp(-tau);
@@ -120,7 +152,7 @@ void restir_main() {
                 vec3 brdf = surface_reflect(surface, ls.wi);
                 if (ls.pdf > 0.0 && any(greaterThan(brdf, vec3(0.0))) && !light_blocked(0u, x, ls.wi, ls.dist) &&
                     !shapes_block(x, ls.wi, ls.dist)) {
-                    float T_nee = nee_transmittance(x, ls.wi, ls.dist);
+                    float T_nee = nee_transmittance(x, ls.wi, ls.dist) * boxes_transmittance(x, ls.wi, ls.dist);
                     vec3 Fs = Fhat * brdf * ls.L * T_nee;
                     vec3 bs = beta * brdf * ls.L_over_pdf * T_nee;
                     add_candidate(at, r, rng, luminance(bs), luminance(Fs), i, jitter_bits | (ls.index << 8u),
@@ -152,15 +184,23 @@ void restir_main() {
             }
             x += z * w;
             walk_z[i - 1u] = z;
-            float sigma_t = grid_sigma_t_in(u_density, x);
+            // The medium there, as path_value finds it: a box's sigma_s and g, or the grid's.
+            box = box_medium_at(x);
+            float sigma_t = box != NO_INDEX ? media[box].sigma_t : grid_sigma_t_in(u_density, x);
             if (!(sigma_t > 0.0)) {
                 break;
             }
             // p *= sigma_t* T*, Fhat *= T*. Domain: sigma_star > 0 at a collision.
             Fhat *= exp(-tau);
             beta /= sigma_star;
+            vec3 sigma_s = albedo * sigma_t;
+            g = u_base.g;
+            if (box != NO_INDEX) {
+                sigma_s = media[box].sigma_s;
+                g = media[box].g;
+            }
 
-            if (SC_HAS_EMISSION) {
+            if (SC_HAS_EMISSION && box == NO_INDEX) {
                 // Emission candidate: sigma_a Le at x_i (eq. 25, emission case).
                 vec3 emitted = (vec3(1.0) - albedo) * sigma_t * grid_emission(x);
                 add_candidate(at, r, rng, luminance(beta * emitted), luminance(Fhat * emitted), i,
@@ -168,13 +208,12 @@ void restir_main() {
             }
 
             // Scattering candidate by next-event estimation.
-            vec3 sigma_s = albedo * sigma_t;
             float u_light = rng_next(rng);
             vec2 u2 = vec2(rng_next(rng), rng_next(rng));
             LightSample ls = light_sample(0u, x, u_light, u2);
             if (ls.pdf > 0.0 && !light_blocked(0u, x, ls.wi, ls.dist) && !shapes_block(x, ls.wi, ls.dist)) {
                 float rho = hg_phase(dot(w, ls.wi), g);
-                float T_nee = nee_transmittance(x, ls.wi, ls.dist);
+                float T_nee = nee_transmittance(x, ls.wi, ls.dist) * boxes_transmittance(x, ls.wi, ls.dist);
                 vec3 Fs = Fhat * sigma_s * rho * ls.L * T_nee;
                 vec3 bs = beta * sigma_s * rho * ls.L_over_pdf * T_nee;
                 add_candidate(at, r, rng, luminance(bs), luminance(Fs), i, jitter_bits | (ls.index << 8u),

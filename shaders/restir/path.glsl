@@ -219,6 +219,35 @@ float pc_track(uint level, vec3 o, vec3 d, float t_end, float tau_target, out fl
 }
 
 // ---------------------------------------------------------------------------------------
+// Homogeneous box media beside the grid (SC_HAS_MEDIA). They are disjoint from the grid
+// and from each other; their transmittance is the closed form everywhere (targets, NEE
+// and final shading alike), and a box is its own piecewise-constant majorant in tracking
+// (sigma* = sigma_t). A vertex in a box scatters by the box's sigma_s and g.
+
+// The box medium holding x, NO_INDEX if none (the grid or vacuum).
+uint box_medium_at(vec3 x) {
+    uint count = SC_HAS_MEDIA ? u_frame.box_media_count : 0u;
+    for (uint m = 0u; m < count; ++m) {
+        BoxMedium bm = media[m];
+        vec3 p = x - bm.center;
+        vec3 local = vec3(dot(bm.world_to_local[0].xyz, p), dot(bm.world_to_local[1].xyz, p),
+                          dot(bm.world_to_local[2].xyz, p));
+        if (all(lessThanEqual(abs(local), bm.half_size))) {
+            return m;
+        }
+    }
+    return NO_INDEX;
+}
+
+// Transmittance of the box media along o + t d, t in [0, t1] (1 without them).
+float boxes_transmittance(vec3 o, vec3 d, float t1) {
+    if (!SC_HAS_MEDIA) {
+        return 1.0;
+    }
+    return exp(-box_optical_depth(o, d, 0.0, t1));
+}
+
+// ---------------------------------------------------------------------------------------
 // Surface vertices. A stored vertex with z < 0 lies on a surface: it is where the ray from
 // the previous vertex along the stored direction first meets a shape, found again by ray
 // casting at every evaluation, so under direction reuse it moves with the path as a medium
@@ -353,7 +382,7 @@ vec3 path_value(uint at, Reservoir r, CameraRay cam, CameraRay src, uint mode, i
         }
         float T = mode == MODE_FINAL ? final_transmittance(cam.o, cam.d, t_end, rng)
                                      : reuse_transmittance(set, cam.o, cam.d, t_end);
-        return L * T;
+        return L * T * boxes_transmittance(cam.o, cam.d, t_end);
     }
     vec3 albedo = u_base.albedo;
     float g = u_base.g;
@@ -419,7 +448,7 @@ vec3 path_value(uint at, Reservoir r, CameraRay cam, CameraRay src, uint mode, i
             return vec3(0.0);
         }
         float T = mode == MODE_FINAL ? final_transmittance(x, w, z, rng) : reuse_transmittance(set, x, w, z);
-        f *= T;
+        f *= T * boxes_transmittance(x, w, z);
         if (on_surface) {
             // Surfaces emit nothing along stored paths; they reflect by their albedo.
             if (res_emission(r) && i == kp) {
@@ -432,6 +461,20 @@ vec3 path_value(uint at, Reservoir r, CameraRay cam, CameraRay src, uint mode, i
             continue;
         }
         x += z * w;
+        uint box = box_medium_at(x);
+        if (box != NO_INDEX) {
+            // Scattering in a box: its sigma_s and g (the grid's emission is not there).
+            if (i == kp && res_emission(r)) {
+                return vec3(0.0);
+            }
+            f *= media[box].sigma_s;
+            g = media[box].g;
+            if (!any(greaterThan(f, vec3(0.0)))) {
+                return vec3(0.0);
+            }
+            continue;
+        }
+        g = u_base.g;
         float sigma_t = mode == MODE_FINAL ? grid_sigma_t_in(u_density, x) : sigma_t_of(set, x);
         if (i == kp && res_emission(r)) {
             if (!SC_HAS_EMISSION) {
@@ -462,7 +505,7 @@ vec3 path_value(uint at, Reservoir r, CameraRay cam, CameraRay src, uint mode, i
         f *= hg_phase(dot(w, wi), g) * L;
     }
     float T = mode == MODE_FINAL ? final_transmittance(x, wi, dist, rng) : reuse_transmittance(set, x, wi, dist);
-    return f * T * geometry;
+    return f * T * boxes_transmittance(x, wi, dist) * geometry;
 }
 
 #endif

@@ -30,6 +30,8 @@ layout(constant_id = SC_ID_HAS_VELOCITY) const bool SC_HAS_VELOCITY = false;
 layout(constant_id = SC_ID_MIS_PAIRWISE) const bool SC_MIS_PAIRWISE = false;
 // Opaque shapes beside the grid: paths may have surface vertices (restir/path.glsl).
 layout(constant_id = SC_ID_HAS_SHAPES) const bool SC_HAS_SHAPES = false;
+// Homogeneous box media beside the grid (restir/path.glsl).
+layout(constant_id = SC_ID_HAS_MEDIA) const bool SC_HAS_MEDIA = false;
 
 // A derived level of the density (a piecewise-constant level or a ray-march mip) as a
 // sparse grid: its lattice (level voxels, `factor` density voxels per edge, lattice point j
@@ -111,6 +113,7 @@ layout(std430, set = 0, binding = BINDING_RESERVOIRS) buffer ReservoirBlock {
 
 #include "grid_resources.glsl"
 #include "shapes.glsl"
+#include "box_media.glsl"
 #include "reservoir.glsl"
 
 // Which frame a camera ray, density or light set belongs to.

@@ -35,11 +35,11 @@ void restir_main() {
     if (!film_sample_finite(L)) {
         L = vec3(0.0);
     }
-    // The film's alpha: 1 - the camera ray's closed-form transmittance through the grid,
+    // The film's alpha: 1 - the camera ray's closed-form transmittance through the media,
     // 1 where it meets an emitting sphere or a shape.
     uint light_index;
     bool opaque = nearest_sphere_light(light_base(SET_CURRENT), cam.o, cam.d, 1e-6, FAR, light_index) < FAR ||
                   surface_along(cam.o, cam.d, FAR).shape != NO_INDEX;
-    float T_camera = opaque ? 0.0 : grid_transmittance(cam.o, cam.d, 0.0, FAR);
+    float T_camera = opaque ? 0.0 : grid_transmittance(cam.o, cam.d, 0.0, FAR) * boxes_transmittance(cam.o, cam.d, FAR);
     film_accumulate(pixel, L, 1.0 - clamp(T_camera, 0.0, 1.0));
 }

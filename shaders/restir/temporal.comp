@@ -6,7 +6,8 @@
 // medium (the path is empty or ends on a light seen directly), velocity resampling
 // (sec. 5.2) draws a point along the camera ray by regular tracking restricted to the
 // medium instead. An x_1 on a surface (shapes are static) is projected without the
-// velocity, and so is the surface a ray meets before any medium. The previous reservoir's
+// velocity, and so is the surface a ray meets before any medium, or an x_1 in a box
+// medium. The previous reservoir's
 // M is clamped to Q M (temporal limit).
 //
 // Reads and writes slot u_push.src (= dst, in place: each pixel touches only its own
@@ -79,7 +80,9 @@ void restir_main() {
     vec2 px;
     bool on_screen;
     if (anchored) {
-        x_prev = SC_HAS_VELOCITY && in_medium ? x1 - velocity_at(x1) : x1;
+        // The velocity field moves the grid's points only (box media are static).
+        bool moves = SC_HAS_VELOCITY && in_medium && box_medium_at(x1) == NO_INDEX;
+        x_prev = moves ? x1 - velocity_at(x1) : x1;
         on_screen = camera_project(u_prev_frame, x_prev, px);
     } else {
         // Nothing in the medium along the ray: follow the background (a far point).

@@ -163,6 +163,8 @@ pub struct RestirPlan {
     pub has_shapes: bool,
     /// Some shapes are triangle meshes (SC_HAS_MESHES).
     pub has_meshes: bool,
+    /// Homogeneous box media beside the grid (SC_HAS_MEDIA).
+    pub has_boxes: bool,
 }
 
 /// One line of `--explain`: a pass or feature, in or out, and the reason.

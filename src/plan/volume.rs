@@ -69,12 +69,6 @@ pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
         );
     }
     if restir {
-        if let Some(i) = scene.media.iter().position(|m| matches!(m, Medium::Box(_))) {
-            bail!(
-                "{file}: [[medium]] #{} (type = \"box\"): Volumetric ReSTIR renders one grid medium alone; box media beside it need volume = \"baseline\"",
-                i + 1
-            );
-        }
         if let Some(shape) = scene.shapes.first() {
             if integrator.restir.reuse == nimbus_scene::ReuseMode::Vertex {
                 bail!(
@@ -135,6 +129,7 @@ pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
             has_env,
             env_map.is_some(),
             lights,
+            boxes,
         ));
     }
     let baseline = BaselinePlan {
@@ -207,6 +202,7 @@ fn restir_plan(
     has_env: bool,
     has_env_map: bool,
     lights: usize,
+    boxes: usize,
 ) -> (Integrator, Vec<Decision>) {
     let s = &scene.integrator.restir;
     let k = scene.integrator.max_bounces;
@@ -237,6 +233,7 @@ fn restir_plan(
             .shapes
             .iter()
             .any(|s| matches!(s, nimbus_scene::Shape::Mesh { .. })),
+        has_boxes: boxes > 0,
     };
     let frames = scene.render.frames;
     let spatial = plan.spatial_neighbors > 0 && plan.spatial_rounds > 0;
@@ -327,6 +324,14 @@ fn restir_plan(
             },
         ),
         super::meshes_decision(scene),
+        on(
+            "  SC_HAS_MEDIA (boxes)",
+            plan.has_boxes,
+            format!(
+                "{boxes} homogeneous box medium(s) beside the grid: tracked exactly, closed-form \
+                 transmittance"
+            ),
+        ),
         on(
             "  SC_HAS_EMISSION",
             plan.has_emission,

@@ -29,8 +29,8 @@ use crate::gpu::features::*;
 use crate::gpu::sparse::{atlas_bytes, atlas_dims, atlas_slots, layer_bytes, slot_bound};
 use crate::gpu::sparse::{upload_atlas, Indirection, TexelFormat};
 use crate::gpu::{
-    non_empty, shape_records, BaselineUniformsGpu, FrameUniforms, GpuGrid, LightGpu, LightSet,
-    MeshBuffers, RecordCounts, RestirPush, RestirUniformsGpu,
+    box_records, non_empty, shape_records, BaselineUniformsGpu, FrameUniforms, GpuGrid, LightGpu,
+    LightSet, MeshBuffers, RecordCounts, RestirPush, RestirUniformsGpu,
 };
 use crate::plan::RestirPlan;
 use glam::IVec3;
@@ -41,8 +41,9 @@ use std::collections::HashSet;
 pub use crate::gpu::reservoir_bytes;
 
 /// The specialization constants of the ReSTIR shaders for a plan.
-pub fn specialization(plan: &RestirPlan) -> [(u32, SpecValue); 11] {
+pub fn specialization(plan: &RestirPlan) -> [(u32, SpecValue); 12] {
     [
+        (SC_ID_HAS_MEDIA, SpecValue::Bool(plan.has_boxes)),
         (SC_ID_HAS_SHAPES, SpecValue::Bool(plan.has_shapes)),
         (SC_ID_HAS_MESHES, SpecValue::Bool(plan.has_meshes)),
         (SC_ID_HAS_ENV, SpecValue::Bool(plan.has_env)),
@@ -69,6 +70,8 @@ pub struct CandidateCost {
     pub lights: u32,
     /// Loop iterations of one ray through the meshes ([`crate::passes::mesh_ray_cost`]).
     pub mesh_rays: u32,
+    /// Box media beside the grid (each segment loops over them a few times).
+    pub boxes: u32,
 }
 
 /// How many candidates one initial dispatch may draw so that an invocation stays within
@@ -85,7 +88,8 @@ pub fn candidates_per_dispatch(
     };
     // A segment's nearest-shape ray and its NEE shadow ray cross the meshes.
     let segment = |blocks: u32| {
-        u64::from(blocks + cost.march_steps + 3 * cost.lights + 64) + 2 * u64::from(cost.mesh_rays)
+        u64::from(blocks + cost.march_steps + 3 * cost.lights + 4 * cost.boxes + 64)
+            + 2 * u64::from(cost.mesh_rays)
     };
     let k = u64::from(plan.max_bounces.max(1));
     let per_candidate = segment(cost.pc_blocks[0]) + (k - 1) * segment(cost.pc_blocks[1]) + k;
@@ -263,6 +267,8 @@ impl RestirPass {
         let g = &first.grids;
         let density = &g.density;
         let size = grid.bounds_max - grid.bounds_min;
+        let shapes = shape_records(scene);
+        let boxes = box_records(scene);
         let candidates_per_dispatch = candidates_per_dispatch(
             ctx.info().loop_budget(),
             plan,
@@ -276,6 +282,7 @@ impl RestirPass {
                     as u32,
                 lights: grid_gpu.lights.len() as u32,
                 mesh_rays: crate::passes::mesh_ray_cost(scene),
+                boxes: boxes.len() as u32,
             },
         );
         let restir_uniforms = RestirUniformsGpu {
@@ -323,12 +330,12 @@ impl RestirPass {
             velocity_uvw_z: velocity_uvw[2],
             ..RestirUniformsGpu::default()
         };
-        let shapes = shape_records(scene);
         let meshes = MeshBuffers::build(scene);
         let inputs = Inputs {
             grid: &grid_gpu,
             shapes: &shapes,
             meshes: &meshes,
+            boxes: &boxes,
             first,
             base_uniforms: &base_uniforms,
             velocity: velocity.as_ref(),
@@ -359,6 +366,7 @@ impl RestirPass {
                 counts: RecordCounts {
                     lights: grid_gpu.lights.len() as u32,
                     shapes: shapes.len() as u32,
+                    box_media: boxes.len() as u32,
                     ..RecordCounts::default()
                 },
             },

@@ -12,8 +12,8 @@ use super::schedule::Stage;
 use super::volumes::{AtlasSizes, DerivedVolume};
 use crate::gpu::sparse::{atlas_dims, upload_atlas, TexelFormat};
 use crate::gpu::{
-    bindings, non_empty, BaselineUniformsGpu, FrameUniforms, GpuGrid, MeshBuffers, RestirPush,
-    RestirUniformsGpu, ShapeGpu,
+    bindings, non_empty, BaselineUniformsGpu, BoxMediumGpu, FrameUniforms, GpuGrid, MeshBuffers,
+    RestirPush, RestirUniformsGpu, ShapeGpu,
 };
 use crate::passes::{
     atlas_image, compute_pipeline, image_3d, upload_env_map, upload_records, upload_uniform,
@@ -53,6 +53,8 @@ pub struct Inputs<'a> {
     /// The scene's shapes and its meshes' BVHs (surface vertices).
     pub shapes: &'a [ShapeGpu],
     pub meshes: &'a MeshBuffers,
+    /// The box media beside the grid.
+    pub boxes: &'a [BoxMediumGpu],
     pub first: &'a DerivedVolume,
     pub base_uniforms: &'a BaselineUniformsGpu,
     /// The velocity grid as dense RGBA16F texels over the medium's world box.
@@ -90,6 +92,8 @@ fn layout() -> Vec<BindingDesc> {
         BindingDesc::storage_buffer(bindings::SHAPES),
         BindingDesc::storage_buffer(bindings::BVH_NODES),
         BindingDesc::storage_buffer(bindings::MESH_TRIANGLES),
+        BindingDesc::storage_buffer(bindings::BOX_MEDIA),
+        BindingDesc::storage_buffer(bindings::MEDIUM_PLANES),
     ]);
     layout
 }
@@ -128,6 +132,7 @@ impl Resources {
             grid,
             shapes,
             meshes,
+            boxes,
             first,
             base_uniforms,
             velocity,
@@ -158,6 +163,9 @@ impl Resources {
         let shapes = upload_records(ctx, o, &non_empty(shapes), "shapes")?;
         let bvh_nodes = upload_records(ctx, o, &meshes.nodes, "mesh BVH nodes")?;
         let mesh_triangles = upload_records(ctx, o, &meshes.triangles, "mesh triangles")?;
+        let boxes = upload_records(ctx, o, &non_empty(boxes), "box media")?;
+        // Convex media are refused beside grids: their (compiled-out) planes are empty.
+        let planes = upload_records(ctx, o, &[[0.0f32; 4]], "medium planes")?;
         let records = &first.grids.super_voxels;
         let mut padded = records.clone();
         padded.resize(padded.len().max(slot_count(sizes.density)), [0.0; 4]);
@@ -309,6 +317,8 @@ impl Resources {
                     buffer(bindings::SHAPES, shapes),
                     buffer(bindings::BVH_NODES, bvh_nodes),
                     buffer(bindings::MESH_TRIANGLES, mesh_triangles),
+                    buffer(bindings::BOX_MEDIA, boxes),
+                    buffer(bindings::MEDIUM_PLANES, planes),
                 ]);
                 ctx.create_descriptor_set(
                     &o[*pipeline],

@@ -453,6 +453,7 @@ mod tests {
             sigma_star_floor: 0.0,
             has_shapes: false,
             has_meshes: false,
+            has_boxes: false,
         }
     }
 
