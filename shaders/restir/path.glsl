@@ -305,7 +305,8 @@ vec3 path_value(uint at, Reservoir r, CameraRay cam, CameraRay src, uint mode, i
     // The light vertex, re-evaluated from x_k'.
     vec3 wi;
     float dist;
-    vec3 L = light_eval(lbase, res_light(r), oct_decode(r.light_dir), r.light_point, x, wi, dist);
+    vec3 L = light_eval(lbase, res_light(r), oct_decode(r.light_dir), r.light_dir, r.light_point, x, wi,
+                        dist);
     if (!any(greaterThan(L, vec3(0.0)))) {
         return vec3(0.0);
     }

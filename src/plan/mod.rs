@@ -119,6 +119,8 @@ pub struct BaselinePlan {
     pub has_shapes: bool,
     /// Some shapes are triangle meshes.
     pub has_meshes: bool,
+    /// Some shapes emit (area lights: the emitter table is sampled).
+    pub has_area_lights: bool,
     pub has_env: bool,
     pub has_env_map: bool,
     pub pixel_jitter: bool,

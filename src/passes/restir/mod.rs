@@ -377,6 +377,7 @@ impl RestirPass {
                 &scene.lights_at(f),
                 self.scene_lights_radius,
                 self.env_map_luminance,
+                0.0,
             )
         };
         let (cur, prev) = (set(frame), set(prev));
