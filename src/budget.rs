@@ -209,6 +209,27 @@ impl Footprint {
         self.host_peak += node_bytes + triangle_bytes;
     }
 
+    /// The emitter table of the scene's emitting shapes (`crate::gpu::emitters`): one
+    /// record per primitive, at least one; the host holds it once more while uploading.
+    pub fn add_emitters(&mut self, scene: &Scene) {
+        use crate::gpu::emitters::{emitter_primitives, EMITTER_BYTES};
+        let primitives: u64 = scene
+            .shapes
+            .iter()
+            .map(|s| u64::from(emitter_primitives(s)))
+            .sum();
+        let bytes = primitives.max(1) * EMITTER_BYTES;
+        self.add(
+            format!(
+                "{}: [[shape]] emission ({primitives} emitter primitives)",
+                scene.source.display()
+            ),
+            Binding::Storage,
+            bytes,
+        );
+        self.host_peak += bytes;
+    }
+
     /// The scene's grid medium as the grid integrators upload it: the density's atlas,
     /// its super-voxel records, the emission's atlas, the indirection sections, and the
     /// host copies. Reads the grids' topology (which bricks they store: OpenVDB files up

@@ -12,9 +12,10 @@
 // SC_MAX_BOUNCES = K times (real collisions in the medium or Lambertian reflections);
 // at every scattering vertex one light is chosen in proportion to its power and
 // connected by a shadow ray (next-event estimation), so every light reaches the
-// camera through NEE only: escaping rays and rays hitting an emitting sphere add
-// radiance only on the camera segment. Russian roulette by throughput from the 4th
-// segment on.
+// camera through NEE only: escaping rays and rays hitting an emitting sphere or an
+// emitting shape (an area light, SC_HAS_AREA_LIGHTS) add radiance only on the camera
+// segment; a shape that emits still reflects by its albedo. Russian roulette by
+// throughput from the 4th segment on.
 
 #extension GL_GOOGLE_include_directive : require
 
@@ -80,10 +81,12 @@ float sample_collision(vec3 o, vec3 d, float t_end, inout uint rng, out uint med
     return t_best;
 }
 
-// Transmittance from x along unit w over [0, dist) through the grid, 0 if a shape or
-// another emitting sphere blocks it first.
-float shadow_transmittance(vec3 x, vec3 w, float dist, float t_min, uint target, inout uint rng) {
-    if (occluded_before(x, w, t_min, dist)) {
+// Transmittance from x along unit w over [0, dist) through the grid, 0 if a shape blocks
+// it before t_occlude (dist, or a little less when the light vertex lies on a shape) or
+// another emitting sphere before dist.
+float shadow_transmittance(vec3 x, vec3 w, float dist, float t_occlude, float t_min, uint target,
+                           inout uint rng) {
+    if (occluded_before(x, w, t_min, t_occlude)) {
         return 0.0;
     }
     uint blocker;
@@ -102,14 +105,18 @@ float shadow_transmittance(vec3 x, vec3 w, float dist, float t_min, uint target,
 }
 
 // Sample a light for next-event estimation at x: the direction wi towards it, the
-// distance along wi, and the arriving radiance divided by the (selection x direction)
-// pdf. Zero when the sample carries nothing.
-vec3 sample_light(vec3 x, inout uint rng, out vec3 wi, out float dist, out uint target) {
+// distance along wi, how far shapes may block it (t_occlude), and the arriving radiance
+// divided by the (selection x measure) pdf. Zero when the sample carries nothing. A point
+// on an emitting shape lies on that shape: shapes block only up to dist (1 - 1e-4), so the
+// emitter does not shadow itself.
+vec3 sample_light(vec3 x, inout uint rng, out vec3 wi, out float dist, out float t_occlude,
+                  out uint target) {
     float u = rng_next(rng);
     vec2 u2 = vec2(rng_next(rng), rng_next(rng));
     LightSample s = light_sample(0u, x, u, u2);
     wi = s.wi;
     dist = s.dist;
+    t_occlude = light_is_area(0u, s.index) ? s.dist * (1.0 - 1e-4) : s.dist;
     target = s.index == LIGHT_ENV ? NO_INDEX : s.index;
     return s.L_over_pdf;
 }
@@ -154,10 +161,11 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
             }
             vec3 wi;
             float dist;
+            float t_occlude;
             uint target;
-            vec3 Li = sample_light(x, rng, wi, dist, target);
+            vec3 Li = sample_light(x, rng, wi, dist, t_occlude, target);
             if (any(greaterThan(Li, vec3(0.0)))) {
-                float T = shadow_transmittance(x, wi, dist, 0.0, target, rng);
+                float T = shadow_transmittance(x, wi, dist, t_occlude, 0.0, target, rng);
                 L += beta * albedo_medium * hg_phase(dot(wi, d), g) * Li * T;
             }
             if (bounce + 1u >= SC_MAX_BOUNCES) {
@@ -173,22 +181,27 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
             }
             break;
         } else if (t_surface < FAR) {
-            // A Lambertian surface: next-event estimation, then continue by cosine sampling.
+            // A Lambertian surface: its emission if the camera sees it, next-event
+            // estimation, then continue by cosine sampling.
             Shape s = shapes[shape_index];
+            vec3 x = o + t_surface * d;
+            if (SC_HAS_AREA_LIGHTS && bounce == 0u) {
+                L += beta * shape_emitted(shape_index, x, d);
+            }
             vec3 albedo = s.albedo;
             if (!any(greaterThan(albedo, vec3(0.0)))) {
                 break;
             }
-            vec3 x = o + t_surface * d;
             vec3 n = shape_normal(s, x, d);
             vec3 x_off = offset_ray_origin(x, n);
             vec3 wi;
             float dist;
+            float t_occlude;
             uint target;
-            vec3 Li = sample_light(x_off, rng, wi, dist, target);
+            vec3 Li = sample_light(x_off, rng, wi, dist, t_occlude, target);
             float cos_i = dot(n, wi);
             if (cos_i > 0.0 && any(greaterThan(Li, vec3(0.0)))) {
-                float T = shadow_transmittance(x_off, wi, dist, 0.0, target, rng);
+                float T = shadow_transmittance(x_off, wi, dist, t_occlude, 0.0, target, rng);
                 L += beta * albedo * INV_PI * cos_i * Li * T;
             }
             if (bounce + 1u >= SC_MAX_BOUNCES) {

@@ -33,6 +33,7 @@
 #define BINDING_GRID_BRICKS 27
 #define BINDING_BVH_NODES 28
 #define BINDING_MESH_TRIANGLES 29
+#define BINDING_EMITTERS 30
 
 // Indices into the stats buffer (uint counters).
 #define STAT_NON_FINITE 0

@@ -34,6 +34,8 @@
 #define SC_ID_HAS_CONVEX 14
 // Shapes: some are triangle meshes (BVH traversal in bvh.glsl; declared by shapes.glsl).
 #define SC_ID_HAS_MESHES 15
+// Grid passes: some shapes emit (the emitter table is sampled; emitters.glsl).
+#define SC_ID_HAS_AREA_LIGHTS 16
 
 // ---------------------------------------------------------------------------------------
 // Values of SC_ESTIMATOR: the box-medium estimators of Velinov & Mitchell.

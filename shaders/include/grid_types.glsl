@@ -45,7 +45,7 @@ struct BaselineUniforms {
     vec3 albedo;            // rgb single-scattering albedo
     float g;                // HG asymmetry
     float env_select;       // probability that next-event estimation picks the environment
-    float _pad0;
+    uint emitter_count;     // primitives in emitters[] (0 without area lights)
     float _pad1;
     float _pad2;
     vec3 emission_scale;    // rgb: Le = emission_scale * trilinear emission grid

@@ -5,7 +5,8 @@
 // The includer declares, before including this file:
 //   Light lights[]            (std430; scene.glsl: type, radius of a sphere, select_cdf =
 //                              selection CDF over the analytic lights of a set)
-//   BaselineUniforms u_base   (env_select = probability that NEE picks the environment)
+//   BaselineUniforms u_base   (env_select = probability that NEE picks the environment,
+//                              emitter_count = primitives in the emitter table)
 //   FrameUniforms u_frame     (light_count = analytic lights per set, env_radiance)
 //   bool constants SC_HAS_ENV, SC_HAS_ENV_MAP, and envmap.glsl's buffers (included here).
 //
@@ -16,6 +17,13 @@
 // I / d^2, their pdf a selection probability); the environment is sampled in solid angle;
 // a sphere light in AREA measure, so a stored point on it can be re-evaluated from any
 // shading point: L_area = L cos_l / d^2 and pdf_area = pdf_solid_angle cos_l / d^2.
+//
+// Emitting shapes (area lights, SC_HAS_AREA_LIGHTS) are one LIGHT_AREA record of the set,
+// selected in proportion to their total power like the others; a sample then picks a
+// primitive of the emitter table by its power CDF and a point on it (emitters.glsl), in
+// AREA measure: L_area = Le cos_l / d^2, pdf_area = p_select p_prim pdf_point. The sample
+// names the primitive (`prim`), and light_eval re-evaluates a stored (prim, point) from
+// another shading point.
 #ifndef NIMBUS_LIGHTS_GLSL
 #define NIMBUS_LIGHTS_GLSL
 
@@ -24,6 +32,7 @@
 #include "sampling.glsl"
 #include "scene.glsl"
 #include "envmap.glsl"
+#include "emitters.glsl"
 
 // The light index of the environment in a stored path.
 #define LIGHT_ENV 0xffu
@@ -33,10 +42,11 @@ struct LightSample {
     vec3 L;           // arriving radiance in the light's measure (see above)
     vec3 L_over_pdf;  // L / pdf, formed without the cancelling factors
     vec3 wi;          // unit direction towards the light
-    vec3 point;       // the sampled point (sphere lights), else x + dist wi
+    vec3 point;       // the sampled point (sphere and area lights), else x + dist wi
     float dist;       // distance to the light vertex, FAR for directional / environment
     float pdf;        // selection x measure pdf; 0 for an unusable sample
     uint index;       // light index in its set, LIGHT_ENV, or NO_INDEX for none
+    uint prim;        // LIGHT_AREA: the emitter primitive (index into emitters[]); else 0
 };
 
 LightSample light_sample_none() {
@@ -48,7 +58,13 @@ LightSample light_sample_none() {
     s.dist = FAR;
     s.pdf = 0.0;
     s.index = NO_INDEX;
+    s.prim = 0u;
     return s;
+}
+
+// Whether light `index` of the set at `base` is the area light (the emitting shapes).
+bool light_is_area(uint base, uint index) {
+    return SC_HAS_AREA_LIGHTS && index < u_frame.light_count && lights[base + index].type == LIGHT_AREA;
 }
 
 // Constant environment radiance or the map's texel along d.
@@ -80,7 +96,9 @@ float nearest_sphere_light(uint base, vec3 o, vec3 d, float t_min, float t_max, 
 }
 
 // Pick a light for next-event estimation at x: the environment with probability
-// env_select, else an analytic light by the power CDF. u in [0, 1), u2 in [0, 1)^2.
+// env_select, else an analytic light (or the area light) by the power CDF; for the area
+// light, u's place within its CDF interval picks the primitive. u in [0, 1), u2 in
+// [0, 1)^2.
 LightSample light_sample(uint base, vec3 x, float u, vec2 u2) {
     LightSample s = light_sample_none();
     float p_env = u_base.env_select;
@@ -132,6 +150,32 @@ LightSample light_sample(uint base, vec3 x, float u, vec2 u2) {
         s.point = x + s.wi;
         return s;
     }
+    if (SC_HAS_AREA_LIGHTS && type == LIGHT_AREA) {
+        uint count = u_base.emitter_count;
+        if (count == 0u) {
+            return light_sample_none();
+        }
+        // u's place within the area light's interval [cdf_before, select_cdf): in [0, 1).
+        float u_prim = min((u - cdf_before) / p_select, EMITTER_ONE_MINUS_EPSILON);
+        uint prim = sample_emitter(count, u_prim);
+        float p_prim = emitter_pmf(prim);
+        if (!(p_prim > 0.0)) {
+            return light_sample_none();
+        }
+        EmitterPoint ep = emitter_sample_point(emitters[prim], x, u2);
+        if (!ep.valid) {
+            return light_sample_none();
+        }
+        s.prim = prim;
+        s.wi = ep.wi;
+        s.dist = ep.dist;
+        s.point = ep.point;
+        s.L = ep.L;
+        s.pdf = p_select * p_prim * ep.pdf_area;
+        // Domain: p_select > 0, p_prim > 0.
+        s.L_over_pdf = ep.L_over_pdf / (p_select * p_prim);
+        return s;
+    }
     vec3 to_light = light.direction_or_position - x;
     float d2 = dot(to_light, to_light);
     if (type == LIGHT_POINT) {
@@ -179,10 +223,11 @@ LightSample light_sample(uint base, vec3 x, float u, vec2 u2) {
 
 // Re-evaluate a stored light vertex from shading point x: the light `index` of the set at
 // `base` (or LIGHT_ENV), with `dir` the stored direction (directional lights ignore it,
-// the environment uses it) and `point` the stored point (sphere lights). Returns the
-// arriving radiance in the light's measure and sets wi / dist; zero when the vertex cannot
-// be reached from x (the back of a sphere, a point light at x).
-vec3 light_eval(uint base, uint index, vec3 dir, vec3 point, vec3 x, out vec3 wi, out float dist) {
+// the environment uses it), `prim` the emitter primitive (the area light) and `point` the
+// stored point (sphere and area lights). Returns the arriving radiance in the light's
+// measure and sets wi / dist; zero when the vertex cannot be reached from x (the back of
+// a sphere or of an emitting triangle, a point light at x).
+vec3 light_eval(uint base, uint index, vec3 dir, uint prim, vec3 point, vec3 x, out vec3 wi, out float dist) {
     wi = dir;
     dist = FAR;
     if (index == LIGHT_ENV) {
@@ -208,6 +253,10 @@ vec3 light_eval(uint base, uint index, vec3 dir, vec3 point, vec3 x, out vec3 wi
     wi = to_light / dist;
     if (type == LIGHT_POINT) {
         return light.irradiance / d2;
+    }
+    if (SC_HAS_AREA_LIGHTS && type == LIGHT_AREA) {
+        // Le max(0, cos_l) / d^2, one-sided for triangles, outwards for spheres.
+        return prim < u_base.emitter_count ? emitter_eval(prim, point, wi, d2) : vec3(0.0);
     }
     // A point on a sphere is seen from x only from its outer side.
     float cos_l = dot(normalize(point - light.direction_or_position), -wi);

@@ -31,7 +31,7 @@ struct BoxMedium {
 #define SHAPE_SPHERE 2u
 #define SHAPE_MESH 3u
 
-// An opaque Lambertian shape. 96 bytes. `p` is a tagged union on `type` (GLSL has no
+// An opaque Lambertian shape, perhaps an area light. 112 bytes. `p` is a tagged union on `type` (GLSL has no
 // unions; one named member per shape's parameter would more than double the record):
 //   quad:   p[0] corner, p[1] edge_u, p[2] edge_v, p[3].xyz w = n / dot(n, n), n = cross(edge_u, edge_v)
 //   box:    p[0..2] rows of R^T (w 0), p[3].xyz centre, p[4].xyz half extents
@@ -41,8 +41,30 @@ struct BoxMedium {
 //           count, w its node count
 struct Shape {
     vec4 p[5];
-    vec3 albedo;  // rgb Lambertian albedo
-    uint type;    // SHAPE_QUAD, SHAPE_BOX, SHAPE_SPHERE or SHAPE_MESH
+    vec3 albedo;         // rgb Lambertian albedo
+    uint type;           // SHAPE_QUAD, SHAPE_BOX, SHAPE_SPHERE or SHAPE_MESH
+    vec3 emission;       // rgb radiance it emits (W/m^2/sr): quads and mesh triangles towards their normal, boxes and spheres outwards
+    uint emitter_first;  // its first primitive in emitters[] (NO_INDEX if it does not emit)
+};
+
+// Emitter.type
+#define EMITTER_TRIANGLE 0u
+#define EMITTER_SPHERE 1u
+
+// One primitive of an emitting shape: the emitter table that next-event estimation
+// samples (emitters.glsl). 64 bytes. A quad is 2 triangles, a box 12, a mesh its
+// triangles in BVH leaf order (so a mesh hit's emitter is emitter_first + the leaf index
+// minus the mesh's first), a sphere 1. A triangle emits towards cross(p1 - p0, p2 - p0),
+// a sphere outwards.
+struct Emitter {
+    vec3 p0;         // triangle: corner 0; sphere: centre
+    uint type;       // EMITTER_TRIANGLE or EMITTER_SPHERE
+    vec3 p1;         // triangle: corner 1; sphere: (radius, 0, 0)
+    uint shape;      // index of its shape in shapes[]
+    vec3 p2;         // triangle: corner 2
+    float area;      // m^2 (a sphere's whole surface)
+    vec3 radiance;   // rgb Le (W/m^2/sr)
+    float cdf;       // power CDF over the table, inclusive (power = pi area luminance(Le))
 };
 
 // A node of a mesh's BVH (bvh.glsl). 32 bytes. The box [min, max] bounds its subtree.
@@ -71,13 +93,15 @@ struct MeshTriangle {
 #define LIGHT_DIRECTIONAL 0u
 #define LIGHT_POINT 1u
 #define LIGHT_SPHERE 2u
+// Every emitting shape at once (the emitter table); grid passes only.
+#define LIGHT_AREA 3u
 
 // An analytic light. 80 bytes. The crepuscular pass reads directional lights with their
 // gobos; the grid-medium passes read every type with its selection CDF.
 struct Light {
     vec3 direction_or_position; // directional: unit travel direction; point: position; sphere: centre
-    uint type;                  // LIGHT_DIRECTIONAL, LIGHT_POINT or LIGHT_SPHERE
-    vec3 irradiance;            // rgb: directional E (W/m^2), point I (W/sr), sphere L (W/m^2/sr)
+    uint type;                  // LIGHT_DIRECTIONAL, LIGHT_POINT, LIGHT_SPHERE or LIGHT_AREA
+    vec3 irradiance;            // rgb: directional E (W/m^2), point I (W/sr), sphere L (W/m^2/sr); area: unused
     float radius;               // sphere: radius (m); 0 otherwise
     vec3 gobo_origin;           // a point on the gobo plane
     uint gobo_plane_count;      // gobo half-planes (0: no gobo)

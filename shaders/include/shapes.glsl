@@ -1,7 +1,8 @@
-// Opaque shapes: their buffer, nearest hit with normal, and occlusion queries. Needs
-// `u_frame` (shape_count = number of shapes) and the bool constant SC_HAS_SHAPES to be
-// declared by the including pass; declares SC_HAS_MESHES itself (meshes traverse their
-// BVH, bvh.glsl; without meshes the traversal is compiled out).
+// Opaque shapes: their buffer, nearest hit with normal, occlusion queries, and the
+// radiance an emitting shape sends (shape_emitted). Needs `u_frame` (shape_count =
+// number of shapes) and the bool constant SC_HAS_SHAPES to be declared by the including
+// pass; declares SC_HAS_MESHES itself (meshes traverse their BVH, bvh.glsl; without
+// meshes the traversal is compiled out), and SC_HAS_AREA_LIGHTS through emitters.glsl.
 #ifndef NIMBUS_SHAPES_GLSL
 #define NIMBUS_SHAPES_GLSL
 
@@ -10,6 +11,7 @@
 #include "geometry.glsl"
 #include "scene.glsl"
 #include "bvh.glsl"
+#include "emitters.glsl"
 
 // Some shapes are triangle meshes.
 layout(constant_id = SC_ID_HAS_MESHES) const bool SC_HAS_MESHES = false;
@@ -56,17 +58,14 @@ float intersect_shape(Shape s, vec3 o, vec3 d, float t_min, float t_max, bool an
     return FAR;
 }
 
-// Geometric normal of shape `s` at the surface point x, facing against d. For a mesh:
-// of the triangle the last nearest_shape hit, so call it for that hit.
-vec3 shape_normal(Shape s, vec3 x, vec3 d) {
+// Geometric normal of shape `s` at the surface point x, not normalized, on its own side:
+// a quad's cross(edge_u, edge_v), a mesh triangle's counter-clockwise normal (of the
+// triangle the last nearest_shape hit; 0 if none), a box's or a sphere's outward normal.
+vec3 shape_outward_normal(Shape s, vec3 x) {
     uint type = s.type;
     vec3 n;
     if (SC_HAS_MESHES && type == SHAPE_MESH) {
-        // The hit triangle's geometric normal (set by nearest_shape); -d if it has none.
         n = g_nearest_triangle == NO_INDEX ? vec3(0.0) : mesh_triangle_normal(g_nearest_triangle);
-        if (n == vec3(0.0)) {
-            n = -d;
-        }
     } else if (type == SHAPE_QUAD) {
         n = cross(s.p[1].xyz, s.p[2].xyz);
     } else if (type == SHAPE_SPHERE) {
@@ -81,8 +80,35 @@ vec3 shape_normal(Shape s, vec3 x, vec3 d) {
         int axis = (rel.x >= rel.y && rel.x >= rel.z) ? 0 : ((rel.y >= rel.z) ? 1 : 2);
         n = rows[axis].xyz * sign(local[axis] == 0.0 ? 1.0 : local[axis]);
     }
+    return n;
+}
+
+// Geometric normal of shape `s` at the surface point x, facing against d. For a mesh:
+// of the triangle the last nearest_shape hit, so call it for that hit.
+vec3 shape_normal(Shape s, vec3 x, vec3 d) {
+    vec3 n = shape_outward_normal(s, x);
+    // A mesh hit without a triangle normal faces the ray.
+    if (SC_HAS_MESHES && s.type == SHAPE_MESH && n == vec3(0.0)) {
+        n = -d;
+    }
     n = normalize(n);
     return dot(n, d) > 0.0 ? -n : n;
+}
+
+// The radiance shape `shape_index` emits from its surface point x back along a ray of
+// direction d (towards -d): its emission on the side it emits to (a quad's or mesh
+// triangle's normal side, a box's or sphere's outside), 0 from behind, for a shape that
+// does not emit, or without area lights. Call it right after the nearest_shape that hit
+// it (a mesh's triangle is that hit's).
+vec3 shape_emitted(uint shape_index, vec3 x, vec3 d) {
+    if (!SC_HAS_AREA_LIGHTS || shape_index == NO_INDEX) {
+        return vec3(0.0);
+    }
+    Shape s = shapes[shape_index];
+    if (!any(greaterThan(s.emission, vec3(0.0)))) {
+        return vec3(0.0);
+    }
+    return dot(shape_outward_normal(s, x), d) < 0.0 ? s.emission : vec3(0.0);
 }
 
 // Nearest shape hit along o + t d in (t_min, t_max): distance (FAR if none) and index.

@@ -156,7 +156,7 @@ void restir_main() {
                     vec3 Fs = Fhat * brdf * ls.L * T_nee;
                     vec3 bs = beta * brdf * ls.L_over_pdf * T_nee;
                     add_candidate(at, r, rng, luminance(bs), luminance(Fs), i, jitter_bits | (ls.index << 8u),
-                                  ls.point, oct_encode(ls.wi));
+                                  ls.point, light_is_area(0u, ls.index) ? ls.prim : oct_encode(ls.wi));
                 }
                 if (i == SC_MAX_BOUNCES) {
                     break;
@@ -217,7 +217,7 @@ void restir_main() {
                 vec3 Fs = Fhat * sigma_s * rho * ls.L * T_nee;
                 vec3 bs = beta * sigma_s * rho * ls.L_over_pdf * T_nee;
                 add_candidate(at, r, rng, luminance(bs), luminance(Fs), i, jitter_bits | (ls.index << 8u),
-                              ls.point, oct_encode(ls.wi));
+                              ls.point, light_is_area(0u, ls.index) ? ls.prim : oct_encode(ls.wi));
             }
             if (i == SC_MAX_BOUNCES) {
                 break;

@@ -320,14 +320,16 @@ bool shapes_block(vec3 x, vec3 wi, float dist) {
 }
 
 // What a camera ray from o along d sees where it leaves the media: the radiance arriving
-// from its end (an emitting sphere or the environment, both weighted as light_seen does;
-// a shape is dark) and where it ends (t_end, FAR if it escapes).
+// from its end (an emitting sphere or the environment, both weighted as light_seen does,
+// or the emission of a shape on its emitting side) and where it ends (t_end, FAR if it
+// escapes).
 vec3 camera_end(uint set, vec3 o, vec3 d, out float t_end) {
     vec3 L = light_seen(light_base(set), o, d, t_end);
     SurfacePoint s = surface_along(o, d, t_end);
     if (s.shape != NO_INDEX) {
         t_end = s.t;
-        return vec3(0.0);
+        // Right after the nearest_shape of surface_along (a mesh's hit triangle).
+        return shape_emitted(s.shape, o + s.t * d, d);
     }
     return L;
 }
@@ -492,7 +494,8 @@ vec3 path_value(uint at, Reservoir r, CameraRay cam, CameraRay src, uint mode, i
     // The light vertex, re-evaluated from x_k'.
     vec3 wi;
     float dist;
-    vec3 L = light_eval(lbase, res_light(r), oct_decode(r.light_dir), r.light_point, x, wi, dist);
+    vec3 L = light_eval(lbase, res_light(r), oct_decode(r.light_dir), r.light_dir, r.light_point, x, wi,
+                        dist);
     if (!any(greaterThan(L, vec3(0.0)))) {
         return vec3(0.0);
     }

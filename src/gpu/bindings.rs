@@ -37,6 +37,8 @@ pub const GRID_BRICKS: u32 = 27;
 pub const BVH_NODES: u32 = 28;
 /// Their leaf triangles (`MeshTriangle mesh_triangles[]`).
 pub const MESH_TRIANGLES: u32 = 29;
+/// The emitting shapes' primitives with their power CDF (`Emitter emitters[]`).
+pub const EMITTERS: u32 = 30;
 
 /// Index of the non-finite sample counter in the stats buffer.
 pub const STAT_NON_FINITE: usize = 0;
@@ -49,7 +51,7 @@ pub const STAT_LOOPS_CUT: usize = 2;
 pub const STAT_COUNT: usize = 4;
 
 /// Every binding with its GLSL name, for the layout test.
-pub const ALL: [(&str, u32); 30] = [
+pub const ALL: [(&str, u32); 31] = [
     ("BINDING_FRAME_UNIFORMS", FRAME_UNIFORMS),
     ("BINDING_ACCUM", ACCUM),
     ("BINDING_ACCUM_SQ", ACCUM_SQ),
@@ -80,4 +82,5 @@ pub const ALL: [(&str, u32); 30] = [
     ("BINDING_GRID_BRICKS", GRID_BRICKS),
     ("BINDING_BVH_NODES", BVH_NODES),
     ("BINDING_MESH_TRIANGLES", MESH_TRIANGLES),
+    ("BINDING_EMITTERS", EMITTERS),
 ];

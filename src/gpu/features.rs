@@ -30,6 +30,8 @@ pub const SC_ID_MAX_PIECES: u32 = 13;
 pub const SC_ID_HAS_CONVEX: u32 = 14;
 /// Shapes: some are triangle meshes (BVH traversal compiled in).
 pub const SC_ID_HAS_MESHES: u32 = 15;
+/// Grid passes: some shapes emit (the emitter table is sampled).
+pub const SC_ID_HAS_AREA_LIGHTS: u32 = 16;
 
 // ---------------------------------------------------------------------------------------
 // Values of `SC_ESTIMATOR` in `shaders/box/crepuscular.comp`.
@@ -79,7 +81,7 @@ pub const MARCH_MAX_STEPS: u32 = 4096;
 pub const GRID_MAX_STEPS: u32 = 1_048_576;
 
 /// Every constant above with its GLSL name.
-pub const ALL: [(&str, u32); 38] = [
+pub const ALL: [(&str, u32); 39] = [
     ("SC_ID_HAS_SHAPES", SC_ID_HAS_SHAPES),
     ("SC_ID_HAS_GOBOS", SC_ID_HAS_GOBOS),
     ("SC_ID_HAS_ENV", SC_ID_HAS_ENV),
@@ -96,6 +98,7 @@ pub const ALL: [(&str, u32); 38] = [
     ("SC_ID_MAX_PIECES", SC_ID_MAX_PIECES),
     ("SC_ID_HAS_CONVEX", SC_ID_HAS_CONVEX),
     ("SC_ID_HAS_MESHES", SC_ID_HAS_MESHES),
+    ("SC_ID_HAS_AREA_LIGHTS", SC_ID_HAS_AREA_LIGHTS),
     ("ESTIMATOR_MCWVDS", ESTIMATOR_MCWVDS),
     ("ESTIMATOR_REDS", ESTIMATOR_REDS),
     ("ESTIMATOR_REES", ESTIMATOR_REES),

@@ -5,15 +5,18 @@
 //! - [`bindings`]: descriptor binding numbers, mirrored from `bindings.glsl`;
 //! - [`scene`]: turning a [`nimbus_scene::Scene`] into those records (box media, shapes,
 //!   lights with their selection CDF, grids with their super-voxels, environment maps);
-//! - [`meshes`]: the BVH node and triangle buffers of the scene's meshes.
+//! - [`meshes`]: the BVH node and triangle buffers of the scene's meshes;
+//! - [`emitters`]: the emitting shapes' primitives with their power CDF (area lights).
 
 pub mod bindings;
+pub mod emitters;
 pub mod features;
 pub mod meshes;
 pub mod records;
 pub mod scene;
 pub mod sparse;
 
+pub use emitters::EmitterTable;
 pub use meshes::MeshBuffers;
 pub use records::*;
 pub use scene::{

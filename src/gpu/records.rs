@@ -49,6 +49,37 @@ pub struct ShapeGpu {
     pub albedo: [f32; 3],
     /// `SHAPE_QUAD`, `SHAPE_BOX`, `SHAPE_SPHERE` or `SHAPE_MESH`.
     pub r#type: u32,
+    /// Radiance it emits (W/(m²·sr)); zero if it is no area light.
+    pub emission: [f32; 3],
+    /// Index of its first primitive in the emitter table, `NO_INDEX` if it does not emit.
+    pub emitter_first: u32,
+}
+
+/// Values of `EmitterGpu::type`.
+pub const EMITTER_TRIANGLE: u32 = 0;
+pub const EMITTER_SPHERE: u32 = 1;
+
+/// `Emitter` in scene.glsl: one primitive of an emitting shape in the emitter table
+/// (next-event estimation of area lights).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct EmitterGpu {
+    /// Triangle: corner 0; sphere: centre.
+    pub p0: [f32; 3],
+    /// `EMITTER_TRIANGLE` or `EMITTER_SPHERE`.
+    pub r#type: u32,
+    /// Triangle: corner 1; sphere: (radius, 0, 0).
+    pub p1: [f32; 3],
+    /// Index of its shape in the shape buffer.
+    pub shape: u32,
+    /// Triangle: corner 2 (counter-clockwise seen from the side it emits to).
+    pub p2: [f32; 3],
+    /// Its area (m²); a sphere's whole surface.
+    pub area: f32,
+    /// Radiance it emits (W/(m²·sr)).
+    pub radiance: [f32; 3],
+    /// Power CDF over the table, inclusive: P(index <= this).
+    pub cdf: f32,
 }
 
 /// `MeshTriangle` in scene.glsl: one triangle of a mesh in BVH leaf order (the node
@@ -69,6 +100,8 @@ pub struct MeshTriangleGpu {
 pub const LIGHT_DIRECTIONAL: u32 = 0;
 pub const LIGHT_POINT: u32 = 1;
 pub const LIGHT_SPHERE: u32 = 2;
+/// All emitting shapes as one light of the grid passes' selection (`EmitterGpu` table).
+pub const LIGHT_AREA: u32 = 3;
 
 /// `Light` in scene.glsl: an analytic light.
 #[repr(C)]
@@ -252,7 +285,8 @@ pub struct BaselineUniformsGpu {
     pub g: f32,
     /// Probability that next-event estimation picks the environment.
     pub env_select: f32,
-    pub _pad0: f32,
+    /// Primitives in the emitter table (0 without area lights).
+    pub emitter_count: u32,
     pub _pad1: f32,
     pub _pad2: f32,
     /// Le = emission_scale · trilinear emission grid.

@@ -220,9 +220,12 @@ pub fn frame_uniforms(
 }
 
 /// The shape records of a scene. A mesh's record names where its BVH lies in the
-/// scene's mesh buffers ([`MeshPlacement`]): meshes are concatenated in shape order.
+/// scene's mesh buffers ([`MeshPlacement`]): meshes are concatenated in shape order; an
+/// emitting shape's names its first primitive in the emitter table
+/// ([`EmitterTable`](super::emitters::EmitterTable), built in the same order).
 pub fn shape_records(scene: &Scene) -> Vec<ShapeGpu> {
     let mut next = MeshPlacement::default();
+    let mut next_emitter = 0u32;
     scene
         .shapes
         .iter()
@@ -237,10 +240,24 @@ pub fn shape_records(scene: &Scene) -> Vec<ShapeGpu> {
                     .first_triangle
                     .saturating_add(mesh.triangle_count() as u32);
             }
-            shape_record(shape, placement)
+            let primitives = super::emitters::emitter_primitives(shape);
+            let emitter_first = if primitives > 0 {
+                next_emitter
+            } else {
+                NO_INDEX
+            };
+            next_emitter = next_emitter.saturating_add(primitives);
+            ShapeGpu {
+                emission: shape.emission().to_array(),
+                emitter_first,
+                ..shape_record(shape, placement)
+            }
         })
         .collect()
 }
+
+/// `NO_INDEX` of constants.glsl: no light, medium, shape or emitter.
+pub const NO_INDEX: u32 = u32::MAX;
 
 /// Where a mesh's BVH starts in the scene's concatenated node and triangle buffers.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -260,6 +277,7 @@ fn shape_record(shape: &Shape, mesh_at: MeshPlacement) -> ShapeGpu {
             edge_u,
             edge_v,
             albedo,
+            ..
         } => {
             // w = n / (n·n) lets the shader solve the parallelogram coordinates.
             let n = edge_u.cross(*edge_v);
@@ -275,6 +293,7 @@ fn shape_record(shape: &Shape, mesh_at: MeshPlacement) -> ShapeGpu {
             size,
             rotation_deg,
             albedo,
+            ..
         } => {
             let rows = world_to_local_rows(rotation_xyz_deg(*rotation_deg));
             p[0] = rows[0];
@@ -288,11 +307,12 @@ fn shape_record(shape: &Shape, mesh_at: MeshPlacement) -> ShapeGpu {
             center,
             radius,
             albedo,
+            ..
         } => {
             p[0] = v4(*center, *radius);
             (*albedo, SHAPE_SPHERE)
         }
-        Shape::Mesh { mesh, albedo } => {
+        Shape::Mesh { mesh, albedo, .. } => {
             // Indices bit-cast into floats: root node, first triangle, counts.
             p[0] = [
                 f32::from_bits(mesh_at.first_node),
@@ -307,6 +327,8 @@ fn shape_record(shape: &Shape, mesh_at: MeshPlacement) -> ShapeGpu {
         p,
         albedo: albedo.to_array(),
         r#type: kind,
+        emission: [0.0; 3],
+        emitter_first: NO_INDEX,
     }
 }
 
@@ -361,6 +383,9 @@ pub struct GpuGrid {
     pub light_radius: f32,
     /// Mean luminance of the environment map over the sphere, if there is one.
     pub env_map_luminance: Option<f32>,
+    /// The emitting shapes' primitives (empty without area lights); `lights` ends with
+    /// their `LIGHT_AREA` record when there are some.
+    pub emitters: super::EmitterTable,
 }
 
 /// An environment map as `shaders/include/envmap.glsl` reads it.
@@ -421,8 +446,15 @@ impl LightSet {
     /// Lights are selected in proportion to the power they bring to the medium's
     /// bounding sphere (radius R): directional E·πR², point 4π·I, sphere 4π²r²·L,
     /// environment 4π²R²·L (luminance of each; `env_map_luminance` replaces the constant
-    /// radiance's when the environment has a map).
-    pub fn build(scene_lights: &[Light], radius: f32, env_map_luminance: Option<f32>) -> LightSet {
+    /// radiance's when the environment has a map), and the emitting shapes, if
+    /// `area_power` (their total π·A·L, [`EmitterTable`](super::EmitterTable)) is positive,
+    /// as one `LIGHT_AREA` light after the analytic ones.
+    pub fn build(
+        scene_lights: &[Light],
+        radius: f32,
+        env_map_luminance: Option<f32>,
+        area_power: f64,
+    ) -> LightSet {
         let pi = std::f32::consts::PI;
         let mut lights = Vec::new();
         let mut weights = Vec::new();
@@ -485,6 +517,21 @@ impl LightSet {
                 select_cdf: 0.0,
             });
             weights.push(weight.max(0.0));
+        }
+        if area_power > 0.0 {
+            lights.push(LightGpu {
+                direction_or_position: [0.0; 3],
+                r#type: LIGHT_AREA,
+                irradiance: [0.0; 3],
+                radius: 0.0,
+                gobo_origin: [0.0; 3],
+                gobo_plane_count: 0,
+                gobo_u: [0.0; 3],
+                gobo_first_plane: 0,
+                gobo_v: [0.0; 3],
+                select_cdf: 0.0,
+            });
+            weights.push(area_power as f32);
         }
         let env_luminance = env_map_luminance.unwrap_or_else(|| luminance(env_radiance));
         let env_weight = env_luminance * 4.0 * pi * pi * radius * radius;
@@ -615,9 +662,17 @@ impl GpuGrid {
         if let Some(map) = &env_map {
             uniforms.env_size = map.size;
         }
-        let set = LightSet::build(&scene.lights, radius, env_map_luminance);
+        let emitters = super::EmitterTable::build(scene);
+        uniforms.emitter_count = emitters.len() as u32;
+        let set = LightSet::build(
+            &scene.lights,
+            radius,
+            env_map_luminance,
+            emitters.total_power,
+        );
         uniforms.env_select = set.env_select;
         Ok(GpuGrid {
+            emitters,
             density,
             density_layout,
             super_voxels: non_empty(&super_voxels),

@@ -20,8 +20,9 @@ use crate::plan::BaselinePlan;
 use crate::shaders;
 
 /// The specialization constants of `pathtrace.comp` for a plan.
-pub fn specialization(plan: &BaselinePlan) -> [(u32, SpecValue); 8] {
+pub fn specialization(plan: &BaselinePlan) -> [(u32, SpecValue); 9] {
     [
+        (SC_ID_HAS_AREA_LIGHTS, SpecValue::Bool(plan.has_area_lights)),
         (SC_ID_HAS_MESHES, SpecValue::Bool(plan.has_meshes)),
         (SC_ID_HAS_ENV_MAP, SpecValue::Bool(plan.has_env_map)),
         (SC_ID_HAS_MEDIA, SpecValue::Bool(plan.has_boxes)),
@@ -70,6 +71,7 @@ pub fn create(
             BindingDesc::storage_buffer(bindings::GRID_BRICKS),
             BindingDesc::storage_buffer(bindings::BVH_NODES),
             BindingDesc::storage_buffer(bindings::MESH_TRIANGLES),
+            BindingDesc::storage_buffer(bindings::EMITTERS),
         ]);
         let pipeline = compute_pipeline::<PassPush>(
             ctx,
@@ -83,6 +85,8 @@ pub fn create(
         let bvh_nodes = upload_records(ctx, o, &meshes.nodes, "mesh BVH nodes")?;
         let mesh_triangles = upload_records(ctx, o, &meshes.triangles, "mesh triangles")?;
         let lights = upload_records(ctx, o, &non_empty(&grid.lights), "lights")?;
+        // Without area lights the (compiled-out) table is one zeroed record.
+        let emitters = upload_records(ctx, o, &non_empty(&grid.emitters.records), "emitters")?;
         let super_voxels = upload_records(ctx, o, &grid.super_voxels, "super-voxels")?;
         let boxes = upload_records(ctx, o, &non_empty(&boxes), "box media")?;
         // Convex media are refused beside grids: their (compiled-out) planes are empty.
@@ -126,6 +130,10 @@ pub fn create(
             DescriptorWrite::StorageBuffer {
                 binding: bindings::LIGHTS,
                 buffer: &o[lights],
+            },
+            DescriptorWrite::StorageBuffer {
+                binding: bindings::EMITTERS,
+                buffer: &o[emitters],
             },
             DescriptorWrite::StorageBuffer {
                 binding: bindings::SUPER_VOXELS,
@@ -192,7 +200,10 @@ fn sample_cost(plan: &BaselinePlan, grid: &GpuGrid, scene: &Scene) -> u32 {
     let blocks: u32 = grid.uniforms.grid.space.brick_dims.iter().sum::<u32>() + 3;
     // A segment's closest-hit ray and each light's shadow ray through the meshes.
     let mesh_rays = (1 + grid.lights.len() as u32) * super::mesh_ray_cost(scene);
-    let segment = blocks + EXACT_SPAN_STEPS + 3 * grid.lights.len() as u32 + mesh_rays;
+    // An area-light sample's binary search in the emitter table.
+    let emitter_search = usize::BITS - grid.emitters.len().leading_zeros();
+    let segment =
+        blocks + EXACT_SPAN_STEPS + 3 * grid.lights.len() as u32 + mesh_rays + emitter_search;
     let segments = 2 * (plan.max_bounces + 1);
     segment.saturating_mul(segments)
 }
@@ -200,6 +211,7 @@ fn sample_cost(plan: &BaselinePlan, grid: &GpuGrid, scene: &Scene) -> u32 {
 /// What the baseline pass allocates (see [`crate::budget`]).
 pub fn footprint(scene: &Scene, f: &mut Footprint) -> Result<()> {
     f.add_meshes(scene);
+    f.add_emitters(scene);
     f.add_env_map(scene)?;
     f.add_grid(scene)?;
     Ok(())

@@ -30,6 +30,15 @@ pub(super) fn build(
             i + 1
         );
     }
+    if let Some(i) = scene.shapes.iter().position(|s| s.emits()) {
+        bail!(
+            "{file}: [[shape]] #{} (type = \"{}\"): field `emission`: emitting shapes (area \
+             lights) are not supported yet by the crepuscular pass; the baseline path tracer \
+             renders them beside a grid medium ([integrator] volume = \"baseline\")",
+            i + 1,
+            scene.shapes[i].type_name()
+        );
+    }
     let env_map = super::environment_map(scene)?;
     let integrator = &scene.integrator;
     let box_media = scene.media.len();

@@ -119,6 +119,8 @@ pub struct BaselinePlan {
     pub has_shapes: bool,
     /// Some shapes are triangle meshes.
     pub has_meshes: bool,
+    /// Some shapes emit (area lights: the emitter table is sampled).
+    pub has_area_lights: bool,
     pub has_env: bool,
     pub has_env_map: bool,
     pub pixel_jitter: bool,
@@ -165,6 +167,9 @@ pub struct RestirPlan {
     pub has_meshes: bool,
     /// Homogeneous box media beside the grid (SC_HAS_MEDIA).
     pub has_boxes: bool,
+    /// Some shapes emit: area lights in NEE, emission seen by camera rays
+    /// (SC_HAS_AREA_LIGHTS).
+    pub has_area_lights: bool,
 }
 
 /// One line of `--explain`: a pass or feature, in or out, and the reason.

@@ -15,7 +15,9 @@ pub use nimbus_scene::MAX_SPATIAL_NEIGHBORS;
 /// (`MAX_RESTIR_LIGHTS`, 255); 16 keeps the per-frame light records and their power CDF
 /// small for both grid integrators.
 pub const MAX_BASELINE_LIGHTS: usize = 16;
-const _: () = assert!(MAX_BASELINE_LIGHTS <= crate::gpu::features::MAX_RESTIR_LIGHTS as usize);
+/// Emitting shapes add one `LIGHT_AREA` record to the set, so a set holds at most
+/// `MAX_BASELINE_LIGHTS + 1` records, which must stay below ReSTIR's environment index.
+const _: () = assert!(MAX_BASELINE_LIGHTS < crate::gpu::features::MAX_RESTIR_LIGHTS as usize);
 
 /// The plan of a scene with a grid medium and its decision rows.
 pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
@@ -141,6 +143,7 @@ pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
             .shapes
             .iter()
             .any(|s| matches!(s, nimbus_scene::Shape::Mesh { .. })),
+        has_area_lights: scene.shapes.iter().any(|s| s.emits()),
         has_env,
         has_env_map: env_map.is_some(),
         pixel_jitter: scene.render.pixel_jitter,
@@ -163,6 +166,7 @@ pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
             reason: format!("{} shape(s)", scene.shapes.len()),
         },
         super::meshes_decision(scene),
+        area_lights_decision(scene),
         Decision {
             name: "  SC_HAS_MEDIA (boxes)",
             enabled: boxes > 0,
@@ -174,7 +178,7 @@ pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
             reason: if baseline.has_emission {
                 "the grid emits: absorbed emission added at every real collision".into()
             } else {
-                "nothing emits: emission lookups compiled out".into()
+                "the grid does not emit: its emission lookups compiled out".into()
             },
         },
         Decision {
@@ -192,6 +196,33 @@ pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
         },
     ];
     Ok((Integrator::Baseline(baseline), decisions))
+}
+
+/// The `SC_HAS_AREA_LIGHTS` row of the baseline: on with the emitting shapes and their
+/// primitives in the emitter table, else why emitter sampling is compiled out.
+fn area_lights_decision(scene: &Scene) -> Decision {
+    let emitting = scene.shapes.iter().filter(|s| s.emits()).count();
+    if emitting == 0 {
+        return Decision::new(
+            "  SC_HAS_AREA_LIGHTS",
+            false,
+            "no shape emits: emitter sampling and seen emission compiled out",
+        );
+    }
+    let primitives: u64 = scene
+        .shapes
+        .iter()
+        .map(|s| u64::from(crate::gpu::emitters::emitter_primitives(s)))
+        .sum();
+    Decision::new(
+        "  SC_HAS_AREA_LIGHTS",
+        true,
+        format!(
+            "{emitting} emitting shape(s), {primitives} emitter primitive(s): seen by camera rays, \
+             one light of next-event estimation by power (binary search in the power CDF, \
+             then a point on the primitive)"
+        ),
+    )
 }
 
 /// The ReSTIR plan for a validated grid scene.
@@ -234,6 +265,7 @@ fn restir_plan(
             .iter()
             .any(|s| matches!(s, nimbus_scene::Shape::Mesh { .. })),
         has_boxes: boxes > 0,
+        has_area_lights: scene.shapes.iter().any(|s| s.emits()),
     };
     let frames = scene.render.frames;
     let spatial = plan.spatial_neighbors > 0 && plan.spatial_rounds > 0;
@@ -324,6 +356,7 @@ fn restir_plan(
             },
         ),
         super::meshes_decision(scene),
+        area_lights_decision(scene),
         on(
             "  SC_HAS_MEDIA (boxes)",
             plan.has_boxes,
@@ -338,7 +371,7 @@ fn restir_plan(
             if plan.has_emission {
                 "the grid emits: emission candidates at every vertex".into()
             } else {
-                "nothing emits: emission candidates compiled out".into()
+                "the grid does not emit: its emission candidates compiled out".into()
             },
         ),
         on(

@@ -133,7 +133,7 @@ fn scene_files(scene: &Scene) -> Vec<(String, &Path)> {
     for (i, shape) in shapes.iter().enumerate() {
         match shape {
             Shape::Quad { .. } | Shape::Box { .. } | Shape::Sphere { .. } => {}
-            Shape::Mesh { mesh, albedo: _ } => {
+            Shape::Mesh { mesh, .. } => {
                 out.push((format!("[[shape]] #{} file", i + 1), mesh.file.as_path()));
             }
         }

@@ -53,7 +53,7 @@ max_bounces = {bounces}
 /// 4x4 footprint strata) and check that every channel's image mean agrees within 1% plus
 /// 4 combined standard errors, and that at most 2% of the pixel channels differ by more
 /// than 4.5 combined standard errors.
-fn check_against_oracle(
+pub(crate) fn check_against_oracle(
     ctx: &nimbus_gpu::Context,
     scene: &nimbus_scene::Scene,
     seed: u64,

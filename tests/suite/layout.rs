@@ -10,10 +10,10 @@ use std::mem::size_of;
 
 use nimbus::gpu::bindings;
 use nimbus::gpu::{
-    BaselineUniformsGpu, BoxMediumGpu, FrameUniforms, GridLevelGpu, GridParamsGpu, GridSpaceGpu,
-    LightGpu, MeshTriangleGpu, MomentFrameGpu, MomentPush, PassPush, RestirPush, RestirUniformsGpu,
-    ShapeGpu, LIGHT_DIRECTIONAL, LIGHT_POINT, LIGHT_SPHERE, SHAPE_BOX, SHAPE_MESH, SHAPE_QUAD,
-    SHAPE_SPHERE,
+    BaselineUniformsGpu, BoxMediumGpu, EmitterGpu, FrameUniforms, GridLevelGpu, GridParamsGpu,
+    GridSpaceGpu, LightGpu, MeshTriangleGpu, MomentFrameGpu, MomentPush, PassPush, RestirPush,
+    RestirUniformsGpu, ShapeGpu, EMITTER_SPHERE, EMITTER_TRIANGLE, LIGHT_AREA, LIGHT_DIRECTIONAL,
+    LIGHT_POINT, LIGHT_SPHERE, SHAPE_BOX, SHAPE_MESH, SHAPE_QUAD, SHAPE_SPHERE,
 };
 use nimbus_scene::BvhNode;
 
@@ -62,7 +62,8 @@ fn binding_numbers_match_the_glsl_header() {
     );
 }
 
-/// The values of `Shape.type` and `Light.type` (`#define NAME <n>u` in scene.glsl).
+/// The values of `Shape.type`, `Light.type` and `Emitter.type` (`#define NAME <n>u` in
+/// scene.glsl).
 #[test]
 fn record_type_tags_match_the_glsl_defines() {
     let text = read("shaders/include/scene.glsl");
@@ -84,13 +85,16 @@ fn record_type_tags_match_the_glsl_defines() {
         ("LIGHT_DIRECTIONAL", LIGHT_DIRECTIONAL),
         ("LIGHT_POINT", LIGHT_POINT),
         ("LIGHT_SPHERE", LIGHT_SPHERE),
+        ("LIGHT_AREA", LIGHT_AREA),
+        ("EMITTER_TRIANGLE", EMITTER_TRIANGLE),
+        ("EMITTER_SPHERE", EMITTER_SPHERE),
     ];
     for (name, value) in rust {
         assert_eq!(defs.get(name).copied(), Some(value), "{name}");
     }
     let tags = defs
         .keys()
-        .filter(|k| k.starts_with("SHAPE_") || k.starts_with("LIGHT_"))
+        .filter(|k| k.starts_with("SHAPE_") || k.starts_with("LIGHT_") || k.starts_with("EMITTER_"))
         .count();
     assert_eq!(tags, rust.len(), "a type tag is missing on one side");
 }
@@ -387,7 +391,29 @@ fn mirrors() -> Vec<Mirror> {
             rust: "ShapeGpu",
             rules: &[Std430],
             size: size_of::<ShapeGpu>(),
-            fields: rust_fields!(ShapeGpu { p, albedo, r#type }),
+            fields: rust_fields!(ShapeGpu {
+                p,
+                albedo,
+                r#type,
+                emission,
+                emitter_first,
+            }),
+        },
+        Mirror {
+            glsl: "Emitter",
+            rust: "EmitterGpu",
+            rules: &[Std430],
+            size: size_of::<EmitterGpu>(),
+            fields: rust_fields!(EmitterGpu {
+                p0,
+                r#type,
+                p1,
+                shape,
+                p2,
+                area,
+                radiance,
+                cdf,
+            }),
         },
         Mirror {
             glsl: "BvhNode",
@@ -562,7 +588,7 @@ fn mirrors() -> Vec<Mirror> {
                 albedo,
                 g,
                 env_select,
-                _pad0,
+                emitter_count,
                 _pad1,
                 _pad2,
                 emission_scale,

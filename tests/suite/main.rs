@@ -19,6 +19,7 @@ mod box_me;
 mod budget;
 mod cli;
 mod docs;
+mod emitters;
 mod envmap_gpu;
 mod generators;
 mod grid_sparse;

@@ -346,6 +346,7 @@ fn gpu_traversal_agrees_with_the_cpu_bvh() {
         scene.shapes.push(Shape::Mesh {
             mesh: Arc::new(shape),
             albedo: Vec3::ZERO,
+            emission: Vec3::ZERO,
         });
     }
     assert_eq!(shape_records(&scene).len(), meshes.len());

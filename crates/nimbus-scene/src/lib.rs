@@ -38,7 +38,8 @@
 //!   [`Scene::lights_at`] interpolates linearly by frame (directions by normalized
 //!   lerp) and clamps outside the keyed range, like the camera.
 //! - Media: `albedo` 1 (no absorption), `g` 0, `rotation_deg` [0, 0, 0]; grid
-//!   `density_scale` 1, `emission_scale` 1. Shapes: `albedo` 0.
+//!   `density_scale` 1, `emission_scale` 1. Shapes: `albedo` 0, `emission` 0 (no area
+//!   light).
 //! - Directional light: `gobo_origin` [0, 0, 0] (an error without `gobo`).
 //! - Environment light: `scale` 1; `radiance` 1 when `file` is given (the two multiply);
 //!   one of `radiance` / `file` is required.
@@ -60,6 +61,7 @@
 //! | `g` | (−1, 1) exclusive |
 //! | `size`, `radius`, quad edge lengths, grid extents | (0, 1e7] m |
 //! | `irradiance`, `radiance`, `intensity`, `scale`, `emission_scale` | components >= 0 |
+//! | shape `emission` | each component finite, in [0, 1e12] W/(m²·sr) ([`MAX_RADIOMETRIC`]) |
 //! | `bounds_min` < `bounds_max` | componentwise |
 //! | grid `dims` | each 1..=4096, product <= 2^31 voxels |
 //! | raw grid files | exactly nx·ny·nz·4 bytes (·3 channels for `velocity`) |

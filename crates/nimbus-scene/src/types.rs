@@ -328,7 +328,10 @@ pub struct GridFrame {
     pub density: GridSource,
 }
 
-/// `[[shape]]`: opaque Lambertian surfaces.
+/// `[[shape]]`: opaque Lambertian surfaces. Each may emit: `emission` (W/(m²·sr), zero
+/// for none) makes it a Lambertian area light, one-sided for a quad (towards
+/// edge_u × edge_v) and a mesh triangle (towards its counter-clockwise normal), outwards
+/// for a box or a sphere.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Shape {
     Quad {
@@ -336,23 +339,27 @@ pub enum Shape {
         edge_u: Vec3,
         edge_v: Vec3,
         albedo: Vec3,
+        emission: Vec3,
     },
     Box {
         center: Vec3,
         size: Vec3,
         rotation_deg: Vec3,
         albedo: Vec3,
+        emission: Vec3,
     },
     Sphere {
         center: Vec3,
         radius: f32,
         albedo: Vec3,
+        emission: Vec3,
     },
     /// A triangle mesh, loaded with its BVH when the scene loads and shared by every
     /// copy of the scene.
     Mesh {
         mesh: std::sync::Arc<crate::mesh::MeshShape>,
         albedo: Vec3,
+        emission: Vec3,
     },
 }
 
@@ -365,6 +372,21 @@ impl Shape {
             Shape::Sphere { .. } => "sphere",
             Shape::Mesh { .. } => "mesh",
         }
+    }
+
+    /// The radiance it emits (W/(m²·sr)); zero for a shape that does not emit.
+    pub fn emission(&self) -> Vec3 {
+        match self {
+            Shape::Quad { emission, .. }
+            | Shape::Box { emission, .. }
+            | Shape::Sphere { emission, .. }
+            | Shape::Mesh { emission, .. } => *emission,
+        }
+    }
+
+    /// Whether it is an area light (some channel of its emission is positive).
+    pub fn emits(&self) -> bool {
+        self.emission().max_element() > 0.0
     }
 }
 

@@ -41,8 +41,9 @@ use std::collections::HashSet;
 pub use crate::gpu::reservoir_bytes;
 
 /// The specialization constants of the ReSTIR shaders for a plan.
-pub fn specialization(plan: &RestirPlan) -> [(u32, SpecValue); 12] {
+pub fn specialization(plan: &RestirPlan) -> [(u32, SpecValue); 13] {
     [
+        (SC_ID_HAS_AREA_LIGHTS, SpecValue::Bool(plan.has_area_lights)),
         (SC_ID_HAS_MEDIA, SpecValue::Bool(plan.has_boxes)),
         (SC_ID_HAS_SHAPES, SpecValue::Bool(plan.has_shapes)),
         (SC_ID_HAS_MESHES, SpecValue::Bool(plan.has_meshes)),
@@ -72,6 +73,8 @@ pub struct CandidateCost {
     pub mesh_rays: u32,
     /// Box media beside the grid (each segment loops over them a few times).
     pub boxes: u32,
+    /// Primitives in the emitter table (an area-light sample binary-searches it).
+    pub emitters: u32,
 }
 
 /// How many candidates one initial dispatch may draw so that an invocation stays within
@@ -88,7 +91,8 @@ pub fn candidates_per_dispatch(
     };
     // A segment's nearest-shape ray and its NEE shadow ray cross the meshes.
     let segment = |blocks: u32| {
-        u64::from(blocks + cost.march_steps + 3 * cost.lights + 4 * cost.boxes + 64)
+        let search = u32::BITS - cost.emitters.leading_zeros();
+        u64::from(blocks + cost.march_steps + 3 * cost.lights + 4 * cost.boxes + search + 64)
             + 2 * u64::from(cost.mesh_rays)
     };
     let k = u64::from(plan.max_bounces.max(1));
@@ -208,6 +212,8 @@ pub struct RestirPass {
     emission_indirection: Vec<u32>,
     scene_lights_radius: f32,
     env_map_luminance: Option<f32>,
+    /// The emitting shapes' total power (their LIGHT_AREA record's selection weight).
+    area_power: f64,
     base_uniforms: BaselineUniformsGpu,
     /// Density indices loaded into the current / previous atlases.
     loaded: (usize, usize),
@@ -283,6 +289,7 @@ impl RestirPass {
                 lights: grid_gpu.lights.len() as u32,
                 mesh_rays: crate::passes::mesh_ray_cost(scene),
                 boxes: boxes.len() as u32,
+                emitters: grid_gpu.emitters.len() as u32,
             },
         );
         let restir_uniforms = RestirUniformsGpu {
@@ -375,6 +382,7 @@ impl RestirPass {
             emission_indirection,
             scene_lights_radius: grid_gpu.light_radius,
             env_map_luminance: grid_gpu.env_map_luminance,
+            area_power: grid_gpu.emitters.total_power,
             base_uniforms,
             loaded: (0, 0),
             prev_slot: None,
@@ -398,6 +406,7 @@ impl RestirPass {
                 &scene.lights_at(f),
                 self.scene_lights_radius,
                 self.env_map_luminance,
+                self.area_power,
             )
         };
         let (cur, prev) = (set(frame), set(prev));
@@ -640,6 +649,7 @@ fn level_topology(t: &BrickTopology, level: u32, dilate: bool) -> BrickTopology 
 /// indirection sections, reservoirs and velocity.
 pub fn footprint(scene: &Scene, p: &RestirPlan, f: &mut Footprint) -> Result<()> {
     f.add_meshes(scene);
+    f.add_emitters(scene);
     f.add_env_map(scene)?;
     let Some(gf) = f.add_grid(scene)? else {
         return Ok(());

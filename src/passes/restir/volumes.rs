@@ -454,6 +454,7 @@ mod tests {
             has_shapes: false,
             has_meshes: false,
             has_boxes: false,
+            has_area_lights: false,
         }
     }
 

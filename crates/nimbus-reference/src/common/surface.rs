@@ -30,24 +30,32 @@ pub(crate) enum ShapeGeometry {
     Mesh(Arc<MeshShape>),
 }
 
-/// An opaque two-sided Lambertian shape of the scene, in f64.
+/// An opaque two-sided Lambertian shape of the scene, in f64, and the radiance it emits
+/// (zero for none; one-sided for quads and mesh triangles, outwards for boxes and
+/// spheres: [`Surface::emitted`]).
 pub(crate) struct Surface {
     pub(crate) geometry: ShapeGeometry,
     pub(crate) albedo: DVec3,
+    pub(crate) emission: DVec3,
 }
 
 impl Surface {
     pub(crate) fn from_shape(shape: &Shape) -> Self {
+        let emission = shape.emission().as_dvec3();
         match *shape {
-            Shape::Mesh { ref mesh, albedo } => Surface {
+            Shape::Mesh {
+                ref mesh, albedo, ..
+            } => Surface {
                 geometry: ShapeGeometry::Mesh(Arc::clone(mesh)),
                 albedo: albedo.as_dvec3(),
+                emission,
             },
             Shape::Quad {
                 corner,
                 edge_u,
                 edge_v,
                 albedo,
+                ..
             } => Surface {
                 geometry: ShapeGeometry::Quad {
                     corner: corner.as_dvec3(),
@@ -56,26 +64,31 @@ impl Surface {
                     cross: edge_u.as_dvec3().cross(edge_v.as_dvec3()),
                 },
                 albedo: albedo.as_dvec3(),
+                emission,
             },
             Shape::Box {
                 center,
                 size,
                 rotation_deg,
                 albedo,
+                ..
             } => Surface {
                 geometry: ShapeGeometry::Box(OrientedBox::from_scene(center, size, rotation_deg)),
                 albedo: albedo.as_dvec3(),
+                emission,
             },
             Shape::Sphere {
                 center,
                 radius,
                 albedo,
+                ..
             } => Surface {
                 geometry: ShapeGeometry::Sphere {
                     center: center.as_dvec3(),
                     radius: f64::from(radius),
                 },
                 albedo: albedo.as_dvec3(),
+                emission,
             },
         }
     }
@@ -129,6 +142,41 @@ impl Surface {
                 Some((t, (o + t * d - center) / radius))
             }
             ShapeGeometry::Mesh(ref mesh) => mesh_hit(mesh, o, d),
+        }
+    }
+}
+
+impl Surface {
+    /// The radiance this surface emits from its point `p` back along a ray of direction
+    /// `d` that hit it there with the unit normal `n_hit` (as [`Surface::hit`] gives it):
+    /// its emission if `d` arrives on the emitting side (a quad's edge_u × edge_v side, a
+    /// mesh triangle's counter-clockwise side, a box's or sphere's outside), else 0.
+    pub(crate) fn emitted(&self, p: DVec3, n_hit: DVec3, d: DVec3) -> DVec3 {
+        if self.emission == DVec3::ZERO {
+            return DVec3::ZERO;
+        }
+        let outward = match self.geometry {
+            ShapeGeometry::Quad { cross, .. } => cross,
+            // mesh_hit's normal is the triangle's counter-clockwise one.
+            ShapeGeometry::Mesh(_) => n_hit,
+            ShapeGeometry::Sphere { center, .. } => p - center,
+            ShapeGeometry::Box(ref bounds) => {
+                let local = bounds.local_point(p);
+                let ratio = local.abs() / bounds.half;
+                let axis = if ratio.x >= ratio.y && ratio.x >= ratio.z {
+                    0
+                } else if ratio.y >= ratio.z {
+                    1
+                } else {
+                    2
+                };
+                bounds.axis_world(axis) * local[axis].signum()
+            }
+        };
+        if outward.dot(d) < 0.0 {
+            self.emission
+        } else {
+            DVec3::ZERO
         }
     }
 }

@@ -6,6 +6,7 @@ use anyhow::{bail, Context};
 use glam::DVec3;
 use nimbus_scene::{EnvMap, EnvSampler, Light, Scene};
 
+use super::area::AreaLights;
 use crate::common::geometry::hit_sphere;
 use crate::common::lights::{Environment, Sun};
 use crate::common::rng::Rng;
@@ -24,6 +25,8 @@ pub(super) enum LightF64 {
         radiance: DVec3,
     },
     Environment(Environment),
+    /// Every emitting shape at once ([`AreaLights`]).
+    Area(AreaLights),
 }
 
 /// One NEE sample: unit direction towards the light, distance to it (∞ for distant
@@ -112,12 +115,26 @@ impl LightF64 {
                     sphere: None,
                 })
             }
+            LightF64::Area(area) => {
+                let s = area.sample(x, rng)?;
+                // The point lies on a shape: shapes block only short of it.
+                Some(LightSample {
+                    l: s.l,
+                    distance: s.distance * (1.0 - AREA_LIGHT_CLEARANCE),
+                    weight: s.weight,
+                    sphere: None,
+                })
+            }
         }
     }
 }
 
+/// Relative distance short of a sampled point on an emitting shape within which shapes
+/// do not block it (the shape itself, met again within rounding; mesh hits are f32).
+const AREA_LIGHT_CLEARANCE: f64 = 1e-5;
+
 /// The scene's lights in f64, with the environment maps already loaded (light index,
-/// map).
+/// map), then the emitting shapes as one more light if any shape emits.
 pub(super) fn build_lights(
     scene: &Scene,
     mut maps: Vec<(usize, EnvMap)>,
@@ -164,6 +181,7 @@ pub(super) fn build_lights(
             }
         });
     }
+    lights.extend(AreaLights::new(scene).map(LightF64::Area));
     Ok(lights)
 }
 

@@ -22,7 +22,10 @@
 //!     convention: σa·Le is the emitted power density.
 //!   - box media: homogeneous, as in [`crate::mc`].
 //!   - HG phase p(cosθ), θ between the travel directions before and after scattering.
-//! - **Shapes**: opaque two-sided Lambertian quads, oriented boxes and spheres.
+//! - **Shapes**: opaque two-sided Lambertian quads, oriented boxes, spheres and triangle
+//!   meshes; any may emit (`emission` Le, an area light): a quad towards edge_u × edge_v,
+//!   a mesh triangle towards its counter-clockwise normal, a box or a sphere outwards.
+//!   Camera rays see Le (bounce 0 only); the surface still reflects by its albedo.
 //! - **Lights**:
 //!   - directional (travel direction ω, irradiance E, optional convex gobo);
 //!   - point (intensity I in W/sr): I/r²;
@@ -50,13 +53,16 @@
 //!    k = K, else continue from x in an HG-sampled direction around d.
 //! 3. **Shape hit** (k ← k + 1): β ← β·albedo, NEE with β/π · max(0, n·l) (n facing
 //!    the incoming ray), stop if k = K, else continue cosine-distributed around n.
-//! 4. **Sphere light hit**: add β·L if k = 0; stop.
+//! 4. **Sphere light hit**: add β·L if k = 0; stop. (An emitting shape hit adds β·Le
+//!    if k = 0, then goes on as a shape hit.)
 //! 5. **Escape**: add β·L_env(d) if k = 0; stop.
 //!
 //! NEE per light: directional l = −ω (pdf δ); point l towards it, I/r²; sphere: l
 //! uniform in the cone the sphere subtends (pdf 1/(2π(1 − cosθmax)), no NEE from
 //! inside the sphere); environment: l from [`EnvSampler`](nimbus_scene::EnvSampler)
-//! (map) or uniform on the sphere (constant). Every NEE is multiplied by V (shapes and other sphere lights
+//! (map) or uniform on the sphere (constant); emitting shapes: one sample for all of
+//! them, a piece by power and a point uniformly in area on it (`area`), Le·cos_l/d²
+//! over its area pdf, shapes blocking only short of the point. Every NEE is multiplied by V (shapes and other sphere lights
 //! closer than the light) and by a ratio-tracking estimate of T (Π over tentative
 //! collisions of 1 − σt/σ̄ in grids, exp(−σt·ℓ) in boxes).
 //!
@@ -73,6 +79,7 @@
 //! and the path's index, so results are bit-for-bit deterministic whatever the thread
 //! count.
 
+mod area;
 mod lights;
 mod media;
 mod tracer;

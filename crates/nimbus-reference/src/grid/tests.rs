@@ -106,6 +106,7 @@ fn constant_grid_matches_the_box_reference() {
         edge_u: Vec3::new(8.0, 0.0, 0.0),
         edge_v: Vec3::new(0.0, 0.0, -8.0),
         albedo: Vec3::splat(0.7),
+        emission: Vec3::ZERO,
     };
     let light = sun(Vec3::new(0.3, -1.0, 0.4), Vec3::new(2.0, 1.5, 1.0));
     let box_scene = scene(vec![boxed], vec![floor.clone()], vec![light.clone()]);
@@ -190,6 +191,7 @@ fn heterogeneous_tracking_matches_quadrature_transmittance() {
         edge_u: Vec3::new(8.0, 0.0, 0.0),
         edge_v: Vec3::new(0.0, 0.0, -8.0),
         albedo: Vec3::splat(0.6),
+        emission: Vec3::ZERO,
     };
     let light_pos = DVec3::new(0.2, 3.0, -0.1);
     let point = Light::Point {
@@ -266,6 +268,7 @@ fn point_and_sphere_lights_match_closed_forms() {
         edge_u: Vec3::new(8.0, 0.0, 0.0),
         edge_v: Vec3::new(0.0, 0.0, -8.0),
         albedo: Vec3::splat(0.6),
+        emission: Vec3::ZERO,
     };
     let (cam, p) = (DVec3::new(0.0, 0.5, 3.0), DVec3::new(0.1, -1.0, -0.2));
     // The length of a segment from y0 to y1 above y = −0.9, per unit length.
@@ -361,6 +364,7 @@ fn results_are_deterministic_and_options_checked() {
             center: Vec3::new(0.0, -2.0, 0.0),
             radius: 0.8,
             albedo: Vec3::splat(0.5),
+            emission: Vec3::ZERO,
         }],
         vec![
             sun(Vec3::new(0.2, -1.0, 0.1), Vec3::ONE),
@@ -407,4 +411,223 @@ fn results_are_deterministic_and_options_checked() {
         scale: Vec3::ONE,
     });
     assert!(radiance_grid_mc(&missing, o, d, &opts).is_err());
+}
+
+/// A floor of albedo ρ seen straight down at the origin, under an emitting shape and no
+/// medium: the radiance it reflects is ρ·E/π, with E its irradiance.
+fn floor_under(emitter: Shape, albedo: f32) -> Scene {
+    let floor = Shape::Quad {
+        corner: Vec3::new(-20.0, 0.0, 20.0),
+        edge_u: Vec3::new(40.0, 0.0, 0.0),
+        edge_v: Vec3::new(0.0, 0.0, -40.0),
+        albedo: Vec3::splat(albedo),
+        emission: Vec3::ZERO,
+    };
+    scene(Vec::new(), vec![floor, emitter], Vec::new())
+}
+
+/// E at a point below the corner of a parallel a × b rectangle of radiance L at height
+/// h: π·L·F, with F = 1/(2π)·[A/√(1+A²)·atan(B/√(1+A²)) + B/√(1+B²)·atan(A/√(1+B²))],
+/// A = a/h, B = b/h (the view factor of a differential area to a parallel rectangle).
+fn rectangle_corner_irradiance(l: f64, a: f64, b: f64, h: f64) -> f64 {
+    let (a, b) = (a / h, b / h);
+    let (ra, rb) = ((1.0 + a * a).sqrt(), (1.0 + b * b).sqrt());
+    let f = (a / ra * (b / ra).atan() + b / rb * (a / rb).atan()) / (2.0 * PI);
+    PI * l * f
+}
+
+#[test]
+fn irradiance_under_an_emitting_quad_matches_the_rectangle_view_factor() {
+    // A 2 × 3 m quad at height 1.5 facing down (edge_u × edge_v = −y), centred over the
+    // origin; the camera looks at the origin from beside it. E = 4 corner rectangles.
+    let (l, rho) = (Vec3::new(2.0, 1.0, 0.5), 0.8);
+    let down = Shape::Quad {
+        corner: Vec3::new(-1.0, 1.5, -1.5),
+        edge_u: Vec3::new(2.0, 0.0, 0.0),
+        edge_v: Vec3::new(0.0, 0.0, 3.0),
+        albedo: Vec3::ZERO,
+        emission: l,
+    };
+    assert!(down_normal(&down).y < 0.0);
+    let s = floor_under(down.clone(), rho);
+    let t = tracer(&s, Vec::new());
+    let (o, d) = (DVec3::new(3.0, 1.0, 0.0), DVec3::new(-3.0, -1.0, 0.0));
+    let mc = run(&t, o, d, 1, 40_000, 3);
+    let e1 = 4.0 * rectangle_corner_irradiance(1.0, 1.0, 1.5, 1.5);
+    let expected = [0, 1, 2].map(|c| f64::from(rho) / PI * f64::from(l[c]) * e1);
+    assert_within(&mc, expected, 4.0, "quad facing down");
+
+    // Flipped (facing up) it lights nothing below it.
+    let Shape::Quad {
+        corner,
+        edge_u,
+        edge_v,
+        ..
+    } = down
+    else {
+        unreachable!()
+    };
+    let up = Shape::Quad {
+        corner,
+        edge_u: edge_v,
+        edge_v: edge_u,
+        albedo: Vec3::ZERO,
+        emission: l,
+    };
+    let t = tracer(&floor_under(up, rho), Vec::new());
+    let mc = run(&t, o, d, 1, 2_000, 4);
+    assert_eq!(mc.mean, [0.0; 3], "a quad facing up lights the floor");
+}
+
+fn down_normal(shape: &Shape) -> Vec3 {
+    match shape {
+        Shape::Quad { edge_u, edge_v, .. } => edge_u.cross(*edge_v),
+        _ => Vec3::ZERO,
+    }
+}
+
+#[test]
+fn irradiance_from_an_emitting_sphere_is_pi_l_sin2_theta() {
+    // A sphere of radius 0.4 with its centre 1.2 above the origin: E = π·L·(r/d)².
+    let (l, rho, r, h) = (Vec3::new(3.0, 2.0, 1.0), 0.6, 0.4, 1.2);
+    let sphere = Shape::Sphere {
+        center: Vec3::new(0.0, h, 0.0),
+        radius: r,
+        albedo: Vec3::ZERO,
+        emission: l,
+    };
+    let t = tracer(&floor_under(sphere, rho), Vec::new());
+    let (o, d) = (DVec3::new(3.0, 0.5, 0.0), DVec3::new(-3.0, -0.5, 0.0));
+    let mc = run(&t, o, d, 1, 40_000, 5);
+    let sin2 = f64::from(r * r) / f64::from(h * h);
+    let expected = [0, 1, 2].map(|c| f64::from(rho) / PI * PI * f64::from(l[c]) * sin2);
+    assert_within(&mc, expected, 4.0, "emitting sphere");
+}
+
+#[test]
+fn camera_rays_see_emitting_shapes_on_their_emitting_side_only() {
+    // A black quad facing +z seen from +z (its emission) and from −z (dark); a box and a
+    // sphere seen from outside (their emission); K = 1, nothing else lights them.
+    let le = Vec3::new(1.5, 0.5, 0.25);
+    let quad = Shape::Quad {
+        corner: Vec3::new(-1.0, -1.0, 0.0),
+        edge_u: Vec3::new(2.0, 0.0, 0.0),
+        edge_v: Vec3::new(0.0, 2.0, 0.0),
+        albedo: Vec3::ZERO,
+        emission: le,
+    };
+    let t = tracer(&scene(Vec::new(), vec![quad], Vec::new()), Vec::new());
+    let front = run(
+        &t,
+        DVec3::new(0.1, 0.2, 3.0),
+        DVec3::new(0.0, 0.0, -1.0),
+        1,
+        4,
+        1,
+    );
+    let back = run(
+        &t,
+        DVec3::new(0.1, 0.2, -3.0),
+        DVec3::new(0.0, 0.0, 1.0),
+        1,
+        4,
+        1,
+    );
+    assert_eq!(front.mean, le.as_dvec3().to_array());
+    assert_eq!(back.mean, [0.0; 3]);
+    for shape in [
+        Shape::Box {
+            center: Vec3::ZERO,
+            size: Vec3::new(1.0, 2.0, 0.5),
+            rotation_deg: Vec3::new(10.0, 20.0, 30.0),
+            albedo: Vec3::ZERO,
+            emission: le,
+        },
+        Shape::Sphere {
+            center: Vec3::ZERO,
+            radius: 0.7,
+            albedo: Vec3::ZERO,
+            emission: le,
+        },
+    ] {
+        let t = tracer(&scene(Vec::new(), vec![shape], Vec::new()), Vec::new());
+        let outside = run(
+            &t,
+            DVec3::new(0.05, 0.1, 4.0),
+            DVec3::new(0.0, 0.0, -1.0),
+            1,
+            4,
+            2,
+        );
+        assert_eq!(outside.mean, le.as_dvec3().to_array());
+        let inside = run(
+            &t,
+            DVec3::new(0.0, 0.0, 0.0),
+            DVec3::new(0.0, 0.0, 1.0),
+            1,
+            4,
+            2,
+        );
+        assert_eq!(inside.mean, [0.0; 3]);
+    }
+}
+
+#[test]
+fn an_emitting_box_lights_the_floor_like_its_six_faces_as_quads() {
+    // The same emitter as a box and as its six faces given as outward quads: the floor's
+    // radiance agrees within noise (both go through the area-light sampler).
+    let (center, size, rotation) = (
+        Vec3::new(0.2, 1.4, -0.1),
+        Vec3::new(0.8, 0.5, 0.6),
+        Vec3::new(25.0, -15.0, 40.0),
+    );
+    let le = Vec3::new(2.0, 1.0, 1.5);
+    let boxed = Shape::Box {
+        center,
+        size,
+        rotation_deg: rotation,
+        albedo: Vec3::ZERO,
+        emission: le,
+    };
+    let r = nimbus_scene::rotation_xyz_deg(rotation);
+    let half = size * 0.5;
+    let axes = [r.x_axis * half.x, r.y_axis * half.y, r.z_axis * half.z];
+    let mut faces = Vec::new();
+    for a in 0..3 {
+        let (b, c) = (axes[(a + 1) % 3], axes[(a + 2) % 3]);
+        for sign in [1.0f32, -1.0] {
+            let (u, v) = if sign > 0.0 { (b, c) } else { (c, b) };
+            faces.push(Shape::Quad {
+                corner: center + sign * axes[a] - u - v,
+                edge_u: 2.0 * u,
+                edge_v: 2.0 * v,
+                albedo: Vec3::ZERO,
+                emission: le,
+            });
+        }
+    }
+    let floor = |extra: Vec<Shape>| {
+        let mut shapes = vec![Shape::Quad {
+            corner: Vec3::new(-20.0, 0.0, 20.0),
+            edge_u: Vec3::new(40.0, 0.0, 0.0),
+            edge_v: Vec3::new(0.0, 0.0, -40.0),
+            albedo: Vec3::splat(0.7),
+            emission: Vec3::ZERO,
+        }];
+        shapes.extend(extra);
+        scene(Vec::new(), shapes, Vec::new())
+    };
+    let (o, d) = (DVec3::new(3.0, 1.0, 0.5), DVec3::new(-3.0, -1.0, -0.3));
+    let a = run(&tracer(&floor(vec![boxed]), Vec::new()), o, d, 1, 40_000, 7);
+    let b = run(&tracer(&floor(faces), Vec::new()), o, d, 1, 40_000, 8);
+    for c in 0..3 {
+        let se = (a.std_error[c].powi(2) + b.std_error[c].powi(2)).sqrt();
+        assert!(
+            (a.mean[c] - b.mean[c]).abs() <= 4.0 * se,
+            "channel {c}: box {} vs faces {} (SE {se})",
+            a.mean[c],
+            b.mean[c]
+        );
+        assert!(a.mean[c] > 0.0);
+    }
 }

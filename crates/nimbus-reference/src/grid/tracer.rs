@@ -13,7 +13,7 @@ use crate::common::estimate::{radiance_paths, Moments};
 use crate::common::geometry::{hit_sphere, spans_by_entry};
 use crate::common::rng::Rng;
 use crate::common::sampling::{henyey_greenstein, sample_cosine, sample_hg};
-use crate::common::surface::{leave_surface, nearest_surface, Surface};
+use crate::common::surface::{leave_surface, Surface};
 
 /// Paths per work item of [`Tracer::radiance`].
 const CHUNK_PATHS: u32 = 1024;
@@ -58,8 +58,15 @@ impl Tracer {
     /// The nearest shape hit (t, normal, albedo) or sphere-light hit (t, radiance) of
     /// o + t·d, t > 0.
     fn nearest_hit(&self, o: DVec3, d: DVec3) -> Option<(f64, Hit)> {
-        let mut best = nearest_surface(&self.surfaces, o, d)
-            .map(|(t, n, albedo)| (t, Hit::Surface(n, albedo)));
+        let mut best = None;
+        for surface in &self.surfaces {
+            if let Some((t, n)) = surface.hit(o, d) {
+                if best.as_ref().is_none_or(|(tb, _)| t < *tb) {
+                    let emitted = surface.emitted(o + t * d, n, d);
+                    best = Some((t, Hit::Surface(n, surface.albedo, emitted)));
+                }
+            }
+        }
         for light in &self.lights {
             if let LightF64::Sphere {
                 center,
@@ -188,7 +195,10 @@ impl Tracer {
                 x = p;
             } else {
                 match hit {
-                    Some((t, Hit::Surface(normal, albedo))) => {
+                    Some((t, Hit::Surface(normal, albedo, emitted))) => {
+                        if scatterings == 0 {
+                            radiance += beta * emitted;
+                        }
                         let (p, n) = leave_surface(x + t * d, normal, d);
                         beta *= albedo;
                         scatterings += 1;
@@ -240,8 +250,9 @@ impl Tracer {
 
 /// What a ray hits first.
 enum Hit {
-    /// A shape: unit normal (either side) and albedo.
-    Surface(DVec3, DVec3),
+    /// A shape: unit normal (either side), albedo, and the radiance it emits back along
+    /// the ray.
+    Surface(DVec3, DVec3, DVec3),
     /// A sphere light's radiance.
     Emitter(DVec3),
 }

@@ -46,6 +46,7 @@ fn single_scattering_agrees_with_the_quadrature_reference() {
         center: Vec3::new(0.3, 0.0, 0.0) - 2.5 * omega,
         radius: 0.45,
         albedo: Vec3::new(0.6, 0.4, 0.2),
+        emission: Vec3::ZERO,
     };
     // A triangle gobo through the box centre (vertical-ish beam: u ≈ x).
     let gobo = Gobo {
@@ -96,6 +97,7 @@ fn without_albedo_higher_orders_add_nothing() {
             edge_u: Vec3::new(6.0, 0.0, 0.0),
             edge_v: Vec3::new(0.0, 0.0, -6.0),
             albedo: Vec3::ZERO,
+            emission: Vec3::ZERO,
         }],
         None,
     );
@@ -137,6 +139,7 @@ fn dense_box_over_floor(albedo: Vec3, more: Vec<Shape>) -> Scene {
         edge_u: Vec3::new(8.0, 0.0, 0.0),
         edge_v: Vec3::new(0.0, 0.0, -8.0),
         albedo: Vec3::splat(0.7),
+        emission: Vec3::ZERO,
     };
     box_scene(
         vec![m],
@@ -397,6 +400,7 @@ fn time_per_million_segments() {
         center: Vec3::new(1.5, 1.5, 0.0),
         radius: 0.4,
         albedo: Vec3::splat(0.5),
+        emission: Vec3::ZERO,
     };
     let s = dense_box_over_floor(Vec3::splat(0.95), vec![ball]);
     let tracer = Tracer::new(&s).unwrap();
@@ -430,6 +434,7 @@ fn a_dodecahedron_agrees_with_the_quadrature_reference() {
         center: Vec3::new(0.5, -0.2, 0.0) - 2.5 * omega,
         radius: 0.5,
         albedo: Vec3::ZERO,
+        emission: Vec3::ZERO,
     };
     let s = test_scene(
         vec![Medium::Convex(medium)],
@@ -488,6 +493,7 @@ fn an_albedo_one_furnace_returns_the_sky() {
         edge_u: Vec3::new(8.0, 0.0, 0.0),
         edge_v: Vec3::new(0.0, 0.0, -8.0),
         albedo: Vec3::ONE,
+        emission: Vec3::ZERO,
     };
     let sky = Vec3::new(1.0, 0.5, 0.25);
     let s = box_scene(vec![m], vec![floor], vec![constant_env(sky)]);
@@ -599,6 +605,7 @@ fn a_map_lights_a_floor_from_above_only() {
         edge_u: Vec3::new(4.0, 0.0, 0.0),
         edge_v: Vec3::new(0.0, 0.0, 4.0),
         albedo: Vec3::new(0.6, 0.3, 0.9),
+        emission: Vec3::ZERO,
     };
     let map = Light::Environment {
         radiance: Vec3::ONE,

@@ -280,6 +280,7 @@ mod tests {
             center: Vec3::new(xc as f32, 3.0, 0.0),
             radius: r as f32,
             albedo: Vec3::ONE,
+            emission: Vec3::ZERO,
         };
         let s = box_scene(
             vec![medium.clone()],
@@ -348,6 +349,7 @@ mod tests {
             edge_u: Vec3::new(10.0, 0.0, 0.0),
             edge_v: Vec3::new(0.0, 0.0, -10.0),
             albedo: Vec3::new(0.5, 0.25, 1.0),
+            emission: Vec3::ZERO,
         };
         let origin = DVec3::new(0.0, 2.0, 2.0);
         let dir = DVec3::new(0.0, -2.0, -2.0);
@@ -366,6 +368,7 @@ mod tests {
             size: Vec3::splat(0.5),
             rotation_deg: Vec3::new(10.0, 20.0, 30.0),
             albedo: Vec3::ZERO,
+            emission: Vec3::ZERO,
         };
         let s = box_scene(
             Vec::new(),

@@ -12,11 +12,11 @@ use super::*;
 use crate::mesh::{MeshShape, ToWorld};
 
 /// The fields of a mesh shape.
-pub(super) const MESH_KEYS: &[&str] = &["type", "file", "to_world", "albedo"];
+pub(super) const MESH_KEYS: &[&str] = &["type", "file", "to_world", "albedo", "emission"];
 
 /// A mesh shape: its file read, validated and placed, its BVH built. Every error names
 /// the scene file, the shape, the field and (for the file's contents) the mesh file.
-pub(super) fn parse_mesh_shape(f: &Fields, albedo: Vec3) -> Result<Shape> {
+pub(super) fn parse_mesh_shape(f: &Fields, albedo: Vec3, emission: Vec3) -> Result<Shape> {
     let name = f
         .opt_str("file")?
         .ok_or_else(|| f.error("file", "missing required field (an .obj or .ply file)"))?;
@@ -41,5 +41,6 @@ pub(super) fn parse_mesh_shape(f: &Fields, albedo: Vec3) -> Result<Shape> {
     Ok(Shape::Mesh {
         mesh: Arc::new(mesh),
         albedo,
+        emission,
     })
 }

@@ -7,7 +7,9 @@ use glam::{DVec3, Vec3};
 use toml::Value;
 
 use crate::convex::Solid;
-use crate::fields::{open_interval, positive_up_to, type_name, unit_interval, Fields, Source};
+use crate::fields::{
+    open_interval, positive_up_to, radiometric, type_name, unit_interval, Fields, Source,
+};
 use crate::files::file_size;
 use crate::geometry::convex_ccw_polygon;
 use crate::overrides::FieldOverride;
@@ -53,9 +55,25 @@ const CAMERA_KEYS: &[&str] = &[
 ];
 const KEYFRAME_KEYS: &[&str] = &["frame", "position", "look_at"];
 const SHAPE_TYPES: &[(&str, &[&str])] = &[
-    ("quad", &["type", "corner", "edge_u", "edge_v", "albedo"]),
-    ("box", &["type", "center", "size", "rotation_deg", "albedo"]),
-    ("sphere", &["type", "center", "radius", "albedo"]),
+    (
+        "quad",
+        &["type", "corner", "edge_u", "edge_v", "albedo", "emission"],
+    ),
+    (
+        "box",
+        &[
+            "type",
+            "center",
+            "size",
+            "rotation_deg",
+            "albedo",
+            "emission",
+        ],
+    ),
+    (
+        "sphere",
+        &["type", "center", "radius", "albedo", "emission"],
+    ),
     ("mesh", mesh::MESH_KEYS),
 ];
 const INTEGRATOR_KEYS: &[&str] = &[
@@ -397,6 +415,8 @@ pub(super) fn size3(f: &Fields, key: &str) -> Result<Vec3> {
 fn parse_shape(source: &Source, index: usize, table: &toml::Table) -> Result<Shape> {
     let (kind, f) = typed_fields(source, "shape", index, table, SHAPE_TYPES)?;
     let albedo = f.color("albedo", Some(Vec3::ZERO), unit_interval)?;
+    // An area light's radiance; zero (the default) for a shape that does not emit.
+    let emission = f.color("emission", Some(Vec3::ZERO), radiometric)?;
     Ok(match kind {
         "quad" => {
             let edge = |key: &str| -> Result<DVec3> {
@@ -418,6 +438,7 @@ fn parse_shape(source: &Source, index: usize, table: &toml::Table) -> Result<Sha
                 edge_u: edge_u.as_vec3(),
                 edge_v: edge_v.as_vec3(),
                 albedo,
+                emission,
             }
         }
         "box" => Shape::Box {
@@ -425,13 +446,15 @@ fn parse_shape(source: &Source, index: usize, table: &toml::Table) -> Result<Sha
             size: size3(&f, "size")?,
             rotation_deg: f.vec3("rotation_deg", Some(Vec3::ZERO))?,
             albedo,
+            emission,
         },
         "sphere" => Shape::Sphere {
             center: f.vec3("center", None)?,
             radius: f.f32_with("radius", None, positive_up_to(MAX_LENGTH_M))?,
             albedo,
+            emission,
         },
-        _ => mesh::parse_mesh_shape(&f, albedo)?,
+        _ => mesh::parse_mesh_shape(&f, albedo, emission)?,
     })
 }
 

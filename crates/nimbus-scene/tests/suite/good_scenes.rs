@@ -80,7 +80,8 @@ radius = 1
         Shape::Sphere {
             center: Vec3::new(5.0, 0.0, 0.0),
             radius: 1.0,
-            albedo: Vec3::ZERO
+            albedo: Vec3::ZERO,
+            emission: Vec3::ZERO,
         }
     );
 }
@@ -370,17 +371,20 @@ sigma_star_floor = 0.125
                 edge_u: Vec3::new(10.0, 0.0, 0.0),
                 edge_v: Vec3::new(0.0, 0.0, 10.0),
                 albedo: Vec3::splat(0.5),
+                emission: Vec3::ZERO,
             },
             Shape::Box {
                 center: Vec3::new(0.0, 3.0, 3.0),
                 size: Vec3::ONE,
                 rotation_deg: Vec3::new(10.0, 20.0, 30.0),
                 albedo: Vec3::new(0.1, 0.2, 0.3),
+                emission: Vec3::ZERO,
             },
             Shape::Sphere {
                 center: Vec3::new(3.0, 3.0, 3.0),
                 radius: 0.25,
-                albedo: Vec3::ZERO
+                albedo: Vec3::ZERO,
+                emission: Vec3::ZERO,
             },
         ]
     );

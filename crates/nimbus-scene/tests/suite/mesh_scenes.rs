@@ -29,7 +29,7 @@ fn a_mesh_shape_loads_placed_with_its_bvh() {
          to_world = { scale = [2, 1, 1], rotate_deg = [0, 90, 0], translate = [0, 1, 0] }\n",
     )
     .unwrap();
-    let [Shape::Mesh { mesh, albedo }] = scene.shapes.as_slice() else {
+    let [Shape::Mesh { mesh, albedo, .. }] = scene.shapes.as_slice() else {
         panic!("one mesh shape expected, got {:?}", scene.shapes);
     };
     assert_eq!(*albedo, Vec3::splat(0.5));
@@ -57,7 +57,7 @@ fn a_mesh_shape_loads_placed_with_its_bvh() {
         "[[shape]]\ntype = \"mesh\"\nfile = \"meshes/cube.obj\"\n",
     )
     .unwrap();
-    let [Shape::Mesh { mesh, albedo }] = plain.shapes.as_slice() else {
+    let [Shape::Mesh { mesh, albedo, .. }] = plain.shapes.as_slice() else {
         panic!("one mesh shape expected");
     };
     assert_eq!(*albedo, Vec3::ZERO);
