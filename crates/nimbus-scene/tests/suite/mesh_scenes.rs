@@ -114,13 +114,19 @@ fn bad_mesh_shapes_name_the_scene_the_shape_the_field_and_the_mesh_file() {
         "[[shape]]\ntype = \"mesh\"\nfile = \"cube.obj\"\nto_world = { scale = [1, 0, 1] }\n",
         &["> to_world", "field `scale`", "non-zero"],
     );
-    // Emission on shapes is a later step: an unknown field, naming the valid ones.
+    // Emission: negative or NaN is refused naming the field (an emitting mesh is fine).
     check(
-        "[[shape]]\ntype = \"mesh\"\nfile = \"cube.obj\"\nemission = 1\n",
-        &[
-            "field `emission`",
-            "unknown field",
-            "file, to_world, albedo",
-        ],
+        "[[shape]]\ntype = \"mesh\"\nfile = \"cube.obj\"\nemission = [1, -1, 0]\n",
+        &["field `emission`", "must be >= 0"],
     );
+    check(
+        "[[shape]]\ntype = \"mesh\"\nfile = \"cube.obj\"\nemission = nan\n",
+        &["field `emission`", "finite"],
+    );
+    let emitting = scene_with(
+        &dir,
+        "[[shape]]\ntype = \"mesh\"\nfile = \"cube.obj\"\nemission = [1, 2, 3]\n",
+    )
+    .unwrap();
+    assert_eq!(emitting.shapes[0].emission(), Vec3::new(1.0, 2.0, 3.0));
 }
