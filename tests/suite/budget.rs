@@ -31,6 +31,7 @@ fn footprint_matches_what_the_passes_create() {
         "cloud.toml",
         "cloud-restir.toml",
         "plume-anim.toml",
+        "cloud-logo.toml",
     ] {
         let overrides = [
             FieldOverride::new("render.width", 40),

@@ -1,5 +1,6 @@
 //! Regression images of Volumetric ReSTIR on lavapipe: single frames of the static cloud
-//! (every pass on, direction and vertex reuse, emission), and every frame of the short
+//! (every pass on, direction and vertex reuse, emission) and of the Fig. 1-like scene
+//! (surfaces, emitting letters and panels, a sky map), and every frame of the short
 //! animated plume (camera, sun and density keyframes, velocity reprojection). Limits:
 //! `SAME_DEVICE` (same seed, same scene, same device → the same image up to the
 //! floating-point reassociation lavapipe's JIT may do). Validation layers are on.
@@ -74,6 +75,28 @@ fn golden_cloud_restir_emissive_vertex_reuse() {
         SAME_DEVICE,
     )
     .unwrap();
+}
+
+/// The Fig. 1-like scene (a cloud, a floor, emitting letters and panels, a sky map),
+/// K = 4, three frames: the last frame, against its golden. Surface vertices, area lights
+/// and the environment map together.
+#[test]
+fn golden_cloud_logo_last_frame() {
+    let ctx = context();
+    let path = format!(
+        "{}/assets/scenes/cloud-logo.toml",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    let mut scene = nimbus_scene::load(std::path::Path::new(&path)).expect("cloud-logo scene");
+    scene.render.width = 64;
+    scene.render.height = 36;
+    scene.render.frames = 3;
+    let plan = nimbus::plan::build(&scene, None).unwrap();
+    let restir = plan.restir().unwrap();
+    assert!(restir.has_shapes && restir.has_meshes && restir.has_area_lights);
+    let result = render_frames(&ctx, &scene);
+    let last = result.frame_images.last().expect("frames");
+    compare_with_golden("cloud-logo-64x36-frame2", last, SAME_DEVICE).unwrap();
 }
 
 /// Every frame of the animated plume: camera and sun keyframes, four density frames,

@@ -12,8 +12,8 @@ use super::schedule::Stage;
 use super::volumes::{AtlasSizes, DerivedVolume};
 use crate::gpu::sparse::{atlas_dims, upload_atlas, TexelFormat};
 use crate::gpu::{
-    bindings, non_empty, BaselineUniformsGpu, BoxMediumGpu, EmitterGpu, FrameUniforms, GpuGrid,
-    MeshBuffers, RestirPush, RestirUniformsGpu, ShapeGpu,
+    bindings, non_empty, BaselineUniformsGpu, BoxMediumGpu, FrameUniforms, GpuGrid, MeshBuffers,
+    RestirPush, RestirUniformsGpu, ShapeGpu,
 };
 use crate::passes::{
     atlas_image, compute_pipeline, image_3d, upload_env_map, upload_records, upload_uniform,
@@ -173,9 +173,9 @@ impl Resources {
         let super_voxels = upload_records(ctx, o, &padded, "super-voxels")?;
         let bricks = upload_records(ctx, o, indirection, "grid bricks")?;
         let (env_texels, env_cdf) = upload_env_map(ctx, o, grid.env_map.as_ref())?;
-        // ReSTIR takes no shapes yet, so no area lights: lights.glsl's (compiled-out)
-        // emitter table is one zeroed record.
-        let emitters = upload_records(ctx, o, &[EmitterGpu::default()], "emitters")?;
+        // The emitting shapes' primitives (one zeroed record without area lights, when
+        // lights.glsl compiles the table out).
+        let emitters = upload_records(ctx, o, &non_empty(&grid.emitters.records), "emitters")?;
         let base_uniforms = upload_uniform(ctx, o, base_uniforms, "grid uniforms")?;
         let restir_uniforms = upload_uniform(ctx, o, uniforms, "restir uniforms")?;
         let prev_frame = o.add(ctx.create_buffer(
