@@ -14,7 +14,6 @@
 //! deep). The letters stand on y = 0, read along +x, face +z, and are centred on x = 0.
 //! Glyphs exist for B I M N S U and the space; other characters are refused.
 
-use std::fmt::Write as _;
 use std::path::PathBuf;
 
 use anyhow::{bail, Context, Result};
@@ -98,11 +97,18 @@ fn main() -> Result<()> {
     // A quad with corners a, b, c, d counter-clockwise from outside: two triangles.
     let mut quad = |obj: &mut String, corners: [[f64; 3]; 4]| {
         for p in corners {
-            writeln!(obj, "v {:.6} {:.6} {:.6}", p[0], p[1], p[2]).unwrap();
+            obj.push_str(&format!("v {:.6} {:.6} {:.6}\n", p[0], p[1], p[2]));
         }
         let i = vertices + 1;
-        writeln!(obj, "f {} {} {}", i, i + 1, i + 2).unwrap();
-        writeln!(obj, "f {} {} {}", i, i + 2, i + 3).unwrap();
+        obj.push_str(&format!(
+            "f {} {} {}\nf {} {} {}\n",
+            i,
+            i + 1,
+            i + 2,
+            i,
+            i + 2,
+            i + 3
+        ));
         vertices += 4;
         faces += 2;
     };
