@@ -154,8 +154,8 @@ fn bad_scenes_give_clear_errors() {
         ),
         (
             "grid.toml",
-            "[camera]\nposition = [0, 0, 3]\nlook_at = [0, 0, 0]\n[[medium]]\ntype = \"grid\"\nbounds_min = [-1, -1, -1]\nbounds_max = [1, 1, 1]\ndensity = { procedural = \"cloud\", dims = [8, 8, 8] }\n[[shape]]\ntype = \"sphere\"\ncenter = [0, 3, 0]\nradius = 1\n",
-            &["grid.toml", "[[shape]] #1", "ReSTIR", "volume = \"baseline\""][..],
+            "[camera]\nposition = [0, 0, 3]\nlook_at = [0, 0, 0]\n[[medium]]\ntype = \"grid\"\nbounds_min = [-1, -1, -1]\nbounds_max = [1, 1, 1]\ndensity = { procedural = \"cloud\", dims = [8, 8, 8] }\n[[shape]]\ntype = \"sphere\"\ncenter = [0, 3, 0]\nradius = 1\n[integrator.restir]\nreuse = \"vertex\"\n",
+            &["grid.toml", "[[shape]] #1", "`reuse`", "reuse = \"direction\""][..],
         ),
         (
             "point.toml",
