@@ -482,10 +482,10 @@ impl LightSet {
                         gobo_fields = (gobo.origin, u, v, first, gobo.polygon.len() as u32);
                     }
                     (
-                    *direction,
-                    LIGHT_DIRECTIONAL,
-                    *irradiance,
-                    0.0,
+                        *direction,
+                        LIGHT_DIRECTIONAL,
+                        *irradiance,
+                        0.0,
                         luminance(*irradiance) * pi * radius * radius,
                     )
                 }

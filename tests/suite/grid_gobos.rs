@@ -122,7 +122,11 @@ fn restir_gobo_mean_agrees_with_the_baseline() {
 fn a_gobo_beside_the_scene_is_no_sun() {
     let ctx = context();
     for (volume, frames, spp) in [("baseline", 4, 4), ("restir", 8, 1)] {
-        let image = render_checked(&ctx, &gobo_scene(volume, Some(NOWHERE), "", 2, frames, spp), None);
+        let image = render_checked(
+            &ctx,
+            &gobo_scene(volume, Some(NOWHERE), "", 2, frames, spp),
+            None,
+        );
         assert!(
             image.image.data.iter().all(|p| *p == [0.0; 3]),
             "{volume}: {:?}",
@@ -130,7 +134,11 @@ fn a_gobo_beside_the_scene_is_no_sun() {
         );
     }
     let env = "[[light]]\ntype = \"environment\"\nradiance = [0.3, 0.4, 0.6]";
-    let blocked = render_checked(&ctx, &gobo_scene("baseline", Some(NOWHERE), env, 2, 32, 4), None);
+    let blocked = render_checked(
+        &ctx,
+        &gobo_scene("baseline", Some(NOWHERE), env, 2, 32, 4),
+        None,
+    );
     let no_sun = render_checked(&ctx, &gobo_scene("baseline", None, env, 2, 32, 4), None);
     assert_means_agree(
         "gobo beside the scene vs no sun",
