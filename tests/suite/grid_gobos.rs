@@ -148,3 +148,31 @@ fn a_gobo_beside_the_scene_is_no_sun() {
         0.005,
     );
 }
+
+/// The grid passes' light records carry the same gobo as the crepuscular pass's (origin,
+/// axes, half-planes), and a light without a gobo has none: two suns, the second with a
+/// pentagon gobo, in both record builders.
+#[test]
+fn grid_light_records_carry_the_crepuscular_gobo() {
+    let text = format!(
+        "[camera]\nposition = [0, 0, 3]\nlook_at = [0, 0, 0]\n\
+         [[light]]\ntype = \"directional\"\ndirection = [0, -1, 0]\nirradiance = 1\n\
+         [[light]]\ntype = \"directional\"\ndirection = [0.4, -1.0, -0.5]\nirradiance = 2\n{PART}\n"
+    );
+    let s = scene(&text, "gobo-records.toml");
+    let grid = nimbus::gpu::LightSet::build(&s.lights, 1.0, None, 0.0);
+    let boxes = nimbus::gpu::GpuScene::build(&s).expect("box records");
+    assert_eq!(grid.gobo_planes, boxes.gobo_planes);
+    assert_eq!(grid.gobo_planes.len(), 5);
+    assert_eq!(grid.lights[0].gobo_plane_count, 0);
+    for (g, b) in grid.lights.iter().zip(&boxes.lights).skip(1) {
+        assert_eq!(
+            (g.gobo_origin, g.gobo_u, g.gobo_v),
+            (b.gobo_origin, b.gobo_u, b.gobo_v)
+        );
+        assert_eq!(
+            (g.gobo_first_plane, g.gobo_plane_count),
+            (b.gobo_first_plane, b.gobo_plane_count)
+        );
+    }
+}
