@@ -44,7 +44,6 @@
 
 // Features the render plan switches per scene.
 layout(constant_id = SC_ID_HAS_SHAPES) const bool SC_HAS_SHAPES = true;
-layout(constant_id = SC_ID_HAS_GOBOS) const bool SC_HAS_GOBOS = true;
 layout(constant_id = SC_ID_HAS_ENV) const bool SC_HAS_ENV = true;
 layout(constant_id = SC_ID_ESTIMATOR) const uint SC_ESTIMATOR = 0u;
 layout(constant_id = SC_ID_HAS_MEDIA) const bool SC_HAS_MEDIA = true;
@@ -60,9 +59,6 @@ layout(push_constant) uniform PushBlock {
 // Directional lights.
 layout(std430, set = 0, binding = BINDING_LIGHTS) readonly buffer LightsBlock {
     Light lights[];
-};
-layout(std430, set = 0, binding = BINDING_GOBO_PLANES) readonly buffer GoboBlock {
-    vec4 gobo_planes[]; // (a, b, c, 0): a point (u, v) is inside when a u + b v + c >= 0
 };
 
 #include "shapes.glsl"

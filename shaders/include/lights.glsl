@@ -24,6 +24,9 @@
 // AREA measure: L_area = Le cos_l / d^2, pdf_area = p_select p_prim pdf_point. The sample
 // names the primitive (`prim`), and light_eval re-evaluates a stored (prim, point) from
 // another shading point.
+//
+// A directional light with a gobo (SC_HAS_GOBOS, gobo.glsl) reaches only the points inside
+// its gobo prism: elsewhere light_sample returns no sample and light_eval zero.
 #ifndef NIMBUS_LIGHTS_GLSL
 #define NIMBUS_LIGHTS_GLSL
 
@@ -33,6 +36,7 @@
 #include "scene.glsl"
 #include "envmap.glsl"
 #include "emitters.glsl"
+#include "gobo.glsl"
 
 // The light index of the environment in a stored path.
 #define LIGHT_ENV 0xffu
@@ -142,6 +146,10 @@ LightSample light_sample(uint base, vec3 x, float u, vec2 u2) {
     uint type = light.type;
     s.index = chosen;
     if (type == LIGHT_DIRECTIONAL) {
+        // Outside the gobo prism the light carries nothing.
+        if (SC_HAS_GOBOS && !inside_gobo(light, x)) {
+            return light_sample_none();
+        }
         s.wi = -light.direction_or_position;
         s.L = light.irradiance;
         s.pdf = p_select;
@@ -226,7 +234,7 @@ LightSample light_sample(uint base, vec3 x, float u, vec2 u2) {
 // the environment uses it), `prim` the emitter primitive (the area light) and `point` the
 // stored point (sphere and area lights). Returns the arriving radiance in the light's
 // measure and sets wi / dist; zero when the vertex cannot be reached from x (the back of
-// a sphere or of an emitting triangle, a point light at x).
+// a sphere or of an emitting triangle, a point light at x, x outside a gobo prism).
 vec3 light_eval(uint base, uint index, vec3 dir, uint prim, vec3 point, vec3 x, out vec3 wi, out float dist) {
     wi = dir;
     dist = FAR;
@@ -240,7 +248,7 @@ vec3 light_eval(uint base, uint index, vec3 dir, uint prim, vec3 point, vec3 x, 
     uint type = light.type;
     if (type == LIGHT_DIRECTIONAL) {
         wi = -light.direction_or_position;
-        return light.irradiance;
+        return (SC_HAS_GOBOS && !inside_gobo(light, x)) ? vec3(0.0) : light.irradiance;
     }
     vec3 target = type == LIGHT_POINT ? light.direction_or_position : point;
     vec3 to_light = target - x;

@@ -376,6 +376,9 @@ pub struct GpuGrid {
     /// Analytic lights (directional, point, sphere), each with its selection CDF, and
     /// the constant environment radiance.
     pub lights: Vec<LightGpu>,
+    /// The directional lights' gobo half-planes (one zeroed plane without gobos: a
+    /// storage buffer cannot be empty).
+    pub gobo_planes: Vec<[f32; 4]>,
     pub env_radiance: Vec3,
     /// The environment map, if the environment has a `file`.
     pub env_map: Option<GpuEnvMap>,
@@ -438,6 +441,9 @@ impl GpuEnvMap {
 /// environment radiance.
 pub struct LightSet {
     pub lights: Vec<LightGpu>,
+    /// The gobos' half-planes (`LightGpu::gobo_first_plane` indexes them). They depend on
+    /// the polygons only, which do not animate, so every frame's set has the same ones.
+    pub gobo_planes: Vec<[f32; 4]>,
     pub env_select: f32,
     pub env_radiance: Vec3,
 }
@@ -459,19 +465,30 @@ impl LightSet {
         let mut lights = Vec::new();
         let mut weights = Vec::new();
         let mut env_radiance = Vec3::ZERO;
+        let mut gobo_planes = Vec::new();
         for light in scene_lights {
+            // The gobo's origin, (u, v) axes, first half-plane and half-plane count.
+            let mut gobo_fields = (Vec3::ZERO, Vec3::ZERO, Vec3::ZERO, 0, 0);
             let (p0, kind, power_rgb, radius_l, weight) = match light {
                 Light::Directional {
                     direction,
                     irradiance,
-                    ..
-                } => (
-                    *direction,
-                    LIGHT_DIRECTIONAL,
-                    *irradiance,
-                    0.0,
-                    luminance(*irradiance) * pi * radius * radius,
-                ),
+                    gobo,
+                } => {
+                    if let Some(gobo) = gobo {
+                        let (u, v) = Gobo::basis(*direction);
+                        let first = gobo_planes.len() as u32;
+                        gobo_planes.extend(gobo_half_planes(&gobo.polygon));
+                        gobo_fields = (gobo.origin, u, v, first, gobo.polygon.len() as u32);
+                    }
+                    (
+                        *direction,
+                        LIGHT_DIRECTIONAL,
+                        *irradiance,
+                        0.0,
+                        luminance(*irradiance) * pi * radius * radius,
+                    )
+                }
                 Light::Point {
                     position,
                     intensity,
@@ -509,11 +526,11 @@ impl LightSet {
                 r#type: kind,
                 irradiance: power_rgb.to_array(),
                 radius: radius_l,
-                gobo_origin: [0.0; 3],
-                gobo_plane_count: 0,
-                gobo_u: [0.0; 3],
-                gobo_first_plane: 0,
-                gobo_v: [0.0; 3],
+                gobo_origin: gobo_fields.0.to_array(),
+                gobo_plane_count: gobo_fields.4,
+                gobo_u: gobo_fields.1.to_array(),
+                gobo_first_plane: gobo_fields.3,
+                gobo_v: gobo_fields.2.to_array(),
                 select_cdf: 0.0,
             });
             weights.push(weight.max(0.0));
@@ -547,6 +564,7 @@ impl LightSet {
         }
         LightSet {
             lights,
+            gobo_planes,
             env_select,
             env_radiance,
         }
@@ -681,6 +699,7 @@ impl GpuGrid {
             world_box,
             uniforms,
             lights: set.lights,
+            gobo_planes: non_empty(&set.gobo_planes),
             env_radiance: set.env_radiance,
             env_map,
             light_radius: radius,

@@ -20,9 +20,10 @@ use crate::plan::BaselinePlan;
 use crate::shaders;
 
 /// The specialization constants of `pathtrace.comp` for a plan.
-pub fn specialization(plan: &BaselinePlan) -> [(u32, SpecValue); 9] {
+pub fn specialization(plan: &BaselinePlan) -> [(u32, SpecValue); 10] {
     [
         (SC_ID_HAS_AREA_LIGHTS, SpecValue::Bool(plan.has_area_lights)),
+        (SC_ID_HAS_GOBOS, SpecValue::Bool(plan.has_gobos)),
         (SC_ID_HAS_MESHES, SpecValue::Bool(plan.has_meshes)),
         (SC_ID_HAS_ENV_MAP, SpecValue::Bool(plan.has_env_map)),
         (SC_ID_HAS_MEDIA, SpecValue::Bool(plan.has_boxes)),
@@ -60,6 +61,7 @@ pub fn create(
         layout.extend([
             BindingDesc::storage_buffer(bindings::SHAPES),
             BindingDesc::storage_buffer(bindings::LIGHTS),
+            BindingDesc::storage_buffer(bindings::GOBO_PLANES),
             BindingDesc::uniform_buffer(bindings::BASELINE_UNIFORMS),
             BindingDesc::sampled_image(bindings::GRID_DENSITY),
             BindingDesc::storage_buffer(bindings::SUPER_VOXELS),
@@ -85,6 +87,8 @@ pub fn create(
         let bvh_nodes = upload_records(ctx, o, &meshes.nodes, "mesh BVH nodes")?;
         let mesh_triangles = upload_records(ctx, o, &meshes.triangles, "mesh triangles")?;
         let lights = upload_records(ctx, o, &non_empty(&grid.lights), "lights")?;
+        // Without gobos the (compiled-out) planes are one zeroed record.
+        let gobo_planes = upload_records(ctx, o, &grid.gobo_planes, "gobo planes")?;
         // Without area lights the (compiled-out) table is one zeroed record.
         let emitters = upload_records(ctx, o, &non_empty(&grid.emitters.records), "emitters")?;
         let super_voxels = upload_records(ctx, o, &grid.super_voxels, "super-voxels")?;
@@ -130,6 +134,10 @@ pub fn create(
             DescriptorWrite::StorageBuffer {
                 binding: bindings::LIGHTS,
                 buffer: &o[lights],
+            },
+            DescriptorWrite::StorageBuffer {
+                binding: bindings::GOBO_PLANES,
+                buffer: &o[gobo_planes],
             },
             DescriptorWrite::StorageBuffer {
                 binding: bindings::EMITTERS,

@@ -121,6 +121,8 @@ pub struct BaselinePlan {
     pub has_meshes: bool,
     /// Some shapes emit (area lights: the emitter table is sampled).
     pub has_area_lights: bool,
+    /// Some directional light has a gobo (SC_HAS_GOBOS).
+    pub has_gobos: bool,
     pub has_env: bool,
     pub has_env_map: bool,
     pub pixel_jitter: bool,
@@ -170,6 +172,8 @@ pub struct RestirPlan {
     /// Some shapes emit: area lights in NEE, emission seen by camera rays
     /// (SC_HAS_AREA_LIGHTS).
     pub has_area_lights: bool,
+    /// Some directional light has a gobo (SC_HAS_GOBOS).
+    pub has_gobos: bool,
 }
 
 /// One line of `--explain`: a pass or feature, in or out, and the reason.

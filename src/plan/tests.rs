@@ -94,14 +94,31 @@ fn grid_scenes_name_what_the_baseline_does_not_take() {
         "{e}"
     );
     let gobo = "[[light]]\ntype = \"directional\"\ndirection = [0, -1, 0]\nirradiance = 1\ngobo = [[0, 0], [1, 0], [0, 1]]\n";
-    let e = err(&format!("{}{gobo}", grid(0)), "baseline");
-    assert!(e.contains("[[light]] #1") && e.contains("gobo"), "{e}");
+    // Both grid integrators take a gobo'd directional light, with SC_HAS_GOBOS on.
+    for volume in ["baseline", "restir"] {
+        let scene = nimbus_scene::parse_str(
+            &text(&format!("{}{gobo}", grid(0)), volume),
+            Path::new("grid.toml"),
+        )
+        .expect("parses");
+        let plan = build(&scene, None).unwrap();
+        let has_gobos = match volume {
+            "baseline" => plan.baseline().unwrap().has_gobos,
+            _ => plan.restir().unwrap().has_gobos,
+        };
+        assert!(has_gobos, "{volume}");
+        assert!(
+            plan.explain(&scene).contains("[on ]   SC_HAS_GOBOS"),
+            "{volume}"
+        );
+    }
 
     let ok = nimbus_scene::parse_str(&text(&grid(0), "baseline"), Path::new("grid.toml")).unwrap();
     let plan = build(&ok, None).unwrap();
     assert!(plan.crepuscular().is_none());
     let b = plan.baseline().unwrap();
-    assert!(!b.has_emission && !b.has_env && !b.has_env_map && !b.has_boxes);
+    assert!(!b.has_emission && !b.has_env && !b.has_env_map && !b.has_boxes && !b.has_gobos);
+    assert!(plan.explain(&ok).contains("[off]   SC_HAS_GOBOS"));
     assert!(plan
         .explain(&ok)
         .contains("[on ] pass baseline path tracer"));

@@ -99,16 +99,6 @@ pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
         }
     }
     let env_map = super::environment_map(scene)?;
-    for (i, light) in scene.lights.iter().enumerate() {
-        let kind = match light {
-            Light::Directional { gobo: Some(_), .. } => "a directional light with a gobo",
-            _ => continue,
-        };
-        bail!(
-            "{file}: [[light]] #{}: {kind} is not supported yet by {integrator_name}",
-            i + 1
-        );
-    }
     let lights = scene
         .lights
         .iter()
@@ -144,6 +134,7 @@ pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
             .iter()
             .any(|s| matches!(s, nimbus_scene::Shape::Mesh { .. })),
         has_area_lights: scene.shapes.iter().any(|s| s.emits()),
+        has_gobos: gobo_count(scene) > 0,
         has_env,
         has_env_map: env_map.is_some(),
         pixel_jitter: scene.render.pixel_jitter,
@@ -167,6 +158,7 @@ pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
         },
         super::meshes_decision(scene),
         area_lights_decision(scene),
+        gobos_decision(scene),
         Decision {
             name: "  SC_HAS_MEDIA (boxes)",
             enabled: boxes > 0,
@@ -196,6 +188,36 @@ pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
         },
     ];
     Ok((Integrator::Baseline(baseline), decisions))
+}
+
+/// Directional lights with a gobo.
+fn gobo_count(scene: &Scene) -> usize {
+    scene
+        .lights
+        .iter()
+        .filter(|l| matches!(l, Light::Directional { gobo: Some(_), .. }))
+        .count()
+}
+
+/// The `SC_HAS_GOBOS` row of both grid integrators: on with the gobo'd directional
+/// lights, else why the gobo test is compiled out.
+fn gobos_decision(scene: &Scene) -> Decision {
+    let gobos = gobo_count(scene);
+    if gobos == 0 {
+        return Decision::new(
+            "  SC_HAS_GOBOS",
+            false,
+            "no light has a gobo: the gobo test compiled out",
+        );
+    }
+    Decision::new(
+        "  SC_HAS_GOBOS",
+        true,
+        format!(
+            "{gobos} directional light(s) masked by a gobo: next-event estimation and the \
+             re-evaluation of a stored light vertex test the gobo prism at the shading point"
+        ),
+    )
 }
 
 /// The `SC_HAS_AREA_LIGHTS` row of the baseline: on with the emitting shapes and their
@@ -266,6 +288,7 @@ fn restir_plan(
             .any(|s| matches!(s, nimbus_scene::Shape::Mesh { .. })),
         has_boxes: boxes > 0,
         has_area_lights: scene.shapes.iter().any(|s| s.emits()),
+        has_gobos: gobo_count(scene) > 0,
     };
     let frames = scene.render.frames;
     let spatial = plan.spatial_neighbors > 0 && plan.spatial_rounds > 0;
@@ -357,6 +380,7 @@ fn restir_plan(
         ),
         super::meshes_decision(scene),
         area_lights_decision(scene),
+        gobos_decision(scene),
         on(
             "  SC_HAS_MEDIA (boxes)",
             plan.has_boxes,

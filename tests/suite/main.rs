@@ -22,6 +22,7 @@ mod docs;
 mod emitters;
 mod envmap_gpu;
 mod generators;
+mod grid_gobos;
 mod grid_sparse;
 mod grid_volume;
 mod hard_cases;

@@ -41,9 +41,10 @@ use std::collections::HashSet;
 pub use crate::gpu::reservoir_bytes;
 
 /// The specialization constants of the ReSTIR shaders for a plan.
-pub fn specialization(plan: &RestirPlan) -> [(u32, SpecValue); 13] {
+pub fn specialization(plan: &RestirPlan) -> [(u32, SpecValue); 14] {
     [
         (SC_ID_HAS_AREA_LIGHTS, SpecValue::Bool(plan.has_area_lights)),
+        (SC_ID_HAS_GOBOS, SpecValue::Bool(plan.has_gobos)),
         (SC_ID_HAS_MEDIA, SpecValue::Bool(plan.has_boxes)),
         (SC_ID_HAS_SHAPES, SpecValue::Bool(plan.has_shapes)),
         (SC_ID_HAS_MESHES, SpecValue::Bool(plan.has_meshes)),

@@ -74,6 +74,7 @@ fn layout() -> Vec<BindingDesc> {
     layout.extend([
         BindingDesc::uniform_buffer(bindings::PREV_FRAME_UNIFORMS),
         BindingDesc::storage_buffer(bindings::LIGHTS),
+        BindingDesc::storage_buffer(bindings::GOBO_PLANES),
         BindingDesc::uniform_buffer(bindings::BASELINE_UNIFORMS),
         BindingDesc::uniform_buffer(bindings::RESTIR_UNIFORMS),
         BindingDesc::sampled_image(bindings::GRID_DENSITY),
@@ -161,6 +162,9 @@ impl Resources {
         // records (the same until lights animate).
         let light_records = non_empty(&[grid.lights.clone(), grid.lights.clone()].concat());
         let lights = upload_records(ctx, o, &light_records, "restir lights")?;
+        // Both sets index the same half-planes (gobo polygons do not animate); without
+        // gobos the (compiled-out) planes are one zeroed record.
+        let gobo_planes = upload_records(ctx, o, &grid.gobo_planes, "gobo planes")?;
         let shapes = upload_records(ctx, o, &non_empty(shapes), "shapes")?;
         let bvh_nodes = upload_records(ctx, o, &meshes.nodes, "mesh BVH nodes")?;
         let mesh_triangles = upload_records(ctx, o, &meshes.triangles, "mesh triangles")?;
@@ -303,6 +307,7 @@ impl Resources {
                 writes.extend([
                     uniform(bindings::PREV_FRAME_UNIFORMS, prev_frame),
                     buffer(bindings::LIGHTS, lights),
+                    buffer(bindings::GOBO_PLANES, gobo_planes),
                     uniform(bindings::BASELINE_UNIFORMS, base_uniforms),
                     uniform(bindings::RESTIR_UNIFORMS, restir_uniforms),
                     image(bindings::GRID_DENSITY, density, nearest),

@@ -455,6 +455,7 @@ mod tests {
             has_meshes: false,
             has_boxes: false,
             has_area_lights: false,
+            has_gobos: false,
         }
     }
 
