@@ -69,6 +69,37 @@ struct EmitterPoint {
     bool valid;       // false from behind, from inside a sphere, or on the shading point
 };
 
+// A direction from x uniform in the cone the sphere (center, radius) subtends, pdf_sa =
+// 1 / (2 pi (1 - cos_max)), and where it meets the sphere (t_hit): false from inside the
+// sphere or when rounding makes the ray miss it. one_minus_cos_max (> 0 since radius > 0)
+// is formed without cancellation, sin2 / (1 + cos); cos_l is the outward normal's cosine
+// against -wi. Sphere lights and emitting spheres both sample this way.
+bool sample_sphere_cone(vec3 center, float radius, vec3 x, vec2 u, out vec3 wi, out float t_hit, out float cos_l,
+                        out float one_minus_cos_max) {
+    wi = vec3(0.0, 1.0, 0.0);
+    t_hit = FAR;
+    cos_l = 0.0;
+    one_minus_cos_max = 0.0;
+    vec3 to_center = center - x;
+    float d2 = dot(to_center, to_center);
+    if (!(d2 > radius * radius)) {
+        return false;
+    }
+    float d_center = sqrt(d2);
+    vec3 axis = to_center / d_center;
+    float sin2_max = radius * radius / d2;
+    float cos_max = sqrt(max(0.0, 1.0 - sin2_max));
+    one_minus_cos_max = sin2_max / (1.0 + cos_max);
+    wi = sample_uniform_cone(axis, one_minus_cos_max, u);
+    t_hit = intersect_sphere(center, radius, x, wi, 0.0, FAR);
+    if (t_hit >= FAR) {
+        return false;
+    }
+    vec3 point = x + t_hit * wi;
+    cos_l = max(0.0, dot(normalize(point - center), -wi));
+    return true;
+}
+
 // Sample a point on primitive e as seen from x, u in [0, 1)^2.
 EmitterPoint emitter_sample_point(Emitter e, vec3 x, vec2 u) {
     EmitterPoint s;
@@ -82,26 +113,14 @@ EmitterPoint emitter_sample_point(Emitter e, vec3 x, vec2 u) {
     if (e.type == EMITTER_SPHERE) {
         // Uniform in the cone the sphere subtends: pdf_sa = 1 / (2 pi (1 - cos_max)),
         // pdf_area = pdf_sa cos_l / d^2.
-        float radius = e.p1.x;
-        vec3 to_center = e.p0 - x;
-        float d2 = dot(to_center, to_center);
-        if (!(d2 > radius * radius)) {
-            return s;
-        }
-        float d_center = sqrt(d2);
-        vec3 axis = to_center / d_center;
-        float sin2_max = radius * radius / d2;
-        float cos_max = sqrt(max(0.0, 1.0 - sin2_max));
-        // 1 - cos_max without cancellation: sin2 / (1 + cos); > 0 since radius > 0.
-        float one_minus_cos_max = sin2_max / (1.0 + cos_max);
-        s.wi = sample_uniform_cone(axis, one_minus_cos_max, u);
-        float t_hit = intersect_sphere(e.p0, radius, x, s.wi, 0.0, FAR);
-        if (t_hit >= FAR) {
+        float t_hit;
+        float cos_l;
+        float one_minus_cos_max;
+        if (!sample_sphere_cone(e.p0, e.p1.x, x, u, s.wi, t_hit, cos_l, one_minus_cos_max)) {
             return s;
         }
         s.dist = t_hit;
         s.point = x + t_hit * s.wi;
-        float cos_l = max(0.0, dot(normalize(s.point - e.p0), -s.wi));
         // Domain: t_hit > 0 (x outside the sphere).
         float g = cos_l / (t_hit * t_hit);
         s.L = e.radiance * g;

@@ -200,25 +200,15 @@ LightSample light_sample(uint base, vec3 x, float u, vec2 u2) {
         return s;
     }
     // Emitting sphere: uniform in the cone it subtends, pdf_sa = 1 / (2 pi (1 - cos_max)).
-    float radius = light.radius;
-    if (d2 <= radius * radius) {
-        return light_sample_none();
-    }
-    float d_center = sqrt(d2);
-    vec3 axis = to_light / d_center;
-    float sin2_max = radius * radius / d2;
-    float cos_max = sqrt(max(0.0, 1.0 - sin2_max));
-    // 1 - cos_max without cancellation: sin2 / (1 + cos).
-    float one_minus_cos_max = sin2_max / (1.0 + cos_max);
-    s.wi = sample_uniform_cone(axis, one_minus_cos_max, u2);
-    float t_hit = intersect_sphere(light.direction_or_position, radius, x, s.wi, 0.0, FAR);
-    if (t_hit >= FAR) {
+    float t_hit;
+    float cos_l;
+    float one_minus_cos_max;
+    if (!sample_sphere_cone(light.direction_or_position, light.radius, x, u2, s.wi, t_hit, cos_l,
+                            one_minus_cos_max)) {
         return light_sample_none();
     }
     s.dist = t_hit;
     s.point = x + t_hit * s.wi;
-    // cos at the light: the outward normal against the arriving direction.
-    float cos_l = max(0.0, dot(normalize(s.point - light.direction_or_position), -s.wi));
     // Domain: t_hit > 0 (x outside the sphere).
     float g = cos_l / (t_hit * t_hit);
     s.L = light.irradiance * g;

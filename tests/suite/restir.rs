@@ -570,31 +570,46 @@ albedo = 0.5
 const OCTAHEDRON_OBJ: &str = "v 1 0 0\nv -1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nv 0 0 -1\n\
 f 1 3 5\nf 1 6 3\nf 1 5 4\nf 1 4 6\nf 2 5 3\nf 2 3 6\nf 2 4 5\nf 2 6 4\n";
 
-/// Surfaces, emitters and a box medium beside the cloud (a floor, a box shape half
-/// inside the grid, an emitting quad and an emitting mesh, a fog box in front of the
-/// cloud), K = 1 and K = 3: paths with surface and box vertices and light from area
-/// lights, with temporal and spatial reuse, converge to the baseline (criteria in the
-/// module docs), which tests/suite/emitters.rs checks against the CPU oracle. (Without
-/// reuse, surfaces alone agreed too when this was written: mean differences of
-/// 0.02-0.15 %, 3 of 1296 channels beyond 4.5 SE; left out for CI time.)
-#[test]
-fn surfaces_and_emitters_match_the_baseline() {
-    let dir = scratch("restir", "emitters");
+/// The scene of the surfaces tests at K = `bounces`: a floor, a box shape half inside the
+/// cloud's grid, an emitting quad and an emitting mesh, a fog box in front of the cloud;
+/// checked with temporal and spatial reuse against the baseline (criteria in the module
+/// docs), which tests/suite/emitters.rs checks against the CPU oracle.
+fn check_surfaces_and_emitters(bounces: u32) {
+    let dir = scratch("restir", &format!("emitters-k{bounces}"));
     let mesh = dir.join("octahedron.obj");
     std::fs::write(&mesh, OCTAHEDRON_OBJ).unwrap();
     let shapes = format!("{FLOOR_AND_BOX}{}", emitters(&mesh));
-    for (bounces, group) in [(1, "surfaces K=1"), (3, "surfaces K=3")] {
-        check_cases(
-            Cloud {
-                bounces,
-                shapes: &shapes,
-                medium_extra: FOG_BOX,
-                ..Cloud::default()
-            },
-            &[BOTH],
-            group,
-        );
-    }
+    check_cases(
+        Cloud {
+            bounces,
+            shapes: &shapes,
+            medium_extra: FOG_BOX,
+            ..Cloud::default()
+        },
+        &[BOTH],
+        &format!("surfaces K={bounces}"),
+    );
+}
+
+/// Surfaces, emitters and a box medium beside the cloud at K = 3: paths with surface and
+/// box vertices (up to three of them, so the one- and two-vertex paths of K = 1 and 2 are
+/// candidates too) and light from area lights converge to the baseline. When this was
+/// written: image means within +0.22 / -0.25 / -0.65 % (z +0.36 / -0.55 / -1.13), 1 of
+/// 1296 channels beyond 4.5 SE. Without reuse, surfaces alone agreed too (0.02-0.15 %, 3
+/// of 1296 channels), a case left out for CI time.
+#[test]
+fn surfaces_and_emitters_match_the_baseline() {
+    check_surfaces_and_emitters(3);
+}
+
+/// The same at K = 1 (the issue's second depth). Ignored in CI for time (about 3 minutes
+/// on two cores); run it with `cargo test --test suite -- --ignored surfaces`. When this
+/// was written: image means within +0.38 / -0.06 / -0.23 % (z +0.88 / -0.19 / -0.56), 0
+/// of 1296 channels beyond 4.5 SE.
+#[test]
+#[ignore = "about 3 minutes; K = 3 runs in CI"]
+fn surfaces_and_emitters_match_the_baseline_at_k1() {
+    check_surfaces_and_emitters(1);
 }
 
 /// Surfaces in hard places: a camera inside a closed box sees nothing (exactly 0: every

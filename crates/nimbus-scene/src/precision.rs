@@ -39,7 +39,7 @@ pub const MAX_OPTICAL_RESOLUTION: f64 = 1.0 / 256.0;
 pub struct PositionScale {
     /// R: the largest absolute coordinate of any point the renderer computes, in metres.
     pub extent: f64,
-    /// What sets `extent`, e.g. "[camera] field `position`".
+    /// What sets `extent`, e.g. "`[camera]` field `position`".
     pub farthest: String,
 }
 
@@ -274,7 +274,7 @@ pub fn grid_effective_sigma_t(grid: &VoxelGrid, scale: f64, voxel: [f64; 3]) -> 
 
 /// Refuses features and extinctions that 32-bit positions cannot resolve at the
 /// scene's extent (see [`crate::precision`]). Grid densities are checked when the grid
-/// is read ([`GridMedium::check_density`]).
+/// is read ([`GridMedium::check_density`](crate::GridMedium::check_density)).
 pub(crate) fn check_scene(source: &crate::fields::Source, scene: &Scene) -> anyhow::Result<()> {
     let scale = scene.position_scale();
     let fail = |table: String, field: &str, problem: String| {
@@ -448,7 +448,7 @@ impl crate::types::GridMedium {
         }
     }
 
-    /// [`GridMedium::check_density`] on a density loaded into bricks: the same two
+    /// [`GridMedium::check_density`](crate::GridMedium::check_density) on a density loaded into bricks: the same two
     /// rules, computed on the stored bricks only. Voxels in messages are the grid's own
     /// (absolute) index coordinates.
     pub fn check_density_bricks(
