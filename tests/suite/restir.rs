@@ -481,9 +481,12 @@ fn single_scattering_matches_the_baseline() {
     );
 }
 
-/// Multiple scattering (K = 3): no reuse, temporal only, spatial only, both, both with
-/// vertex reuse, and the levers together (two rounds of pairwise MIS, the pre-spatial
-/// history, a σ* floor) converge to the baseline (criteria in the module docs).
+/// Multiple scattering (K = 3): no reuse, both reuses, both with vertex reuse, and the
+/// levers together (two rounds of pairwise MIS, the pre-spatial history, a σ* floor)
+/// converge to the baseline (criteria in the module docs). Temporal-only and
+/// spatial-only reuse are checked apart at K = 1 (single_scattering_matches_the_baseline);
+/// here they were left out for CI time (the root suite had grown to 26 minutes on two
+/// cores), as any bias of theirs shows in "both".
 #[test]
 fn multiple_scattering_matches_the_baseline() {
     check_cases(
@@ -491,7 +494,7 @@ fn multiple_scattering_matches_the_baseline() {
             bounces: 3,
             ..Cloud::default()
         },
-        &[NO_REUSE, TEMPORAL, SPATIAL, BOTH, VERTEX, LEVERS],
+        &[NO_REUSE, BOTH, VERTEX, LEVERS],
         "K=3",
     );
 }
