@@ -39,7 +39,7 @@ void restir_main() {
     // 1 where it meets an emitting sphere or a shape.
     uint light_index;
     bool opaque = nearest_sphere_light(light_base(SET_CURRENT), cam.o, cam.d, 1e-6, FAR, light_index) < FAR ||
-                  surface_along(cam.o, cam.d, FAR).shape != NO_INDEX;
+                  occluded(cam.o, cam.d, 0.0);
     float T_camera = opaque ? 0.0 : grid_transmittance(cam.o, cam.d, 0.0, FAR) * boxes_transmittance(cam.o, cam.d, FAR);
     film_accumulate(pixel, L, 1.0 - clamp(T_camera, 0.0, 1.0));
 }
