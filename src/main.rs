@@ -214,7 +214,9 @@ struct StudyArgs {
     /// spatial_neighbors, spatial_radius_px, spatial_rounds, reuse, mis, temporal_history,
     /// sigma_star_floor, mip_candidates, mip_indirect, mip_reuse, final_transmittance.
     /// Each max_bounces gets its own reference; configurations that render the same
-    /// image are measured and listed once.
+    /// image are measured and listed once. ReSTIR renders one path per pixel per frame,
+    /// so spp varies the other integrators only (its spp > 1 configurations are left out
+    /// and listed).
     #[arg(long, value_name = "KEY=V1,V2,...")]
     vary: Vec<String>,
     /// Frames per configuration (unless frames is varied).

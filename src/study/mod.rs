@@ -17,6 +17,11 @@
 //! - **One row per distinct configuration.** Configurations that the integrator cannot
 //!   tell apart (they differ only in settings it does not read, [`effective_scene`]) are
 //!   rendered once and reported once; study.md lists which renders as which.
+//! - **spp is the baseline's knob.** Volumetric ReSTIR renders one path per pixel per
+//!   frame; where `--vary spp` varies other integrators too, ReSTIR's spp > 1
+//!   configurations are left out and listed ([`restir_refuses_only_spp`]), so one study
+//!   raises the baseline's spp towards ReSTIR's frame time (`--per-frame`: the paper's
+//!   equal-time single-frame comparison).
 //! - **A reference per integrand.** A configuration is compared with the reference of
 //!   its own integrand: the scene with the reference settings and the configuration's
 //!   values of the keys that change what is integrated (`vary::INTEGRAND_KEYS`:
@@ -163,6 +168,19 @@ fn warmup_frames(plan: &RenderPlan, requested: u32) -> u32 {
     requested.max(1).max(temporal)
 }
 
+/// Whether `scene` is refused only because it asks Volumetric ReSTIR for more than one
+/// sample per pixel: the same scene with spp = 1 plans as ReSTIR. A study that varies
+/// spp leaves such configurations out (ReSTIR's work per frame is set by its candidates,
+/// the baseline's by spp) instead of failing, and says so in its report.
+fn restir_refuses_only_spp(scene: &Scene, box_samples: Option<u32>) -> bool {
+    if scene.render.spp <= 1 {
+        return false;
+    }
+    let mut one = scene.clone();
+    one.render.spp = 1;
+    plan::build(&one, box_samples).is_ok_and(|p| p.restir().is_some())
+}
+
 /// The scene as far as its integrator reads it: the settings of the other integrators
 /// are reset to their defaults (the box-medium pass reads neither `volume` nor
 /// `[integrator.restir]`; the grid integrators read neither the box estimator nor
@@ -217,6 +235,10 @@ pub struct Study {
     references: Vec<ReferenceJob>,
     /// (key, value) of the baseline series, if there is one.
     baseline: Option<(String, String)>,
+    /// Configurations left out because they ask Volumetric ReSTIR for more than one
+    /// sample per pixel ([`restir_refuses_only_spp`]): `--vary spp` then varies the
+    /// other integrators' work (the baseline's spp raised to ReSTIR's frame time).
+    left_out: Vec<Assignment>,
     out_dir: PathBuf,
     width: u32,
     height: u32,
@@ -341,6 +363,8 @@ impl Study {
         let mut references: Vec<ReferenceJob> = Vec::new();
         let mut integrands: Vec<Assignment> = Vec::new();
         let mut configurations: Vec<Configuration> = Vec::new();
+        let mut left_out: Vec<Assignment> = Vec::new();
+        let spp_varied = varies.iter().any(|v| v.key == "spp");
         for assignment in cartesian(&varies) {
             let mut scene = base.clone();
             let mut box_samples = None;
@@ -368,6 +392,10 @@ impl Study {
             } else {
                 derived_seeds.clone()
             };
+            if spp_varied && restir_refuses_only_spp(&scene, box_samples) {
+                left_out.push(assignment);
+                continue;
+            }
             let plan = plan::build(&scene, box_samples)
                 .with_context(|| format!("configuration {label} cannot be rendered"))?;
 
@@ -423,6 +451,18 @@ impl Study {
             });
         }
 
+        if configurations.is_empty() {
+            bail!(
+                "every configuration asks Volumetric ReSTIR for spp > 1 ({}): it renders one \
+                 path per pixel per frame, so `--vary spp` only varies the other integrators' \
+                 work; include spp=1, or vary candidates or frames instead",
+                left_out
+                    .iter()
+                    .map(|a| format_pairs(a))
+                    .collect::<Vec<_>>()
+                    .join("; ")
+            );
+        }
         let baseline = resolve_baseline(opts.baseline.as_deref(), &varies)?;
 
         // Make sure the results can be written before spending time on renders.
@@ -438,6 +478,7 @@ impl Study {
             configurations,
             references,
             baseline,
+            left_out,
             out_dir,
             width,
             height,
@@ -628,23 +669,59 @@ mod tests {
         remove_scratch(&opts);
     }
 
-    /// ReSTIR renders one path per pixel per frame: `--vary spp` over it fails when
-    /// planning, with what sets its work instead (no silent spp = 1).
+    /// ReSTIR renders one path per pixel per frame: where `--vary spp` also varies the
+    /// baseline, ReSTIR's spp > 1 configurations are left out and listed (the per-frame
+    /// equal-time protocol: the baseline's spp raised to ReSTIR's frame time); where
+    /// nothing else is left, the study fails saying what sets ReSTIR's work instead.
     #[test]
-    fn restir_with_more_than_one_spp_is_refused_when_planning() {
+    fn restir_with_more_than_one_spp_is_left_out_or_refused() {
         let opts = StudyOptions {
             vary: vec!["volume=baseline,restir".into(), "spp=1,4".into()],
             ..grid_options("restir-spp")
         };
-        let message = format!("{:#}", Study::new(&opts).err().expect("an error"));
+        let study = Study::new(&opts).unwrap();
+        let labels: Vec<String> = study
+            .configurations
+            .iter()
+            .map(|c| format_pairs(&c.assignment))
+            .collect();
+        assert_eq!(
+            labels,
+            [
+                "volume=baseline spp=1",
+                "volume=baseline spp=4",
+                "volume=restir spp=1"
+            ]
+        );
+        assert_eq!(
+            study.left_out,
+            [vec![
+                ("volume".to_owned(), "restir".to_owned()),
+                ("spp".to_owned(), "4".to_owned())
+            ]]
+        );
+        let text = report::left_out_text(&study.left_out).expect("a note");
+        assert!(text.contains("- `volume=restir spp=4`"), "{text}");
+        assert!(text.contains("`candidates`"), "{text}");
+
+        let only = StudyOptions {
+            vary: vec!["volume=restir".into(), "spp=2,4".into()],
+            ..opts.clone()
+        };
+        let message = format!("{:#}", Study::new(&only).err().expect("an error"));
         for needle in [
-            "configuration volume=restir spp=4 cannot be rendered",
-            "[render]",
-            "`spp` = 4",
-            "[integrator.restir] `candidates`",
+            "volume=restir spp=2; volume=restir spp=4",
+            "one path per pixel per frame",
+            "candidates or frames",
         ] {
             assert!(message.contains(needle), "{needle:?}: {message}");
         }
+        // A baseline scene is never left out: spp is its own knob.
+        let baseline = StudyOptions {
+            vary: vec!["volume=baseline".into(), "spp=2,4".into()],
+            ..opts.clone()
+        };
+        assert_eq!(Study::new(&baseline).unwrap().configurations.len(), 2);
         remove_scratch(&opts);
     }
 

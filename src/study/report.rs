@@ -8,7 +8,7 @@ use std::fmt::Write as _;
 use super::cache::Reference;
 use super::metrics::{Comparison, ReferenceNoise, REL_MSE_EPSILON};
 use super::run::reference_label;
-use super::vary::{format_pairs, Vary, KNOB_KEYS};
+use super::vary::{format_pairs, Assignment, Vary, KNOB_KEYS};
 use super::{Row, Study, WARMUP_PER_TEMPORAL_LIMIT};
 
 /// One field of a CSV row (RFC 4180): quoted when it holds a comma, quote or line
@@ -272,6 +272,23 @@ pub(super) fn equivalents_text(rows: &[Row]) -> Option<String> {
     );
     for line in lines {
         let _ = writeln!(out, "{line}");
+    }
+    Some(out)
+}
+
+/// The configurations left out because they ask Volumetric ReSTIR for spp > 1
+/// (`Study::left_out`); `None` when there are none.
+pub(super) fn left_out_text(left_out: &[Assignment]) -> Option<String> {
+    if left_out.is_empty() {
+        return None;
+    }
+    let mut out = String::from(
+        "Left out: Volumetric ReSTIR renders one path per pixel per frame (its work per frame \
+         is set by `candidates`), so `--vary spp` varies only the other integrators' work \
+         (the baseline's spp raised towards ReSTIR's frame time) and these are not rendered:\n",
+    );
+    for a in left_out {
+        let _ = writeln!(out, "- `{}`", format_pairs(a));
     }
     Some(out)
 }

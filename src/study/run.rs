@@ -12,7 +12,7 @@ use super::metrics::{
     equal_time_over_seeds, frame_gpu_ms, mean_metrics, measure, summarize, ReferenceNoise, SeedRun,
 };
 use super::report::{
-    csv, equal_time_text, equivalents_text, markdown_table, noise_text, sig, table,
+    csv, equal_time_text, equivalents_text, left_out_text, markdown_table, noise_text, sig, table,
 };
 use super::vary::{format_pairs, group_series, series_key, series_label, Assignment, KNOB_KEYS};
 use super::{plot, scene_stem, Configuration, Row, Study};
@@ -116,6 +116,7 @@ impl Study {
             );
         }
         let equivalents = equivalents_text(&rows);
+        let left_out = left_out_text(&self.left_out);
         let equal = comparisons
             .as_ref()
             .map(|c| equal_time_text(c, self.baseline.as_ref(), seeds));
@@ -123,7 +124,7 @@ impl Study {
         let mut md = self.header_text(&device, &references);
         md += "\n";
         md += &table;
-        if let Some(text) = &equivalents {
+        for text in [&equivalents, &left_out].into_iter().flatten() {
             md += "\n";
             md += text;
         }
@@ -154,7 +155,7 @@ impl Study {
             .with_context(|| format!("writing {}", png_path.display()))?;
 
         print!("{table}");
-        if let Some(text) = &equivalents {
+        for text in [&equivalents, &left_out].into_iter().flatten() {
             print!("\n{text}");
         }
         print!("\n{noise}");

@@ -478,6 +478,8 @@ pub struct Context {
     debug_utils: Option<ash::ext::debug_utils::Device>,
     info: DeviceInfo,
     validation: bool,
+    /// Pipelines built so far, handed out again for the same description.
+    pub(crate) pipelines: Mutex<crate::pipeline_cache::PipelineCache>,
     /// Declared last: dropped (messenger, instance) after `Drop::drop` destroyed the device.
     instance: InstanceBundle,
 }
@@ -541,6 +543,7 @@ impl Context {
             debug_utils,
             info,
             validation: desc.validation,
+            pipelines: Mutex::default(),
             instance,
         };
         ctx.set_name(
@@ -660,6 +663,10 @@ impl Drop for Context {
                     "[nimbus-gpu] vkDeviceWaitIdle failed during teardown: {}",
                     crate::VkError(e)
                 );
+            }
+            let pipelines = lock(&self.pipelines).drain();
+            for built in pipelines {
+                self.destroy_built(built);
             }
             ManuallyDrop::drop(&mut self.allocator);
             let pools = std::mem::take(&mut *lock(&self.command_pools));

@@ -46,6 +46,7 @@ pub mod error;
 pub mod image;
 pub mod objects;
 pub mod pipeline;
+pub mod pipeline_cache;
 pub mod profiler;
 
 pub use ash::vk;

@@ -1,12 +1,14 @@
 //! Compute pipelines: one descriptor set, optional push constants, specialization constants.
 //!
 //! Each pipeline owns its single set layout (set 0) and its pipeline layout; the shader
-//! module is destroyed once the pipeline exists. Specialization constants are 4 bytes each
+//! module is destroyed once the pipeline exists. The context keeps built pipelines and
+//! hands them out again for the same description (`pipeline_cache`). Specialization constants are 4 bytes each
 //! (`bool` is a `VkBool32`), which is how render-plan features are compiled in or out.
 
-use crate::context::Context;
+use crate::context::{lock, Context};
 use crate::descriptor::DescriptorSet;
 use crate::error::{vk_error, VkResultExt};
+use crate::pipeline_cache::{Built, PipelineKey};
 use anyhow::{bail, Context as _, Result};
 use ash::vk;
 use std::collections::HashSet;
@@ -157,7 +159,9 @@ impl ComputePipeline {
 }
 
 impl Context {
-    /// Builds a compute pipeline (set layout, pipeline layout, specialized pipeline).
+    /// A compute pipeline (set layout, pipeline layout, specialized pipeline): the one
+    /// this context already built for the same description (`pipeline_cache`), or a
+    /// new one.
     pub fn create_compute_pipeline(
         &self,
         desc: &ComputePipelineDesc<'_>,
@@ -183,6 +187,18 @@ impl Context {
         }
         let entry = CString::new(desc.entry)
             .with_context(|| format!("pipeline '{name}': entry point name contains NUL"))?;
+        let key = PipelineKey::new(desc);
+        let handle = |built: Built| ComputePipeline {
+            raw: built.raw,
+            layout: built.layout,
+            set_layout: built.set_layout,
+            push_constant_size: desc.push_constant_size,
+            name: name.to_owned(),
+            bindings: desc.bindings.to_vec(),
+        };
+        if let Some(built) = lock(&self.pipelines).take(&key) {
+            return Ok(handle(built));
+        }
         let device = self.device();
 
         let set_bindings: Vec<_> = desc
@@ -288,23 +304,41 @@ impl Context {
             bail!("vkCreateComputePipelines for '{name}' returned no pipeline");
         };
         self.set_name(raw, name);
-        Ok(ComputePipeline {
+        let built = Built {
             raw,
             layout,
             set_layout,
-            push_constant_size: desc.push_constant_size,
-            name: name.to_owned(),
-            bindings: desc.bindings.to_vec(),
-        })
+        };
+        let (built, duplicate) = lock(&self.pipelines).insert(key, built);
+        if let Some(d) = duplicate {
+            self.destroy_built(d);
+        }
+        Ok(handle(built))
     }
 
-    /// Destroys the pipeline and its layouts. The GPU must be done with it.
+    /// Gives the pipeline back: the context keeps it for a later request of the same
+    /// description and destroys pipelines nobody uses beyond
+    /// [`crate::pipeline_cache::IDLE_PIPELINES`]. The GPU must be done with this
+    /// handle's work.
     pub fn destroy_compute_pipeline(&self, pipeline: ComputePipeline) {
+        let built = Built {
+            raw: pipeline.raw,
+            layout: pipeline.layout,
+            set_layout: pipeline.set_layout,
+        };
+        let doomed = lock(&self.pipelines).give_back(built);
+        for b in doomed {
+            self.destroy_built(b);
+        }
+    }
+
+    /// Destroys a pipeline and its layouts. No command buffer may still use it.
+    pub(crate) fn destroy_built(&self, built: Built) {
         let device = self.device();
         unsafe {
-            device.destroy_pipeline(pipeline.raw, None);
-            device.destroy_pipeline_layout(pipeline.layout, None);
-            device.destroy_descriptor_set_layout(pipeline.set_layout, None);
+            device.destroy_pipeline(built.raw, None);
+            device.destroy_pipeline_layout(built.layout, None);
+            device.destroy_descriptor_set_layout(built.set_layout, None);
         }
     }
 }
