@@ -48,6 +48,7 @@ if ((quick)); then
     frames_list=1,4
     box_samples=1,4
     bounces_list=1
+    spp_list=1,2
 else
     size=(--width 640 --height 480)
     hd=(--width 1920 --height 1080)
@@ -57,6 +58,7 @@ else
     frames_list=1,2,4,8,16,32,64
     box_samples=1,2,4,8,16,32
     bounces_list="1 3 7"
+    spp_list=1,2,4,8,16,32
 fi
 cache=(--cache-dir "$out/references")
 
@@ -115,6 +117,15 @@ for scene in "${bench[@]}"; do
             --vary "max_bounces=$k" --vary volume=baseline,restir --vary "frames=$frames_list" \
             --baseline volume=baseline \
             --out-dir "$out/study-bench-$scene-k$k"
+        # The paper's metric (issue 15's "done means"): each frame's own error at steady
+        # state, ReSTIR against the baseline with its spp raised to ReSTIR's frame time
+        # (ReSTIR's spp > 1 rows are left out by the study), with and without spatial
+        # reuse.
+        nimbus study "assets/scenes/bench/$scene.toml" "${bench_size[@]}" "${ref[@]}" "${cache[@]}" \
+            --seeds "$seeds" --per-frame --frames "$frames" \
+            --vary "max_bounces=$k" --vary volume=baseline,restir --vary spatial_neighbors=3,0 \
+            --vary "spp=$spp_list" --baseline volume=baseline \
+            --out-dir "$out/study-bench-per-frame-$scene-k$k"
     done
 done
 
