@@ -25,7 +25,6 @@ use crate::plan::RenderPlan;
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Binding {
     Storage,
-    Uniform,
     Image3d([u32; 3]),
 }
 
@@ -153,7 +152,7 @@ impl Footprint {
         );
         f.add(
             "frame uniforms",
-            Binding::Uniform,
+            Binding::Storage,
             std::mem::size_of::<FrameUniforms>() as u64,
         );
         // Per-pixel readback of both sums, the mean and standard error computed from
@@ -316,10 +315,6 @@ impl Footprint {
                 Binding::Storage => (
                     u64::from(info.max_storage_buffer_range),
                     "maxStorageBufferRange",
-                ),
-                Binding::Uniform => (
-                    u64::from(info.max_uniform_buffer_range),
-                    "maxUniformBufferRange",
                 ),
                 Binding::Image3d(d) => {
                     let max = info.max_image_dimension_3d;

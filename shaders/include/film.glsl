@@ -21,7 +21,14 @@
 
 layout(local_size_x = GROUP_SIZE_X, local_size_y = GROUP_SIZE_Y) in;
 
-layout(std140, set = 0, binding = BINDING_FRAME_UNIFORMS) uniform FrameBlock {
+// The frame's parameters, and every other pass's parameter block, are read-only storage
+// buffers, not uniform buffers: lavapipe (Mesa 22.3, our CI device) "inlines" uniform-buffer
+// values that reach a branch or a loop bound into a specialised copy of the shader and,
+// for a shader such as ours, compiles that copy again with LLVM at every dispatch and
+// never frees it. That cost 8-80 ms of every dispatch (a 1x1 frame of the window scene:
+// 77 ms; of the ReSTIR and baseline grid passes: 24 ms) inside the GPU timestamps, and
+// 3-11 MB of host memory per frame, without end. Storage-buffer loads are not inlined.
+layout(std430, set = 0, binding = BINDING_FRAME_UNIFORMS) readonly buffer FrameBlock {
     FrameUniforms u_frame;
 };
 layout(std430, set = 0, binding = BINDING_ACCUM) buffer AccumBlock {

@@ -11,7 +11,7 @@
 #include "grid_types.glsl"
 #include "scene.glsl"
 
-layout(std140, set = 0, binding = BINDING_BASELINE_UNIFORMS) uniform BaselineBlock {
+layout(std430, set = 0, binding = BINDING_BASELINE_UNIFORMS) readonly buffer BaselineBlock {
     BaselineUniforms u_base;
 };
 // Analytic lights (scene.glsl's Light: direction or position or centre by type, E or I or

@@ -38,7 +38,8 @@ struct GridParams {
 };
 
 // The grid medium and what lights it, read by the baseline path tracer and the ReSTIR
-// passes (std140 uniform at BINDING_BASELINE_UNIFORMS, named `u_base` by includers).
+// passes (std430 storage buffer at BINDING_BASELINE_UNIFORMS, named `u_base` by
+// includers).
 // Mirrored by BaselineUniformsGpu. 416 bytes.
 struct BaselineUniforms {
     GridParams grid;

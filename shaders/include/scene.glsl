@@ -1,4 +1,4 @@
-// GPU scene records (std430 storage buffers), the frame's uniforms (std140) and the
+// GPU scene records (std430 storage buffers), the frame's parameters (std430) and the
 // push constants of a dispatch. Mirrored member by member by the #[repr(C)] structs in
 // src/gpu/records.rs (same names); tests/layout.rs parses this file and checks every
 // member's type and offset and every struct's size.
@@ -111,7 +111,7 @@ struct Light {
     float select_cdf;           // grid passes: CDF of next-event light selection over the set
 };
 
-// Parameters fixed for a frame (std140 uniform). 128 bytes.
+// Parameters fixed for a frame (std430 storage buffer, see film.glsl). 128 bytes.
 struct FrameUniforms {
     vec3 cam_position;
     float tan_half_fov_x;   // tan(hfov / 2)

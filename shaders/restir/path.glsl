@@ -177,7 +177,7 @@ float final_transmittance(vec3 o, vec3 d, float t1, inout uint rng) {
 // Blocks are the level's voxels (2^mip density voxels per edge); empty bricks of the level
 // (sigma_t* = 0 throughout) are crossed in one step.
 float pc_track(uint level, vec3 o, vec3 d, float t_end, float tau_target, out float sigma_star, out float tau) {
-    // An if, not ?: — glslang's ?: on two std140 block members stores a value of the
+    // An if, not ?: — glslang's ?: on two block members stores a value of the
     // block's struct type into the local one, which the SPIR-V optimiser rejects.
     GridLevel L;
     if (level == LEVEL_PRIMARY) {

@@ -50,7 +50,8 @@ struct GridLevel {
     uint _pad2;
 };
 
-// Settings of the ReSTIR passes (std140). Mirrored by RestirUniformsGpu. 320 bytes.
+// Settings of the ReSTIR passes (std430 storage buffer, see film.glsl for why not a
+// uniform buffer). Mirrored by RestirUniformsGpu. 320 bytes.
 struct RestirUniforms {
     GridLevel pc_primary;       // piecewise-constant level for camera rays (u_pc)
     GridLevel pc_indirect;      // ... for scattered rays (u_pc)
@@ -85,13 +86,13 @@ struct RestirPush {
 
 #include "film.glsl"
 
-layout(std140, set = 0, binding = BINDING_PREV_FRAME_UNIFORMS) uniform PrevFrameBlock {
+layout(std430, set = 0, binding = BINDING_PREV_FRAME_UNIFORMS) readonly buffer PrevFrameBlock {
     FrameUniforms u_prev_frame;
 };
 layout(push_constant) uniform PushBlock {
     RestirPush u_push;
 };
-layout(std140, set = 0, binding = BINDING_RESTIR_UNIFORMS) uniform RestirBlock {
+layout(std430, set = 0, binding = BINDING_RESTIR_UNIFORMS) readonly buffer RestirBlock {
     RestirUniforms u_restir;
 };
 // The previous frame's full-resolution density atlas (the current one is

@@ -173,7 +173,7 @@ pub struct MomentPush {
     pub _pad2: u32,
 }
 
-/// `FrameUniforms` in scene.glsl (std140).
+/// `FrameUniforms` in scene.glsl (std430).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct FrameUniforms {
@@ -274,7 +274,7 @@ pub struct GridParamsGpu {
     pub space: GridSpaceGpu,
 }
 
-/// `BaselineUniforms` in grid_types.glsl (std140).
+/// `BaselineUniforms` in grid_types.glsl (std430).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
 pub struct BaselineUniformsGpu {
@@ -321,7 +321,7 @@ pub struct GridLevelGpu {
     pub _pad2: u32,
 }
 
-/// `RestirUniforms` in restir/resources.glsl (std140).
+/// `RestirUniforms` in restir/resources.glsl (std430).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
 pub struct RestirUniformsGpu {

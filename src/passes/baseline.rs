@@ -7,7 +7,7 @@ use nimbus_gpu::{BindingDesc, Context, DescriptorWrite, GpuObjects, SamplerDesc,
 use nimbus_scene::Scene;
 
 use super::{
-    atlas_image, compute_pipeline, upload_env_map, upload_records, upload_uniform, FrameConstants,
+    atlas_image, compute_pipeline, upload_env_map, upload_params, upload_records, FrameConstants,
     ImagePass, Targets,
 };
 use crate::budget::Footprint;
@@ -62,7 +62,7 @@ pub fn create(
             BindingDesc::storage_buffer(bindings::SHAPES),
             BindingDesc::storage_buffer(bindings::LIGHTS),
             BindingDesc::storage_buffer(bindings::GOBO_PLANES),
-            BindingDesc::uniform_buffer(bindings::BASELINE_UNIFORMS),
+            BindingDesc::storage_buffer(bindings::BASELINE_UNIFORMS),
             BindingDesc::sampled_image(bindings::GRID_DENSITY),
             BindingDesc::storage_buffer(bindings::SUPER_VOXELS),
             BindingDesc::sampled_image(bindings::GRID_EMISSION),
@@ -96,7 +96,7 @@ pub fn create(
         // Convex media are refused beside grids: their (compiled-out) planes are empty.
         let planes = upload_records(ctx, o, &[[0.0f32; 4]], "medium planes")?;
         let (env_texels, env_tables) = upload_env_map(ctx, o, grid.env_map.as_ref())?;
-        let uniforms = upload_uniform(ctx, o, &grid.uniforms, "baseline uniforms")?;
+        let uniforms = upload_params(ctx, o, &grid.uniforms, "baseline uniforms")?;
         let bricks = upload_records(ctx, o, &grid.indirection().entries, "grid bricks")?;
         let density = atlas_image(
             ctx,
@@ -147,7 +147,7 @@ pub fn create(
                 binding: bindings::SUPER_VOXELS,
                 buffer: &o[super_voxels],
             },
-            DescriptorWrite::UniformBuffer {
+            DescriptorWrite::StorageBuffer {
                 binding: bindings::BASELINE_UNIFORMS,
                 buffer: &o[uniforms],
             },

@@ -153,7 +153,7 @@ impl<'a> Targets<'a> {
     /// pass binds at the same binding numbers.
     pub fn writes(&self) -> [DescriptorWrite<'a>; 5] {
         [
-            DescriptorWrite::UniformBuffer {
+            DescriptorWrite::StorageBuffer {
                 binding: bindings::FRAME_UNIFORMS,
                 buffer: self.uniforms,
             },
@@ -179,7 +179,7 @@ impl<'a> Targets<'a> {
     /// The layout entries of [`Targets::writes`].
     pub fn layout() -> [BindingDesc; 5] {
         [
-            BindingDesc::uniform_buffer(bindings::FRAME_UNIFORMS),
+            BindingDesc::storage_buffer(bindings::FRAME_UNIFORMS),
             BindingDesc::storage_buffer(bindings::ACCUM),
             BindingDesc::storage_buffer(bindings::ACCUM_SQ),
             BindingDesc::storage_buffer(bindings::STATS),
@@ -385,8 +385,9 @@ pub fn upload_records<T: bytemuck::Pod>(
     Ok(buffer)
 }
 
-/// A GPU-only uniform buffer holding `value`, owned by `objects`.
-pub fn upload_uniform<T: bytemuck::Pod>(
+/// A GPU-only read-only parameter block holding `value` (a storage buffer: see
+/// shaders/include/film.glsl for why no pass uses uniform buffers), owned by `objects`.
+pub fn upload_params<T: bytemuck::Pod>(
     ctx: &Context,
     objects: &mut GpuObjects,
     value: &T,
@@ -395,7 +396,7 @@ pub fn upload_uniform<T: bytemuck::Pod>(
     let buffer = objects.add(ctx.create_buffer(
         &BufferDesc::gpu_only(
             std::mem::size_of::<T>() as u64,
-            vk::BufferUsageFlags::UNIFORM_BUFFER,
+            vk::BufferUsageFlags::STORAGE_BUFFER,
         ),
         name,
     )?);

@@ -222,10 +222,7 @@ pub fn render_each(
     let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
     let (objects, handles) = GpuObjects::build(ctx, |o| {
         let uniforms = o.add(ctx.create_buffer(
-            &BufferDesc::gpu_only(
-                std::mem::size_of::<FrameUniforms>() as u64,
-                vk::BufferUsageFlags::UNIFORM_BUFFER,
-            ),
+            &BufferDesc::gpu_only(std::mem::size_of::<FrameUniforms>() as u64, storage),
             "frame uniforms",
         )?);
         let accum = o.add(ctx.create_buffer(&BufferDesc::gpu_only(accum_bytes, storage), "accum")?);

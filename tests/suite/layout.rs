@@ -462,7 +462,7 @@ fn mirrors() -> Vec<Mirror> {
         Mirror {
             glsl: "FrameUniforms",
             rust: "FrameUniforms",
-            rules: &[Std140],
+            rules: &[Std430],
             size: size_of::<FrameUniforms>(),
             fields: rust_fields!(FrameUniforms {
                 cam_position,
@@ -563,7 +563,7 @@ fn mirrors() -> Vec<Mirror> {
                 _pad1,
             }),
         },
-        // A std140 member of BaselineUniforms, and the std430 storage buffer of the
+        // A member of BaselineUniforms, and the storage buffer of the
         // grid_volume test shader.
         Mirror {
             glsl: "GridParams",
@@ -581,7 +581,7 @@ fn mirrors() -> Vec<Mirror> {
         Mirror {
             glsl: "BaselineUniforms",
             rust: "BaselineUniformsGpu",
-            rules: &[Std140],
+            rules: &[Std430],
             size: size_of::<BaselineUniformsGpu>(),
             fields: rust_fields!(BaselineUniformsGpu {
                 grid,
@@ -601,7 +601,7 @@ fn mirrors() -> Vec<Mirror> {
         Mirror {
             glsl: "GridLevel",
             rust: "GridLevelGpu",
-            rules: &[Std140],
+            rules: &[Std430],
             size: size_of::<GridLevelGpu>(),
             fields: rust_fields!(GridLevelGpu {
                 lattice_min,
@@ -619,7 +619,7 @@ fn mirrors() -> Vec<Mirror> {
         Mirror {
             glsl: "RestirUniforms",
             rust: "RestirUniformsGpu",
-            rules: &[Std140],
+            rules: &[Std430],
             size: size_of::<RestirUniformsGpu>(),
             fields: rust_fields!(RestirUniformsGpu {
                 pc_primary,

@@ -16,8 +16,7 @@ use crate::gpu::{
     RestirPush, RestirUniformsGpu, ShapeGpu,
 };
 use crate::passes::{
-    atlas_image, compute_pipeline, image_3d, upload_env_map, upload_records, upload_uniform,
-    Targets,
+    atlas_image, compute_pipeline, image_3d, upload_env_map, upload_params, upload_records, Targets,
 };
 use crate::shaders;
 
@@ -72,11 +71,11 @@ pub struct Inputs<'a> {
 fn layout() -> Vec<BindingDesc> {
     let mut layout = Vec::from(Targets::layout());
     layout.extend([
-        BindingDesc::uniform_buffer(bindings::PREV_FRAME_UNIFORMS),
+        BindingDesc::storage_buffer(bindings::PREV_FRAME_UNIFORMS),
         BindingDesc::storage_buffer(bindings::LIGHTS),
         BindingDesc::storage_buffer(bindings::GOBO_PLANES),
-        BindingDesc::uniform_buffer(bindings::BASELINE_UNIFORMS),
-        BindingDesc::uniform_buffer(bindings::RESTIR_UNIFORMS),
+        BindingDesc::storage_buffer(bindings::BASELINE_UNIFORMS),
+        BindingDesc::storage_buffer(bindings::RESTIR_UNIFORMS),
         BindingDesc::sampled_image(bindings::GRID_DENSITY),
         BindingDesc::sampled_image(bindings::GRID_DENSITY_PREV),
         BindingDesc::sampled_image(bindings::GRID_EMISSION),
@@ -180,12 +179,12 @@ impl Resources {
         // The emitting shapes' primitives (one zeroed record without area lights, when
         // lights.glsl compiles the table out).
         let emitters = upload_records(ctx, o, &non_empty(&grid.emitters.records), "emitters")?;
-        let base_uniforms = upload_uniform(ctx, o, base_uniforms, "grid uniforms")?;
-        let restir_uniforms = upload_uniform(ctx, o, uniforms, "restir uniforms")?;
+        let base_uniforms = upload_params(ctx, o, base_uniforms, "grid uniforms")?;
+        let restir_uniforms = upload_params(ctx, o, uniforms, "restir uniforms")?;
         let prev_frame = o.add(ctx.create_buffer(
             &BufferDesc::gpu_only(
                 std::mem::size_of::<FrameUniforms>() as u64,
-                vk::BufferUsageFlags::UNIFORM_BUFFER,
+                vk::BufferUsageFlags::STORAGE_BUFFER,
             ),
             "previous frame uniforms",
         )?);
@@ -293,10 +292,6 @@ impl Resources {
                     binding,
                     buffer: &o[handle],
                 };
-                let uniform = |binding, handle: Handle<Buffer>| DescriptorWrite::UniformBuffer {
-                    binding,
-                    buffer: &o[handle],
-                };
                 let image =
                     |binding, handle: Handle<Image>, sampler| DescriptorWrite::SampledImage {
                         binding,
@@ -305,11 +300,11 @@ impl Resources {
                     };
                 let mut writes = Vec::from(targets.writes());
                 writes.extend([
-                    uniform(bindings::PREV_FRAME_UNIFORMS, prev_frame),
+                    buffer(bindings::PREV_FRAME_UNIFORMS, prev_frame),
                     buffer(bindings::LIGHTS, lights),
                     buffer(bindings::GOBO_PLANES, gobo_planes),
-                    uniform(bindings::BASELINE_UNIFORMS, base_uniforms),
-                    uniform(bindings::RESTIR_UNIFORMS, restir_uniforms),
+                    buffer(bindings::BASELINE_UNIFORMS, base_uniforms),
+                    buffer(bindings::RESTIR_UNIFORMS, restir_uniforms),
                     image(bindings::GRID_DENSITY, density, nearest),
                     image(bindings::GRID_DENSITY_PREV, density_prev, nearest),
                     image(bindings::GRID_EMISSION, emission, nearest),
