@@ -17,6 +17,10 @@ uvec2 cand_pixel[MAX_CANDIDATES];
 uint cand_set[MAX_CANDIDATES];
 float cand_M[MAX_CANDIDATES];
 float cand_w_scale[MAX_CANDIDATES];
+// Whether candidate i's target function is candidate 0's: the same pixel of a previous
+// frame whose camera, lights and density are this frame's (a static scene's temporal
+// neighbour). Targets of such candidates are evaluated once, not once per candidate.
+bool cand_same_target[MAX_CANDIDATES];
 
 // Registers candidate `i` (its header's M unless clamped later).
 void candidate_set(uint i, uint at, uvec2 pixel, uint set) {
@@ -25,6 +29,7 @@ void candidate_set(uint i, uint at, uvec2 pixel, uint set) {
     cand_set[i] = set;
     cand_M[i] = res_load_M(at);
     cand_w_scale[i] = 1.0;
+    cand_same_target[i] = i == 0u;
 }
 
 // The camera ray of candidate i's pixel and frame at jitter `code`.
@@ -82,17 +87,29 @@ uint combine_candidates_talbot(uint n, inout uint rng, out Reservoir s) {
         float p_own = 0.0;
         float p_here = 0.0;
         bool dead = false;
+        // A combined reservoir already holds the target at its own pixel (computed by the
+        // same function for the same ray, frame and path).
+        bool has_own = (ri.info & INFO_REUSE_TARGET) != 0u;
+        // The target of candidate 0's function for this sample, once known (< 0: not yet),
+        // which every candidate with the same target function shares.
+        float p_shared = has_own && cand_same_target[i] ? ri.p_hat : -1.0;
         for (uint step = 0u; step < n && !dead; ++step) {
             // Visit order: 0, i, then the others ascending (0, 1, 2, ... when i = 0).
             uint j = i == 0u ? step : (step == 0u ? 0u : (step == 1u ? i : (step <= i ? step - 1u : step)));
             if (!(cand_M[j] > 0.0)) {
                 continue;
             }
-            // The sample's own pixel: a combined reservoir already holds that target
-            // (computed by the same function for the same ray, frame and path).
-            bool stored = j == i && (ri.info & INFO_REUSE_TARGET) != 0u;
-            float p = stored ? ri.p_hat
-                             : luminance(path_value(cand_at[i], ri, candidate_ray(j, code), owner, MODE_TARGET, rng));
+            float p;
+            if (j == i && has_own) {
+                p = ri.p_hat;
+            } else if (cand_same_target[j] && p_shared >= 0.0) {
+                p = p_shared;
+            } else {
+                p = luminance(path_value(cand_at[i], ri, candidate_ray(j, code), owner, MODE_TARGET, rng));
+            }
+            if (cand_same_target[j]) {
+                p_shared = p;
+            }
             p_sum += p * cand_M[j];
             if (j == i) {
                 p_own = p;
@@ -122,7 +139,8 @@ uint combine_candidates_talbot(uint n, inout uint rng, out Reservoir s) {
 // (stored at candidate i, jitter code `code`, owned by camera ray `owner`); candidate i's
 // own value comes from the header when the reservoir already holds it.
 float candidate_target(uint i, uint j, Reservoir ri, uint code, CameraRay owner, inout uint rng) {
-    if (j == i && (ri.info & INFO_REUSE_TARGET) != 0u) {
+    bool has_own = (ri.info & INFO_REUSE_TARGET) != 0u;
+    if (has_own && (j == i || (cand_same_target[i] && cand_same_target[j]))) {
         return ri.p_hat;
     }
     return luminance(path_value(cand_at[i], ri, candidate_ray(j, code), owner, MODE_TARGET, rng));

@@ -102,12 +102,27 @@ float march_transmittance(sampler3D tex, GridLevel L, uint offset, float step, v
     vec3 hi = vec3(L.lattice_max);
     // Domain: the atlas has at least one slot.
     vec3 inv_size = 1.0 / vec3(textureSize(tex, 0));
+    // The sum at which the optical depth reaches MARCH_MAX_TAU: past it T~ is e^-64
+    // whatever the rest of the segment holds, so the march stops there (deep in a dense
+    // cloud, most of a light segment). Domain: density_scale * dt > 0, else no cap.
+    float scale_dt = u_grid.density_scale * dt;
+    float sum_cap = scale_dt > 0.0 ? MARCH_MAX_TAU / scale_dt : FAR;
     float sum = 0.0;
+    // The brick of the previous sample and its slot's first texel: consecutive samples
+    // mostly share a brick, whose indirection lookup and slot arithmetic (three integer
+    // divisions) are then not repeated.
+    ivec3 brick_at = ivec3(-1);
+    uint slot = NO_BRICK;
+    vec3 origin = vec3(0.0);
     for (int j = 0; j < n; ++j) {
         float t = (float(j) + 0.5) * dt;
         vec3 u = clamp(u0 + du * t, lo, hi);
         ivec3 brick = ivec3(floor(u)) >> 3;
-        uint slot = grid_slot(offset, L.brick_dims, brick);
+        if (brick != brick_at) {
+            brick_at = brick;
+            slot = grid_slot(offset, L.brick_dims, brick);
+            origin = vec3(grid_slot_origin(slot, L.slots_x, L.slots_y) - brick * 8);
+        }
         if (slot == NO_BRICK) {
             // Jump to the last sample before the ray leaves the brick (clamped samples
             // stay in it: no exit on that side).
@@ -125,8 +140,11 @@ float march_transmittance(sampler3D tex, GridLevel L, uint offset, float step, v
             j = max(j, int(next) - 1);
             continue;
         }
-        vec3 texel = vec3(grid_slot_origin(slot, L.slots_x, L.slots_y)) + (u - vec3(brick * 8)) + 0.5;
+        vec3 texel = origin + u + 0.5;
         sum += textureLod(tex, texel * inv_size, 0.0).r;
+        if (sum >= sum_cap) {
+            return exp(-MARCH_MAX_TAU);
+        }
     }
     // Domain: density_scale * sum * dt >= 0. Capped at MARCH_MAX_TAU so T~ (and with it
     // every target function) stays > 0 wherever the path contributes: RIS is unbiased
@@ -195,16 +213,24 @@ float pc_track(uint level, vec3 o, vec3 d, float t_end, float tau_target, out fl
     float s1;
     uint index;
     int steps = 0;
+    // The brick of the previous cell, its slot and first texel (see march_transmittance).
+    ivec3 brick_at = ivec3(-1);
+    uint slot = NO_BRICK;
+    ivec3 origin = ivec3(0);
     while (it.s < it.len && steps < GRID_MAX_STEPS) {
         ++steps;
         ivec3 cell = it.cell;
-        uint slot = grid_slot(L.bricks_offset, L.brick_dims, cell >> 3);
+        if ((cell >> 3) != brick_at) {
+            brick_at = cell >> 3;
+            slot = grid_slot(L.bricks_offset, L.brick_dims, brick_at);
+            origin = grid_slot_origin(slot, L.slots_x, L.slots_y);
+        }
         if (slot == NO_BRICK) {
             grid_blocks_skip_brick(it);
             continue;
         }
         grid_blocks_next(it, s0, s1, index);
-        float sigma = texelFetch(u_pc, grid_slot_origin(slot, L.slots_x, L.slots_y) + (cell & 7), 0).r;
+        float sigma = texelFetch(u_pc, origin + (cell & 7), 0).r;
         float dtau = sigma * (s1 - s0);
         if (sigma > 0.0 && tau + dtau >= tau_target) {
             sigma_star = sigma;

@@ -60,7 +60,7 @@ struct RestirUniforms {
     uint march_reuse_prev_offset;  // the previous frame's reuse mip: its indirection section
     uint density_prev_offset;   // the previous frame's density: its indirection section
     uint candidates_per_dispatch; // candidates one initial dispatch draws (its aux: the first)
-    uint _pad1;
+    uint history_static;      // 1: the previous frame's camera, lights and density are this frame's
     uint candidates;          // M: random walks per pixel
     uint temporal_limit;      // Q: cap of the temporal M, in multiples of M
     uint spatial_neighbors;   // neighbours of a spatial round

@@ -97,6 +97,9 @@ void restir_main() {
 
     candidate_set(0u, at, pixel, SET_CURRENT);
     candidate_set(1u, res_at(u_push.aux, q_prev), q_prev, SET_PREVIOUS);
+    // A static scene's previous frame at this very pixel has this frame's target function:
+    // the samples' targets are evaluated once (3 path evaluations become 1).
+    cand_same_target[1] = u_restir.history_static != 0u && all(equal(q_prev, pixel));
     // Temporal limit: M_prev <= Q M, scaling w_sum alike so W_prev is unchanged.
     float m_cap = float(u_restir.temporal_limit) * float(u_restir.candidates);
     if (cand_M[1] > m_cap) {

@@ -337,7 +337,9 @@ pub struct RestirUniformsGpu {
     /// Candidates one dispatch of the initial pass draws (M unless the device limits the
     /// loop iterations of an invocation).
     pub candidates_per_dispatch: u32,
-    pub _pad1: u32,
+    /// 1 when the previous frame's camera, lights and density are this frame's, so that
+    /// the temporal neighbour at the same pixel has this frame's target function.
+    pub history_static: u32,
     /// M.
     pub candidates: u32,
     /// Q.

@@ -155,8 +155,10 @@ pub struct RestirPlan {
     /// Final shading by ratio tracking instead of the closed-form transmittance.
     pub final_ratio_tracking: bool,
     pub mip_candidates: u32,
-    pub mip_indirect: u32,
-    pub mip_reuse: u32,
+    /// `None`: chosen from the volume's content when the pass loads it
+    /// (`passes::restir::volumes::Levels::choose`).
+    pub mip_indirect: Option<u32>,
+    pub mip_reuse: Option<u32>,
     /// Pairwise MIS in spatial reuse instead of Talbot's.
     pub pairwise_mis: bool,
     /// The temporal stage's output (not the spatial one) is the next frame's history.

@@ -307,7 +307,7 @@ fn restir_plan(
                 index + 1,
                 plan.candidates,
                 plan.mip_candidates,
-                plan.mip_indirect,
+                mip_text(plan.mip_indirect),
                 crate::gpu::reservoir_bytes(k)
             ),
         ),
@@ -345,7 +345,7 @@ fn restir_plan(
                     plan.spatial_neighbors,
                     plan.spatial_radius_px,
                     if plan.pairwise_mis { "pairwise" } else { "Talbot" },
-                    plan.mip_reuse,
+                    mip_text(plan.mip_reuse),
                     if plan.vertex_reuse {
                         "vertex"
                     } else {
@@ -434,6 +434,16 @@ fn restir_plan(
         ),
     ];
     (Integrator::Restir(plan), decisions)
+}
+
+/// A mip level of the plan for --explain: its number, or how `auto` chooses it.
+fn mip_text(level: Option<u32>) -> String {
+    match level {
+        Some(l) => l.to_string(),
+        None => "auto (the coarsest whose marched transmittance stays within 5 % of the \
+                 volume's, measured when it loads)"
+            .into(),
+    }
 }
 
 #[cfg(test)]

@@ -120,8 +120,8 @@ pub(super) fn apply(scene: &mut Scene, key: &str, value: &str) -> Result<Option<
         "mip_candidates" => {
             scene.integrator.restir.mip_candidates = parse_range(key, value, 0, 16)?
         }
-        "mip_indirect" => scene.integrator.restir.mip_indirect = parse_range(key, value, 0, 16)?,
-        "mip_reuse" => scene.integrator.restir.mip_reuse = parse_range(key, value, 0, 16)?,
+        "mip_indirect" => scene.integrator.restir.mip_indirect = parse_level(key, value)?,
+        "mip_reuse" => scene.integrator.restir.mip_reuse = parse_level(key, value)?,
         "final_transmittance" => {
             scene.integrator.restir.final_ratio_tracking = match value {
                 "analytic" => false,
@@ -160,6 +160,14 @@ fn parse_range(key: &str, value: &str, min: u32, max: u32) -> Result<u32> {
         Ok(n) if (min..=max).contains(&n) => Ok(n),
         _ => bail!("{key}: {value:?} is not an integer in {min}..={max}"),
     }
+}
+
+/// A mip level 0..=16, or `auto` (`None`: chosen from the volume's content).
+fn parse_level(key: &str, value: &str) -> Result<Option<u32>> {
+    if value == "auto" {
+        return Ok(None);
+    }
+    parse_range(key, value, 0, 16).map(Some)
 }
 
 /// `true` or `false`.
@@ -449,7 +457,10 @@ mod tests {
         );
         assert_eq!((r.spatial_radius_px, r.spatial_rounds), (2.5, 2));
         assert_eq!(r.reuse, nimbus_scene::ReuseMode::Vertex);
-        assert_eq!((r.mip_candidates, r.mip_indirect, r.mip_reuse), (0, 3, 2));
+        assert_eq!(
+            (r.mip_candidates, r.mip_indirect, r.mip_reuse),
+            (0, Some(3), Some(2))
+        );
         assert!(r.final_ratio_tracking);
         for (key, value) in [
             ("temporal", "yes"),

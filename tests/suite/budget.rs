@@ -20,9 +20,11 @@ fn asset(name: &str) -> PathBuf {
 /// estimate bounds the bytes the render created from above, and is not loose: at least
 /// half of it is really allocated; a third for the procedural cloud, whose bricks are
 /// bounded from its formula per super-voxel without evaluating it (at 256x160x256 the
-/// bound claims 5991 slots, 2.6 times the 2331 the cloud fills). (It counts ReSTIR's
-/// half-float ray-march mips as f32, which a density beyond f16's range needs, and
-/// leaves out records of a few bytes.)
+/// bound claims 5991 slots, 2.6 times the 2331 the cloud fills), and ReSTIR's levels
+/// chosen from the content (`"auto"`, when the grid loads) are counted at the finest they
+/// can be (measured 2.8x for cloud-restir.toml, 2.5x for cloud-logo.toml). (It counts
+/// ReSTIR's half-float ray-march mips as f32 unless the density is the procedural cloud,
+/// whose values lie in [0, 1], and leaves out records of a few bytes.)
 #[test]
 fn footprint_matches_what_the_passes_create() {
     let ctx = context();

@@ -629,7 +629,7 @@ fn mirrors() -> Vec<Mirror> {
                 march_reuse_prev_offset,
                 density_prev_offset,
                 candidates_per_dispatch,
-                _pad1,
+                history_static,
                 candidates,
                 temporal_limit,
                 spatial_neighbors,

@@ -220,6 +220,29 @@ impl<'a> Fields<'a> {
         u32::try_from(value).map_err(|_| self.error(key, "does not fit in 32 bits"))
     }
 
+    /// An integer in `range`, or the string `"auto"` (`None`); absent gives `default`.
+    pub fn u32_or_auto(
+        &self,
+        key: &str,
+        default: Option<u32>,
+        range: RangeInclusive<u32>,
+    ) -> Result<Option<u32>> {
+        match self.map.get(key) {
+            None => Ok(default),
+            Some(Value::String(s)) if s == "auto" => Ok(None),
+            Some(Value::String(s)) => Err(self.error(
+                key,
+                format!(
+                    "\"{s}\" is not \"auto\" or an integer in [{}, {}]",
+                    range.start(),
+                    range.end()
+                ),
+            )),
+            Some(Value::Integer(_)) => self.u32_in(key, None, range).map(Some),
+            Some(other) => Err(self.wrong_type(key, "an integer or \"auto\"", other)),
+        }
+    }
+
     pub fn opt_bool(&self, key: &str) -> Result<Option<bool>> {
         match self.map.get(key) {
             Some(Value::Boolean(b)) => Ok(Some(*b)),

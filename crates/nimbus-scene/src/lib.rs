@@ -80,7 +80,8 @@
 //! | restir `spatial_neighbors` | 0..=16 ([`MAX_SPATIAL_NEIGHBORS`]) |
 //! | restir `spatial_radius_px` | [0, 16384] |
 //! | restir `spatial_rounds` | 0..=16 |
-//! | restir `mip_candidates`, `mip_indirect`, `mip_reuse` | 0..=16 |
+//! | restir `mip_candidates` | 0..=16 |
+//! | restir `mip_indirect`, `mip_reuse` | 0..=16, or `"auto"` |
 //! | restir `mis` | `"talbot"`, `"pairwise"` |
 //! | restir `temporal_history` | `"spatial"`, `"temporal"` |
 //! | restir `sigma_star_floor` | [0, 1] |

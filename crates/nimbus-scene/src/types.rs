@@ -504,8 +504,13 @@ pub struct RestirSettings {
     pub spatial_rounds: u32,
     pub reuse: ReuseMode,
     pub mip_candidates: u32,
-    pub mip_indirect: u32,
-    pub mip_reuse: u32,
+    /// The mip level of the candidates' scattered segments and their light transmittance,
+    /// and the one the reuse passes ray march their targets on (`mip_indirect`,
+    /// `mip_reuse`); `None` (`"auto"`, the default) chooses each from the volume's content
+    /// when it is loaded: the coarsest level whose marched transmittance stays close to
+    /// the true one (see `nimbus_scene::bricks::march_errors`).
+    pub mip_indirect: Option<u32>,
+    pub mip_reuse: Option<u32>,
     /// Final shading by ratio tracking (`final_transmittance = "ratio"`) instead of the
     /// closed-form trilinear transmittance (`"analytic"`, the default).
     pub final_ratio_tracking: bool,
@@ -531,8 +536,8 @@ impl Default for RestirSettings {
             spatial_rounds: 1,
             reuse: ReuseMode::Direction,
             mip_candidates: 1,
-            mip_indirect: 2,
-            mip_reuse: 1,
+            mip_indirect: None,
+            mip_reuse: None,
             final_ratio_tracking: false,
             mis: MisMode::Talbot,
             temporal_history: HistoryMode::Spatial,

@@ -18,7 +18,7 @@ pub mod volumes;
 use anyhow::Result;
 
 use nimbus_gpu::{compute_barrier, vk, Context, GpuObjects, Profiler, SpecValue};
-use nimbus_scene::{CameraFrame, GridMedium, Scene};
+use nimbus_scene::{CameraFrame, GridMedium, GridSource, Scene};
 
 use self::resources::{Inputs, Resources};
 use self::schedule::{schedule, ScheduleSettings, Stage, SLOTS};
@@ -222,8 +222,10 @@ pub struct RestirPass {
     prev_slot: Option<u32>,
     /// The previous-frame uniforms last uploaded.
     prev_uploaded: Option<FrameUniforms>,
-    /// The levels the plan asked for (the volumes hold those used).
-    plan_levels: volumes::Levels,
+    /// The ReSTIR uniforms as uploaded (`history_static` changes per frame).
+    restir_uniforms: RestirUniformsGpu,
+    /// The levels the plan asked for, `None` for `auto` (the volumes hold those used).
+    plan_levels: (u32, Option<u32>, Option<u32>),
 }
 
 impl RestirPass {
@@ -388,11 +390,8 @@ impl RestirPass {
             loaded: (0, 0),
             prev_slot: None,
             prev_uploaded: None,
-            plan_levels: volumes::Levels {
-                candidates: plan.mip_candidates,
-                indirect: plan.mip_indirect,
-                reuse: plan.mip_reuse,
-            },
+            restir_uniforms,
+            plan_levels: (plan.mip_candidates, plan.mip_indirect, plan.mip_reuse),
         })
     }
 
@@ -537,7 +536,23 @@ impl Pass for RestirPass {
             )?;
             self.prev_uploaded = Some(prev);
         }
-        self.upload_density(ctx, scene_frame, prev_frame)
+        self.upload_density(ctx, scene_frame, prev_frame)?;
+        // Whether the previous frame's target function is this frame's: the same camera,
+        // light set and density (a static scene, or a held frame of an animation).
+        let same = scene.camera.frame_at(scene_frame) == camera
+            && (!scene.lights_animated()
+                || scene.lights_at(scene_frame) == scene.lights_at(prev_frame))
+            && self.grid.density_index_at(scene_frame) == self.grid.density_index_at(prev_frame);
+        let flag = u32::from(same);
+        if flag != self.restir_uniforms.history_static {
+            self.restir_uniforms.history_static = flag;
+            ctx.upload_buffer(
+                &self.objects[self.res.restir_uniforms],
+                0,
+                bytemuck::bytes_of(&self.restir_uniforms),
+            )?;
+        }
+        Ok(())
     }
 
     /// Records the frame's stages, each in its own profiler scope (spatial rounds share
@@ -589,15 +604,30 @@ impl Pass for RestirPass {
 
     fn notes(&self) -> Vec<String> {
         let l = self.volumes.levels;
+        let mut notes = Vec::new();
+        if let Some(errors) = &self.volumes.march_errors {
+            let list: Vec<String> = errors.iter().map(|e| format!("{e:.3}")).collect();
+            notes.push(format!(
+                "ReSTIR chose mip {} (scattered segments) and {} (reuse targets) from the \
+                 volume's content: marched optical depth errors {} at mips 0..{} \
+                 (transmittance-weighted RMS), the coarsest within {}",
+                l.indirect,
+                l.reuse,
+                list.join(" / "),
+                errors.len().saturating_sub(1),
+                volumes::MAX_MARCH_ERROR
+            ));
+        }
+        let (candidates, indirect, reuse) = self.plan_levels;
         let asked = (
-            self.plan_levels.candidates,
-            self.plan_levels.indirect,
-            self.plan_levels.reuse,
+            candidates,
+            indirect.unwrap_or(l.indirect),
+            reuse.unwrap_or(l.reuse),
         );
         if (l.candidates, l.indirect, l.reuse) == asked {
-            return Vec::new();
+            return notes;
         }
-        vec![format!(
+        notes.push(format!(
             "ReSTIR used mip levels {}/{}/{} (candidates/indirect/reuse) instead of {}/{}/{}: \
              coarser levels would spread the grid's sharpest density steps over more than \
              {} optical depths and stop sampling paths that contribute",
@@ -608,7 +638,8 @@ impl Pass for RestirPass {
             asked.1,
             asked.2,
             volumes::MAX_LEVEL_EXCESS_TAU
-        )]
+        ));
+        notes
     }
 
     fn destroy(self: Box<Self>, ctx: &Context) {
@@ -645,9 +676,10 @@ fn level_topology(t: &BrickTopology, level: u32, dilate: bool) -> BrickTopology 
 
 /// What the ReSTIR passes allocate (see [`crate::budget`]): the grid's atlases (density,
 /// piecewise-constant levels, ray-march mips, and the previous frame's where density
-/// frames change), sized for the largest frame at the plan's mip levels (a level refined
-/// by content, see [`volumes::MAX_LEVEL_EXCESS_TAU`], is finer and larger), the
-/// indirection sections, reservoirs and velocity.
+/// frames change), sized for the largest frame at the plan's mip levels (`auto` ones at
+/// the finest they can be; a level refined by content, see
+/// [`volumes::MAX_LEVEL_EXCESS_TAU`], is finer and larger), the indirection sections,
+/// reservoirs and velocity.
 pub fn footprint(scene: &Scene, p: &RestirPlan, f: &mut Footprint) -> Result<()> {
     f.add_meshes(scene);
     f.add_emitters(scene);
@@ -683,11 +715,15 @@ pub fn footprint(scene: &Scene, p: &RestirPlan, f: &mut Footprint) -> Result<()>
     let (mut pc, mut reuse, mut nee) = (0u64, 0u64, 0u64);
     let (mut kept, mut building) = (0u64, 0u64);
     let mut cells = 0u64;
+    // A level chosen from the content when the grid loads: counted at the finest it can
+    // be.
+    let mip_indirect = p.mip_indirect.unwrap_or(volumes::MIN_AUTO_INDIRECT);
+    let mip_reuse = p.mip_reuse.unwrap_or(0);
     for (n, t) in frames.iter().enumerate() {
         let primary = level_topology(t, p.mip_candidates, true);
-        let indirect = level_topology(t, p.mip_indirect, true);
-        let march_reuse = level_topology(t, p.mip_reuse, false);
-        let march_nee = level_topology(t, p.mip_indirect, false);
+        let indirect = level_topology(t, mip_indirect, true);
+        let march_reuse = level_topology(t, mip_reuse, false);
+        let march_nee = level_topology(t, mip_indirect, false);
         let slots = frame_slots[n];
         if n > 0 {
             density_slots = density_slots.max(slots);
@@ -714,8 +750,14 @@ pub fn footprint(scene: &Scene, p: &RestirPlan, f: &mut Footprint) -> Result<()>
             .max(conservative.bricks.len() as u64 * (brick + 12) + conservative.cells() * 4);
     }
     let r32 = TexelFormat::R32;
-    // The march mips as f32 (what a density beyond f16's range needs).
-    let march = TexelFormat::R32;
+    // The march mips as f32 (what a density beyond f16's range needs), or f16 where every
+    // density is the procedural cloud, whose values lie in [0, 1].
+    let procedural = |s: &GridSource| matches!(s, GridSource::ProceduralCloud { .. });
+    let march = if procedural(&g.density) && g.frames.iter().all(|fr| procedural(&fr.density)) {
+        TexelFormat::R16
+    } else {
+        TexelFormat::R32
+    };
     let mut atlas = |name: &str, slots: u64, format: TexelFormat| -> Result<()> {
         f.add(
             format!("{table} ({name}, atlas of {slots} bricks)"),
@@ -739,7 +781,7 @@ pub fn footprint(scene: &Scene, p: &RestirPlan, f: &mut Footprint) -> Result<()>
                 atlas_bytes(density_slots, r32)? - atlas_bytes(base, r32)?,
             );
         }
-        cells += gf.density.cells() + level_topology(&gf.density, p.mip_reuse, false).cells();
+        cells += gf.density.cells() + level_topology(&gf.density, mip_reuse, false).cells();
     }
     f.add(
         format!("{table} (brick indirection of the derived levels)"),

@@ -28,6 +28,7 @@ pub struct Resources {
     /// The analytic lights of this frame, then those of the previous frame.
     pub lights: Handle<Buffer>,
     pub base_uniforms: Handle<Buffer>,
+    pub restir_uniforms: Handle<Buffer>,
     pub prev_frame: Handle<Buffer>,
     /// Every grid's indirection section ([`super::Sections`] says where each starts).
     pub bricks: Handle<Buffer>,
@@ -338,6 +339,7 @@ impl Resources {
             sets: [sets[0], sets[1], sets[2], sets[3]],
             lights,
             base_uniforms,
+            restir_uniforms,
             prev_frame,
             bricks,
             super_voxels,

@@ -35,6 +35,7 @@
 mod build;
 mod derive;
 mod load;
+mod march;
 mod precision;
 #[cfg(test)]
 mod tests;
@@ -43,6 +44,7 @@ pub use build::{
     procedural_cloud_brick_may_be_nonzero, procedural_cloud_super_voxel_may_be_nonzero,
     BrickTopology,
 };
+pub use march::{march_errors, MARCH_ERROR_SEGMENTS};
 pub use precision::effective_sigma_t;
 
 use anyhow::{bail, Result};

@@ -510,8 +510,8 @@ fn parse_restir(source: &Source, table: &toml::Table) -> Result<RestirSettings> 
             ],
         )?,
         mip_candidates: f.u32_in("mip_candidates", Some(d.mip_candidates), 0..=16)?,
-        mip_indirect: f.u32_in("mip_indirect", Some(d.mip_indirect), 0..=16)?,
-        mip_reuse: f.u32_in("mip_reuse", Some(d.mip_reuse), 0..=16)?,
+        mip_indirect: f.u32_or_auto("mip_indirect", d.mip_indirect, 0..=16)?,
+        mip_reuse: f.u32_or_auto("mip_reuse", d.mip_reuse, 0..=16)?,
         final_ratio_tracking: f.choice(
             "final_transmittance",
             Some(d.final_ratio_tracking),

@@ -33,8 +33,15 @@ fn minimal_scene_gets_every_default() {
     assert_eq!(restir.reuse, ReuseMode::Direction);
     assert_eq!(
         (restir.mip_candidates, restir.mip_indirect, restir.mip_reuse),
-        (1, 2, 1)
+        (1, None, None)
     );
+}
+
+#[test]
+fn mip_levels_are_numbers_or_auto() {
+    let text = format!("{CAMERA}[integrator.restir]\nmip_indirect = 2\nmip_reuse = \"auto\"\n");
+    let restir = parse(&text).unwrap().integrator.restir;
+    assert_eq!((restir.mip_indirect, restir.mip_reuse), (Some(2), None));
 }
 
 #[test]
@@ -406,8 +413,8 @@ sigma_star_floor = 0.125
                 spatial_rounds: 2,
                 reuse: ReuseMode::Vertex,
                 mip_candidates: 2,
-                mip_indirect: 3,
-                mip_reuse: 0,
+                mip_indirect: Some(3),
+                mip_reuse: Some(0),
                 final_ratio_tracking: true,
                 mis: MisMode::Pairwise,
                 temporal_history: HistoryMode::Temporal,
