@@ -36,6 +36,8 @@
 #define SC_ID_HAS_MESHES 15
 // Grid passes: some shapes emit (the emitter table is sampled; emitters.glsl).
 #define SC_ID_HAS_AREA_LIGHTS 16
+// ReSTIR: split next-event estimation (every delta light plus one environment sample).
+#define SC_ID_NEE_SPLIT 17
 
 // ---------------------------------------------------------------------------------------
 // Values of SC_ESTIMATOR: the box-medium estimators of Velinov & Mitchell.

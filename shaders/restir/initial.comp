@@ -48,6 +48,66 @@ void add_candidate(uint at, inout Reservoir r, inout uint rng, float w, float p_
     }
 }
 
+// The scattering candidate of vertex x by next-event estimation (surface `surface`, else a
+// medium vertex reached along w with asymmetry g): one light drawn by power (the paper's),
+// or with split NEE (path.glsl) one environment direction drawn from u2 plus every delta
+// light, all in one loop over light terms as path_value evaluates them. Fhat and beta are
+// the path's target and weight so far (times sigma_s in a medium).
+void add_nee_candidate(uint at, inout Reservoir r, inout uint rng, vec3 x, SurfacePoint surface, vec3 w, float g,
+                       float u_light, vec2 u2, vec3 Fhat, vec3 beta, uint kp, uint jitter_bits) {
+    LightSample ls;
+    uint dir_code;
+    if (SC_NEE_SPLIT) {
+        ls = light_sample_none();
+        vec3 wi;
+        if (SC_HAS_ENV_MAP) {
+            float pdf_drawn;
+            env_sample(u2, wi, pdf_drawn);
+        } else {
+            wi = sample_uniform_sphere(u2);
+        }
+        // The direction as the reservoir stores it and its density, both what path_value
+        // evaluates (quantization moves it by < 6e-5 rad).
+        dir_code = oct_encode(wi);
+        ls.wi = oct_decode(dir_code);
+        ls.index = LIGHT_ENV;
+        ls.pdf = env_sample_pdf(ls.wi);
+        ls.L = env_radiance_along(ls.wi);
+        // Domain: pdf > 0 (checked below before use).
+        ls.L_over_pdf = ls.pdf > 0.0 ? ls.L / ls.pdf : vec3(0.0);
+    } else {
+        ls = light_sample(0u, x, u_light, u2);
+        dir_code = light_is_area(0u, ls.index) ? ls.prim : oct_encode(ls.wi);
+    }
+    if (!(ls.pdf > 0.0)) {
+        return;
+    }
+    // Split NEE weighs the delta lights by the environment sample's density q.
+    float q = SC_NEE_SPLIT ? ls.pdf : 1.0;
+    vec3 Fs = vec3(0.0);
+    vec3 bs = vec3(0.0);
+    uint terms = light_terms();
+    for (uint k = 0u; k < terms; ++k) {
+        vec3 wi = ls.wi;
+        float dist = ls.dist;
+        vec3 L = ls.L;
+        vec3 L_over_pdf = ls.L_over_pdf;
+        if (k > 0u) {
+            L_over_pdf = light_term(0u, k, x, wi, dist);
+            L = q * L_over_pdf;
+        }
+        vec3 s = vertex_scatter(surface, w, g, wi);
+        if (!any(greaterThan(s * L, vec3(0.0))) || light_blocked(0u, x, wi, dist) || shapes_block(x, wi, dist)) {
+            continue;
+        }
+        float T_nee = nee_transmittance(x, wi, dist) * boxes_transmittance(x, wi, dist);
+        Fs += s * L * T_nee;
+        bs += s * L_over_pdf * T_nee;
+    }
+    add_candidate(at, r, rng, luminance(beta * bs), luminance(Fhat * Fs), kp, jitter_bits | (ls.index << 8u),
+                  ls.point, dir_code);
+}
+
 void restir_main();
 
 // The stage, then its counters into the stats buffer.
@@ -148,16 +208,7 @@ void restir_main() {
                 // Scattering candidate by next-event estimation: albedo cos / pi.
                 float u_light = rng_next(rng);
                 vec2 u2 = vec2(rng_next(rng), rng_next(rng));
-                LightSample ls = light_sample(0u, x, u_light, u2);
-                vec3 brdf = surface_reflect(surface, ls.wi);
-                if (ls.pdf > 0.0 && any(greaterThan(brdf, vec3(0.0))) && !light_blocked(0u, x, ls.wi, ls.dist) &&
-                    !shapes_block(x, ls.wi, ls.dist)) {
-                    float T_nee = nee_transmittance(x, ls.wi, ls.dist) * boxes_transmittance(x, ls.wi, ls.dist);
-                    vec3 Fs = Fhat * brdf * ls.L * T_nee;
-                    vec3 bs = beta * brdf * ls.L_over_pdf * T_nee;
-                    add_candidate(at, r, rng, luminance(bs), luminance(Fs), i, jitter_bits | (ls.index << 8u),
-                                  ls.point, light_is_area(0u, ls.index) ? ls.prim : oct_encode(ls.wi));
-                }
+                add_nee_candidate(at, r, rng, x, surface, w, g, u_light, u2, Fhat, beta, i, jitter_bits);
                 if (i == SC_MAX_BOUNCES) {
                     break;
                 }
@@ -210,15 +261,8 @@ void restir_main() {
             // Scattering candidate by next-event estimation.
             float u_light = rng_next(rng);
             vec2 u2 = vec2(rng_next(rng), rng_next(rng));
-            LightSample ls = light_sample(0u, x, u_light, u2);
-            if (ls.pdf > 0.0 && !light_blocked(0u, x, ls.wi, ls.dist) && !shapes_block(x, ls.wi, ls.dist)) {
-                float rho = hg_phase(dot(w, ls.wi), g);
-                float T_nee = nee_transmittance(x, ls.wi, ls.dist) * boxes_transmittance(x, ls.wi, ls.dist);
-                vec3 Fs = Fhat * sigma_s * rho * ls.L * T_nee;
-                vec3 bs = beta * sigma_s * rho * ls.L_over_pdf * T_nee;
-                add_candidate(at, r, rng, luminance(bs), luminance(Fs), i, jitter_bits | (ls.index << 8u),
-                              ls.point, light_is_area(0u, ls.index) ? ls.prim : oct_encode(ls.wi));
-            }
+            add_nee_candidate(at, r, rng, x, surface_none(x, w), w, g, u_light, u2, Fhat * sigma_s, beta * sigma_s, i,
+                              jitter_bits);
             if (i == SC_MAX_BOUNCES) {
                 break;
             }

@@ -32,6 +32,8 @@ pub const SC_ID_HAS_CONVEX: u32 = 14;
 pub const SC_ID_HAS_MESHES: u32 = 15;
 /// Grid passes: some shapes emit (the emitter table is sampled).
 pub const SC_ID_HAS_AREA_LIGHTS: u32 = 16;
+/// ReSTIR: split next-event estimation (every delta light plus one environment sample).
+pub const SC_ID_NEE_SPLIT: u32 = 17;
 
 // ---------------------------------------------------------------------------------------
 // Values of `SC_ESTIMATOR` in `shaders/box/crepuscular.comp`.
@@ -81,7 +83,7 @@ pub const MARCH_MAX_STEPS: u32 = 4096;
 pub const GRID_MAX_STEPS: u32 = 1_048_576;
 
 /// Every constant above with its GLSL name.
-pub const ALL: [(&str, u32); 39] = [
+pub const ALL: [(&str, u32); 40] = [
     ("SC_ID_HAS_SHAPES", SC_ID_HAS_SHAPES),
     ("SC_ID_HAS_GOBOS", SC_ID_HAS_GOBOS),
     ("SC_ID_HAS_ENV", SC_ID_HAS_ENV),
@@ -99,6 +101,7 @@ pub const ALL: [(&str, u32); 39] = [
     ("SC_ID_HAS_CONVEX", SC_ID_HAS_CONVEX),
     ("SC_ID_HAS_MESHES", SC_ID_HAS_MESHES),
     ("SC_ID_HAS_AREA_LIGHTS", SC_ID_HAS_AREA_LIGHTS),
+    ("SC_ID_NEE_SPLIT", SC_ID_NEE_SPLIT),
     ("ESTIMATOR_MCWVDS", ESTIMATOR_MCWVDS),
     ("ESTIMATOR_REDS", ESTIMATOR_REDS),
     ("ESTIMATOR_REES", ESTIMATOR_REES),

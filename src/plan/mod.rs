@@ -165,6 +165,9 @@ pub struct RestirPlan {
     pub history_before_spatial: bool,
     /// σ* ≥ this fraction of the local maximum density.
     pub sigma_star_floor: f32,
+    /// Split next-event estimation (SC_NEE_SPLIT): every delta light plus one
+    /// environment sample at each vertex.
+    pub nee_split: bool,
     /// Opaque shapes beside the grid: paths get surface vertices (SC_HAS_SHAPES).
     pub has_shapes: bool,
     /// Some shapes are triangle meshes (SC_HAS_MESHES).

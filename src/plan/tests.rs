@@ -81,7 +81,7 @@ fn grid_scenes_name_what_the_baseline_does_not_take() {
     assert!(plan.baseline().is_none() && !r.has_emission && !r.vertex_reuse);
     assert_eq!(
         (r.candidates, r.temporal_limit, r.spatial_neighbors),
-        (4, 4, 3)
+        (4, 20, 0)
     );
     let e = err(&format!("{}{}", grid(0), grid(1)), "restir");
     assert!(

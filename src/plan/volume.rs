@@ -91,6 +91,14 @@ pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
                 scene.render.spp
             );
         }
+        if integrator.restir.nee == nimbus_scene::NeeMode::Split && !nee_split_applies(scene) {
+            bail!(
+                "{file}: [integrator.restir] field `nee` = \"split\": split next-event estimation \
+                 adds every directional and point light to one sample of the environment, so it \
+                 needs at least one of those lights and an environment, and no sphere lights or \
+                 emitting shapes; use nee = \"one\" or \"auto\" (the default) for this scene"
+            );
+        }
         if integrator.max_bounces > MAX_RESTIR_BOUNCES {
             bail!(
                 "{file}: [integrator] field `max_bounces` = {}: Volumetric ReSTIR stores paths of at most {MAX_RESTIR_BOUNCES} scattering events",
@@ -247,6 +255,25 @@ fn area_lights_decision(scene: &Scene) -> Decision {
     )
 }
 
+/// Whether split next-event estimation applies: delta (directional, point) lights and an
+/// environment, and no other lights (sphere lights, emitting shapes).
+fn nee_split_applies(scene: &Scene) -> bool {
+    let delta = scene
+        .lights
+        .iter()
+        .any(|l| matches!(l, Light::Directional { .. } | Light::Point { .. }));
+    let env = scene
+        .lights
+        .iter()
+        .any(|l| matches!(l, Light::Environment { .. }));
+    let other = scene
+        .lights
+        .iter()
+        .any(|l| matches!(l, Light::Sphere { .. }))
+        || scene.shapes.iter().any(|s| s.emits());
+    delta && env && !other
+}
+
 /// The ReSTIR plan for a validated grid scene.
 fn restir_plan(
     scene: &Scene,
@@ -281,6 +308,11 @@ fn restir_plan(
         pairwise_mis: s.mis == nimbus_scene::MisMode::Pairwise,
         history_before_spatial: s.temporal_history == nimbus_scene::HistoryMode::Temporal,
         sigma_star_floor: s.sigma_star_floor,
+        nee_split: match s.nee {
+            nimbus_scene::NeeMode::One => false,
+            nimbus_scene::NeeMode::Split => true,
+            nimbus_scene::NeeMode::Auto => nee_split_applies(scene),
+        },
         has_shapes: !scene.shapes.is_empty(),
         has_meshes: scene
             .shapes
@@ -381,6 +413,21 @@ fn restir_plan(
         super::meshes_decision(scene),
         area_lights_decision(scene),
         gobos_decision(scene),
+        on(
+            "  SC_NEE_SPLIT",
+            plan.nee_split,
+            if plan.nee_split {
+                "every directional and point light plus one environment sample at each vertex: \
+                 a path carries the mix of sun and sky its vertex receives"
+                    .into()
+            } else if s.nee == nimbus_scene::NeeMode::One {
+                "[integrator.restir] nee = \"one\": one light per vertex, chosen by power".into()
+            } else {
+                "one light per vertex, chosen by power (split needs directional or point lights \
+                 and an environment alone besides)"
+                    .into()
+            },
+        ),
         on(
             "  SC_HAS_MEDIA (boxes)",
             plan.has_boxes,

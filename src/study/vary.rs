@@ -143,6 +143,16 @@ pub(super) fn apply(scene: &mut Scene, key: &str, value: &str) -> Result<Option<
                 _ => bail!("{key}: unknown history {value:?}; valid: spatial, temporal"),
             };
         }
+        "nee" => {
+            scene.integrator.restir.nee = match value {
+                "auto" => nimbus_scene::NeeMode::Auto,
+                "one" => nimbus_scene::NeeMode::One,
+                "split" => nimbus_scene::NeeMode::Split,
+                _ => {
+                    bail!("{key}: unknown next-event estimation {value:?}; valid: auto, one, split")
+                }
+            };
+        }
         "sigma_star_floor" => {
             scene.integrator.restir.sigma_star_floor = match value.parse::<f32>() {
                 Ok(f) if (0.0..=1.0).contains(&f) => f,
@@ -438,6 +448,7 @@ mod tests {
             ("mis", "pairwise"),
             ("temporal_history", "temporal"),
             ("sigma_star_floor", "0.25"),
+            ("nee", "one"),
         ];
         assert_eq!(values.len(), keys().len());
         let mut s = scene();
@@ -462,6 +473,7 @@ mod tests {
             (0, Some(3), Some(2))
         );
         assert!(r.final_ratio_tracking);
+        assert_eq!(r.nee, nimbus_scene::NeeMode::One);
         for (key, value) in [
             ("temporal", "yes"),
             ("reuse", "path"),
@@ -470,6 +482,7 @@ mod tests {
             ("mis", "balance"),
             ("temporal_history", "both"),
             ("sigma_star_floor", "1.5"),
+            ("nee", "all"),
         ] {
             assert!(apply(&mut s, key, value).is_err(), "{key}={value}");
         }

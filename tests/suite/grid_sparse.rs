@@ -36,6 +36,9 @@ fn medium(file: &str, g: &VoxelGrid, offset: [u32; 3]) -> String {
     )
 }
 
+/// The scene around `medium`. ReSTIR renders without temporal reuse here: its frames are
+/// then independent, so the renders' standard errors are honest at 8 frames (with the
+/// default temporal limit of 20 they would be batch means of 84 frames).
 fn scene_text(medium: &str, volume: &str) -> String {
     // ReSTIR draws one path per pixel per frame (the plan refuses spp > 1 for it).
     let spp = if volume == "restir" { 1 } else { 2 };
@@ -66,6 +69,8 @@ g = 0.4
 [integrator]
 volume = "{volume}"
 max_bounces = 2
+[integrator.restir]
+temporal = false
 "#
     )
 }

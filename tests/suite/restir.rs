@@ -401,8 +401,9 @@ const BOTH: Case = Case {
     restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 1\nspatial_neighbors = 3\nspatial_radius_px = 10",
 };
 const VERTEX: Case = Case {
-    label: "temporal + spatial, vertex reuse",
-    restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 1\nspatial_neighbors = 3\nspatial_radius_px = 10\nreuse = \"vertex\"",
+    label: "temporal + spatial, vertex reuse, one light per vertex",
+    restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 1\nspatial_neighbors = 3\nspatial_radius_px = 10\nreuse = \"vertex\"\n\
+             nee = \"one\"",
 };
 
 const LEVERS: Case = Case {
@@ -411,8 +412,9 @@ const LEVERS: Case = Case {
              mis = \"pairwise\"\ntemporal_history = \"temporal\"\nsigma_star_floor = 0.25",
 };
 const PAIRWISE: Case = Case {
-    label: "temporal + spatial, pairwise MIS",
-    restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 1\nspatial_neighbors = 3\nspatial_radius_px = 10\nmis = \"pairwise\"",
+    label: "temporal + spatial, pairwise MIS, one light per vertex",
+    restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 1\nspatial_neighbors = 3\nspatial_radius_px = 10\nmis = \"pairwise\"\n\
+             nee = \"one\"",
 };
 
 /// Renders the baseline reference of `base` once, then every case against it; prints
@@ -863,20 +865,32 @@ fn explain(path: &std::path::Path, args: &[&str]) -> String {
 /// false` and with a single frame; SC_HAS_EMISSION follows the medium.
 #[test]
 fn explain_lists_the_restir_passes() {
+    // The defaults: no spatial reuse, split NEE under a sun and a sky.
     let defaults = scene_file("explain-default", &Cloud::default());
     let out = explain(&defaults, &[]);
     for line in [
         "[on ] pass restir initial",
         "[on ] pass restir temporal",
-        "[on ] pass restir spatial",
+        "[off] pass restir spatial",
         "[on ] pass restir shade",
         "[off]   SC_HAS_EMISSION",
+        "[on ]   SC_NEE_SPLIT",
         "[off] pass baseline path tracer",
     ] {
         assert!(out.contains(line), "missing {line:?} in:\n{out}");
     }
 
-    let one_frame = explain(&defaults, &["--frames", "1"]);
+    let spatial = scene_file(
+        "explain-spatial",
+        &Cloud {
+            restir: "spatial_neighbors = 3\nnee = \"one\"",
+            ..Cloud::default()
+        },
+    );
+    let out = explain(&spatial, &[]);
+    assert!(out.contains("[on ] pass restir spatial"), "{out}");
+    assert!(out.contains("[off]   SC_NEE_SPLIT"), "{out}");
+    let one_frame = explain(&spatial, &["--frames", "1"]);
     assert!(
         one_frame.contains("[off] pass restir temporal"),
         "{one_frame}"
@@ -944,6 +958,20 @@ fn unsupported_scenes_are_plan_errors() {
     };
     nimbus::plan::build(&direction.scene("restir-shape-direction.toml"), None)
         .expect("shapes with direction reuse");
+
+    // Split NEE needs the environment alone besides the delta lights.
+    let sphere_light = Cloud {
+        lights:
+            "[[light]]\ntype = \"sphere\"\ncenter = [0.0, 2.0, 0.0]\nradius = 0.2\nradiance = 5.0\n\
+                 [[light]]\ntype = \"environment\"\nradiance = 0.2",
+        restir: "nee = \"split\"",
+        ..Cloud::default()
+    };
+    let e = plan_error(&sphere_light, "restir-split.toml");
+    assert!(
+        e.contains("restir-split.toml") && e.contains("field `nee`") && e.contains("nee = \"one\""),
+        "{e}"
+    );
 
     let e = plan_error(
         &Cloud {

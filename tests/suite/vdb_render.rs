@@ -117,6 +117,11 @@ fn raw_twin(dir: &Path, name: &str, to_world: DMat4) -> String {
     )
 }
 
+/// The scene around `medium`. ReSTIR renders with the paper's reuse settings (Q = 4, three
+/// spatial neighbours, the spatial output as history), whose per-frame spread these
+/// twin comparisons were calibrated with: with Q = 20 and no spatial reuse, 8 frames are
+/// too correlated for the spread to stand for the error, and single pixels at the
+/// silhouette keep their rare-event offsets (see tests/suite/restir.rs).
 fn scene_text(medium: &str, volume: &str) -> String {
     // ReSTIR draws one path per pixel per frame (the plan refuses spp > 1 for it).
     let spp = if volume == "restir" { 1 } else { 2 };
@@ -147,6 +152,10 @@ g = 0.3
 [integrator]
 volume = "{volume}"
 max_bounces = 2
+[integrator.restir]
+temporal_limit = 4
+spatial_neighbors = 3
+temporal_history = "spatial"
 "#
     )
 }

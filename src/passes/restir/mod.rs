@@ -41,7 +41,7 @@ use std::collections::HashSet;
 pub use crate::gpu::reservoir_bytes;
 
 /// The specialization constants of the ReSTIR shaders for a plan.
-pub fn specialization(plan: &RestirPlan) -> [(u32, SpecValue); 14] {
+pub fn specialization(plan: &RestirPlan) -> [(u32, SpecValue); 15] {
     [
         (SC_ID_HAS_AREA_LIGHTS, SpecValue::Bool(plan.has_area_lights)),
         (SC_ID_HAS_GOBOS, SpecValue::Bool(plan.has_gobos)),
@@ -60,6 +60,7 @@ pub fn specialization(plan: &RestirPlan) -> [(u32, SpecValue); 14] {
         ),
         (SC_ID_HAS_VELOCITY, SpecValue::Bool(plan.has_velocity)),
         (SC_ID_MIS_PAIRWISE, SpecValue::Bool(plan.pairwise_mis)),
+        (SC_ID_NEE_SPLIT, SpecValue::Bool(plan.nee_split)),
     ]
 }
 
@@ -285,10 +286,16 @@ impl RestirPass {
                 pc_blocks: [&g.pc_primary, &g.pc_indirect]
                     .map(|l| (l.lattice_max - l.lattice_min + 1).max(glam::IVec3::ONE))
                     .map(|d| (d.x + d.y + d.z) as u32 + 3),
+                // Split NEE marches towards the environment sample and every delta light.
                 march_steps: (size.length() / march_step(grid, density, levels.indirect))
                     .ceil()
                     .min(crate::gpu::features::MARCH_MAX_STEPS as f32)
-                    as u32,
+                    as u32
+                    * if plan.nee_split {
+                        1 + grid_gpu.lights.len() as u32
+                    } else {
+                        1
+                    },
                 lights: grid_gpu.lights.len() as u32,
                 mesh_rays: crate::passes::mesh_ray_cost(scene),
                 boxes: boxes.len() as u32,

@@ -508,6 +508,7 @@ mod tests {
             mip_indirect: Some(level),
             mip_reuse: Some(level),
             pairwise_mis: false,
+            nee_split: false,
             history_before_spatial: false,
             sigma_star_floor: 0.0,
             has_shapes: false,

@@ -100,6 +100,7 @@ pub const RESTIR_KEYS: &[&str] = &[
     "mis",
     "temporal_history",
     "sigma_star_floor",
+    "nee",
 ];
 
 /// One table of the scene format and every field the parser accepts in it.
@@ -531,6 +532,15 @@ fn parse_restir(source: &Source, table: &toml::Table) -> Result<RestirSettings> 
             ],
         )?,
         sigma_star_floor: f.f32_in("sigma_star_floor", Some(d.sigma_star_floor), 0.0..=1.0)?,
+        nee: f.choice(
+            "nee",
+            Some(d.nee),
+            &[
+                ("auto", NeeMode::Auto),
+                ("one", NeeMode::One),
+                ("split", NeeMode::Split),
+            ],
+        )?,
     })
 }
 

@@ -80,6 +80,7 @@ const FIELDS: &[&str] = &[
     "mip_indirect",
     "mip_reuse",
     "final_transmittance",
+    "nee",
     "keyframe",
     "dims",
     "procedural",

@@ -26,8 +26,10 @@ fn minimal_scene_gets_every_default() {
     let restir = &scene.integrator.restir;
     assert_eq!(restir.candidates, 4);
     assert!(restir.temporal);
-    assert_eq!(restir.temporal_limit, 4);
-    assert_eq!(restir.spatial_neighbors, 3);
+    assert_eq!(restir.temporal_limit, 20);
+    assert_eq!(restir.spatial_neighbors, 0);
+    assert_eq!(restir.temporal_history, HistoryMode::Temporal);
+    assert_eq!(restir.nee, NeeMode::Auto);
     assert_eq!(restir.spatial_radius_px, 10.0);
     assert_eq!(restir.spatial_rounds, 1);
     assert_eq!(restir.reuse, ReuseMode::Direction);
@@ -222,6 +224,7 @@ mip_candidates = 2
 mip_indirect = 3
 mip_reuse = 0
 final_transmittance = "ratio"
+nee = "split"
 mis = "pairwise"
 temporal_history = "temporal"
 sigma_star_floor = 0.125
@@ -419,6 +422,7 @@ sigma_star_floor = 0.125
                 mis: MisMode::Pairwise,
                 temporal_history: HistoryMode::Temporal,
                 sigma_star_floor: 0.125,
+                nee: NeeMode::Split,
             },
         }
     );
