@@ -38,6 +38,8 @@
 #define SC_ID_HAS_AREA_LIGHTS 16
 // ReSTIR: split next-event estimation (every delta light plus one environment sample).
 #define SC_ID_NEE_SPLIT 17
+// ReSTIR: every walk adds the camera ray's end as a candidate, not only escaping ones.
+#define SC_ID_DIRECT_EACH_WALK 18
 
 // ---------------------------------------------------------------------------------------
 // Values of SC_ESTIMATOR: the box-medium estimators of Velinov & Mitchell.

@@ -147,12 +147,32 @@ void restir_main() {
             float t_sphere = nearest_sphere_light(0u, x, w, 1e-6, FAR, sphere);
             SurfacePoint surface = surface_along(x, w, t_sphere);
             float t_end = min(t_sphere, surface.t);
+            uint level = i == 1u ? LEVEL_PRIMARY : LEVEL_INDIRECT;
+            float sigma_star_unused;
+            if (SC_DIRECT_EACH_WALK && i == 1u) {
+                // The direct candidate of the camera segment with probability 1 (the path
+                // is fixed by the walk's sub-pixel position): target L T*, T* of the whole
+                // segment through the piecewise-constant grid and the boxes, so w = p_hat.
+                // The paper adds it only when the walk escapes (p = T*), a rare event
+                // with weight L T / T* behind dense media.
+                float tau_all;
+                pc_track(level, x, w, t_end, FAR, sigma_star_unused, tau_all);
+                if (SC_HAS_MEDIA) {
+                    tau_all += box_optical_depth(x, w, 0.0, t_end);
+                }
+                float t_seen;
+                vec3 L = camera_end(SET_CURRENT, x, w, t_seen);
+                // T* floored as the marches' T~ is (e^-64, a normal float), so p_hat > 0
+                // wherever L > 0: the target must cover every path F does not vanish on.
+                // Domain: tau_all >= 0.
+                float p_hat = luminance(L * exp(-min(tau_all, MARCH_MAX_TAU)));
+                add_candidate(at, r, rng, p_hat, p_hat, 0u,
+                              jitter_bits | (sphere == NO_INDEX ? (LIGHT_ENV << 8u) : (sphere << 8u)), vec3(0.0), 0u);
+            }
             // Regular tracking: an exponential optical depth through sigma_t*.
             float tau_target = sample_exponential(rng_next(rng), 1.0);
             float sigma_star;
-            float sigma_star_unused;
             float tau;
-            uint level = i == 1u ? LEVEL_PRIMARY : LEVEL_INDIRECT;
             float z = pc_track(level, x, w, t_end, tau_target, sigma_star, tau);
             // The box media: independent first collisions at their sigma_t; the earliest of
             // all wins (the media are disjoint, so the walk tracks their summed majorant).
@@ -187,7 +207,7 @@ void restir_main() {
             if (z >= FAR) {
                 // Reached the segment's end with probability T* = exp(-tau). Domain: tau >= 0.
                 float T_star = exp(-tau);
-                if (i == 1u) {
+                if (i == 1u && !SC_DIRECT_EACH_WALK) {
                     // The direct candidate of the camera segment (p = T*, p_hat = L T*, so
                     // w = L); later segments reach lights through NEE only.
                     float t_seen;

@@ -34,6 +34,8 @@ pub const SC_ID_HAS_MESHES: u32 = 15;
 pub const SC_ID_HAS_AREA_LIGHTS: u32 = 16;
 /// ReSTIR: split next-event estimation (every delta light plus one environment sample).
 pub const SC_ID_NEE_SPLIT: u32 = 17;
+/// ReSTIR: every walk adds the camera ray's end as a candidate, not only escaping ones.
+pub const SC_ID_DIRECT_EACH_WALK: u32 = 18;
 
 // ---------------------------------------------------------------------------------------
 // Values of `SC_ESTIMATOR` in `shaders/box/crepuscular.comp`.
@@ -83,7 +85,7 @@ pub const MARCH_MAX_STEPS: u32 = 4096;
 pub const GRID_MAX_STEPS: u32 = 1_048_576;
 
 /// Every constant above with its GLSL name.
-pub const ALL: [(&str, u32); 40] = [
+pub const ALL: [(&str, u32); 41] = [
     ("SC_ID_HAS_SHAPES", SC_ID_HAS_SHAPES),
     ("SC_ID_HAS_GOBOS", SC_ID_HAS_GOBOS),
     ("SC_ID_HAS_ENV", SC_ID_HAS_ENV),
@@ -102,6 +104,7 @@ pub const ALL: [(&str, u32); 40] = [
     ("SC_ID_HAS_MESHES", SC_ID_HAS_MESHES),
     ("SC_ID_HAS_AREA_LIGHTS", SC_ID_HAS_AREA_LIGHTS),
     ("SC_ID_NEE_SPLIT", SC_ID_NEE_SPLIT),
+    ("SC_ID_DIRECT_EACH_WALK", SC_ID_DIRECT_EACH_WALK),
     ("ESTIMATOR_MCWVDS", ESTIMATOR_MCWVDS),
     ("ESTIMATOR_REDS", ESTIMATOR_REDS),
     ("ESTIMATOR_REES", ESTIMATOR_REES),

@@ -168,6 +168,9 @@ pub struct RestirPlan {
     /// Split next-event estimation (SC_NEE_SPLIT): every delta light plus one
     /// environment sample at each vertex.
     pub nee_split: bool,
+    /// Every walk adds the camera ray's end as a candidate (`direct = "each_walk"`), not
+    /// only walks that escape (the paper's).
+    pub direct_each_walk: bool,
     /// Opaque shapes beside the grid: paths get surface vertices (SC_HAS_SHAPES).
     pub has_shapes: bool,
     /// Some shapes are triangle meshes (SC_HAS_MESHES).

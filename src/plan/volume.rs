@@ -308,6 +308,7 @@ fn restir_plan(
         pairwise_mis: s.mis == nimbus_scene::MisMode::Pairwise,
         history_before_spatial: s.temporal_history == nimbus_scene::HistoryMode::Temporal,
         sigma_star_floor: s.sigma_star_floor,
+        direct_each_walk: s.direct == nimbus_scene::DirectMode::EachWalk,
         nee_split: match s.nee {
             nimbus_scene::NeeMode::One => false,
             nimbus_scene::NeeMode::Split => true,
@@ -335,12 +336,13 @@ fn restir_plan(
             true,
             format!(
                 "grid medium #{}: M = {} random walks per pixel, regular tracking on mip {} (camera) / {} (scattered), \
-                 K = {k}, {lights} analytic light(s); {} bytes of reservoir per pixel and slot, 3 slots",
+                 K = {k}, {lights} analytic light(s); {} bytes of reservoir per pixel and slot, {} slots",
                 index + 1,
                 plan.candidates,
                 plan.mip_candidates,
                 mip_text(plan.mip_indirect),
-                crate::gpu::reservoir_bytes(k)
+                crate::gpu::reservoir_bytes(k),
+                crate::passes::restir::reservoir_slots(&plan)
             ),
         ),
         on(
@@ -425,6 +427,19 @@ fn restir_plan(
             } else {
                 "one light per vertex, chosen by power (split needs directional or point lights \
                  and an environment alone besides)"
+                    .into()
+            },
+        ),
+        on(
+            "  SC_DIRECT_EACH_WALK",
+            plan.direct_each_walk,
+            if plan.direct_each_walk {
+                "every walk adds what its camera ray sees behind the medium as a candidate \
+                 (target L T* of the whole camera segment)"
+                    .into()
+            } else {
+                "[integrator.restir] direct = \"escape\": only walks that escape the camera \
+                 segment add what it sees (the paper's)"
                     .into()
             },
         ),

@@ -153,6 +153,13 @@ pub(super) fn apply(scene: &mut Scene, key: &str, value: &str) -> Result<Option<
                 }
             };
         }
+        "direct" => {
+            scene.integrator.restir.direct = match value {
+                "each_walk" => nimbus_scene::DirectMode::EachWalk,
+                "escape" => nimbus_scene::DirectMode::Escape,
+                _ => bail!("{key}: unknown direct candidate {value:?}; valid: each_walk, escape"),
+            };
+        }
         "sigma_star_floor" => {
             scene.integrator.restir.sigma_star_floor = match value.parse::<f32>() {
                 Ok(f) if (0.0..=1.0).contains(&f) => f,
@@ -449,6 +456,7 @@ mod tests {
             ("temporal_history", "temporal"),
             ("sigma_star_floor", "0.25"),
             ("nee", "one"),
+            ("direct", "escape"),
         ];
         assert_eq!(values.len(), keys().len());
         let mut s = scene();
@@ -474,6 +482,7 @@ mod tests {
         );
         assert!(r.final_ratio_tracking);
         assert_eq!(r.nee, nimbus_scene::NeeMode::One);
+        assert_eq!(r.direct, nimbus_scene::DirectMode::Escape);
         for (key, value) in [
             ("temporal", "yes"),
             ("reuse", "path"),
@@ -483,6 +492,7 @@ mod tests {
             ("temporal_history", "both"),
             ("sigma_star_floor", "1.5"),
             ("nee", "all"),
+            ("direct", "never"),
         ] {
             assert!(apply(&mut s, key, value).is_err(), "{key}={value}");
         }

@@ -401,9 +401,9 @@ const BOTH: Case = Case {
     restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 1\nspatial_neighbors = 3\nspatial_radius_px = 10",
 };
 const VERTEX: Case = Case {
-    label: "temporal + spatial, vertex reuse, one light per vertex",
+    label: "temporal + spatial, vertex reuse, one light per vertex, direct paths of escaping walks",
     restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 1\nspatial_neighbors = 3\nspatial_radius_px = 10\nreuse = \"vertex\"\n\
-             nee = \"one\"",
+             nee = \"one\"\ndirect = \"escape\"",
 };
 
 const LEVERS: Case = Case {

@@ -86,6 +86,7 @@
 //! | restir `temporal_history` | `"spatial"`, `"temporal"` |
 //! | restir `sigma_star_floor` | [0, 1] |
 //! | restir `nee` | `"auto"`, `"one"`, `"split"` (only with delta lights and an environment alone besides) |
+//! | restir `direct` | `"each_walk"`, `"escape"` |
 //! | grid `procedural` | `"cloud"` (not allowed for `velocity`) |
 //! | mesh `file` | ends in `.obj` or `.ply` (any case), exists, and loads (see [`mesh`]: finite vertices, also after `to_world`; indices in range; fannable faces; at most 2^26 triangles) |
 //! | `to_world` `scale` | each component non-zero, magnitude at most 1e7; `translate` within ±1e7 m |

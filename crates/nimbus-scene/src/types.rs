@@ -509,6 +509,19 @@ pub enum NeeMode {
     Split,
 }
 
+/// Where ReSTIR's candidates include the path that sees straight through the medium (the
+/// camera ray's end: the environment, an emitting sphere or shape) (`direct`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DirectMode {
+    /// Every walk adds it as a candidate with probability 1 and target L·T* (T* of the
+    /// whole camera segment through the piecewise-constant grid): never a rare event.
+    EachWalk,
+    /// The paper's: only a walk that escapes the camera segment (probability T*) adds it,
+    /// with weight L. Where the light seen behind the medium is very bright (a sun behind
+    /// a cloud), an escape through a dense part is a rare event with weight L·T/T*.
+    Escape,
+}
+
 /// `[integrator.restir]`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RestirSettings {
@@ -541,13 +554,15 @@ pub struct RestirSettings {
     pub sigma_star_floor: f32,
     /// How paths end in a light (`nee`).
     pub nee: NeeMode,
+    /// How candidates include the camera ray's end (`direct`).
+    pub direct: DirectMode,
 }
 
 /// The defaults are what measured best at equal GPU time on the benchmark scenes
 /// (docs/restir.md): Q = 20 with the pre-spatial history, no spatial reuse, and the mip
 /// levels and next-event estimation chosen from the scene. The paper's algorithm is
 /// `temporal_limit = 4`, `spatial_neighbors = 3`, `temporal_history = "spatial"`,
-/// `mip_indirect = 2`, `mip_reuse = 1`, `nee = "one"`.
+/// `mip_indirect = 2`, `mip_reuse = 1`, `nee = "one"`, `direct = "escape"`.
 impl Default for RestirSettings {
     fn default() -> Self {
         Self {
@@ -566,6 +581,7 @@ impl Default for RestirSettings {
             temporal_history: HistoryMode::Temporal,
             sigma_star_floor: 0.0,
             nee: NeeMode::Auto,
+            direct: DirectMode::EachWalk,
         }
     }
 }

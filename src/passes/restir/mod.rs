@@ -1,13 +1,13 @@
 //! Volumetric ReSTIR (`shaders/restir/*.comp`): initial candidates, temporal reuse,
 //! spatial reuse and final shading, with reservoirs that persist across frames.
 //!
-//! - [`schedule`]: which stages a frame dispatches on which of the three reservoir slots
+//! - [`schedule`]: which stages a frame dispatches on which of the two or three reservoir slots
 //!   (pure, unit-tested);
 //! - [`volumes`]: the piecewise-constant levels and ray-march mips derived, brick by
 //!   brick, from every density grid of the animation, and their atlas layouts;
 //! - [`resources`]: the GPU objects, by name.
 //!
-//! Reservoirs live in one storage buffer of three slots of `pixels × stride` u32 each
+//! Reservoirs live in one storage buffer of two or three slots (`reservoir_slots`) of `pixels × stride` u32 each
 //! (`stride = 8 + 2K`: a 32-byte header and 8 bytes per path vertex, see
 //! `shaders/include/reservoir.glsl`).
 
@@ -21,7 +21,7 @@ use nimbus_gpu::{compute_barrier, vk, Context, GpuObjects, Profiler, SpecValue};
 use nimbus_scene::{CameraFrame, GridMedium, GridSource, Scene};
 
 use self::resources::{Inputs, Resources};
-use self::schedule::{schedule, ScheduleSettings, Stage, SLOTS};
+use self::schedule::{schedule, ScheduleSettings, Stage};
 use self::volumes::{grid_level, march_step, DerivedVolume, Volumes};
 use super::{image_groups, scene_grid, FrameConstants, Pass, Targets};
 use crate::budget::{brick_bytes, grid_bytes, Binding, Footprint};
@@ -41,7 +41,7 @@ use std::collections::HashSet;
 pub use crate::gpu::reservoir_bytes;
 
 /// The specialization constants of the ReSTIR shaders for a plan.
-pub fn specialization(plan: &RestirPlan) -> [(u32, SpecValue); 15] {
+pub fn specialization(plan: &RestirPlan) -> [(u32, SpecValue); 16] {
     [
         (SC_ID_HAS_AREA_LIGHTS, SpecValue::Bool(plan.has_area_lights)),
         (SC_ID_HAS_GOBOS, SpecValue::Bool(plan.has_gobos)),
@@ -61,6 +61,10 @@ pub fn specialization(plan: &RestirPlan) -> [(u32, SpecValue); 15] {
         (SC_ID_HAS_VELOCITY, SpecValue::Bool(plan.has_velocity)),
         (SC_ID_MIS_PAIRWISE, SpecValue::Bool(plan.pairwise_mis)),
         (SC_ID_NEE_SPLIT, SpecValue::Bool(plan.nee_split)),
+        (
+            SC_ID_DIRECT_EACH_WALK,
+            SpecValue::Bool(plan.direct_each_walk),
+        ),
     ]
 }
 
@@ -77,6 +81,23 @@ pub struct CandidateCost {
     pub boxes: u32,
     /// Primitives in the emitter table (an area-light sample binary-searches it).
     pub emitters: u32,
+}
+
+/// The reservoir slots `plan`'s schedule uses (2, or 3 when the history is taken before
+/// two or more spatial rounds; [`schedule::slots`]).
+pub fn reservoir_slots(plan: &RestirPlan) -> u32 {
+    schedule::slots(&schedule_settings(plan, 1))
+}
+
+fn schedule_settings(plan: &RestirPlan, candidates_per_dispatch: u32) -> ScheduleSettings {
+    ScheduleSettings {
+        temporal: plan.temporal,
+        spatial_neighbors: plan.spatial_neighbors,
+        spatial_rounds: plan.spatial_rounds,
+        candidates: plan.candidates,
+        candidates_per_dispatch,
+        history_before_spatial: plan.history_before_spatial,
+    }
 }
 
 /// How many candidates one initial dispatch may draw so that an invocation stays within
@@ -242,7 +263,7 @@ impl RestirPass {
         let r = &scene.render;
         let pixels = u64::from(r.width) * u64::from(r.height);
         let stride_bytes = reservoir_bytes(plan.max_bounces);
-        let reservoir_total = u64::from(SLOTS) * pixels * stride_bytes;
+        let reservoir_total = u64::from(reservoir_slots(plan)) * pixels * stride_bytes;
         let velocity = if plan.has_velocity {
             velocity_texels(grid, &grid_label)?
         } else {
@@ -369,14 +390,7 @@ impl RestirPass {
         Ok(RestirPass {
             objects,
             res,
-            settings: ScheduleSettings {
-                temporal: plan.temporal,
-                spatial_neighbors: plan.spatial_neighbors,
-                spatial_rounds: plan.spatial_rounds,
-                candidates: plan.candidates,
-                candidates_per_dispatch,
-                history_before_spatial: plan.history_before_spatial,
-            },
+            settings: schedule_settings(plan, candidates_per_dispatch),
             constants: FrameConstants {
                 env_radiance: grid_gpu.env_radiance,
                 env_size: grid_gpu.uniforms.env_size,
@@ -698,7 +712,7 @@ pub fn footprint(scene: &Scene, p: &RestirPlan, f: &mut Footprint) -> Result<()>
     let file = scene.source.display();
     let r = &scene.render;
     let pixels = u64::from(r.width) * u64::from(r.height);
-    let reservoirs = 3 * pixels * reservoir_bytes(p.max_bounces);
+    let reservoirs = u64::from(reservoir_slots(p)) * pixels * reservoir_bytes(p.max_bounces);
     f.add(
         format!("{file}: [render] `width` x `height` with [integrator] `max_bounces` = {} (ReSTIR reservoirs)", p.max_bounces),
         Binding::Storage,

@@ -1,16 +1,30 @@
 //! Which ReSTIR stages a frame dispatches, and on which reservoir slots.
 //!
-//! Reservoirs live in three slots. A frame writes its initial candidates into a slot
-//! other than the previous frame's result, reuses temporally in place (reading the
-//! previous slot), ping-pongs spatial rounds between the two slots the previous result
-//! does not occupy, and shades the last output, which becomes the next frame's previous
-//! slot. This is a pure function of the frame, the previous slot and the settings, so it
-//! is unit-tested here rather than through images.
+//! Reservoirs live in two or three slots ([`slots`]). A frame writes its initial
+//! candidates into a slot other than the previous frame's result, reuses temporally in
+//! place (reading the previous slot), ping-pongs spatial rounds between two slots, and
+//! shades the last output, which becomes the next frame's previous slot. Once the
+//! temporal stage has read the previous slot it is free, so a spatial round may write it;
+//! only when the history is taken before spatial reuse and there are two or more rounds
+//! does the ping-pong need a third slot. This is a pure function of the frame, the
+//! previous slot and the settings, so it is unit-tested here rather than through images.
 
 use crate::gpu::RestirPush;
 
-/// Reservoir slots in the buffer.
-pub const SLOTS: u32 = 3;
+/// The most reservoir slots a schedule uses.
+pub const MAX_SLOTS: u32 = 3;
+
+/// The reservoir slots `settings` needs: 2 (initial and temporal in one, the previous
+/// frame's history in the other, spatial rounds alternating between them), or 3 when
+/// the temporal stage's slot must survive two or more spatial rounds.
+pub fn slots(settings: &ScheduleSettings) -> u32 {
+    let spatial = settings.spatial_neighbors > 0 && settings.spatial_rounds > 0;
+    if spatial && settings.history_before_spatial && settings.spatial_rounds >= 2 {
+        3
+    } else {
+        2
+    }
+}
 
 /// One stage of a frame, in dispatch order.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
@@ -72,10 +86,13 @@ pub fn schedule(
     previous: Option<u32>,
     settings: &ScheduleSettings,
 ) -> (Vec<Dispatch>, u32) {
-    let previous = previous.filter(|_| frame > 0);
-    let mut free = (0..SLOTS).filter(|s| Some(*s) != previous);
-    // Three slots, at most one taken: two are always free.
-    let (first, second) = (free.next().unwrap_or(0), free.next().unwrap_or(1));
+    let n = slots(settings);
+    let previous = previous.filter(|p| frame > 0 && *p < n);
+    // `first` holds this frame's initial and temporal reservoirs; `second` is the other
+    // slot, the previous history's on frames after the first (dead once the temporal
+    // stage has read it).
+    let first = (0..n).find(|s| Some(*s) != previous).unwrap_or(0);
+    let second = (0..n).find(|s| *s != first).unwrap_or(1);
     let push = |src, dst, aux| RestirPush {
         frame,
         src,
@@ -98,10 +115,9 @@ pub fn schedule(
     }
     // Spatial rounds ping-pong between two slots. With the history taken before spatial
     // reuse, `first` must survive the frame: the rounds use the other two (the previous
-    // frame's history is no longer needed once the temporal stage has read it).
-    let third = (0..SLOTS)
-        .find(|s| *s != first && *s != second)
-        .unwrap_or(2);
+    // frame's history is no longer needed once the temporal stage has read it); one
+    // round needs only `second`.
+    let third = (0..n).find(|s| *s != first && *s != second).unwrap_or(2);
     let pair = if settings.history_before_spatial {
         [second, third]
     } else {
@@ -232,21 +248,37 @@ mod tests {
                 aux: 0
             }
         );
+        // The previous slot (0) is free once the temporal stage has read it.
         let rounds: Vec<_> = d[2..5]
             .iter()
             .map(|d| (d.push.src, d.push.dst, d.push.aux))
             .collect();
-        assert_eq!(rounds, [(1, 2, 0), (2, 1, 1), (1, 2, 2)]);
+        assert_eq!(rounds, [(1, 0, 0), (0, 1, 1), (1, 0, 2)]);
         assert_eq!(
             d[5].push,
             RestirPush {
                 frame: 5,
-                src: 2,
-                dst: 2,
+                src: 0,
+                dst: 0,
                 aux: 0
             }
         );
-        assert_eq!(last, 2);
+        assert_eq!(last, 0);
+    }
+
+    #[test]
+    fn a_third_slot_only_when_the_history_must_survive_two_rounds() {
+        let with = |before: bool, neighbors, rounds| ScheduleSettings {
+            history_before_spatial: before,
+            ..settings(true, neighbors, rounds)
+        };
+        assert_eq!(slots(&with(false, 0, 1)), 2);
+        assert_eq!(slots(&with(true, 0, 3)), 2);
+        assert_eq!(slots(&with(false, 3, 1)), 2);
+        assert_eq!(slots(&with(false, 3, 4)), 2);
+        assert_eq!(slots(&with(true, 3, 1)), 2);
+        assert_eq!(slots(&with(true, 3, 2)), 3);
+        assert_eq!(slots(&with(true, 3, 0)), 2);
     }
 
     #[test]
@@ -292,9 +324,12 @@ mod tests {
             assert_eq!(sorted, stages(&d), "stages in order");
             assert_eq!(d.last().map(|d| d.stage), Some(Stage::Shade));
             for x in &d {
-                assert!(x.push.src < SLOTS && x.push.dst < SLOTS);
+                assert!(x.push.src < slots(s) && x.push.dst < slots(s));
+                assert!(slots(s) <= MAX_SLOTS);
                 assert_eq!(x.push.frame, frame);
-                let may_reuse_previous = s.history_before_spatial && x.stage >= Stage::Spatial;
+                // Once the temporal stage has read the previous history (or without one),
+                // later stages may write its slot.
+                let may_reuse_previous = x.stage >= Stage::Spatial;
                 if frame > 0 && !may_reuse_previous {
                     assert_ne!(Some(x.push.dst), previous, "{s:?} frame {frame}");
                 }

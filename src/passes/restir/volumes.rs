@@ -509,6 +509,7 @@ mod tests {
             mip_reuse: Some(level),
             pairwise_mis: false,
             nee_split: false,
+            direct_each_walk: true,
             history_before_spatial: false,
             sigma_star_floor: 0.0,
             has_shapes: false,

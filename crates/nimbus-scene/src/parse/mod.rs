@@ -101,6 +101,7 @@ pub const RESTIR_KEYS: &[&str] = &[
     "temporal_history",
     "sigma_star_floor",
     "nee",
+    "direct",
 ];
 
 /// One table of the scene format and every field the parser accepts in it.
@@ -539,6 +540,14 @@ fn parse_restir(source: &Source, table: &toml::Table) -> Result<RestirSettings> 
                 ("auto", NeeMode::Auto),
                 ("one", NeeMode::One),
                 ("split", NeeMode::Split),
+            ],
+        )?,
+        direct: f.choice(
+            "direct",
+            Some(d.direct),
+            &[
+                ("each_walk", DirectMode::EachWalk),
+                ("escape", DirectMode::Escape),
             ],
         )?,
     })

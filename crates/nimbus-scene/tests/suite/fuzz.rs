@@ -81,6 +81,7 @@ const FIELDS: &[&str] = &[
     "mip_reuse",
     "final_transmittance",
     "nee",
+    "direct",
     "keyframe",
     "dims",
     "procedural",

@@ -30,6 +30,7 @@ fn minimal_scene_gets_every_default() {
     assert_eq!(restir.spatial_neighbors, 0);
     assert_eq!(restir.temporal_history, HistoryMode::Temporal);
     assert_eq!(restir.nee, NeeMode::Auto);
+    assert_eq!(restir.direct, DirectMode::EachWalk);
     assert_eq!(restir.spatial_radius_px, 10.0);
     assert_eq!(restir.spatial_rounds, 1);
     assert_eq!(restir.reuse, ReuseMode::Direction);
@@ -225,6 +226,7 @@ mip_indirect = 3
 mip_reuse = 0
 final_transmittance = "ratio"
 nee = "split"
+direct = "escape"
 mis = "pairwise"
 temporal_history = "temporal"
 sigma_star_floor = 0.125
@@ -423,6 +425,7 @@ sigma_star_floor = 0.125
                 temporal_history: HistoryMode::Temporal,
                 sigma_star_floor: 0.125,
                 nee: NeeMode::Split,
+                direct: DirectMode::Escape,
             },
         }
     );
