@@ -30,8 +30,9 @@ use glam::Vec3;
 
 use crate::volume::VoxelGrid;
 
-/// SplitMix64 finalizer: a well-mixed 64-bit hash step.
-fn mix(mut x: u64) -> u64 {
+/// SplitMix64 finalizer: a well-mixed 64-bit hash step (with the golden-ratio increment
+/// added first, so `mix(s)` is the SplitMix64 output for the state s + γ).
+pub(crate) fn mix(mut x: u64) -> u64 {
     x = x.wrapping_add(0x9E37_79B9_7F4A_7C15);
     x = (x ^ (x >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
     x = (x ^ (x >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);

@@ -151,17 +151,15 @@ pub fn march_errors(
     Ok(sum_sq)
 }
 
-/// SplitMix64 (Steele, Lea and Flood 2014): a small deterministic generator for the
-/// measurement's draws, uniform doubles in [0, 1).
+/// SplitMix64 (Steele, Lea and Flood 2014) on the procedural noise's finalizer: a small
+/// deterministic generator for the measurement's draws, uniform doubles in [0, 1).
 struct SplitMix(u64);
 
 impl SplitMix {
     fn next(&mut self) -> f64 {
+        // mix(s) finalizes s + γ, the next state's output.
+        let z = crate::procedural::mix(self.0);
         self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^= z >> 31;
         (z >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
     }
 }
