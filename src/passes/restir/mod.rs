@@ -119,7 +119,15 @@ pub fn candidates_per_dispatch(
             + 2 * u64::from(cost.mesh_rays)
     };
     let k = u64::from(plan.max_bounces.max(1));
-    let per_candidate = segment(cost.pc_blocks[0]) + (k - 1) * segment(cost.pc_blocks[1]) + k;
+    // With the direct candidate of every walk the camera segment is walked twice: to its
+    // end for T*, then by tracking.
+    let direct = if plan.direct_each_walk {
+        u64::from(cost.pc_blocks[0])
+    } else {
+        0
+    };
+    let per_candidate =
+        segment(cost.pc_blocks[0]) + direct + (k - 1) * segment(cost.pc_blocks[1]) + k;
     let fit = (u64::from(budget / 2) / per_candidate.max(1)).max(1);
     u32::try_from(fit).unwrap_or(u32::MAX).min(plan.candidates)
 }
@@ -828,7 +836,45 @@ mod tests {
     use glam::{DVec3, Vec4};
     use nimbus_scene::{GridSource, Medium};
 
-    use super::velocity_uvw;
+    use super::{candidates_per_dispatch, velocity_uvw, CandidateCost};
+
+    /// Every walk's direct candidate walks the camera segment a second time, which the
+    /// split of M over dispatches must count: lavapipe silently ends the loops of an
+    /// invocation past its budget, which would drop candidates and darken the image.
+    #[test]
+    fn the_direct_candidates_walk_counts_against_the_loop_budget() {
+        let path = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/assets/scenes/cloud-restir.toml"
+        );
+        let scene = crate::load_scene(Some(std::path::Path::new(path)), &[]).unwrap();
+        let plan = crate::plan::build(&scene, None).unwrap();
+        let mut p = plan.restir().unwrap().clone();
+        p.candidates = 4096;
+        p.max_bounces = 3;
+        let cost = CandidateCost {
+            pc_blocks: [2000, 100],
+            march_steps: 300,
+            lights: 2,
+            mesh_rays: 0,
+            boxes: 0,
+            emitters: 0,
+        };
+        let budget = 65_535;
+        p.direct_each_walk = false;
+        let escape = candidates_per_dispatch(Some(budget), &p, &cost);
+        p.direct_each_walk = true;
+        let each = candidates_per_dispatch(Some(budget), &p, &cost);
+        assert!(each < escape, "{each} vs {escape}");
+        // The loops of `each` candidates with the second walk stay within half the budget.
+        let segment = |blocks: u64| blocks + 300 + 6 + 64;
+        let per = segment(2000) + 2000 + 2 * segment(100) + 3;
+        assert!(
+            u64::from(each) * per <= u64::from(budget / 2),
+            "{each} x {per}"
+        );
+        assert_eq!(candidates_per_dispatch(None, &p, &cost), 4096);
+    }
 
     /// The map from world points to the velocity texture puts each dense voxel's centre
     /// at its texel centre: for an axis-aligned window with a flipped axis (the box
