@@ -4,6 +4,7 @@
 //! ([`renderer`]), one compute pass per module under [`passes`]. See
 //! `shared/ARCHITECTURE.md` for the layering.
 
+pub mod bench;
 pub mod budget;
 pub mod gpu;
 pub mod merge;

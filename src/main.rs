@@ -39,6 +39,25 @@ enum Command {
     /// Measure error against a converged reference versus GPU milliseconds over a
     /// grid of settings; writes study.csv, study.md and study.png.
     Study(StudyArgs),
+    /// The cost of a sample: render the benchmark cases with work counters and
+    /// timestamps, and compare them with a stored baseline (docs/performance.md).
+    Bench(BenchArgs),
+}
+
+#[derive(Args)]
+struct BenchArgs {
+    /// The stored baseline to compare with.
+    #[arg(long, default_value = "assets/bench/baseline.json")]
+    baseline: PathBuf,
+    /// Write this run as the new baseline (after a change of work that is meant).
+    #[arg(long)]
+    update: bool,
+    /// Only the cases whose name contains this.
+    #[arg(long)]
+    case: Option<String>,
+    /// Also write this run's report as JSON.
+    #[arg(long)]
+    json: Option<PathBuf>,
 }
 
 /// Overrides of scene fields. Each is applied to the scene's tables before validation,
@@ -200,6 +219,12 @@ struct ProfileArgs {
     /// Write a Chrome trace (open in Perfetto or chrome://tracing).
     #[arg(long)]
     trace: Option<PathBuf>,
+    /// Also count each pass's work on the GPU (tracking steps, density and majorant
+    /// fetches, tentative collisions, shadow rays and their steps, BVH nodes, dispatches
+    /// per frame): deterministic for a scene, seed and device. The counting pipelines are
+    /// specialized apart, so the timings of this run include the counting.
+    #[arg(long)]
+    counters: bool,
     #[command(flatten)]
     overrides: Overrides,
 }
@@ -291,6 +316,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
         Command::Profile(args) => profile_cmd(args).map(ok),
         Command::Devices => devices().map(ok),
         Command::Study(args) => study_cmd(args).map(ok),
+        Command::Bench(args) => bench_cmd(args),
     }
 }
 
@@ -408,6 +434,8 @@ fn profile_cmd(args: ProfileArgs) -> Result<()> {
         &renderer::RenderOptions {
             progress: true,
             warmup_frames: args.warmup,
+            counters: args.counters,
+            skip_alpha: true,
             ..Default::default()
         },
     )?;
@@ -419,6 +447,9 @@ fn profile_cmd(args: ProfileArgs) -> Result<()> {
     }
     let report = profile::Report::new(&ctx, &scene, &result);
     print!("{}", report.table());
+    if let Some(work) = &result.work {
+        print!("{}", work.table());
+    }
     if let Some(path) = &args.json {
         std::fs::write(path, report.json()?)
             .with_context(|| format!("writing {}", path.display()))?;
@@ -460,6 +491,57 @@ fn devices() -> Result<()> {
 }
 
 /// Validation errors seen during a run fail it (they are on with NIMBUS_VALIDATION=1).
+/// `nimbus bench`: exit 1 when a work counter moved past the margin.
+fn bench_cmd(args: BenchArgs) -> Result<ExitCode> {
+    let ctx = Context::new(&ContextDesc::from_env())?;
+    let report = nimbus::bench::run(&ctx, args.case.as_deref())?;
+    report_validation(&ctx)?;
+    if let Some(path) = &args.json {
+        nimbus::bench::save(&report, path)?;
+        eprintln!("wrote {}", path.display());
+    }
+    if args.update {
+        nimbus::bench::save(&report, &args.baseline)?;
+        print!("{}", nimbus::bench::table(&report, None));
+        eprintln!("wrote the baseline {}", args.baseline.display());
+        return Ok(ExitCode::SUCCESS);
+    }
+    let base = if args.baseline.exists() {
+        Some(nimbus::bench::load_baseline(&args.baseline)?)
+    } else {
+        eprintln!(
+            "no baseline at {} (write one with --update): showing this run alone",
+            args.baseline.display()
+        );
+        None
+    };
+    print!("{}", nimbus::bench::table(&report, base.as_ref()));
+    let Some(base) = base else {
+        return Ok(ExitCode::SUCCESS);
+    };
+    let regressions = nimbus::bench::regressions(&report, &base);
+    if nimbus::bench::device_family(&base.device) != nimbus::bench::device_family(&report.device) {
+        eprintln!(
+            "the baseline was measured on '{}', this run on '{}': counters differ by device, \
+             so they are shown but not judged",
+            base.device, report.device
+        );
+        return Ok(ExitCode::SUCCESS);
+    }
+    if regressions.is_empty() {
+        println!(
+            "\nwork counters within {:.2}x of the baseline",
+            nimbus::bench::COUNTER_MARGIN
+        );
+        return Ok(ExitCode::SUCCESS);
+    }
+    println!("\nwork counters past the margin:");
+    for r in &regressions {
+        println!("  {r}");
+    }
+    Ok(ExitCode::FAILURE)
+}
+
 fn report_validation(ctx: &Context) -> Result<()> {
     let errors = ctx.validation_errors();
     if errors.is_empty() {

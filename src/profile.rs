@@ -18,6 +18,8 @@ pub struct Report {
     pub spp: u32,
     pub frames: usize,
     pub passes: Vec<PassStats>,
+    /// The work counters, when the render counted them.
+    pub work: Option<crate::gpu::counters::WorkCounts>,
 }
 
 impl Report {
@@ -30,6 +32,7 @@ impl Report {
             spp: scene.render.spp,
             frames: result.frame_timings.len(),
             passes: summarize(&result.frame_timings),
+            work: result.work.clone(),
         }
     }
 
@@ -79,6 +82,7 @@ impl Report {
             "spp": self.spp,
             "frames": self.frames,
             "passes": passes,
+            "work": self.work.as_ref().map(|w| w.json()),
         });
         Ok(serde_json::to_string_pretty(&doc)?)
     }

@@ -259,6 +259,8 @@ pub(super) fn render(args: RenderArgs) -> Result<ExitCode> {
             time_limit: args.time_limit.map(Duration::from_secs_f64),
         },
         interrupt: Some(interrupt),
+        counters: false,
+        skip_alpha: false,
     };
     let selection_words = |result: &RenderResult| match result.scene_frame {
         Some(f) => format!("frame {f}"),

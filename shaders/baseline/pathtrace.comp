@@ -101,7 +101,10 @@ float shadow_transmittance(vec3 x, vec3 w, float dist, float t_occlude, float t_
     if (t1 <= t0) {
         return T_boxes;
     }
-    return T_boxes * grid_residual_ratio_tracking(x, w, t0, t1, rng);
+    COUNT_SHADOW_BEGIN();
+    float T = T_boxes * grid_residual_ratio_tracking(x, w, t0, t1, rng);
+    COUNT_SHADOW_END();
+    return T;
 }
 
 // Sample a light for next-event estimation at x: the direction wi towards it, the
@@ -132,7 +135,7 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
         uint light_index;
         float t_light = nearest_sphere_light(0u, o, d, 0.0, t_surface, light_index);
         float t_end = min(t_surface, t_light);
-        if (bounce == 0u) {
+        if (bounce == 0u && g_alpha_wanted) {
             // The film's alpha: the camera ray's closed-form transmittance through the box
             // media and the trilinear grid, 0 where it meets a surface or an emitter.
             g_camera_transmittance = t_end < FAR ? 0.0
@@ -226,6 +229,8 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
 }
 
 void main() {
+    film_load();
+    grid_resources_load();
     uvec2 pixel = gl_GlobalInvocationID.xy;
     if (!film_contains(pixel)) {
         return;

@@ -51,6 +51,8 @@ layout(constant_id = SC_ID_MAX_BOUNCES) const uint SC_MAX_BOUNCES = 1u;
 layout(constant_id = SC_ID_PIXEL_JITTER) const bool SC_PIXEL_JITTER = true;
 layout(constant_id = SC_ID_HAS_ENV_MAP) const bool SC_HAS_ENV_MAP = false;
 
+// The box media's camera-ray transmittance is a cheap closed form: every sample's coverage.
+#define FILM_ALPHA_EVERY_SAMPLE
 #include "film.glsl"
 
 layout(push_constant) uniform PushBlock {
@@ -134,7 +136,7 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
     for (uint bounce = 0u; bounce < SC_MAX_BOUNCES; ++bounce) {
         uint shape_index;
         float t_surface = nearest_shape(o, d, 0.0, FAR, shape_index);
-        if (bounce == 0u) {
+        if (bounce == 0u && g_alpha_wanted) {
             // The film's alpha: the camera ray's closed-form transmittance, 0 on a surface.
             g_camera_transmittance =
                 t_surface < FAR ? 0.0 : exp(-box_optical_depth(o, d, 0.0, FAR));
@@ -207,6 +209,7 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
 }
 
 void main() {
+    film_load();
     uvec2 pixel = gl_GlobalInvocationID.xy;
     if (!film_contains(pixel)) {
         return;

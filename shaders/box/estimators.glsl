@@ -26,6 +26,7 @@
 #define NIMBUS_BOX_ESTIMATORS_GLSL
 
 #include "features.glsl"
+#include "counters.glsl"
 
 #define SAMPLER_WHOLE_VOLUME 0u
 #define SAMPLER_CAMERA_DISTANCE 1u
@@ -193,6 +194,7 @@ vec3 single_scatter_me(uint m, BoxMedium bm, vec3 o, vec3 d, vec3 o_local, vec3 
         float z = 0.0;
         float T_other = 0.0;
         for (uint k = 0u; k < n; ++k) {
+            COUNT_STEP();
             float t = sample_wvds_distance(pieces, (float(k) + 0.5) / float(n));
             vec3 x = o + t * d;
             if (SC_HAS_SHAPES) {
@@ -262,6 +264,9 @@ vec3 single_scatter_box(uint m, vec3 o, vec3 d, float t_enter, float t_b, inout 
     vec3 sum_FV = vec3(0.0);
     vec3 sum_F = vec3(0.0);
     for (uint k = 0u; k < n; ++k) {
+        // One estimator sample along the segment, with its shadow ray.
+        COUNT_STEP();
+        COUNT(CTR_SHADOW_RAYS, 1);
         // Choose light l with probability P(l) = w_l / w_sum.
         float prob;
         uint l = select_light(rng_next(rng), w, light_count, w_sum, prob);

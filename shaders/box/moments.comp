@@ -51,6 +51,7 @@ vec4 trace_texel(MomentFrame f, uvec2 texel) {
 }
 
 void main() {
+    film_load();
     uvec2 texel = gl_GlobalInvocationID.xy;
     uint size = u_push.size;
     if (texel.x >= size || texel.y >= size) {

@@ -17,6 +17,7 @@
 #include "bindings.glsl"
 #include "constants.glsl"
 #include "features.glsl"
+#include "counters.glsl"
 #include "scene.glsl"
 
 layout(std430, set = 0, binding = BINDING_BVH_NODES) readonly buffer BvhNodeBlock {
@@ -180,6 +181,7 @@ float bvh_trace(uint root, uint node_count, vec3 o, vec3 d, float t_min, float t
     uint guard = 2u * node_count + 1u;
     for (uint step = 0u; step < guard; ++step) {
         if (t_node <= t_best * widen) {
+            COUNT(CTR_BVH_NODES, 1);
             BvhNode n = bvh_nodes[node];
             if (n.count > 0u) {
                 // A leaf: test its triangles, shrinking the range to the closest hit.

@@ -40,6 +40,17 @@
 #define SC_ID_NEE_SPLIT 17
 // ReSTIR: every walk adds the camera ray's end as a candidate, not only escaping ones.
 #define SC_ID_DIRECT_EACH_WALK 18
+// Every pass: count work (counters.glsl) into the stats buffer's counter block...
+#define SC_ID_COUNTERS 19
+// ... of this pass slot (0 .. COUNTER_SLOTS - 1).
+#define SC_ID_COUNTER_SLOT 20
+// Super-voxel tracking (grid_blocks.glsl): some super-voxel span can be too hot for null
+// collisions (residual majorant x longest chord > GRID_EXACT_SPAN_STEPS), so the exact
+// tracking of hot spans is compiled in. The pass decides it from the super-voxels.
+#define SC_ID_EXACT_SPANS 21
+// Per-pixel passes: the film's alpha is wanted (the camera ray's transmittance is
+// computed); off where nothing reads it (profiles, studies, benchmarks).
+#define SC_ID_ALPHA 22
 
 // ---------------------------------------------------------------------------------------
 // Values of SC_ESTIMATOR: the box-medium estimators of Velinov & Mitchell.
@@ -91,6 +102,15 @@
 // Most midpoint steps of one ReSTIR ray march (a cap against absurd lengths; the step
 // grows instead).
 #define MARCH_MAX_STEPS 4096
+// Work counters (counters.glsl): counters per pass slot, and pass slots. Each counter is
+// 64 bits (two uints, low word first) after the STAT_COUNT words of the stats buffer.
+#define COUNTER_COUNT 8
+#define COUNTER_SLOTS 4
+
+// A super-voxel span on which null-collision tracking would take more than this many
+// tentative collisions on average (residual majorant x length) is tracked exactly.
+#define GRID_EXACT_SPAN_STEPS 64
+
 // Guard on loop trip counts of the grid estimators: far beyond any expected count
 // (sigma_max * length), it only stops a runaway loop from hanging the device.
 #define GRID_MAX_STEPS 1048576

@@ -29,8 +29,15 @@ layout(local_size_x = GROUP_SIZE_X, local_size_y = GROUP_SIZE_Y) in;
 // 77 ms; of the ReSTIR and baseline grid passes: 24 ms) inside the GPU timestamps, and
 // 3-11 MB of host memory per frame, without end. Storage-buffer loads are not inlined.
 layout(std430, set = 0, binding = BINDING_FRAME_UNIFORMS) readonly buffer FrameBlock {
-    FrameUniforms u_frame;
+    FrameUniforms u_frame_block;
 };
+// A private copy, made by film_load() at the start of every pass's main: see
+// grid_resources_load (grid_resources.glsl) for why.
+FrameUniforms u_frame;
+
+void film_load() {
+    u_frame = u_frame_block;
+}
 layout(std430, set = 0, binding = BINDING_ACCUM) buffer AccumBlock {
     vec4 accum[];
 };
@@ -72,6 +79,21 @@ void film_flush_counters() {
         atomicAdd(stats[STAT_STEP_CAP], g_step_cap_hits);
         g_step_cap_hits = 0u;
     }
+    // The work counters, 64 bits each (a carry into the high word where the low one
+    // wraps): a 1080p frame's steps overflow 32 bits.
+    if (SC_COUNTERS) {
+        for (uint c = 0u; c < uint(COUNTER_COUNT); ++c) {
+            uint n = g_counters[c];
+            if (n > 0u) {
+                uint at = STAT_COUNT + 2u * (SC_COUNTER_SLOT * uint(COUNTER_COUNT) + c);
+                uint before = atomicAdd(stats[at], n);
+                if (before + n < before) {
+                    atomicAdd(stats[at + 1u], 1u);
+                }
+            }
+            g_counters[c] = 0u;
+        }
+    }
     // lavapipe (llvmpipe) silently ends every loop of an invocation once 65535 loop
     // iterations (all loops together) have run in it, so a long invocation returns a cut
     // estimate. A loop of two trips that the compiler cannot count ahead then runs once:
@@ -94,11 +116,17 @@ void film_accumulate(uvec2 pixel, vec3 estimate, float alpha) {
     accum_sq[index] += x * x;
 }
 
+// Whether the film's alpha is wanted at all: off where nothing reads it (nimbus profile,
+// study and bench), and then every pixel reads as opaque.
+layout(constant_id = SC_ID_ALPHA) const bool SC_ALPHA = true;
+
 // The transmittance of the camera ray through every medium up to the first opaque surface
 // or emitter it meets (0 when it meets one), set by the integrator for the camera sample
-// it traces: the film's alpha is 1 - its mean. A pass that never sets it leaves the
-// pixel opaque.
+// it traces when g_alpha_wanted: the film's alpha is 1 - its mean. A pass that never sets
+// it leaves the pixel opaque.
 float g_camera_transmittance = 0.0;
+// Whether the integrator computes g_camera_transmittance for the sample it traces now.
+bool g_alpha_wanted = SC_ALPHA;
 
 // ---------------------------------------------------------------------------------------
 // The pixel loop of the path tracers (crepuscular, baseline): the frame's u_frame.spp
@@ -115,12 +143,22 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng);
 // where the device limits loop iterations. Sample s draws from the stream (pixel, frame,
 // s, seed). A share that does not end the frame leaves its sums (radiance, coverage,
 // finite samples) in film_partial; the one that ends it adds the frame's estimate (rgb
-// the mean radiance of its finite samples, a the mean coverage 1 - T; 0 and 1 if none is
-// finite) to the film: one estimate per pixel and frame, however the frame was shared.
+// the mean radiance of its finite samples, a the coverage 1 - T; 0 if none is finite) to
+// the film: one estimate per pixel and frame, however the frame was shared.
+//
+// In the grid passes the coverage is that of the frame's first camera sample alone: the
+// camera ray's transmittance is a closed form (the grid's costs a dual-cell walk of the
+// whole ray, 38 % of a 16-spp baseline frame when every sample paid it), the sample's
+// sub-pixel position is uniform over the footprint, so the frame's alpha is an unbiased
+// estimate of the pixel's coverage all the same, and over frames it converges as before.
+// A pass whose camera-ray transmittance is cheap (the crepuscular pass: box media in
+// closed form) defines FILM_ALPHA_EVERY_SAMPLE before including this file and averages
+// every sample's coverage, so that its beauty minus its transparent render is exactly
+// (1 - alpha) x background per pixel.
 void film_take_samples(uvec2 pixel, uint frame, uint sample_base, uint sample_count) {
     uint index = pixel.y * u_frame.width + pixel.x;
     vec3 sum = vec3(0.0);
-    float coverage = 0.0;
+    float coverage = 1.0;
     float kept = 0.0;
     if (sample_base > 0u) {
         vec4 a = film_partial[2u * index];
@@ -132,10 +170,27 @@ void film_take_samples(uvec2 pixel, uint frame, uint sample_base, uint sample_co
         uint rng = rng_init(pixel, frame, sample_base + s, u_frame.seed);
         vec2 px = vec2(pixel) + pixel_jitter(rng);
         g_camera_transmittance = 0.0;
+#ifdef FILM_ALPHA_EVERY_SAMPLE
+        g_alpha_wanted = SC_ALPHA;
+#else
+        g_alpha_wanted = SC_ALPHA && sample_base + s == 0u;
+#endif
+        COUNT(CTR_SAMPLES, 1);
         vec3 L = radiance(u_frame.cam_position, camera_direction(u_frame, px), rng);
-        if (film_sample_finite(L)) {
+        bool finite = film_sample_finite(L);
+#ifdef FILM_ALPHA_EVERY_SAMPLE
+        // The mean coverage of the finite samples (the first one's until there is one).
+        if (finite) {
+            float c = 1.0 - clamp(g_camera_transmittance, 0.0, 1.0);
+            coverage = kept > 0.0 ? coverage + c : c;
+        }
+#else
+        if (g_alpha_wanted) {
+            coverage = 1.0 - clamp(g_camera_transmittance, 0.0, 1.0);
+        }
+#endif
+        if (finite) {
             sum += L;
-            coverage += 1.0 - clamp(g_camera_transmittance, 0.0, 1.0);
             kept += 1.0;
         }
     }
@@ -146,8 +201,11 @@ void film_take_samples(uvec2 pixel, uint frame, uint sample_base, uint sample_co
         return;
     }
     // Domain: kept >= 1 where divided.
-    vec4 estimate = kept > 0.0 ? vec4(sum, coverage) / kept : vec4(0.0, 0.0, 0.0, 1.0);
-    film_accumulate(pixel, estimate.rgb, estimate.a);
+    vec3 estimate = kept > 0.0 ? sum / kept : vec3(0.0);
+#ifdef FILM_ALPHA_EVERY_SAMPLE
+    coverage = kept > 0.0 ? coverage / kept : 1.0;
+#endif
+    film_accumulate(pixel, estimate, coverage);
 }
 
 #endif

@@ -126,9 +126,12 @@ uint grid_slot(uint offset, uvec3 dims, ivec3 b) {
 }
 
 // The first texel of slot `slot` in an atlas of slots_x x slots_y x ... slots of 9^3.
+// slots_x and slots_y are powers of two (src/gpu/sparse.rs, atlas_slots): shifts and masks,
+// no integer division (slow on GPUs, scalarized per lane on lavapipe).
 ivec3 grid_slot_origin(uint slot, uint slots_x, uint slots_y) {
-    uint plane = slots_x * slots_y;
-    return ivec3(int(slot % slots_x), int((slot / slots_x) % slots_y), int(slot / plane)) * 9;
+    int lx = findLSB(slots_x);
+    int ly = findLSB(slots_y);
+    return ivec3(int(slot & (slots_x - 1u)), int((slot >> uint(lx)) & (slots_y - 1u)), int(slot >> uint(lx + ly))) * 9;
 }
 
 // ---------------------------------------------------------------------------------------
@@ -143,10 +146,24 @@ float grid_trilinear(float c[8], vec3 f) {
     return mix(mix(x00, x10, f.y), mix(x01, x11, f.y), f.z);
 }
 
+// The 8 texels of a dual cell whose lower corner is texel b of its slot, upper corners b + o
+// (o = 1 per axis, 0 where the lattice clamp bites).
+void grid_fetch_corners(sampler3D atlas, ivec3 b, ivec3 o, out float c[8]) {
+    c[0] = texelFetch(atlas, b, 0).r;
+    c[1] = texelFetch(atlas, b + ivec3(o.x, 0, 0), 0).r;
+    c[2] = texelFetch(atlas, b + ivec3(0, o.y, 0), 0).r;
+    c[3] = texelFetch(atlas, b + ivec3(o.x, o.y, 0), 0).r;
+    c[4] = texelFetch(atlas, b + ivec3(0, 0, o.z), 0).r;
+    c[5] = texelFetch(atlas, b + ivec3(o.x, 0, o.z), 0).r;
+    c[6] = texelFetch(atlas, b + ivec3(0, o.y, o.z), 0).r;
+    c[7] = texelFetch(atlas, b + ivec3(o.x, o.y, o.z), 0).r;
+}
+
 // The 8 values of dual cell `cell` of grid `s` (atlas `atlas`, bricks from `offset`): lower
 // corner clamp(cell), upper corner clamp(cell + 1) (equal where the clamp bites), both in the
 // slot of the lower corner's brick.
 void grid_cell_corners_at(sampler3D atlas, GridSpace s, uint offset, ivec3 cell, out float c[8]) {
+    COUNT(CTR_DENSITY, 1);
     ivec3 lo = clamp(cell, s.lattice_min, s.lattice_max);
     ivec3 o = clamp(cell + 1, s.lattice_min, s.lattice_max) - lo;
     uint slot = grid_slot(offset, s.brick_dims, lo >> 3);
@@ -156,15 +173,7 @@ void grid_cell_corners_at(sampler3D atlas, GridSpace s, uint offset, ivec3 cell,
         }
         return;
     }
-    ivec3 b = grid_slot_origin(slot, s.slots_x, s.slots_y) + (lo & 7);
-    c[0] = texelFetch(atlas, b, 0).r;
-    c[1] = texelFetch(atlas, b + ivec3(o.x, 0, 0), 0).r;
-    c[2] = texelFetch(atlas, b + ivec3(0, o.y, 0), 0).r;
-    c[3] = texelFetch(atlas, b + ivec3(o.x, o.y, 0), 0).r;
-    c[4] = texelFetch(atlas, b + ivec3(0, 0, o.z), 0).r;
-    c[5] = texelFetch(atlas, b + ivec3(o.x, 0, o.z), 0).r;
-    c[6] = texelFetch(atlas, b + ivec3(0, o.y, o.z), 0).r;
-    c[7] = texelFetch(atlas, b + ivec3(o.x, o.y, o.z), 0).r;
+    grid_fetch_corners(atlas, grid_slot_origin(slot, s.slots_x, s.slots_y) + (lo & 7), o, c);
 }
 
 // The same for the grid's own density u_density.
@@ -335,6 +344,7 @@ bool grid_dual_next(inout GridDualDda it, out float s0, out float s1, out ivec3 
             return false;
         }
         it.left -= 1;
+        COUNT_STEP();
         ivec3 corner = clamp(it.cell, lo, hi);
         if (grid_slot(u_grid.space.bricks_offset, u_grid.space.brick_dims, corner >> 3) == NO_BRICK) {
             grid_dual_skip_brick(it);
@@ -470,6 +480,7 @@ float grid_ratio_tracking(vec3 o, vec3 d, float t0, float t1, inout uint rng) {
         if (s >= len || T == 0.0) {
             return T;
         }
+        COUNT(CTR_COLLISIONS, 1);
         // Domain: sigma_maj > 0.
         T *= 1.0 - grid_sigma_index(p0 + dp * s) / sigma_maj;
     }

@@ -138,6 +138,8 @@ bool grid_super_next(inout GridSuperDda it, out float s0, out float s1, out vec4
     }
     uint slot = grid_bricks[u_grid.space.bricks_offset + index];
     bounds = slot == NO_BRICK ? vec4(0.0) : super_voxels[slot];
+    COUNT_STEP();
+    COUNT(CTR_MAJORANT, 1);
     return true;
 }
 
@@ -146,7 +148,10 @@ bool grid_super_next(inout GridSuperDda it, out float s0, out float s1, out vec4
 // instead: its closed-form optical depth, or the inversion of it (grid.glsl). One hot
 // voxel then costs only the dual cells around it, and no walk runs into GRID_MAX_STEPS.
 // Ordinary clouds stay below it everywhere, so the baseline is the paper's there.
-#define GRID_EXACT_SPAN_STEPS 64.0
+// (GRID_EXACT_SPAN_STEPS is in features.glsl.) Where no super-voxel can hold such a span
+// (the pass checks every super-voxel's residual majorant against its longest chord), the
+// exact branches are compiled out: on lavapipe they cost the lean loops 1.6x even untaken.
+layout(constant_id = SC_ID_EXACT_SPANS) const bool SC_EXACT_SPANS = true;
 
 // Unbiased T estimate by residual ratio tracking [Novák et al. 2014] per super-voxel:
 // control sigma_c = min, residual majorant sigma_r = max - min,
@@ -174,7 +179,7 @@ float grid_residual_ratio_tracking_scaled(vec3 o, vec3 d, float t0, float t1,
         float sigma_c = bounds.x;
         float sigma_r = majorant_scale * (bounds.y - bounds.x);
         // A span too hot for null collisions: its exact transmittance.
-        if (sigma_r * (s1 - s0) > GRID_EXACT_SPAN_STEPS) {
+        if (SC_EXACT_SPANS && sigma_r * (s1 - s0) > float(GRID_EXACT_SPAN_STEPS)) {
             T *= exp(-grid_optical_depth(o, d, it.t_a + s0, it.t_a + s1));
             continue;
         }
@@ -195,6 +200,7 @@ float grid_residual_ratio_tracking_scaled(vec3 o, vec3 d, float t0, float t1,
             if (s >= s1 || T == 0.0) {
                 break;
             }
+            COUNT(CTR_COLLISIONS, 1);
             // Domain: sigma_r > 0.
             T *= 1.0 - (grid_sigma_index(it.p0 + it.dp * s) - sigma_c) / sigma_r;
         }
@@ -229,7 +235,7 @@ float grid_sample_collision(vec3 o, vec3 d, float t0, float t1, inout uint rng) 
         float sigma_c = bounds.x;
         float sigma_r = bounds.y - bounds.x;
         // A span too hot for null collisions: regular tracking by exact inversion.
-        if (sigma_r * (s1 - s0) > GRID_EXACT_SPAN_STEPS) {
+        if (SC_EXACT_SPANS && sigma_r * (s1 - s0) > float(GRID_EXACT_SPAN_STEPS)) {
             float target = sample_exponential(rng_next(rng), 1.0);
             float t = grid_invert_optical_depth(o, d, it.t_a + s0, it.t_a + s1, target);
             if (t < FAR) {
@@ -253,6 +259,7 @@ float grid_sample_collision(vec3 o, vec3 d, float t0, float t1, inout uint rng) 
                 if (s >= s_limit) {
                     break;
                 }
+                COUNT(CTR_COLLISIONS, 1);
                 if (rng_next(rng) * sigma_r < grid_sigma_index(it.p0 + it.dp * s) - sigma_c) {
                     return it.t_a + s;
                 }

@@ -12,8 +12,17 @@
 #include "scene.glsl"
 
 layout(std430, set = 0, binding = BINDING_BASELINE_UNIFORMS) readonly buffer BaselineBlock {
-    BaselineUniforms u_base;
+    BaselineUniforms u_base_block;
 };
+// A private copy of the parameters, made by grid_resources_load() at the start of main:
+// lavapipe reloads a storage-buffer member at every use inside a loop (it cannot prove the
+// film's writes do not alias it), which cost the baseline's tracking loops 25 % (perf-cloud,
+// 16 spp); a private copy lives in registers.
+BaselineUniforms u_base;
+
+void grid_resources_load() {
+    u_base = u_base_block;
+}
 // Analytic lights (scene.glsl's Light: direction or position or centre by type, E or I or
 // L, sphere radius, selection CDF). ReSTIR binds the current frame's set, then the
 // previous frame's (u_frame.light_count records each).

@@ -112,6 +112,7 @@ void restir_main();
 
 // The stage, then its counters into the stats buffer.
 void main() {
+    restir_load();
     restir_main();
     film_flush_counters();
 }
@@ -120,6 +121,10 @@ void restir_main() {
     uvec2 pixel = gl_GlobalInvocationID.xy;
     if (!film_contains(pixel)) {
         return;
+    }
+    // One sample: the pixel's frame (initial: its first dispatch of candidates).
+    if (u_push.aux == 0u) {
+        COUNT(CTR_SAMPLES, 1);
     }
     uint at = res_at(u_push.dst, pixel);
     // This dispatch draws candidates m0 .. m1 (all M in one where the device allows),

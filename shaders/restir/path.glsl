@@ -29,6 +29,7 @@
 
 #include "resources.glsl"
 #include "camera.glsl"
+#include "counters.glsl"
 #include "phase.glsl"
 // offset_ray_origin and Russian roulette (not this folder's path.glsl).
 #include "../include/path.glsl"
@@ -141,6 +142,8 @@ float march_transmittance(sampler3D tex, GridLevel L, uint offset, float step, v
             continue;
         }
         vec3 texel = origin + u + 0.5;
+        COUNT_STEP();
+        COUNT(CTR_DENSITY, 1);
         sum += textureLod(tex, texel * inv_size, 0.0).r;
         if (sum >= sum_cap) {
             return exp(-MARCH_MAX_TAU);
@@ -155,18 +158,26 @@ float march_transmittance(sampler3D tex, GridLevel L, uint offset, float step, v
 // T~ for target functions of reuse (mip_reuse) in a frame's set.
 float reuse_transmittance(uint set, vec3 o, vec3 d, float t1) {
     float step = u_restir.march_reuse_step;
+    COUNT_SHADOW_BEGIN();
+    float T;
     if (set == SET_CURRENT) {
-        return march_transmittance(u_march_reuse, u_restir.march_reuse, u_restir.march_reuse.bricks_offset,
-                                   step, o, d, 0.0, t1);
+        T = march_transmittance(u_march_reuse, u_restir.march_reuse, u_restir.march_reuse.bricks_offset, step,
+                                o, d, 0.0, t1);
+    } else {
+        T = march_transmittance(u_march_reuse_prev, u_restir.march_reuse, u_restir.march_reuse_prev_offset,
+                                step, o, d, 0.0, t1);
     }
-    return march_transmittance(u_march_reuse_prev, u_restir.march_reuse, u_restir.march_reuse_prev_offset,
-                               step, o, d, 0.0, t1);
+    COUNT_SHADOW_END();
+    return T;
 }
 
 // T~ of NEE segments of initial candidates (mip_indirect).
 float nee_transmittance(vec3 o, vec3 d, float t1) {
-    return march_transmittance(u_march_nee, u_restir.march_nee, u_restir.march_nee.bricks_offset,
-                               u_restir.march_nee_step, o, d, 0.0, t1);
+    COUNT_SHADOW_BEGIN();
+    float T = march_transmittance(u_march_nee, u_restir.march_nee, u_restir.march_nee.bricks_offset,
+                                  u_restir.march_nee_step, o, d, 0.0, t1);
+    COUNT_SHADOW_END();
+    return T;
 }
 
 // The residual majorant's multiple in final ratio tracking: the paper's advice is a large
@@ -177,10 +188,12 @@ float nee_transmittance(vec3 o, vec3 d, float t1) {
 // Unbiased T for final shading: the closed form through the trilinear grid, or residual
 // ratio tracking per super-voxel with a 4x majorant.
 float final_transmittance(vec3 o, vec3 d, float t1, inout uint rng) {
-    if (SC_FINAL_RATIO_TRACKING) {
-        return grid_residual_ratio_tracking_scaled(o, d, 0.0, t1, FINAL_RATIO_MAJORANT_SCALE, rng);
-    }
-    return grid_transmittance(o, d, 0.0, t1);
+    COUNT_SHADOW_BEGIN();
+    float T = SC_FINAL_RATIO_TRACKING
+                  ? grid_residual_ratio_tracking_scaled(o, d, 0.0, t1, FINAL_RATIO_MAJORANT_SCALE, rng)
+                  : grid_transmittance(o, d, 0.0, t1);
+    COUNT_SHADOW_END();
+    return T;
 }
 
 // ---------------------------------------------------------------------------------------
@@ -219,6 +232,7 @@ float pc_track(uint level, vec3 o, vec3 d, float t_end, float tau_target, out fl
     ivec3 origin = ivec3(0);
     while (it.s < it.len && steps < GRID_MAX_STEPS) {
         ++steps;
+        COUNT_STEP();
         ivec3 cell = it.cell;
         if ((cell >> 3) != brick_at) {
             brick_at = cell >> 3;
@@ -231,6 +245,7 @@ float pc_track(uint level, vec3 o, vec3 d, float t_end, float tau_target, out fl
         }
         grid_blocks_next(it, s0, s1, index);
         float sigma = texelFetch(u_pc, origin + (cell & 7), 0).r;
+        COUNT(CTR_MAJORANT, 1);
         float dtau = sigma * (s1 - s0);
         if (sigma > 0.0 && tau + dtau >= tau_target) {
             sigma_star = sigma;

@@ -89,14 +89,18 @@ struct RestirPush {
 #include "film.glsl"
 
 layout(std430, set = 0, binding = BINDING_PREV_FRAME_UNIFORMS) readonly buffer PrevFrameBlock {
-    FrameUniforms u_prev_frame;
+    FrameUniforms u_prev_frame_block;
 };
+FrameUniforms u_prev_frame;
 layout(push_constant) uniform PushBlock {
     RestirPush u_push;
 };
 layout(std430, set = 0, binding = BINDING_RESTIR_UNIFORMS) readonly buffer RestirBlock {
-    RestirUniforms u_restir;
+    RestirUniforms u_restir_block;
 };
+// Private copies of the parameter blocks (grid_resources_load says why), made by
+// restir_load() at the start of every stage's main.
+RestirUniforms u_restir;
 // The previous frame's full-resolution density atlas (the current one is
 // grid_resources.glsl's; the same image when the density does not change).
 layout(set = 0, binding = BINDING_GRID_DENSITY_PREV) uniform sampler3D u_density_prev;
@@ -118,6 +122,14 @@ layout(std430, set = 0, binding = BINDING_RESERVOIRS) buffer ReservoirBlock {
 #include "shapes.glsl"
 #include "box_media.glsl"
 #include "reservoir.glsl"
+
+// Copies every parameter block into its private copy; the first statement of every main.
+void restir_load() {
+    film_load();
+    grid_resources_load();
+    u_prev_frame = u_prev_frame_block;
+    u_restir = u_restir_block;
+}
 
 // Which frame a camera ray, density or light set belongs to.
 #define SET_CURRENT 0u

@@ -11,6 +11,7 @@ void restir_main();
 
 // The stage, then its counters into the stats buffer.
 void main() {
+    restir_load();
     restir_main();
     film_flush_counters();
 }
@@ -20,6 +21,7 @@ void restir_main() {
     if (!film_contains(pixel)) {
         return;
     }
+    COUNT(CTR_SAMPLES, 1);
     uint at = res_at(u_push.src, pixel);
     uint rng = rng_init(pixel, u_push.frame, 3u, u_frame.seed);
     Reservoir r = res_load(at);
@@ -36,10 +38,13 @@ void restir_main() {
         L = vec3(0.0);
     }
     // The film's alpha: 1 - the camera ray's closed-form transmittance through the media,
-    // 1 where it meets an emitting sphere or a shape.
-    uint light_index;
-    bool opaque = nearest_sphere_light(light_base(SET_CURRENT), cam.o, cam.d, 1e-6, FAR, light_index) < FAR ||
-                  occluded(cam.o, cam.d, 0.0);
-    float T_camera = opaque ? 0.0 : grid_transmittance(cam.o, cam.d, 0.0, FAR) * boxes_transmittance(cam.o, cam.d, FAR);
+    // 1 where it meets an emitting sphere or a shape (opaque where nothing reads alpha).
+    float T_camera = 0.0;
+    if (SC_ALPHA) {
+        uint light_index;
+        bool opaque = nearest_sphere_light(light_base(SET_CURRENT), cam.o, cam.d, 1e-6, FAR, light_index) < FAR ||
+                      occluded(cam.o, cam.d, 0.0);
+        T_camera = opaque ? 0.0 : grid_transmittance(cam.o, cam.d, 0.0, FAR) * boxes_transmittance(cam.o, cam.d, FAR);
+    }
     film_accumulate(pixel, L, 1.0 - clamp(T_camera, 0.0, 1.0));
 }

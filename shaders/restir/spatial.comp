@@ -14,6 +14,7 @@ void restir_main();
 
 // The stage, then its counters into the stats buffer.
 void main() {
+    restir_load();
     restir_main();
     film_flush_counters();
 }
@@ -23,6 +24,7 @@ void restir_main() {
     if (!film_contains(pixel)) {
         return;
     }
+    COUNT(CTR_SAMPLES, 1);
     uint rng = rng_init(pixel, u_push.frame, 2u + u_push.aux, u_frame.seed);
 
     candidate_set(0u, res_at(u_push.src, pixel), pixel, SET_CURRENT);

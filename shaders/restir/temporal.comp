@@ -28,6 +28,7 @@ void restir_main();
 
 // The stage, then its counters into the stats buffer.
 void main() {
+    restir_load();
     restir_main();
     film_flush_counters();
 }
@@ -37,6 +38,7 @@ void restir_main() {
     if (!film_contains(pixel)) {
         return;
     }
+    COUNT(CTR_SAMPLES, 1);
     uint at = res_at(u_push.src, pixel);
     uint rng = rng_init(pixel, u_push.frame, 1u, u_frame.seed);
     Reservoir cur = res_load(at);

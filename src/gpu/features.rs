@@ -36,6 +36,15 @@ pub const SC_ID_HAS_AREA_LIGHTS: u32 = 16;
 pub const SC_ID_NEE_SPLIT: u32 = 17;
 /// ReSTIR: every walk adds the camera ray's end as a candidate, not only escaping ones.
 pub const SC_ID_DIRECT_EACH_WALK: u32 = 18;
+/// Every pass: count work (`shaders/include/counters.glsl`) into the stats buffer.
+pub const SC_ID_COUNTERS: u32 = 19;
+/// The pass slot whose counters a pipeline adds to.
+pub const SC_ID_COUNTER_SLOT: u32 = 20;
+/// Super-voxel tracking: some span can be too hot for null collisions, so the exact
+/// tracking of hot spans is compiled in ([`crate::gpu::GpuGrid::needs_exact_spans`]).
+pub const SC_ID_EXACT_SPANS: u32 = 21;
+/// Per-pixel passes: compute the film's alpha (the camera ray's transmittance).
+pub const SC_ID_ALPHA: u32 = 22;
 
 // ---------------------------------------------------------------------------------------
 // Values of `SC_ESTIMATOR` in `shaders/box/crepuscular.comp`.
@@ -81,11 +90,17 @@ pub const RESERVOIR_HEADER_UINTS: u32 = 8;
 pub const RESERVOIR_VERTEX_UINTS: u32 = 2;
 /// Most midpoint steps of one ReSTIR ray march.
 pub const MARCH_MAX_STEPS: u32 = 4096;
+/// Work counters per pass slot ([`crate::gpu::counters`]).
+pub const COUNTER_COUNT: u32 = 8;
+/// Pass slots of work counters.
+pub const COUNTER_SLOTS: u32 = 4;
+/// Tentative collisions on a super-voxel span past which it is tracked exactly.
+pub const GRID_EXACT_SPAN_STEPS: u32 = 64;
 /// Guard on loop trip counts of the grid estimators.
 pub const GRID_MAX_STEPS: u32 = 1_048_576;
 
 /// Every constant above with its GLSL name.
-pub const ALL: [(&str, u32); 41] = [
+pub const ALL: [(&str, u32); 48] = [
     ("SC_ID_HAS_SHAPES", SC_ID_HAS_SHAPES),
     ("SC_ID_HAS_GOBOS", SC_ID_HAS_GOBOS),
     ("SC_ID_HAS_ENV", SC_ID_HAS_ENV),
@@ -105,6 +120,13 @@ pub const ALL: [(&str, u32); 41] = [
     ("SC_ID_HAS_AREA_LIGHTS", SC_ID_HAS_AREA_LIGHTS),
     ("SC_ID_NEE_SPLIT", SC_ID_NEE_SPLIT),
     ("SC_ID_DIRECT_EACH_WALK", SC_ID_DIRECT_EACH_WALK),
+    ("SC_ID_COUNTERS", SC_ID_COUNTERS),
+    ("SC_ID_COUNTER_SLOT", SC_ID_COUNTER_SLOT),
+    ("SC_ID_EXACT_SPANS", SC_ID_EXACT_SPANS),
+    ("SC_ID_ALPHA", SC_ID_ALPHA),
+    ("GRID_EXACT_SPAN_STEPS", GRID_EXACT_SPAN_STEPS),
+    ("COUNTER_COUNT", COUNTER_COUNT),
+    ("COUNTER_SLOTS", COUNTER_SLOTS),
     ("ESTIMATOR_MCWVDS", ESTIMATOR_MCWVDS),
     ("ESTIMATOR_REDS", ESTIMATOR_REDS),
     ("ESTIMATOR_REES", ESTIMATOR_REES),

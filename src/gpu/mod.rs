@@ -7,8 +7,10 @@
 //!   lights with their selection CDF, grids with their super-voxels, environment maps);
 //! - [`meshes`]: the BVH node and triangle buffers of the scene's meshes;
 //! - [`emitters`]: the emitting shapes' primitives with their power CDF (area lights).
+//! - [`counters`]: the deterministic work counters passes report (`nimbus profile --counters`).
 
 pub mod bindings;
+pub mod counters;
 pub mod emitters;
 pub mod features;
 pub mod meshes;

@@ -571,7 +571,36 @@ impl LightSet {
     }
 }
 
+/// Whether super-voxel tracking with residual majorants `majorant_scale` x (max - min)
+/// can meet a span too hot for null collisions (`GRID_EXACT_SPAN_STEPS` tentative
+/// collisions on average) in any of `super_voxels` ((min, max, avg, _) of sigma_t) of a
+/// grid whose p-space maps to world by `p_to_world`: the residual majorant times the
+/// longest chord of a super-voxel (at most the sum of its three edge lengths) is checked
+/// for each. Where none can, `SC_EXACT_SPANS` compiles the exact branches out.
+pub fn needs_exact_spans(
+    super_voxels: &[[f32; 4]],
+    p_to_world: &DMat4,
+    majorant_scale: f32,
+) -> bool {
+    let edges = p_to_world.x_axis.truncate().length()
+        + p_to_world.y_axis.truncate().length()
+        + p_to_world.z_axis.truncate().length();
+    let chord = 8.0 * edges;
+    let limit = f64::from(super::features::GRID_EXACT_SPAN_STEPS);
+    super_voxels.iter().any(|v| {
+        let residual = f64::from(majorant_scale) * f64::from(v[1] - v[0]);
+        // A NaN bound is refused at load; count it as hot all the same.
+        residual.is_nan() || residual * chord > limit
+    })
+}
+
 impl GpuGrid {
+    /// Whether the baseline's super-voxel tracking needs its exact branches
+    /// ([`needs_exact_spans`] with the tight residual majorant).
+    pub fn needs_exact_spans(&self) -> bool {
+        needs_exact_spans(&self.super_voxels, &self.p_to_world, 1.0)
+    }
+
     /// The indirection sections of the baseline: the density's (at offset 0, as
     /// `uniforms.grid.space` says), then the emission's (or one empty entry).
     pub fn indirection(&self) -> Indirection {

@@ -6,7 +6,10 @@
 //! holds a whole atlas.
 //!
 //! Limits (lavapipe's, and Vulkan's minimum maxImageDimension3D on larger devices): an
-//! atlas has at most 455 slots per axis (4095 texels); [`atlas_slots`] refuses more.
+//! atlas has at most 455 slots per axis (4095 texels); [`atlas_slots`] refuses more. Its
+//! x and y slot counts are powers of two (at most 256), so a shader finds a slot's texels
+//! with shifts and masks: `grid_slot_origin` runs on every density lookup, and integer
+//! division is slow on GPUs and scalarized on lavapipe (8 lanes x 5 divisions a lookup).
 
 use anyhow::{bail, Result};
 use glam::{DMat3, DMat4, DVec3, IVec3};
@@ -49,22 +52,31 @@ impl TexelFormat {
     }
 }
 
-/// Slots per axis of an atlas of `n` slots (at least 1): `x = y = ⌈∛n⌉`, z what is left.
+/// Most slots along x or y: the largest power of two within [`MAX_ATLAS_SLOTS_PER_AXIS`].
+pub const MAX_ATLAS_SLOTS_XY: u32 = 256;
+
+/// Slots per axis of an atlas of `n` slots (at least 1): x and y powers of two, grown
+/// (the smaller first) until x · y · max(x, y) ≥ n, so the atlas is about a cube; z what
+/// is left.
 pub fn atlas_slots(n: u64) -> Result<[u32; 3]> {
     let n = n.max(1);
-    let mut side = (n as f64).cbrt().ceil() as u64;
-    while side * side * side < n {
-        side += 1;
+    let max_xy = u64::from(MAX_ATLAS_SLOTS_XY);
+    let (mut x, mut y) = (1u64, 1u64);
+    while x * y * x.max(y) < n && (x < max_xy || y < max_xy) {
+        if x <= y {
+            x *= 2;
+        } else {
+            y *= 2;
+        }
     }
-    let side = side.min(u64::from(MAX_ATLAS_SLOTS_PER_AXIS));
-    let z = n.div_ceil(side * side);
+    let z = n.div_ceil(x * y);
     if z > u64::from(MAX_ATLAS_SLOTS_PER_AXIS) {
         bail!(
-            "{n} bricks of 8³ voxels do not fit one 3D atlas ({MAX_ATLAS_SLOTS_PER_AXIS}³ slots \
-             of 9³ texels at most)"
+            "{n} bricks of 8³ voxels do not fit one 3D atlas ({MAX_ATLAS_SLOTS_XY} x \
+             {MAX_ATLAS_SLOTS_XY} x {MAX_ATLAS_SLOTS_PER_AXIS} slots of 9³ texels at most)"
         );
     }
-    Ok([side as u32, side as u32, z as u32])
+    Ok([x as u32, y as u32, z as u32])
 }
 
 /// Atlas texel dims for `slots` per axis.
@@ -343,4 +355,28 @@ pub fn slot_bound(topo: &nimbus_scene::BrickTopology, all_neighbours: bool) -> u
         }
     }
     set.len() as u64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn atlas_slots_hold_every_slot_in_power_of_two_rows() {
+        for n in [1u64, 2, 7, 8, 9, 65, 512, 600, 4097, 100_000, 3_000_000] {
+            let [x, y, z] = atlas_slots(n).expect("fits");
+            assert!(x.is_power_of_two() && y.is_power_of_two(), "{n}: {x} x {y}");
+            assert!(x <= MAX_ATLAS_SLOTS_XY && y <= MAX_ATLAS_SLOTS_XY);
+            assert!(z <= MAX_ATLAS_SLOTS_PER_AXIS);
+            let capacity = u64::from(x) * u64::from(y) * u64::from(z);
+            assert!(capacity >= n, "{n}: {x} x {y} x {z}");
+            // Never more than one spare layer of slots, and no long thin atlas.
+            assert!(
+                capacity < n + u64::from(x) * u64::from(y),
+                "{n}: {x} x {y} x {z}"
+            );
+            assert!(x <= 2 * y && y <= 2 * x, "{n}: {x} x {y}");
+        }
+        assert!(atlas_slots(256 * 256 * 455 + 1).is_err());
+    }
 }

@@ -20,8 +20,9 @@ use crate::plan::BaselinePlan;
 use crate::shaders;
 
 /// The specialization constants of `pathtrace.comp` for a plan.
-pub fn specialization(plan: &BaselinePlan) -> [(u32, SpecValue); 10] {
+pub fn specialization(plan: &BaselinePlan, exact_spans: bool) -> [(u32, SpecValue); 11] {
     [
+        (SC_ID_EXACT_SPANS, SpecValue::Bool(exact_spans)),
         (SC_ID_HAS_AREA_LIGHTS, SpecValue::Bool(plan.has_area_lights)),
         (SC_ID_HAS_GOBOS, SpecValue::Bool(plan.has_gobos)),
         (SC_ID_HAS_MESHES, SpecValue::Bool(plan.has_meshes)),
@@ -80,7 +81,8 @@ pub fn create(
             o,
             shaders::BASELINE_PATHTRACE,
             &layout,
-            &specialization(plan),
+            &specialization(plan, grid.needs_exact_spans()),
+            targets.film_spec(0),
             "baseline path tracer",
         )?;
         let shapes = upload_records(ctx, o, &non_empty(&shapes), "shapes")?;
@@ -198,12 +200,9 @@ pub fn create(
 
 /// Loop iterations one camera sample may typically run (see
 /// [`super::samples_per_dispatch`]): K + 1 segments, each with its shadow rays, each
-/// crossing the super-voxel grid (blocks, an exact span of up to
-/// `GRID_EXACT_SPAN_STEPS`), looping over the lights and traversing the meshes. Collisions are random; the
-/// loop sentinel refuses an image a rare long walk would cut.
-/// `GRID_EXACT_SPAN_STEPS` of grid_blocks.glsl.
-const EXACT_SPAN_STEPS: u32 = 64;
-
+/// crossing the super-voxel grid (blocks, an exact span of up to `GRID_EXACT_SPAN_STEPS`),
+/// looping over the lights and traversing the meshes. Collisions are random; the loop
+/// sentinel refuses an image a rare long walk would cut.
 fn sample_cost(plan: &BaselinePlan, grid: &GpuGrid, scene: &Scene) -> u32 {
     let blocks: u32 = grid.uniforms.grid.space.brick_dims.iter().sum::<u32>() + 3;
     // A segment's closest-hit ray and each light's shadow ray through the meshes.
@@ -211,7 +210,7 @@ fn sample_cost(plan: &BaselinePlan, grid: &GpuGrid, scene: &Scene) -> u32 {
     // An area-light sample's binary search in the emitter table.
     let emitter_search = usize::BITS - grid.emitters.len().leading_zeros();
     let segment =
-        blocks + EXACT_SPAN_STEPS + 3 * grid.lights.len() as u32 + mesh_rays + emitter_search;
+        blocks + GRID_EXACT_SPAN_STEPS + 3 * grid.lights.len() as u32 + mesh_rays + emitter_search;
     let segments = 2 * (plan.max_bounces + 1);
     segment.saturating_mul(segments)
 }

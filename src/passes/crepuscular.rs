@@ -173,11 +173,19 @@ fn storage_pipeline<P>(
     buffers: &[(u32, Handle<Buffer>)],
     spirv: &[u8],
     specialization: &[(u32, SpecValue)],
-    name: &str,
+    (name, counter_slot): (&str, u32),
 ) -> Result<(Handle<ComputePipeline>, Handle<DescriptorSet>)> {
     let mut layout = Vec::from(Targets::layout());
     layout.extend(buffers.iter().map(|&(b, _)| BindingDesc::storage_buffer(b)));
-    let pipeline = compute_pipeline::<P>(ctx, o, spirv, &layout, specialization, name)?;
+    let pipeline = compute_pipeline::<P>(
+        ctx,
+        o,
+        spirv,
+        &layout,
+        specialization,
+        targets.film_spec(counter_slot),
+        name,
+    )?;
     let mut writes = Vec::from(targets.writes());
     writes.extend(
         buffers
@@ -285,7 +293,7 @@ pub fn create(
             ],
             shaders::BOX_CREPUSCULAR,
             &specialization(plan),
-            "crepuscular",
+            ("crepuscular", 0),
         )?;
         let stage = if with_moments {
             Some(storage_pipeline::<MomentPush>(
@@ -304,7 +312,7 @@ pub fn create(
                     (SC_ID_HAS_SHAPES, SpecValue::Bool(plan.features.has_shapes)),
                     (SC_ID_HAS_MESHES, SpecValue::Bool(plan.features.has_meshes)),
                 ],
-                "moment maps",
+                ("moment maps", 1),
             )?)
         } else {
             None
@@ -319,9 +327,12 @@ pub fn create(
     let tables = c.box_media * plan.features.max_pieces.max(3) * (planes.max(6) + 4);
     let per_sample = if with_moments { 14 } else { 1 };
     // The environment: per sample along the segment and at its surface, a shadow ray
-    // (media, planes, shapes) and the map's two binary searches.
+    // (media, planes, shapes) and, for a map, its two binary searches (a constant
+    // environment has none: counting them split the default scene's 4 spp into 4
+    // dispatches per frame on lavapipe).
+    let searches = if plan.features.has_env_map { 2 * 32 } else { 0 };
     let env = if plan.features.has_env {
-        2 * c.ray_samples * (c.box_media + planes + c.shapes + 2 * 32)
+        2 * c.ray_samples * (c.box_media + planes + c.shapes + searches)
     } else {
         0
     };
@@ -415,6 +426,10 @@ impl CrepuscularPass {
 impl Pass for CrepuscularPass {
     fn label(&self) -> &'static str {
         self.image.label()
+    }
+
+    fn counter_labels(&self) -> Vec<&'static str> {
+        vec!["crepuscular", "crepuscular/moments"]
     }
 
     fn frame_uniforms(&self, scene: &Scene, camera: &CameraFrame) -> FrameUniforms {

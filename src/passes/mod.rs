@@ -97,6 +97,12 @@ pub trait Pass {
         Vec::new()
     }
 
+    /// The stages whose work counters the pass reports, by counter slot (slot i counts
+    /// `counter_labels()[i]`; see [`crate::gpu::counters`]).
+    fn counter_labels(&self) -> Vec<&'static str> {
+        vec![self.label()]
+    }
+
     /// Frees every GPU object of the pass.
     fn destroy(self: Box<Self>, ctx: &Context);
 }
@@ -146,9 +152,24 @@ pub struct Targets<'a> {
     /// A frame's partial sums while its samples are shared among dispatches (pixels x
     /// 32 bytes on a device with a loop budget, 32 bytes elsewhere).
     pub film_partial: &'a Buffer,
+    /// Whether the passes count their work into the stats buffer
+    /// ([`crate::gpu::counters`]): `nimbus profile --counters` and `nimbus bench`.
+    pub counters: bool,
+    /// Whether anything reads the film's alpha (else the passes leave the camera ray's
+    /// transmittance out and every pixel reads as opaque).
+    pub alpha: bool,
 }
 
 impl<'a> Targets<'a> {
+    /// The film's specialization constants for a pipeline counting into counter slot
+    /// `slot` (when this render counts work): `SC_ALPHA` and the counters'.
+    pub fn film_spec(&self, slot: u32) -> FilmSpec {
+        FilmSpec {
+            counter_slot: self.counters.then_some(slot),
+            alpha: self.alpha,
+        }
+    }
+
     /// The descriptor writes of the frame uniforms and the film buffers, which every
     /// pass binds at the same binding numbers.
     pub fn writes(&self) -> [DescriptorWrite<'a>; 5] {
@@ -205,6 +226,15 @@ impl FrameConstants {
             ..frame_uniforms(scene, camera, self.env_radiance, self.counts)
         }
     }
+}
+
+/// What every pipeline's film (`shaders/include/film.glsl`) is specialized with.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FilmSpec {
+    /// The work-counter slot, when the render counts work.
+    pub counter_slot: Option<u32>,
+    /// Whether the film's alpha is computed.
+    pub alpha: bool,
 }
 
 /// A pass of one pipeline dispatched once per frame, one invocation per pixel, with
@@ -353,16 +383,23 @@ pub fn compute_pipeline<P>(
     spirv: &[u8],
     bindings: &[BindingDesc],
     specialization: &[(u32, SpecValue)],
+    film: FilmSpec,
     name: &str,
 ) -> Result<Handle<ComputePipeline>> {
     let spirv = spirv_words(spirv)?;
+    let mut specialization = specialization.to_vec();
+    specialization.push((
+        crate::gpu::features::SC_ID_ALPHA,
+        SpecValue::Bool(film.alpha),
+    ));
+    specialization.extend(crate::gpu::counters::specialization(film.counter_slot));
     let pipeline = ctx.create_compute_pipeline(
         &ComputePipelineDesc {
             spirv: &spirv,
             entry: "main",
             bindings,
             push_constant_size: std::mem::size_of::<P>() as u32,
-            specialization,
+            specialization: &specialization,
         },
         name,
     )?;

@@ -24,6 +24,7 @@ use anyhow::{bail, Context as _, Result};
 use nimbus_gpu::{vk, Buffer, BufferDesc, Context, GpuObjects, Handle, Profiler, ScopeResult};
 use nimbus_scene::Scene;
 
+use crate::gpu::counters::{self, WorkCounts};
 use crate::gpu::{bindings, FrameUniforms};
 use crate::output::ImageRgb;
 use crate::passes::{self, Pass, Targets};
@@ -116,6 +117,12 @@ pub struct RenderOptions {
     pub stop: StopRule,
     /// Set (by a SIGINT handler) to stop: the current image ends with the frames done.
     pub interrupt: Option<Arc<AtomicBool>>,
+    /// Count every pass's work ([`crate::gpu::counters`]): the pipelines are specialized
+    /// to count, and [`RenderResult::work`] holds the counts of the image's frames.
+    pub counters: bool,
+    /// Leave the film's alpha out (every pixel opaque): for renders whose alpha nobody
+    /// reads (profiles, studies, benchmarks), which then pay nothing for it.
+    pub skip_alpha: bool,
 }
 
 /// The result of rendering one image.
@@ -163,6 +170,9 @@ pub struct RenderResult {
     pub device_bytes: u64,
     /// What the passes decided from the scene's content (see `Pass::notes`).
     pub notes: Vec<String>,
+    /// The work counters of the image's frames, when [`RenderOptions::counters`] asked
+    /// for them.
+    pub work: Option<WorkCounts>,
 }
 
 impl RenderResult {
@@ -229,7 +239,7 @@ pub fn render_each(
         let accum_sq =
             o.add(ctx.create_buffer(&BufferDesc::gpu_only(accum_bytes, storage), "accum squares")?);
         let stats = o.add(ctx.create_buffer(
-            &BufferDesc::gpu_only((bindings::STAT_COUNT * 4) as u64, storage),
+            &BufferDesc::gpu_only((counters::STATS_WORDS * 4) as u64, storage),
             "stats",
         )?);
         let partial_bytes = film_partial_bytes(ctx.info().loop_budget().is_some(), pixels);
@@ -243,6 +253,8 @@ pub fn render_each(
             accum_sq,
             stats,
             film_partial,
+            counters: opts.counters,
+            alpha: !opts.skip_alpha,
         })
     })?;
     let result = (|| {
@@ -264,6 +276,7 @@ pub fn render_each(
             last_camera: None,
             last_scene_frame: None,
             progress: Progress::new(opts.progress),
+            counter_labels: pass.counter_labels(),
         };
         let outcome = run.all(pass.as_mut(), sink);
         run.progress.finish();
@@ -284,6 +297,8 @@ struct TargetHandles {
     accum_sq: Handle<Buffer>,
     stats: Handle<Buffer>,
     film_partial: Handle<Buffer>,
+    counters: bool,
+    alpha: bool,
 }
 
 /// Bytes of the film's partial-sum buffer: two vec4 per pixel where a frame's samples
@@ -304,6 +319,8 @@ impl TargetHandles {
             accum_sq: &objects[self.accum_sq],
             stats: &objects[self.stats],
             film_partial: &objects[self.film_partial],
+            counters: self.counters,
+            alpha: self.alpha,
         }
     }
 }
@@ -311,6 +328,8 @@ impl TargetHandles {
 /// One image being accumulated: its frames' sums on the CPU (when frames are read back
 /// one by one) or on the GPU, and its batches.
 struct ImageState {
+    /// The context's dispatch count when the image started (work counters).
+    first_dispatch: u64,
     /// Frames read back one by one and summed here (sequence and keep-frames modes);
     /// `None`: the GPU sums hold every frame of the image.
     cpu: Option<Totals>,
@@ -343,6 +362,8 @@ struct Run<'a> {
     last_camera: Option<nimbus_scene::CameraFrame>,
     last_scene_frame: Option<u32>,
     progress: Progress,
+    /// The pass's counter slots by label ([`Pass::counter_labels`]).
+    counter_labels: Vec<&'static str>,
 }
 
 impl Run<'_> {
@@ -461,6 +482,7 @@ impl Run<'_> {
         clear_targets(self.ctx, self.targets)?;
         let per_frame = scene_frame.is_none() && (opts.sequence.is_some() || opts.keep_frames);
         let mut state = ImageState {
+            first_dispatch: self.ctx.dispatch_count(),
             cpu: per_frame.then(|| Totals::new(pixels)),
             batches: (self.batch > 1).then(|| Batches::new(self.batch, pixels)),
             frames: 0,
@@ -622,6 +644,14 @@ impl Run<'_> {
             frame_images: state.frame_images,
             device_bytes: self.device_bytes,
             notes: self.notes.clone(),
+            work: self.opts.counters.then(|| {
+                WorkCounts::from_stats(
+                    &stats,
+                    &self.counter_labels,
+                    self.ctx.dispatch_count() - state.first_dispatch,
+                    state.frames,
+                )
+            }),
         })
     }
 }

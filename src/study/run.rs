@@ -185,6 +185,8 @@ impl Study {
         let opts = RenderOptions {
             warmup_frames: config.warmup,
             keep_frames: self.per_frame,
+            // Studies measure radiance: the alpha nobody reads would only add its cost.
+            skip_alpha: true,
             ..Default::default()
         };
         let result = renderer::render(ctx, &scene, &config.plan, &opts).context("rendering")?;
@@ -235,6 +237,7 @@ impl Study {
         );
         let opts = RenderOptions {
             progress: true,
+            skip_alpha: true,
             ..Default::default()
         };
         let result = renderer::render(ctx, &job.scene, &job.plan, &opts)

@@ -18,6 +18,7 @@ mod box_estimators;
 mod box_me;
 mod budget;
 mod cli;
+mod counters;
 mod docs;
 mod emitters;
 mod envmap_gpu;

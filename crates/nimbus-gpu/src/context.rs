@@ -480,11 +480,18 @@ pub struct Context {
     validation: bool,
     /// Pipelines built so far, handed out again for the same description.
     pub(crate) pipelines: Mutex<crate::pipeline_cache::PipelineCache>,
+    /// Compute dispatches recorded so far (work counters: dispatches per frame).
+    pub(crate) dispatches: std::sync::atomic::AtomicU64,
     /// Declared last: dropped (messenger, instance) after `Drop::drop` destroyed the device.
     instance: InstanceBundle,
 }
 
 impl Context {
+    /// Compute dispatches recorded with this context so far.
+    pub fn dispatch_count(&self) -> u64 {
+        self.dispatches.load(std::sync::atomic::Ordering::Relaxed)
+    }
+
     /// Creates the instance, picks a device (see the module docs) and creates the device,
     /// its compute queue and the allocator.
     pub fn new(desc: &ContextDesc) -> Result<Context> {
@@ -544,6 +551,7 @@ impl Context {
             info,
             validation: desc.validation,
             pipelines: Mutex::default(),
+            dispatches: std::sync::atomic::AtomicU64::new(0),
             instance,
         };
         ctx.set_name(

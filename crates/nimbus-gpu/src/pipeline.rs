@@ -132,6 +132,8 @@ impl ComputePipeline {
                 self.name
             );
         }
+        ctx.dispatches
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         let device = ctx.device();
         unsafe {
             device.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, self.raw);

@@ -40,9 +40,19 @@ use std::collections::HashSet;
 
 pub use crate::gpu::reservoir_bytes;
 
-/// The specialization constants of the ReSTIR shaders for a plan.
-pub fn specialization(plan: &RestirPlan) -> [(u32, SpecValue); 16] {
+/// The residual majorant's multiple in final ratio tracking
+/// (`FINAL_RATIO_MAJORANT_SCALE` of `shaders/restir/path.glsl`).
+pub const FINAL_RATIO_MAJORANT_SCALE: f32 = 4.0;
+
+/// The specialization constants of the ReSTIR shaders for a plan; `exact_spans`: some
+/// super-voxel of some density frame is hot for final ratio tracking
+/// ([`crate::gpu::scene::needs_exact_spans`]).
+pub fn specialization(plan: &RestirPlan, exact_spans: bool) -> [(u32, SpecValue); 17] {
     [
+        (
+            SC_ID_EXACT_SPANS,
+            SpecValue::Bool(plan.final_ratio_tracking && exact_spans),
+        ),
         (SC_ID_HAS_AREA_LIGHTS, SpecValue::Bool(plan.has_area_lights)),
         (SC_ID_HAS_GOBOS, SpecValue::Bool(plan.has_gobos)),
         (SC_ID_HAS_MEDIA, SpecValue::Bool(plan.has_boxes)),
@@ -392,7 +402,9 @@ impl RestirPass {
             sizes: volumes.sizes,
             animated,
         };
-        let spec = specialization(plan);
+        let exact_spans =
+            volumes.needs_exact_spans(&grid_gpu.p_to_world, FINAL_RATIO_MAJORANT_SCALE);
+        let spec = specialization(plan, exact_spans);
         let (objects, res) =
             GpuObjects::build(ctx, |o| Resources::create(ctx, o, &spec, &inputs, targets))?;
         Ok(RestirPass {
@@ -536,6 +548,15 @@ impl RestirPass {
 impl Pass for RestirPass {
     fn label(&self) -> &'static str {
         "restir"
+    }
+
+    fn counter_labels(&self) -> Vec<&'static str> {
+        vec![
+            "restir/initial",
+            "restir/temporal",
+            "restir/spatial",
+            "restir/shade",
+        ]
     }
 
     fn frame_uniforms(&self, scene: &Scene, camera: &CameraFrame) -> FrameUniforms {

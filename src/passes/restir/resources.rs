@@ -147,13 +147,14 @@ impl Resources {
         } = *inputs;
         let layout = layout();
         let mut pipelines = Vec::with_capacity(4);
-        for stage in Stage::ALL {
+        for (slot, stage) in Stage::ALL.into_iter().enumerate() {
             pipelines.push(compute_pipeline::<RestirPush>(
                 ctx,
                 o,
                 spirv_of(stage),
                 &layout,
                 specialization,
+                targets.film_spec(slot as u32),
                 &format!("restir {}", stage.name()),
             )?);
         }

@@ -443,6 +443,14 @@ impl Volumes {
     }
 
     /// The base grid's derived volume.
+    /// Whether residual ratio tracking with `majorant_scale` x the tight residual majorant
+    /// can meet a hot super-voxel span in any density frame.
+    pub fn needs_exact_spans(&self, p_to_world: &glam::DMat4, majorant_scale: f32) -> bool {
+        self.by_index.values().any(|v| {
+            crate::gpu::scene::needs_exact_spans(&v.grids.super_voxels, p_to_world, majorant_scale)
+        })
+    }
+
     pub fn base(&self) -> Result<&DerivedVolume> {
         self.get(0)
     }

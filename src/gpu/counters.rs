@@ -1,0 +1,213 @@
+//! Deterministic work counters (`shaders/include/counters.glsl`): what a pass did, counted
+//! on the GPU, per pass slot. Timings on shared machines are noise; work is not: the same
+//! scene, seed and device give the same counts, so tests pin them (`tests/suite/counters.rs`)
+//! and `nimbus bench` compares them with a stored baseline.
+//!
+//! The counters live in the stats buffer after its [`STAT_COUNT`] words: per slot,
+//! [`COUNTER_COUNT`] counters of two u32 each (low word first). A pipeline counts only when
+//! it is specialized with `SC_COUNTERS` (see [`specialization`]); otherwise the counting
+//! code compiles out and the words stay 0.
+
+use std::fmt::Write as _;
+
+use nimbus_gpu::SpecValue;
+
+use super::bindings::STAT_COUNT;
+use super::features::{COUNTER_COUNT, COUNTER_SLOTS, SC_ID_COUNTERS, SC_ID_COUNTER_SLOT};
+
+/// Counter names in the order of `CTR_*` in counters.glsl, with what each counts.
+pub const NAMES: [(&str, &str); COUNTER_COUNT as usize] = [
+    (
+        "samples",
+        "camera samples (paths from the camera; ReSTIR: pixels of the pass)",
+    ),
+    (
+        "steps",
+        "tracking steps outside shadow rays (cells, super-voxels, blocks, march samples)",
+    ),
+    (
+        "density",
+        "density fetches (trilinear lookups of 8 texels, filtered march samples)",
+    ),
+    (
+        "majorant",
+        "majorant fetches (super-voxel bounds, piecewise-constant voxels)",
+    ),
+    (
+        "collisions",
+        "tentative collisions of delta, decomposition and ratio tracking",
+    ),
+    (
+        "shadow_rays",
+        "shadow rays (transmittance estimates of a segment)",
+    ),
+    ("shadow_steps", "tracking steps inside shadow rays"),
+    ("bvh_nodes", "mesh BVH nodes visited"),
+];
+
+/// u32 words of the stats buffer: the fixed stats, then the counters of every slot.
+pub const STATS_WORDS: usize = STAT_COUNT + 2 * (COUNTER_COUNT * COUNTER_SLOTS) as usize;
+
+/// The specialization constants that make a pipeline count into pass slot `slot`, or
+/// none when the render does not count.
+pub fn specialization(slot: Option<u32>) -> Vec<(u32, SpecValue)> {
+    match slot {
+        Some(s) => vec![
+            (SC_ID_COUNTERS, SpecValue::Bool(true)),
+            (SC_ID_COUNTER_SLOT, SpecValue::U32(s.min(COUNTER_SLOTS - 1))),
+        ],
+        None => Vec::new(),
+    }
+}
+
+/// One pass slot's counts.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct SlotCounts {
+    /// The pass stage that counted (`baseline`, `restir/initial`, ...).
+    pub label: String,
+    pub counts: [u64; COUNTER_COUNT as usize],
+}
+
+impl SlotCounts {
+    /// Counter `name` (one of [`NAMES`]); 0 for an unknown name.
+    pub fn get(&self, name: &str) -> u64 {
+        NAMES
+            .iter()
+            .position(|(n, _)| *n == name)
+            .map_or(0, |i| self.counts[i])
+    }
+
+    /// Counter `name` per camera sample (0 without samples).
+    pub fn per_sample(&self, name: &str) -> f64 {
+        let samples = self.get("samples");
+        if samples == 0 {
+            return 0.0;
+        }
+        self.get(name) as f64 / samples as f64
+    }
+}
+
+/// What every counting stage of a render did, and the dispatches it took.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct WorkCounts {
+    pub slots: Vec<SlotCounts>,
+    /// Compute dispatches recorded over the measured frames.
+    pub dispatches: u64,
+    /// Frames the counts cover.
+    pub frames: u32,
+}
+
+impl WorkCounts {
+    /// Reads the counters of the slots named `labels` (slot i is `labels[i]`) from the
+    /// stats words.
+    pub fn from_stats(stats: &[u32], labels: &[&str], dispatches: u64, frames: u32) -> Self {
+        let slots = labels
+            .iter()
+            .enumerate()
+            .take(COUNTER_SLOTS as usize)
+            .map(|(slot, label)| {
+                let mut counts = [0u64; COUNTER_COUNT as usize];
+                for (c, count) in counts.iter_mut().enumerate() {
+                    let at = STAT_COUNT + 2 * (slot * COUNTER_COUNT as usize + c);
+                    let lo = stats.get(at).copied().unwrap_or(0);
+                    let hi = stats.get(at + 1).copied().unwrap_or(0);
+                    *count = u64::from(lo) | (u64::from(hi) << 32);
+                }
+                SlotCounts {
+                    label: (*label).to_string(),
+                    counts,
+                }
+            })
+            .collect();
+        WorkCounts {
+            slots,
+            dispatches,
+            frames,
+        }
+    }
+
+    /// The slot labelled `label`.
+    pub fn slot(&self, label: &str) -> Option<&SlotCounts> {
+        self.slots.iter().find(|s| s.label == label)
+    }
+
+    /// Dispatches per frame.
+    pub fn dispatches_per_frame(&self) -> f64 {
+        self.dispatches as f64 / f64::from(self.frames.max(1))
+    }
+
+    /// A fixed-width table: per stage, each counter per camera sample, and the totals.
+    pub fn table(&self) -> String {
+        let mut out = String::new();
+        let _ = write!(out, "{:<22}", "work per sample");
+        for (name, _) in NAMES.iter().skip(1) {
+            let _ = write!(out, " {:>12}", name);
+        }
+        let _ = writeln!(out, " {:>12}", "samples");
+        for s in &self.slots {
+            let _ = write!(out, "{:<22}", s.label);
+            for (name, _) in NAMES.iter().skip(1) {
+                let _ = write!(out, " {:>12.2}", s.per_sample(name));
+            }
+            let _ = writeln!(out, " {:>12}", s.get("samples"));
+        }
+        let _ = writeln!(
+            out,
+            "dispatches per frame: {:.2} ({} over {} frame(s))",
+            self.dispatches_per_frame(),
+            self.dispatches,
+            self.frames
+        );
+        out
+    }
+
+    /// The counts as JSON: per stage, totals and per-sample values of every counter.
+    pub fn json(&self) -> serde_json::Value {
+        let slots: Vec<serde_json::Value> = self
+            .slots
+            .iter()
+            .map(|s| {
+                let mut totals = serde_json::Map::new();
+                let mut per = serde_json::Map::new();
+                for (i, (name, _)) in NAMES.iter().enumerate() {
+                    totals.insert((*name).into(), s.counts[i].into());
+                    per.insert((*name).into(), s.per_sample(name).into());
+                }
+                serde_json::json!({ "stage": s.label, "totals": totals, "per_sample": per })
+            })
+            .collect();
+        serde_json::json!({
+            "stages": slots,
+            "dispatches": self.dispatches,
+            "frames": self.frames,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn counters_are_read_as_64_bit_pairs_per_slot() {
+        let mut stats = vec![0u32; STATS_WORDS];
+        // Slot 1, counter 2 ("density"): 5 * 2^32 + 7.
+        let at = STAT_COUNT + 2 * (COUNTER_COUNT as usize + 2);
+        stats[at] = 7;
+        stats[at + 1] = 5;
+        // Slot 1, samples: 2.
+        stats[STAT_COUNT + 2 * COUNTER_COUNT as usize] = 2;
+        let w = WorkCounts::from_stats(&stats, &["a", "b"], 6, 3);
+        assert_eq!(w.slots.len(), 2);
+        assert_eq!(
+            w.slot("b").map(|s| s.get("density")),
+            Some((5u64 << 32) + 7)
+        );
+        assert_eq!(
+            w.slot("b").map(|s| s.per_sample("density")),
+            Some(((5u64 << 32) + 7) as f64 / 2.0)
+        );
+        assert_eq!(w.slot("a").map(|s| s.per_sample("density")), Some(0.0));
+        assert_eq!(w.dispatches_per_frame(), 2.0);
+    }
+}

@@ -1,0 +1,118 @@
+//! Work counters as the cost guard of issue 23: what every benchmark case does per camera
+//! sample is pinned in `assets/bench/baseline.json` (written by `nimbus bench --update`),
+//! so a change that doubles a pass's work (or splits a frame into a dispatch per sample)
+//! fails here instead of landing silently. Counting must not change the image.
+
+use std::path::Path;
+
+use nimbus::bench::{self, COUNTER_MARGIN};
+use nimbus::plan;
+use nimbus::renderer::{render, RenderOptions};
+
+use crate::common::gpu::{assert_no_validation_errors, context};
+
+fn baseline() -> bench::BenchReport {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/bench/baseline.json");
+    bench::load_baseline(&path).expect("the stored bench baseline")
+}
+
+#[test]
+fn work_per_sample_stays_within_the_margin_of_the_stored_baseline() {
+    let ctx = context();
+    let report = bench::run(&ctx, None).expect("bench cases");
+    assert_no_validation_errors(&ctx);
+    let base = baseline();
+    assert_eq!(
+        base.cases.keys().collect::<Vec<_>>(),
+        report.cases.keys().collect::<Vec<_>>(),
+        "the bench cases changed: write a new baseline with `nimbus bench --update`"
+    );
+    if bench::device_family(&base.device) != bench::device_family(&report.device) {
+        eprintln!(
+            "the baseline was counted on '{}', this device is '{}': not judged",
+            base.device, report.device
+        );
+        return;
+    }
+    let regressions = bench::regressions(&report, &base);
+    assert!(
+        regressions.is_empty(),
+        "work counters moved past {COUNTER_MARGIN}x of assets/bench/baseline.json \
+         (a cost regression, or a meant change: then `nimbus bench --update` and say why \
+         in the commit):\n{}\n\n{}",
+        regressions
+            .iter()
+            .map(|r| format!("  {r}"))
+            .collect::<Vec<_>>()
+            .join("\n"),
+        bench::table(&report, Some(&base))
+    );
+}
+
+#[test]
+fn counters_are_deterministic_see_the_work_and_leave_the_image_alone() {
+    let ctx = context();
+    let case = bench::CASES
+        .iter()
+        .find(|c| c.name == "baseline-k3")
+        .expect("case");
+    let a = bench::run_case(&ctx, case).expect("first run");
+    let b = bench::run_case(&ctx, case).expect("second run");
+    assert_eq!(
+        a.counters, b.counters,
+        "same scene, seed and device, same counts"
+    );
+    assert_eq!(a.dispatches_per_frame, b.dispatches_per_frame);
+    let per = &a.counters["baseline"];
+    // Every camera ray of the cloud walks super-voxels and looks up density; the
+    // scattering vertices send shadow rays; there are no meshes.
+    assert!(per["steps"] > 1.0, "{per:?}");
+    assert!(per["density"] > 1.0, "{per:?}");
+    assert!(per["majorant"] > 1.0, "{per:?}");
+    assert!(per["collisions"] > 0.5, "{per:?}");
+    assert!(per["shadow_rays"] > 0.1, "{per:?}");
+    assert!(per["shadow_steps"] >= per["shadow_rays"], "{per:?}");
+    assert_eq!(per["bvh_nodes"], 0.0);
+
+    // The counting pipelines render the same image as the plain ones.
+    let scene = case.scene().expect("scene");
+    let plan = plan::build(&scene, None).expect("plan");
+    let plain = render(&ctx, &scene, &plan, &RenderOptions::default()).expect("plain");
+    let counted = render(
+        &ctx,
+        &scene,
+        &plan,
+        &RenderOptions {
+            counters: true,
+            ..Default::default()
+        },
+    )
+    .expect("counted");
+    assert_no_validation_errors(&ctx);
+    assert!(plain.work.is_none());
+    assert_eq!(plain.image.data, counted.image.data);
+    assert_eq!(plain.alpha, counted.alpha);
+}
+
+#[test]
+fn restir_counts_every_stage_it_runs() {
+    let ctx = context();
+    let case = bench::CASES
+        .iter()
+        .find(|c| c.name == "restir-k3")
+        .expect("case");
+    let r = bench::run_case(&ctx, case).expect("restir");
+    assert_no_validation_errors(&ctx);
+    // Spatial reuse is off by default: its stage does not run and reports nothing.
+    for stage in ["restir/initial", "restir/temporal", "restir/shade"] {
+        assert!(
+            r.counters.contains_key(stage),
+            "{stage}: {:?}",
+            r.counters.keys()
+        );
+    }
+    // Candidates track the piecewise-constant grid (majorant fetches); shading marches
+    // or tracks transmittance along the path's segments.
+    assert!(r.counters["restir/initial"]["majorant"] > 1.0);
+    assert!(r.counters["restir/shade"]["shadow_rays"] > 0.1);
+}
