@@ -10,11 +10,15 @@
 # study-*/ folder per study (study.csv, study.md, study.png), steps.txt (what each step
 # took) and summary.md, which collects the equal-time ratios of every study.
 #
+# Every mode first runs `nimbus bench` (bench.txt, bench.json: ms and work per sample of
+# the benchmark cases beside assets/bench/baseline.json; docs/performance.md).
+#
 # --lent sizes the run for a lent GPU machine's device time (about 15 minutes, start-up
 # included; see docs/restir.md "Measuring on a GPU" for the steps): no test suite, the
-# per-pass profiles of the benchmark cloud at 1920x1080, issue 15's per-frame equal-time
-# study of ReSTIR against the baseline on the benchmark clouds (g = 0 and 0.8, K = 1, 3,
-# 7, 320x240, 3 seeds) and what the ReSTIR levers buy at K = 3. --quick shrinks the full
+# per-pass profiles of the benchmark cloud at 1920x1080 (and its work counters at K = 3),
+# issue 15's per-frame equal-time study of ReSTIR against the baseline on the benchmark
+# clouds (g = 0 and 0.8, K = 1, 3, 7, 3 seeds; at 960x540, since the benchmark's 320x240
+# leaves a GPU idle) and what the ReSTIR levers buy at K = 3. --quick shrinks the full
 # run into a lavapipe smoke test of the script (a few minutes on 2 cores): a test of the
 # script, not a measurement.
 #
@@ -73,7 +77,7 @@ case $mode in
         size=(--width 640 --height 480)
         hd=(--width 1920 --height 1080)
         frames=16
-        ref=(--reference-frames 256 --reference-spp 16)
+        ref=(--reference-frames 64 --reference-spp 16)
         seeds=3
         frames_list=1,4,16
         box_samples=1,4,16
@@ -95,6 +99,11 @@ esac
 cache=(--cache-dir "$out/references")
 
 nimbus devices | tee "$out/devices.txt"
+
+# The cost guard on this device: the benchmark cases' ms and work per sample (counters
+# are shown, not judged, on a device other than the baseline's).
+step bench nimbus bench --baseline "$root/assets/bench/baseline.json" --json "$out/bench.json" \
+    >"$out/bench.txt" 2>&1
 
 # The test suite on this device (goldens, statistical tests, validation layers).
 run_tests() {
@@ -128,6 +137,9 @@ for k in 1 3; do
     step "profile baseline k$k" profile "bench-baseline-hd-k$k" assets/scenes/bench/cloud-g0.toml "${hd[@]}" \
         --set "integrator.max_bounces=$k" --set integrator.volume=baseline
 done
+# What a 1080p ReSTIR frame does per pixel (work counters, K = 3).
+step "counters restir k3" profile "counters-restir-hd-k3" assets/scenes/bench/cloud-g0.toml "${hd[@]}" \
+    --set "integrator.max_bounces=3" --counters
 if [[ $mode != lent ]]; then
     for scene in cloud-restir box-sphere window; do
         step "profile $scene" profile "$scene" "assets/scenes/$scene.toml" "${size[@]}"
@@ -141,7 +153,9 @@ fi
 # sun and emissive explosions with matched and mismatched colours) at their 320x240.
 case $mode in
     quick) bench=(cloud-g08); bench_size=("${size[@]}") ;;
-    lent) bench=(cloud-g0 cloud-g08); bench_size=() ;;
+    # On a GPU the benchmark's 320x240 leaves the device idle (launch latency decides
+    # the times, docs/performance.md): a quarter of 1080p.
+    lent) bench=(cloud-g0 cloud-g08); bench_size=(--width 960 --height 540) ;;
     full) bench=(cloud-g0 cloud-g08 sky-sun explosion-matched explosion-mismatched); bench_size=() ;;
 esac
 if [[ " ${bench[*]} " == *" sky-sun "* && ! -f target/bench/sky-sun.exr ]]; then
