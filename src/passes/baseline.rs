@@ -3,18 +3,22 @@
 //! ratio tracking on 8x super-voxels.
 
 use anyhow::Result;
-use nimbus_gpu::{BindingDesc, Context, DescriptorWrite, GpuObjects, SamplerDesc, SpecValue};
-use nimbus_scene::Scene;
+use nimbus_gpu::{
+    vk, BindingDesc, Buffer, Context, DescriptorWrite, GpuObjects, Handle, Profiler, SamplerDesc,
+    SpecValue,
+};
+use nimbus_scene::{CameraFrame, Scene};
 
 use super::{
     atlas_image, compute_pipeline, upload_env_map, upload_params, upload_records, FrameConstants,
-    ImagePass, Targets,
+    ImagePass, Pass, Targets,
 };
 use crate::budget::Footprint;
 use crate::gpu::features::*;
 use crate::gpu::sparse::TexelFormat;
 use crate::gpu::{
-    bindings, box_records, non_empty, shape_records, GpuGrid, MeshBuffers, PassPush, RecordCounts,
+    bindings, box_records, non_empty, shape_records, BaselineUniformsGpu, FrameUniforms, GpuGrid,
+    LightGpu, LightSet, MeshBuffers, PassPush, RecordCounts,
 };
 use crate::plan::BaselinePlan;
 use crate::shaders;
@@ -36,6 +40,21 @@ pub fn specialization(plan: &BaselinePlan, exact_spans: bool) -> [(u32, SpecValu
     ]
 }
 
+/// The baseline pass: one image pass, and what it needs to follow animated lights.
+pub struct BaselinePass {
+    image: ImagePass,
+    /// The analytic lights' records and the grid uniforms (whose `env_select` follows the
+    /// lights' powers), re-uploaded per scene frame when the lights are animated.
+    lights: Handle<Buffer>,
+    uniforms: Handle<Buffer>,
+    base: BaselineUniformsGpu,
+    light_radius: f32,
+    env_map_luminance: Option<f32>,
+    area_power: f64,
+    /// The scene frame whose lights are uploaded (`None`: the scene's un-keyed lights).
+    lights_frame: Option<u32>,
+}
+
 /// Creates the pass of `plan`.
 pub fn create(
     ctx: &Context,
@@ -43,7 +62,7 @@ pub fn create(
     scene: &Scene,
     grid: GpuGrid,
     targets: &Targets,
-) -> Result<ImagePass> {
+) -> Result<BaselinePass> {
     let shapes = shape_records(scene);
     let meshes = MeshBuffers::build(scene);
     let boxes = box_records(scene);
@@ -57,7 +76,7 @@ pub fn create(
             ray_samples: 0,
         },
     };
-    let (objects, (pipeline, set)) = GpuObjects::build(ctx, |o| {
+    let (objects, (pipeline, set, lights_buffer, uniforms_buffer)) = GpuObjects::build(ctx, |o| {
         let mut layout = Vec::from(Targets::layout());
         layout.extend([
             BindingDesc::storage_buffer(bindings::SHAPES),
@@ -185,17 +204,90 @@ pub fn create(
             },
         ]);
         let set = ctx.create_descriptor_set(&o[pipeline], &writes, "baseline set")?;
-        Ok((pipeline, o.add(set)))
+        Ok((pipeline, o.add(set), lights, uniforms))
     })?;
-    Ok(ImagePass::new(
-        ctx,
-        "baseline",
-        objects,
-        pipeline,
-        set,
-        constants,
-        sample_cost(plan, &grid, scene),
-    ))
+    Ok(BaselinePass {
+        image: ImagePass::new(
+            ctx,
+            "baseline",
+            objects,
+            pipeline,
+            set,
+            constants,
+            sample_cost(plan, &grid, scene),
+        ),
+        lights: lights_buffer,
+        uniforms: uniforms_buffer,
+        base: grid.uniforms,
+        light_radius: grid.light_radius,
+        env_map_luminance: grid.env_map_luminance,
+        area_power: grid.emitters.total_power,
+        lights_frame: None,
+    })
+}
+
+impl Pass for BaselinePass {
+    fn label(&self) -> &'static str {
+        self.image.label()
+    }
+
+    fn frame_uniforms(&self, scene: &Scene, camera: &CameraFrame) -> FrameUniforms {
+        self.image.frame_uniforms(scene, camera)
+    }
+
+    /// Light keyframes: the lights of `scene_frame` (their records and the environment's
+    /// selection probability), uploaded when they differ from the ones the pass holds.
+    fn prepare(
+        &mut self,
+        ctx: &Context,
+        scene: &Scene,
+        scene_frame: u32,
+        _previous_frame: u32,
+    ) -> Result<()> {
+        if !scene.lights_animated()
+            || self
+                .lights_frame
+                .is_some_and(|f| scene.lights_at(scene_frame) == scene.lights_at(f))
+        {
+            return Ok(());
+        }
+        let set = LightSet::build(
+            &scene.lights_at(scene_frame),
+            self.light_radius,
+            self.env_map_luminance,
+            self.area_power,
+        );
+        let records: Vec<LightGpu> = non_empty(&set.lights);
+        let objects = &self.image.objects;
+        ctx.upload_buffer(&objects[self.lights], 0, bytemuck::cast_slice(&records))?;
+        let base = BaselineUniformsGpu {
+            env_select: set.env_select,
+            ..self.base
+        };
+        ctx.upload_buffer(&objects[self.uniforms], 0, bytemuck::bytes_of(&base))?;
+        self.lights_frame = Some(scene_frame);
+        Ok(())
+    }
+
+    fn record(
+        &mut self,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        uniforms: &FrameUniforms,
+        dispatch_index: u32,
+        profiler: Option<&mut Profiler>,
+    ) -> Result<()> {
+        self.image
+            .record(ctx, cmd, uniforms, dispatch_index, profiler)
+    }
+
+    fn device_bytes(&self) -> u64 {
+        self.image.device_bytes()
+    }
+
+    fn destroy(self: Box<Self>, ctx: &Context) {
+        Box::new(self.image).destroy(ctx);
+    }
 }
 
 /// Loop iterations one camera sample may typically run (see

@@ -214,6 +214,14 @@ pub struct CrepuscularPass {
     image: ImagePass,
     moments: Option<MomentStage>,
     moments_ready: bool,
+    /// The light records, gobo half-planes and moment-map frames, re-uploaded per scene
+    /// frame when the lights are animated (light keyframes).
+    lights: Handle<Buffer>,
+    gobo_planes: Handle<Buffer>,
+    moment_frames: Handle<Buffer>,
+    moment_map_size: u32,
+    /// The scene frame whose lights are uploaded (`None`: the scene's un-keyed lights).
+    lights_frame: Option<u32>,
 }
 
 /// Creates the pass of `plan`.
@@ -260,7 +268,7 @@ pub fn create(
             frames.len()
         );
     }
-    let (objects, (pipeline, set, moment_stage)) = GpuObjects::build(ctx, |o| {
+    let (objects, (pipeline, set, moment_stage, light_buffers)) = GpuObjects::build(ctx, |o| {
         let media = upload_records(ctx, o, &non_empty(&records.media), "box media")?;
         let planes = upload_records(ctx, o, &non_empty(&records.medium_planes), "medium planes")?;
         let shapes = upload_records(ctx, o, &non_empty(&records.shapes), "shapes")?;
@@ -317,7 +325,7 @@ pub fn create(
         } else {
             None
         };
-        Ok((pipeline, set, stage))
+        Ok((pipeline, set, stage, (lights, gobo_planes, moment_frames)))
     })?;
     let c = constants.counts;
     // Per segment: the media (and their planes) and shapes it crosses, and per light its
@@ -374,6 +382,11 @@ pub fn create(
             frames,
         }),
         moments_ready: false,
+        lights: light_buffers.0,
+        gobo_planes: light_buffers.1,
+        moment_frames: light_buffers.2,
+        moment_map_size: plan.moment_map_size,
+        lights_frame: None,
     })
 }
 
@@ -434,6 +447,45 @@ impl Pass for CrepuscularPass {
 
     fn frame_uniforms(&self, scene: &Scene, camera: &CameraFrame) -> FrameUniforms {
         self.image.frame_uniforms(scene, camera)
+    }
+
+    /// Light keyframes: the records of `scene_frame`'s lights (direction, irradiance, their
+    /// gobo prisms and moment-map frames), uploaded when they differ from the ones the
+    /// pass holds; the moment maps are then traced again.
+    fn prepare(
+        &mut self,
+        ctx: &Context,
+        scene: &Scene,
+        scene_frame: u32,
+        _previous_frame: u32,
+    ) -> Result<()> {
+        if !scene.lights_animated()
+            || self
+                .lights_frame
+                .is_some_and(|f| scene.lights_at(scene_frame) == scene.lights_at(f))
+        {
+            return Ok(());
+        }
+        let mut keyed = scene.clone();
+        keyed.lights = scene.lights_at(scene_frame);
+        let records = GpuScene::build(&keyed)?;
+        let objects = &self.image.objects;
+        let lights = non_empty(&records.lights);
+        ctx.upload_buffer(&objects[self.lights], 0, bytemuck::cast_slice(&lights))?;
+        let planes = non_empty(&records.gobo_planes);
+        ctx.upload_buffer(&objects[self.gobo_planes], 0, bytemuck::cast_slice(&planes))?;
+        if let Some(stage) = self.moments.as_mut() {
+            let frames = moment_frames(&records, &keyed, self.moment_map_size);
+            ctx.upload_buffer(
+                &objects[self.moment_frames],
+                0,
+                bytemuck::cast_slice(&non_empty(&frames)),
+            )?;
+            stage.frames = frames;
+            self.moments_ready = false;
+        }
+        self.lights_frame = Some(scene_frame);
+        Ok(())
     }
 
     fn record(

@@ -29,6 +29,7 @@ mod grid_volume;
 mod hard_cases;
 mod image_harness;
 mod layout;
+mod light_keys;
 mod mesh_bvh_gpu;
 mod meshes;
 mod pipeline;
