@@ -31,12 +31,28 @@ pub const DEFAULT_SCENE: &str = include_str!("../assets/scenes/window.toml");
 /// Load `path`, or the embedded default scene when there is none, with `overrides`
 /// applied to its fields before validation.
 pub fn load_scene(path: Option<&Path>, overrides: &[FieldOverride]) -> Result<Scene> {
+    load_scene_text(path, overrides).map(|(scene, _)| scene)
+}
+
+/// [`load_scene`], also returning the scene file's text exactly as it was read and
+/// parsed (one read: a render hashes what it rendered, even if the file changes).
+pub fn load_scene_text(
+    path: Option<&Path>,
+    overrides: &[FieldOverride],
+) -> Result<(Scene, String)> {
     match path {
-        Some(path) => nimbus_scene::load_with(path, overrides),
-        None => nimbus_scene::parse_str_with(
-            DEFAULT_SCENE,
-            &PathBuf::from("assets/scenes/window.toml (embedded default)"),
-            overrides,
-        ),
+        Some(path) => {
+            let text = nimbus_scene::read_scene_file(path)?;
+            let scene = nimbus_scene::parse_str_with(&text, path, overrides)?;
+            Ok((scene, text))
+        }
+        None => {
+            let scene = nimbus_scene::parse_str_with(
+                DEFAULT_SCENE,
+                &PathBuf::from("assets/scenes/window.toml (embedded default)"),
+                overrides,
+            )?;
+            Ok((scene, DEFAULT_SCENE.to_string()))
+        }
     }
 }

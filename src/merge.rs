@@ -240,6 +240,21 @@ pub fn merge_files(out: &Path, inputs: &[PathBuf]) -> Result<RenderInfo> {
         "nimbus merge needs at least two input images, got {}",
         inputs.len()
     );
+    // The output must not be one of the inputs: the merge would replace a part it was
+    // made from (compared as files, so another spelling of the same path is caught too).
+    let out_file = std::fs::canonicalize(out).ok();
+    for input in inputs {
+        let same = input == out
+            || out_file
+                .as_ref()
+                .is_some_and(|o| std::fs::canonicalize(input).ok().as_ref() == Some(o));
+        ensure!(
+            !same,
+            "--out {} is also an input: a merge never overwrites a part it reads; write it \
+             to another file",
+            out.display()
+        );
+    }
     let parts = inputs
         .iter()
         .map(|path| {

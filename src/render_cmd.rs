@@ -11,7 +11,7 @@ use anyhow::{bail, ensure, Context as _, Result};
 use nimbus::merge::{settings_of, write_render, RenderInfo};
 use nimbus::output::{self, Display, Tonemap};
 use nimbus::renderer::{self, FrameSelection, RenderOptions, RenderResult, StopReason, StopRule};
-use nimbus::{load_scene, plan, DEFAULT_SCENE};
+use nimbus::{load_scene_text, plan};
 use nimbus_gpu::{Context, ContextDesc};
 use nimbus_scene::Scene;
 
@@ -114,7 +114,7 @@ pub(super) fn render(args: RenderArgs) -> Result<ExitCode> {
             nimbus_scene::FieldOverride::new("render.transparent_background", true),
         );
     }
-    let scene = load_scene(args.scene.as_deref(), &fields)?;
+    let (scene, scene_text) = load_scene_text(args.scene.as_deref(), &fields)?;
     let plan = plan::build(&scene, None)?;
     if args.explain {
         print!("{}", plan.explain(&scene));
@@ -229,10 +229,9 @@ pub(super) fn render(args: RenderArgs) -> Result<ExitCode> {
         };
     }
 
-    let scene_bytes = match &args.scene {
-        Some(path) => std::fs::read(path).with_context(|| format!("reading {}", path.display()))?,
-        None => DEFAULT_SCENE.as_bytes().to_vec(),
-    };
+    // The bytes the scene was parsed from: read once (a second read could see another
+    // file, or hang on a pipe).
+    let scene_bytes = scene_text.into_bytes();
     let interrupt = interrupt_flag()?;
     let ctx = Context::new(&ContextDesc::from_env())?;
     eprintln!("device: {}", ctx.info().name);

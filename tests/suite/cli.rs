@@ -2,6 +2,8 @@
 //! bad input. Runs the real binary with validation layers on (NIMBUS_VALIDATION=1),
 //! under which any validation error makes the command fail.
 
+use std::process::Command;
+
 use crate::common::cli::{nimbus, text};
 
 fn scratch(name: &str) -> std::path::PathBuf {
@@ -191,4 +193,85 @@ fn bad_scenes_give_clear_errors() {
     let out = nimbus(&["render", "--out", dir.join("image.jpg").to_str().unwrap()]);
     assert!(!out.status.success());
     assert!(text(&out.stderr).contains(".exr"), "{}", text(&out.stderr));
+}
+
+/// A scene "file" that is a FIFO or a device is refused at once, naming it (issue 24: a
+/// FIFO hung `nimbus render`, /dev/zero was read until memory ran out).
+#[test]
+fn a_pipe_or_a_device_as_the_scene_is_refused_without_reading_it() {
+    let dir = scratch("scene-fifo");
+    let fifo = dir.join("p.toml");
+    let made = Command::new("mkfifo").arg(&fifo).status().expect("mkfifo");
+    assert!(made.success());
+    for path in [fifo.to_str().unwrap(), "/dev/zero"] {
+        let start = std::time::Instant::now();
+        let out = nimbus(&["render", path, "--out", dir.join("x.png").to_str().unwrap()]);
+        let stderr = text(&out.stderr);
+        assert!(!out.status.success());
+        assert!(
+            stderr.contains(path) && stderr.contains("not a regular file"),
+            "{stderr}"
+        );
+        assert!(start.elapsed() < std::time::Duration::from_secs(30));
+    }
+    // A scene file over the limit is refused from its size.
+    let big = dir.join("big.toml");
+    let file = std::fs::File::create(&big).unwrap();
+    file.set_len(nimbus_scene::MAX_SCENE_FILE_BYTES + 1)
+        .unwrap();
+    let out = nimbus(&["render", big.to_str().unwrap(), "--explain"]);
+    let stderr = text(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        stderr.contains("big.toml") && stderr.contains("MiB"),
+        "{stderr}"
+    );
+}
+
+/// `nimbus merge --out` naming one of its inputs (by any spelling) is refused and the
+/// input is left as it was (issue 24: it overwrote it).
+#[test]
+fn merge_never_overwrites_an_input() {
+    let dir = scratch("merge-overwrite");
+    let (a, b) = (dir.join("a.exr"), dir.join("b.exr"));
+    for (path, seed) in [(&a, "1"), (&b, "2")] {
+        let out = nimbus(&[
+            "render",
+            "--width",
+            "8",
+            "--height",
+            "6",
+            "--frames",
+            "1",
+            "--seed",
+            seed,
+            "--out",
+            path.to_str().unwrap(),
+        ]);
+        assert!(out.status.success(), "{}", text(&out.stderr));
+    }
+    let before = std::fs::read(&a).unwrap();
+    let other_spelling = dir.join(".").join("a.exr");
+    for target in [a.clone(), other_spelling] {
+        let out = nimbus(&[
+            "merge",
+            "--out",
+            target.to_str().unwrap(),
+            a.to_str().unwrap(),
+            b.to_str().unwrap(),
+        ]);
+        let stderr = text(&out.stderr);
+        assert!(!out.status.success());
+        assert!(stderr.contains("is also an input"), "{stderr}");
+    }
+    assert_eq!(std::fs::read(&a).unwrap(), before, "the input is untouched");
+    let merged = dir.join("merged.exr");
+    let out = nimbus(&[
+        "merge",
+        "--out",
+        merged.to_str().unwrap(),
+        a.to_str().unwrap(),
+        b.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
 }

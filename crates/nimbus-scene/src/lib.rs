@@ -198,11 +198,51 @@ pub fn load(path: &Path) -> Result<Scene> {
     load_with(path, &[])
 }
 
-/// Reads the scene file at `path`, applies `overrides` to its tables, and validates
-/// the result (an overridden field is checked like one written in the file).
+/// The largest scene file read: a scene is a page of TOML (the files it names hold the
+/// data), so anything larger is not one.
+pub const MAX_SCENE_FILE_BYTES: u64 = 16 << 20;
+
+/// Reads the scene file at `path` once: a regular file (a FIFO, a terminal or a device
+/// such as /dev/zero would hang or never end) of at most [`MAX_SCENE_FILE_BYTES`], in
+/// UTF-8. Callers that also hash the scene hash these bytes, so the render and its
+/// metadata describe the same file contents.
+pub fn read_scene_file(path: &Path) -> Result<String> {
+    use std::io::Read as _;
+    let fail = |what: String| anyhow!("{}: cannot read scene file: {what}", path.display());
+    let meta = std::fs::metadata(path).map_err(|e| fail(e.to_string()))?;
+    if !meta.is_file() {
+        return Err(fail(
+            "not a regular file (a pipe, terminal or device is refused: write the scene to a \
+             file)"
+                .into(),
+        ));
+    }
+    if meta.len() > MAX_SCENE_FILE_BYTES {
+        return Err(fail(format!(
+            "{} bytes, more than a scene file's {} MiB",
+            meta.len(),
+            MAX_SCENE_FILE_BYTES >> 20
+        )));
+    }
+    let file = std::fs::File::open(path).map_err(|e| fail(e.to_string()))?;
+    let mut bytes = Vec::new();
+    file.take(MAX_SCENE_FILE_BYTES + 1)
+        .read_to_end(&mut bytes)
+        .map_err(|e| fail(e.to_string()))?;
+    if bytes.len() as u64 > MAX_SCENE_FILE_BYTES {
+        return Err(fail(format!(
+            "it grew past a scene file's {} MiB while being read",
+            MAX_SCENE_FILE_BYTES >> 20
+        )));
+    }
+    String::from_utf8(bytes).map_err(|e| fail(format!("not UTF-8 text ({e})")))
+}
+
+/// Reads the scene file at `path` ([`read_scene_file`]), applies `overrides` to its
+/// tables, and validates the result (an overridden field is checked like one written in
+/// the file).
 pub fn load_with(path: &Path, overrides: &[FieldOverride]) -> Result<Scene> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| anyhow!("{}: cannot read scene file: {e}", path.display()))?;
+    let text = read_scene_file(path)?;
     parse_str_with(&text, path, overrides)
 }
 
