@@ -91,13 +91,18 @@ fn summary(path: &Path, scene: &Scene, result: &RenderResult) -> String {
         0 => String::new(),
         n => format!(", {n} non-finite sample(s) dropped"),
     };
+    // One scene frame rendered `passes` times (--frame, --frame-range) is not `passes`
+    // frames of the animation.
+    let frames = match result.scene_frame {
+        Some(f) => format!("frame {f}: {} pass(es)", result.frames),
+        None => format!("{} frame(s)", result.frames),
+    };
     format!(
-        "wrote {} ({}x{}, {} frame(s) x {} spp = {} samples per pixel) in {:.2} s, \
+        "wrote {} ({}x{}, {frames} x {} spp = {} samples per pixel) in {:.2} s, \
          GPU {:.1} ms, relative error {error}, stopped: {}{dropped}",
         path.display(),
         r.width,
         r.height,
-        result.frames,
         r.spp,
         u64::from(result.frames) * u64::from(r.spp),
         result.image_time.as_secs_f64(),

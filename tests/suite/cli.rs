@@ -275,3 +275,33 @@ fn merge_never_overwrites_an_input() {
     ]);
     assert!(out.status.success(), "{}", text(&out.stderr));
 }
+
+/// `--frame N --passes P` renders one scene frame P times, and says so (issue 24: it
+/// reported "P frame(s)").
+#[test]
+fn one_frame_rendered_several_times_is_reported_as_passes() {
+    let dir = scratch("frame-passes");
+    let path = dir.join("keyed.toml");
+    std::fs::write(
+        &path,
+        "[render]\nwidth = 8\nheight = 6\nframes = 3\n[camera]\nposition = [0, 0, 4]\n\
+         look_at = [0, 0, 0]\n[[light]]\ntype = \"directional\"\ndirection = [0, -1, 0]\n\
+         irradiance = 1\n[[light.keyframe]]\nframe = 0\nirradiance = 1\n[[light.keyframe]]\n\
+         frame = 2\nirradiance = 3\n[[medium]]\ntype = \"box\"\ncenter = [0, 0, 0]\n\
+         size = [1, 1, 1]\nsigma_t = 1\n",
+    )
+    .unwrap();
+    let out = nimbus(&[
+        "render",
+        path.to_str().unwrap(),
+        "--frame",
+        "2",
+        "--passes",
+        "4",
+        "--out",
+        dir.join("f2.exr").to_str().unwrap(),
+    ]);
+    let stderr = text(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(stderr.contains("frame 2: 4 pass(es) x 1 spp"), "{stderr}");
+}
