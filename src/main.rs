@@ -405,6 +405,9 @@ fn parse_target_error(text: &str) -> std::result::Result<f64, String> {
 fn parse_seconds(text: &str) -> std::result::Result<f64, String> {
     match text.trim().parse::<f64>() {
         Ok(x) if x.is_finite() && x > 0.0 && x < 1.0e9 => Ok(x),
+        Ok(x) if x >= 1.0e9 => Err(format!(
+            "{x} seconds is more than 31 years: give a limit below 1e9 s, or none"
+        )),
         Ok(x) => Err(format!("{x} is not a number of seconds > 0")),
         Err(e) => Err(format!("{text:?} is not a number of seconds: {e}")),
     }

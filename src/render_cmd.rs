@@ -176,6 +176,18 @@ pub(super) fn render(args: RenderArgs) -> Result<ExitCode> {
     let out = match (&args.out, args.frame_range) {
         (Some(out), _) => {
             output::check_writable(out).context("--out")?;
+            // A transparent render is its alpha: the PNG writer keeps RGB only, so a .png
+            // would silently lose it.
+            let png = out
+                .extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("png"));
+            ensure!(
+                !(png && scene.render.transparent_background),
+                "--out {}: a transparent render (--transparent or [render] \
+                 transparent_background) needs its alpha, and Nimbus writes PNGs as RGB: \
+                 write an .exr (premultiplied RGBA)",
+                out.display()
+            );
             Some(out.clone())
         }
         (None, Some(_)) => None,
@@ -184,6 +196,11 @@ pub(super) fn render(args: RenderArgs) -> Result<ExitCode> {
         }
     };
     if let Some(dir) = &args.sequence {
+        ensure!(
+            !(args.sequence_format == "png" && scene.render.transparent_background),
+            "--sequence-format png: a transparent render needs its alpha, and Nimbus writes \
+             PNGs as RGB: use the exr sequence format (premultiplied RGBA)"
+        );
         ensure!(
             args.frame.is_none(),
             "--sequence with --frame: a single frame goes to --out"

@@ -305,3 +305,29 @@ fn one_frame_rendered_several_times_is_reported_as_passes() {
     assert!(out.status.success(), "{stderr}");
     assert!(stderr.contains("frame 2: 4 pass(es) x 1 spp"), "{stderr}");
 }
+
+/// A transparent render to a .png (RGB only) is refused before rendering, and a time
+/// limit past the writable range says why (issue 24).
+#[test]
+fn a_transparent_png_and_an_absurd_time_limit_are_refused_with_the_reason() {
+    let dir = scratch("transparent-png");
+    let png = dir.join("t.png");
+    let out = nimbus(&["render", "--transparent", "--out", png.to_str().unwrap()]);
+    let stderr = text(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        stderr.contains("t.png") && stderr.contains("alpha"),
+        "{stderr}"
+    );
+    assert!(!png.exists());
+    let out = nimbus(&[
+        "render",
+        "--time-limit",
+        "1e9",
+        "--out",
+        dir.join("x.exr").to_str().unwrap(),
+    ]);
+    let stderr = text(&out.stderr);
+    assert!(!out.status.success());
+    assert!(stderr.contains("31 years"), "{stderr}");
+}
