@@ -112,8 +112,16 @@ float shadow_transmittance(vec3 x, vec3 w, float dist, float t_occlude, float t_
 // divided by the (selection x measure) pdf. Zero when the sample carries nothing. A point
 // on an emitting shape lies on that shape: shapes block only up to dist (1 - 1e-4), so the
 // emitter does not shadow itself.
-vec3 sample_light(vec3 x, inout uint rng, out vec3 wi, out float dist, out float t_occlude,
-                  out uint target) {
+//
+// A constant environment's direction is drawn from the vertex's own scattering
+// distribution instead of uniformly: the HG phase about the travel direction `d` (g) in
+// a medium, the cosine lobe about the normal `n` on a surface. The radiance is the same
+// from every direction, so the estimate then varies only with the transmittance: uniform
+// directions under g = 0.8 had 35x the variance (the phase's second moment), which made
+// the baseline 20x less efficient than Mitsuba's volpath (phase-sampled with MIS) on a
+// forward-scattering cloud under a sky.
+vec3 sample_light(vec3 x, vec3 d, float g, vec3 n, bool on_surface, inout uint rng, out vec3 wi,
+                  out float dist, out float t_occlude, out uint target) {
     float u = rng_next(rng);
     vec2 u2 = vec2(rng_next(rng), rng_next(rng));
     LightSample s = light_sample(0u, x, u, u2);
@@ -121,6 +129,20 @@ vec3 sample_light(vec3 x, inout uint rng, out vec3 wi, out float dist, out float
     dist = s.dist;
     t_occlude = light_is_area(0u, s.index) ? s.dist * (1.0 - 1e-4) : s.dist;
     target = s.index == LIGHT_ENV ? NO_INDEX : s.index;
+    if (SC_HAS_ENV && !SC_HAS_ENV_MAP && s.index == LIGHT_ENV) {
+        float pdf_dir;
+        if (on_surface) {
+            wi = sample_cosine_hemisphere(n, u2);
+            pdf_dir = max(dot(wi, n), 0.0) * INV_PI;
+        } else {
+            wi = sample_hg(d, g, u2);
+            pdf_dir = hg_phase(dot(wi, d), g);
+        }
+        // Domain: the selection probability and the direction's density are > 0 where
+        // divided (a grazing cosine sample carries nothing).
+        float pdf = u_base.env_select * pdf_dir;
+        return pdf > 0.0 ? u_frame.env_radiance / pdf : vec3(0.0);
+    }
     return s.L_over_pdf;
 }
 
@@ -166,7 +188,7 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
             float dist;
             float t_occlude;
             uint target;
-            vec3 Li = sample_light(x, rng, wi, dist, t_occlude, target);
+            vec3 Li = sample_light(x, d, g, vec3(0.0), false, rng, wi, dist, t_occlude, target);
             if (any(greaterThan(Li, vec3(0.0)))) {
                 float T = shadow_transmittance(x, wi, dist, t_occlude, 0.0, target, rng);
                 L += beta * albedo_medium * hg_phase(dot(wi, d), g) * Li * T;
@@ -201,7 +223,7 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
             float dist;
             float t_occlude;
             uint target;
-            vec3 Li = sample_light(x_off, rng, wi, dist, t_occlude, target);
+            vec3 Li = sample_light(x_off, d, 0.0, n, true, rng, wi, dist, t_occlude, target);
             float cos_i = dot(n, wi);
             if (cos_i > 0.0 && any(greaterThan(Li, vec3(0.0)))) {
                 float T = shadow_transmittance(x_off, wi, dist, t_occlude, 0.0, target, rng);
