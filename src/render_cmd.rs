@@ -121,6 +121,11 @@ pub(super) fn render(args: RenderArgs) -> Result<ExitCode> {
     }
     let (scene, scene_text) = load_scene_text(args.scene.as_deref(), &fields)?;
     let plan = plan::build(&scene, None)?;
+    if !args.explain && args.frame.is_none() && args.frame_range.is_none() {
+        if let Some(note) = plan.stills_note(&scene) {
+            eprintln!("note: {note}");
+        }
+    }
     if args.explain {
         print!("{}", plan.explain(&scene));
         let f = nimbus::budget::Footprint::of(&scene, &plan)?;

@@ -337,7 +337,24 @@ impl RenderPlan {
             let mark = if d.enabled { "[on ]" } else { "[off]" };
             let _ = writeln!(out, "  {mark} {:<48} {}", d.name, d.reason);
         }
+        if let Some(note) = self.stills_note(scene) {
+            let _ = writeln!(out, "  note: {note}");
+        }
         out
+    }
+
+    /// What to use for a still: ReSTIR's frames are real-time frames, correlated through
+    /// temporal reuse, so their mean converges slower than independent samples. A note
+    /// for a static scene rendered by ReSTIR (whose output is the mean of its frames).
+    pub fn stills_note(&self, scene: &Scene) -> Option<String> {
+        (self.restir().is_some() && !scene.is_animated()).then(|| {
+            "this static scene renders a still, the mean of its frames; ReSTIR's frames are \
+             correlated real-time frames, and for a still the baseline is about 8x as \
+             efficient (perf-cloud, K = 3: error^2 x time, docs/performance.md): set \
+             [integrator] volume = \"baseline\" (or --set integrator.volume=baseline) for \
+             stills, keep ReSTIR for animations and real-time frames"
+                .to_string()
+        })
     }
 }
 

@@ -331,3 +331,31 @@ fn a_transparent_png_and_an_absurd_time_limit_are_refused_with_the_reason() {
     assert!(!out.status.success());
     assert!(stderr.contains("31 years"), "{stderr}");
 }
+
+/// A still of a static scene by ReSTIR says which integrator stills want (issue 23:
+/// accumulated ReSTIR frames converge ~8x slower than the baseline's samples); an
+/// animation does not.
+#[test]
+fn explain_says_which_integrator_renders_stills() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let still = root.join("assets/scenes/cloud-restir.toml");
+    let out = nimbus(&["render", still.to_str().unwrap(), "--explain"]);
+    let stdout = text(&out.stdout);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    assert!(
+        stdout.contains("note: this static scene renders a still"),
+        "{stdout}"
+    );
+    let baseline = nimbus(&[
+        "render",
+        still.to_str().unwrap(),
+        "--explain",
+        "--set",
+        "integrator.volume=\"baseline\"",
+    ]);
+    assert!(!text(&baseline.stdout).contains("renders a still"));
+    let anim = root.join("assets/scenes/plume-anim.toml");
+    let out = nimbus(&["render", anim.to_str().unwrap(), "--explain"]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    assert!(!text(&out.stdout).contains("renders a still"));
+}
