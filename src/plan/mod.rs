@@ -349,7 +349,7 @@ impl RenderPlan {
     pub fn stills_note(&self, scene: &Scene) -> Option<String> {
         (self.restir().is_some() && !scene.is_animated()).then(|| {
             "this static scene renders a still, the mean of its frames; ReSTIR's frames are \
-             correlated real-time frames, and for a still the baseline is about 8x as \
+             correlated real-time frames, and for a still the baseline is 8-10x as \
              efficient (perf-cloud, K = 3: error^2 x time, docs/performance.md): set \
              [integrator] volume = \"baseline\" (or --set integrator.volume=baseline) for \
              stills, keep ReSTIR for animations and real-time frames"

@@ -110,10 +110,13 @@ fn a_grid_padded_with_empty_bricks_renders_as_the_tight_grid() {
     for volume in ["baseline", "restir"] {
         let ra = render_checked(&ctx, &scene(&scene_text(&a, volume), "tight.toml"), None);
         let rb = render_checked(&ctx, &scene(&scene_text(&b, volume), "padded.toml"), None);
-        let centre = ra.image.data[15 * 40 + 20];
+        // The cloud covers the centre: its camera ray's coverage (1 - the closed-form
+        // transmittance) is far from 0 (the radiance there is a noisy estimate that can
+        // land near the sky's 0.2).
+        let coverage = ra.alpha[15 * 40 + 20];
         assert!(
-            (centre[0] - 0.2).abs() > 0.02,
-            "{volume}: the cloud is seen, {centre:?}"
+            coverage > 0.2,
+            "{volume}: the cloud is seen, coverage {coverage}"
         );
         let (ea, eb) = ((&ra.image, &ra.std_error), (&rb.image, &rb.std_error));
         assert_means_agree(&format!("{volume}: tight vs padded"), ea, eb, 4.0, 0.005);
