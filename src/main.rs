@@ -299,6 +299,14 @@ struct StudyArgs {
 const EXIT_INTERRUPTED: u8 = 130;
 
 fn main() -> ExitCode {
+    // SAFETY: called first in main, before any thread exists; SIG_DFL is a valid
+    // disposition for SIGPIPE. Rust's runtime ignores SIGPIPE, which turns a closed
+    // reader of our standard output (`nimbus render --explain | head`) into a panic in
+    // print!; with the default disposition the process ends quietly, like other tools.
+    #[cfg(unix)]
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     match run(Cli::parse()) {
         Ok(code) => code,
         Err(e) => {

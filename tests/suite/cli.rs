@@ -359,3 +359,21 @@ fn explain_says_which_integrator_renders_stills() {
     assert!(out.status.success(), "{}", text(&out.stderr));
     assert!(!text(&out.stdout).contains("renders a still"));
 }
+
+/// A reader that closes our standard output early (`nimbus render --explain | head -1`)
+/// ends the command quietly (SIGPIPE), never with a panic in print!.
+#[test]
+fn a_closed_stdout_ends_the_command_without_a_panic() {
+    use std::process::Stdio;
+    let mut child = Command::new(env!("CARGO_BIN_EXE_nimbus"))
+        .args(["render", "--explain"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Close the pipe before nimbus writes its plan.
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let stderr = text(&out.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+}

@@ -79,7 +79,14 @@ fn set(table: &mut toml::Table, path: &[&str], value: Value) -> Result<()> {
         bail!("empty key");
     };
     if rest.is_empty() {
-        table.insert((*first).to_owned(), value);
+        match table.get_mut(*first) {
+            // `--set 'render={width=8}'` sets width and keeps the table's other fields (it
+            // replaced the whole [render] table, silently resetting them to defaults).
+            Some(existing @ Value::Table(_)) if value.is_table() => merge(existing, value),
+            _ => {
+                table.insert((*first).to_owned(), value);
+            }
+        }
         return Ok(());
     }
     // An array of tables indexed by the next segment.
@@ -109,6 +116,23 @@ fn set(table: &mut toml::Table, path: &[&str], value: Value) -> Result<()> {
             rest[0]
         ),
         _ => bail!("{first} is a value, not a table"),
+    }
+}
+
+/// Sets every field of table `new` in table `existing`, recursing into tables both have.
+fn merge(existing: &mut Value, new: Value) {
+    match (existing, new) {
+        (Value::Table(old), Value::Table(new)) => {
+            for (key, value) in new {
+                match old.get_mut(&key) {
+                    Some(slot @ Value::Table(_)) if value.is_table() => merge(slot, value),
+                    _ => {
+                        old.insert(key, value);
+                    }
+                }
+            }
+        }
+        (slot, new) => *slot = new,
     }
 }
 
@@ -166,5 +190,25 @@ mod tests {
         assert!(err.to_string().contains("light.1.radius"), "{err}");
         let err = apply(&mut t, &[FieldOverride::new("medium.1.g", 0.1)]).unwrap_err();
         assert!(err.to_string().contains("no [[medium]]"), "{err}");
+    }
+
+    #[test]
+    fn an_inline_table_sets_its_fields_and_keeps_the_others() {
+        let mut t =
+            table("[render]\nwidth = 640\nheight = 360\nspp = 4\n[integrator.restir]\nQ = 1\n");
+        apply(&mut t, &[FieldOverride::parse("render={width=8}").unwrap()]).unwrap();
+        let render = t["render"].as_table().unwrap();
+        assert_eq!(render["width"].as_integer(), Some(8));
+        assert_eq!(render["height"].as_integer(), Some(360));
+        assert_eq!(render["spp"].as_integer(), Some(4));
+        // Nested tables merge too; a value replaced by a table is replaced.
+        apply(
+            &mut t,
+            &[FieldOverride::parse("integrator={restir={candidates=8}}").unwrap()],
+        )
+        .unwrap();
+        let restir = t["integrator"]["restir"].as_table().unwrap();
+        assert_eq!(restir["Q"].as_integer(), Some(1));
+        assert_eq!(restir["candidates"].as_integer(), Some(8));
     }
 }
