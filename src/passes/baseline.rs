@@ -244,11 +244,7 @@ impl Pass for BaselinePass {
         scene_frame: u32,
         _previous_frame: u32,
     ) -> Result<()> {
-        if !scene.lights_animated()
-            || self
-                .lights_frame
-                .is_some_and(|f| scene.lights_at(scene_frame) == scene.lights_at(f))
-        {
+        if !super::lights_change(scene, self.lights_frame, scene_frame) {
             return Ok(());
         }
         let set = LightSet::build(

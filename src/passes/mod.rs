@@ -352,6 +352,13 @@ impl Pass for ImagePass {
     }
 }
 
+/// Whether a pass holding the lights of scene frame `held` (`None`: the scene's un-keyed
+/// lights, which any keyed frame may differ from) must upload those of `frame`: only
+/// where light keyframes make them differ.
+pub fn lights_change(scene: &Scene, held: Option<u32>, frame: u32) -> bool {
+    scene.lights_animated() && held.is_none_or(|f| scene.lights_at(frame) != scene.lights_at(f))
+}
+
 /// Workgroups covering the frame's image, one invocation per pixel.
 pub fn image_groups(uniforms: &FrameUniforms) -> [u32; 3] {
     [
