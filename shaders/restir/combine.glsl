@@ -21,6 +21,8 @@ float cand_w_scale[MAX_CANDIDATES];
 // frame whose camera, lights and density are this frame's (a static scene's temporal
 // neighbour). Targets of such candidates are evaluated once, not once per candidate.
 bool cand_same_target[MAX_CANDIDATES];
+// Candidate i's camera-ray depth anchor (CameraRay.anchor; 0 unless temporal reuse sets it).
+float cand_anchor[MAX_CANDIDATES];
 
 // Registers candidate `i` (its header's M unless clamped later).
 void candidate_set(uint i, uint at, uvec2 pixel, uint set) {
@@ -30,11 +32,14 @@ void candidate_set(uint i, uint at, uvec2 pixel, uint set) {
     cand_M[i] = res_load_M(at);
     cand_w_scale[i] = 1.0;
     cand_same_target[i] = i == 0u;
+    cand_anchor[i] = 0.0;
 }
 
 // The camera ray of candidate i's pixel and frame at jitter `code`.
 CameraRay candidate_ray(uint i, uint code) {
-    return camera_ray(cand_pixel[i], code, cand_set[i]);
+    CameraRay r = camera_ray(cand_pixel[i], code, cand_set[i]);
+    r.anchor = cand_anchor[i];
+    return r;
 }
 
 // Streams reservoir ri's sample into s with resampling weight w. The sample keeps its
@@ -231,20 +236,26 @@ void store_combined(uint dst, Reservoir s, uint src_at, CameraRay owner, CameraR
     }
     uint kp = res_vertices(s);
     bool shift_x2 = SC_REUSE_VERTEX && kp >= 2u;
-    if (src_at == dst && !shift_x2) {
+    if (src_at == dst && !shift_x2 && owner.anchor == here.anchor) {
         return;
     }
     float z2 = 0.0;
     uint omega1 = 0u;
+    // x_1's depth on this pixel's ray (the owner's past its anchor; see CameraRay.anchor).
+    float z1 = res_z(src_at, 1u);
+    float z1_here = z1 >= 0.0 ? z1 - owner.anchor + here.anchor : z1;
     if (shift_x2) {
-        vec3 x2 = owner.o + res_z(src_at, 1u) * owner.d + res_z(src_at, 2u) * oct_decode(res_omega(src_at, 1u));
-        vec3 x1 = here.o + res_z(src_at, 1u) * here.d;
+        vec3 x2 = owner.o + z1 * owner.d + res_z(src_at, 2u) * oct_decode(res_omega(src_at, 1u));
+        vec3 x1 = here.o + z1_here * here.d;
         z2 = length(x2 - x1);
         omega1 = z2 > 0.0 ? oct_encode((x2 - x1) / z2) : res_omega(src_at, 1u);
     }
     for (uint i = 1u; i <= kp; ++i) {
         float z = res_z(src_at, i);
         uint omega = res_omega(src_at, i);
+        if (i == 1u) {
+            z = z1_here;
+        }
         if (shift_x2 && i == 1u) {
             omega = omega1;
         }

@@ -50,12 +50,20 @@ struct CameraRay {
     vec3 o;
     vec3 d;
     uint set;
+    // The ray's depth anchor (m): a path owned by ray a keeps its first medium vertex's
+    // depth past the anchor on ray b, z_1' = z_1 - a.anchor + b.anchor (a translation:
+    // Jacobian 1). Temporal reuse anchors both pixels' rays where they enter the medium,
+    // so that a moving camera's history lands at the depth it was found at (keeping z_1
+    // itself put every reused vertex of a dollying camera deeper, where the canonical
+    // samples' MIS weights collapsed); 0 elsewhere.
+    float anchor;
 };
 
 // The camera ray through `pixel` at sub-pixel jitter `code`, in a frame's set.
 CameraRay camera_ray(uvec2 pixel, uint code, uint set) {
     CameraRay r;
     r.set = set;
+    r.anchor = 0.0;
     vec2 px = vec2(pixel) + jitter_code_offset(code);
     if (set == SET_CURRENT) {
         r.o = u_frame.cam_position;
@@ -489,6 +497,14 @@ vec3 path_value(uint at, Reservoir r, CameraRay cam, CameraRay src, uint mode, i
     SurfacePoint surface = surface_none(x, w);
     for (uint i = 1u; i <= kp; ++i) {
         float z = res_z(at, i);
+        if (i == 1u && z >= 0.0) {
+            // The owner's depth past its anchor, on this ray (a vertex before the camera
+            // is not on it).
+            z += cam.anchor - src.anchor;
+            if (!(z >= 0.0)) {
+                return vec3(0.0);
+            }
+        }
         if (i >= 2u) {
             vec3 w_next;
             if (i == 2u && keep_x2) {

@@ -70,7 +70,7 @@ struct RestirUniforms {
     float spatial_radius;     // pixels
     float march_reuse_step;   // reuse march step (m)
     float march_nee_step;     // NEE march step (m)
-    float _pad2;
+    float history_confidence; // the lights' confidence in the previous frame (temporal.comp)
     uvec3 velocity_dims;      // dims of the velocity grid (1 x 1 x 1 without one)
     uint _pad3;
     vec4 velocity_uvw_x;      // rows of the world -> velocity texture coordinate affine map

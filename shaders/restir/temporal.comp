@@ -24,6 +24,59 @@ vec3 velocity_at(vec3 x) {
     return textureLod(u_velocity, uvw, 0.0).xyz;
 }
 
+// The sub-pixel centre's jitter code (offset 127.5 / 256 per axis).
+#define JITTER_CODE_CENTRE 0x7f7fu
+// Floor of the transmittance a relative change is measured against: below it a camera ray
+// is opaque enough that changes of T~ are not changes of what the pixel shows.
+#define HISTORY_T_FLOOR 0.001
+// The relative change of the camera ray's T~ at which the history's confidence is 0
+// (linear from 1 at no change).
+#define HISTORY_T_TOLERANCE 0.1
+
+// The optical depth through the conservative grid at which a camera ray counts as having
+// entered the medium (its depth anchor).
+#define ANCHOR_TAU 1e-3
+
+// T~ of the camera ray through the centre of `pixel` in a frame's set up to its first
+// opaque end, what ends it (a shape: its index; an emitting sphere: 0x10000 + its index
+// in the set; nothing: NO_INDEX) and where it enters the medium (FAR if it does not): the
+// first point past optical depth ANCHOR_TAU through this frame's conservative grid.
+float camera_feature(uvec2 pixel, uint set, out uint end, out float entry) {
+    CameraRay r = camera_ray(pixel, JITTER_CODE_CENTRE, set);
+    uint sphere;
+    float t_end = nearest_sphere_light(light_base(set), r.o, r.d, 1e-6, FAR, sphere);
+    SurfacePoint s = surface_along(r.o, r.d, t_end);
+    end = s.shape != NO_INDEX ? s.shape : (sphere != NO_INDEX ? 0x10000u + sphere : NO_INDEX);
+    t_end = min(t_end, s.t);
+    float sigma_star;
+    float tau;
+    entry = pc_track(LEVEL_PRIMARY, r.o, r.d, t_end, ANCHOR_TAU, sigma_star, tau);
+    return reuse_transmittance(set, r.o, r.d, t_end);
+}
+
+// The confidence in the previous frame's pixel q_prev as this frame's `pixel`: 0 where the
+// camera rays end on different things, else falling linearly with the relative change of
+// their T~ (0 at HISTORY_T_TOLERANCE). Sets both candidates' depth anchors to where their
+// centre rays enter the medium (0 unless both do).
+float camera_confidence(uvec2 pixel, uvec2 q_prev) {
+    uint end_cur;
+    uint end_prev;
+    float entry_cur;
+    float entry_prev;
+    float t_cur = camera_feature(pixel, SET_CURRENT, end_cur, entry_cur);
+    float t_prev = camera_feature(q_prev, SET_PREVIOUS, end_prev, entry_prev);
+    if (end_cur != end_prev) {
+        return 0.0;
+    }
+    if (entry_cur < FAR && entry_prev < FAR) {
+        cand_anchor[0] = entry_cur;
+        cand_anchor[1] = entry_prev;
+    }
+    // Domain: the denominator >= HISTORY_T_FLOOR > 0.
+    float change = abs(t_cur - t_prev) / max(max(t_cur, t_prev), HISTORY_T_FLOOR);
+    return clamp(1.0 - change / HISTORY_T_TOLERANCE, 0.0, 1.0);
+}
+
 void restir_main();
 
 // The stage, then its counters into the stats buffer.
@@ -96,9 +149,21 @@ void restir_main() {
         return;
     }
     uvec2 q_prev = uvec2(px);
-
     candidate_set(0u, at, pixel, SET_CURRENT);
     candidate_set(1u, res_at(u_push.aux, q_prev), q_prev, SET_PREVIOUS);
+    // A static scene's history is this frame's: full confidence, nothing to compare.
+    float confidence = 1.0;
+    if (u_restir.history_static == 0u) {
+        confidence = u_restir.history_confidence;
+        if (confidence > 0.0) {
+            confidence *= camera_confidence(pixel, q_prev);
+        }
+        if (!(confidence > 0.0)) {
+            // Nothing of the previous frame resembles this one: the reservoir stays.
+            return;
+        }
+    }
+
     // A static scene's previous frame at this very pixel has this frame's target function:
     // the samples' targets are evaluated once (3 path evaluations become 1).
     cand_same_target[1] = u_restir.history_static != 0u && all(equal(q_prev, pixel));
@@ -109,10 +174,13 @@ void restir_main() {
         cand_w_scale[1] = m_cap / cand_M[1];
         cand_M[1] = m_cap;
     }
+    // The confidence scales M and w_sum alike (W_prev unchanged).
+    cand_M[1] *= confidence;
+    cand_w_scale[1] *= confidence;
     Reservoir s;
     uint chosen = combine_candidates(2u, rng, s);
     uint src_at = chosen < 2u ? cand_at[chosen] : at;
     uint code = res_jitter(s);
     CameraRay owner = candidate_ray(chosen < 2u ? chosen : 0u, code);
-    store_combined(at, s, src_at, owner, camera_ray(pixel, code, SET_CURRENT));
+    store_combined(at, s, src_at, owner, candidate_ray(0u, code));
 }

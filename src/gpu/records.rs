@@ -352,7 +352,9 @@ pub struct RestirUniformsGpu {
     /// Metres.
     pub march_reuse_step: f32,
     pub march_nee_step: f32,
-    pub _pad2: f32,
+    /// The lights' confidence in the previous frame as this one's, in [0, 1]: 1 when they
+    /// did not change (temporal.comp scales the history's M by it).
+    pub history_confidence: f32,
     /// Velocity grid dims (1 × 1 × 1 without one).
     pub velocity_dims: [u32; 3],
     pub _pad3: u32,

@@ -637,7 +637,7 @@ fn mirrors() -> Vec<Mirror> {
                 spatial_radius,
                 march_reuse_step,
                 march_nee_step,
-                _pad2,
+                history_confidence,
                 velocity_dims,
                 _pad3,
                 velocity_uvw_x,

@@ -37,6 +37,7 @@ mod render_box;
 mod render_convex;
 mod restir;
 mod restir_golden;
+mod restir_history;
 mod sampling_gpu;
 mod slurm;
 mod study;

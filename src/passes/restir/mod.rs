@@ -11,6 +11,7 @@
 //! (`stride = 8 + 2K`: a 32-byte header and 8 bytes per path vertex, see
 //! `shaders/include/reservoir.glsl`).
 
+pub mod history;
 pub mod resources;
 pub mod schedule;
 pub mod volumes;
@@ -384,6 +385,7 @@ impl RestirPass {
             velocity_uvw_x: velocity_uvw[0],
             velocity_uvw_y: velocity_uvw[1],
             velocity_uvw_z: velocity_uvw[2],
+            history_confidence: 1.0,
             ..RestirUniformsGpu::default()
         };
         let meshes = MeshBuffers::build(scene);
@@ -434,6 +436,27 @@ impl RestirPass {
             restir_uniforms,
             plan_levels: (plan.mip_candidates, plan.mip_indirect, plan.mip_reuse),
         })
+    }
+
+    /// The environment's irradiance (luminance, pi times its mean radiance) for the
+    /// lights' history confidence.
+    fn env_irradiance(&self, scene: &Scene) -> f32 {
+        let constant: glam::Vec3 = scene
+            .lights
+            .iter()
+            .filter_map(|l| match l {
+                nimbus_scene::Light::Environment {
+                    radiance,
+                    scale,
+                    file: None,
+                } => Some(*radiance * *scale),
+                _ => None,
+            })
+            .sum();
+        let luminance = self
+            .env_map_luminance
+            .unwrap_or_else(|| constant.dot(glam::Vec3::new(0.2126, 0.7152, 0.0722)));
+        std::f32::consts::PI * luminance
     }
 
     /// Uploads the lights of this frame and of the previous one (only when lights are
@@ -594,8 +617,22 @@ impl Pass for RestirPass {
                 || scene.lights_at(scene_frame) == scene.lights_at(prev_frame))
             && self.grid.density_index_at(scene_frame) == self.grid.density_index_at(prev_frame);
         let flag = u32::from(same);
-        if flag != self.restir_uniforms.history_static {
+        // The lights' confidence in the previous frame (1 when they did not change).
+        let confidence = if scene.lights_animated() {
+            history::light_confidence(
+                &scene.lights_at(prev_frame),
+                &scene.lights_at(scene_frame),
+                (self.grid.bounds_min + self.grid.bounds_max) * 0.5,
+                self.env_irradiance(scene),
+            )
+        } else {
+            1.0
+        };
+        if flag != self.restir_uniforms.history_static
+            || confidence != self.restir_uniforms.history_confidence
+        {
             self.restir_uniforms.history_static = flag;
+            self.restir_uniforms.history_confidence = confidence;
             ctx.upload_buffer(
                 &self.objects[self.res.restir_uniforms],
                 0,
