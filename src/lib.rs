@@ -7,6 +7,7 @@
 pub mod bench;
 pub mod budget;
 pub mod gpu;
+pub mod hashing;
 pub mod merge;
 pub mod output;
 pub mod passes;

@@ -21,9 +21,9 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, ensure, Context as _, Result};
 use nimbus_scene::Scene;
 
+use crate::hashing::{fnv1a64, FNV_OFFSET};
 use crate::output::layers::{read_layers, write_layers, Layers};
 use crate::renderer::{film, RenderResult};
-use crate::study::cache::{fnv1a64, FNV_OFFSET};
 
 /// What a render records in its EXR header (as `nimbus/<key>` text attributes).
 #[derive(Clone, Debug, PartialEq)]
@@ -32,7 +32,8 @@ pub struct RenderInfo {
     pub version: String,
     /// `scene`: the scene file as given (or the embedded default's name).
     pub scene: String,
-    /// `scene_hash`: FNV-1a 64 of the scene file's bytes, 16 hex digits.
+    /// `scene_hash`: FNV-1a 64 of the scene file's bytes and of every file it reads
+    /// ([`crate::hashing::scene_hash`]), 16 hex digits.
     pub scene_hash: String,
     /// `settings_hash`: FNV-1a 64 of the effective settings (see the module docs).
     pub settings_hash: String,

@@ -49,18 +49,52 @@ impl Identity {
     }
 }
 
+/// What the interrupt handler says when a second signal ends the render at once.
+const SECOND_SIGNAL_EXIT: &[u8] =
+    b"\nnimbus: a second interrupt: exiting now; nothing was written \
+(the image in progress is lost; a single interrupt stops after the current frame and \
+writes what was rendered)\n";
+/// ... and when it arrives while an image is being written.
+const SECOND_SIGNAL_WRITING: &[u8] =
+    b"\nnimbus: a second interrupt while an image is written: finishing the write, then \
+exiting (a third interrupt exits at once)\n";
+
 /// Sets a flag on SIGINT and SIGTERM (Ctrl-C; Slurm's scancel and time limit) that the
-/// frames loop checks; a second signal ends the process at once.
+/// frames loop checks, so the render stops after the current frame and writes what it
+/// has. A second signal ends the process at once (exit 130) and says that nothing was
+/// written, unless an image is being written: then the write finishes first (the flag
+/// already stops the render right after it); a third signal exits regardless.
 fn interrupt_flag() -> Result<Arc<AtomicBool>> {
+    use std::sync::atomic::{AtomicU32, Ordering};
+    static SIGNALS: AtomicU32 = AtomicU32::new(0);
     let flag = Arc::new(AtomicBool::new(false));
     for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
-        signal_hook::flag::register_conditional_shutdown(
-            signal,
-            i32::from(EXIT_INTERRUPTED),
-            Arc::clone(&flag),
-        )
-        .context("installing the interrupt handler")?;
-        signal_hook::flag::register(signal, Arc::clone(&flag))
+        let flag = Arc::clone(&flag);
+        let action = move || {
+            let n = SIGNALS.fetch_add(1, Ordering::SeqCst) + 1;
+            flag.store(true, Ordering::SeqCst);
+            if n < 2 {
+                return;
+            }
+            let writing = output::WRITING.load(Ordering::SeqCst);
+            let message = if writing && n == 2 {
+                SECOND_SIGNAL_WRITING
+            } else {
+                SECOND_SIGNAL_EXIT
+            };
+            // SAFETY: write(2) and _exit(2) are async-signal-safe; the message is a
+            // static byte string, valid for its length.
+            unsafe {
+                libc::write(2, message.as_ptr().cast(), message.len());
+                if !(writing && n == 2) {
+                    libc::_exit(i32::from(EXIT_INTERRUPTED));
+                }
+            }
+        };
+        // SAFETY: the action only touches atomics and calls the async-signal-safe
+        // write(2) and _exit(2): no allocation, no lock, nothing that a signal arriving
+        // in the middle of the program could find half-done.
+        unsafe { signal_hook::low_level::register(signal, action) }
             .context("installing the interrupt handler")?;
     }
     Ok(flag)
@@ -70,6 +104,34 @@ fn interrupt_flag() -> Result<Arc<AtomicBool>> {
 fn sequence_path(dir: &Path, frame: u32, ext: &str, partial: bool) -> PathBuf {
     let partial = if partial { ".partial" } else { "" };
     dir.join(format!("frame_{frame:04}{partial}.{ext}"))
+}
+
+/// Why the sequence image at `path` must be rendered (again), or `None` when it is a
+/// finished frame of this render: it exists, reads back whole, and its header records
+/// this scene and its files (`scene_hash`) and this frame's settings (`settings_hash`).
+fn stale_frame(path: &Path, scene_hash: &str, settings_hash: &str) -> Option<String> {
+    if !path.exists() {
+        return Some("is missing".to_string());
+    }
+    let attributes = match output::read_metadata(path) {
+        Ok(a) => a,
+        Err(e) => return Some(format!("cannot be read ({e:#})")),
+    };
+    let recorded = |key: &str| attributes.get(key).map(String::as_str);
+    if recorded("scene_hash") != Some(scene_hash) {
+        return Some(format!(
+            "was rendered from another scene or other data (nimbus/scene_hash {:?}, this \
+             render's {scene_hash:?})",
+            recorded("scene_hash").unwrap_or("none")
+        ));
+    }
+    if recorded("settings_hash") != Some(settings_hash) {
+        return Some(format!(
+            "was rendered with other settings (nimbus/settings {:?})",
+            recorded("settings").unwrap_or("none")
+        ));
+    }
+    None
 }
 
 /// "wrote X (...)": the one-line summary of an image.
@@ -219,56 +281,75 @@ pub(super) fn render(args: RenderArgs) -> Result<ExitCode> {
         tonemap: Tonemap::from_name(&args.tonemap).unwrap_or_default(),
     };
 
-    // The frames of a range still to render.
-    let mut selection = FrameSelection::Mean;
-    let mut warmup = args.warmup.unwrap_or(0);
+    // The bytes the scene was parsed from: read once (a second read could see another
+    // file, or hang on a pipe). The hash covers every file the scene reads too.
+    let scene_bytes = scene_text.into_bytes();
+    let scene_hash = nimbus::hashing::scene_hash(&scene_bytes, &scene)
+        .with_context(|| format!("{source}: hashing the files the scene reads"))?;
+
+    // The frames of a range still to render, as runs of consecutive frames: each run
+    // starts with its own warm-up frames, so that a frame rendered again in the middle of
+    // a sequence has the history a sequential render would have given it.
+    let mut runs: Vec<Vec<u32>> = Vec::new();
+    let mut warmups: Vec<u32> = Vec::new();
     if let Some((a, b)) = picked {
-        let mut list: Vec<u32> = (a..=b).collect();
-        if args.resume {
-            if let Some(dir) = &args.sequence {
-                let done = list
-                    .iter()
-                    .take_while(|&&f| sequence_path(dir, f, &args.sequence_format, false).exists())
-                    .count();
-                if done > 0 && done < list.len() {
+        let list: Vec<u32> = (a..=b).collect();
+        let todo: Vec<u32> = match (&args.sequence, args.resume) {
+            (Some(dir), true) => {
+                let mut todo = Vec::new();
+                for &f in &list {
+                    let path = sequence_path(dir, f, &args.sequence_format, false);
+                    let (_, settings_hash) = settings_of(&scene, animated, &format!("frame {f}"));
+                    if let Some(why) = stale_frame(&path, &scene_hash, &settings_hash) {
+                        if path.exists() {
+                            eprintln!("resume: {} {why}: rendering it again", path.display());
+                        }
+                        todo.push(f);
+                    }
+                }
+                if !todo.is_empty() && todo.len() < list.len() {
                     eprintln!(
-                        "resume: frames {a}..{} are in {}; rendering from frame {}",
-                        a + done as u32 - 1,
+                        "resume: {} of frames {a}..{b} are in {} already; rendering the \
+                         other {}",
+                        list.len() - todo.len(),
                         dir.display(),
-                        a + done as u32
+                        todo.len()
                     );
                 }
-                list.drain(..done);
+                todo
             }
-        }
-        if list.is_empty() {
+            _ => list,
+        };
+        if todo.is_empty() {
             eprintln!("resume: every frame of {a}..{b} is already rendered");
             return Ok(ExitCode::SUCCESS);
         }
-        let first = list[0];
+        for f in todo {
+            match runs.last_mut() {
+                Some(run) if run.last() == Some(&(f - 1)) => run.push(f),
+                _ => runs.push(vec![f]),
+            }
+        }
         let history = renderer::error_batch(&plan);
-        warmup = args
-            .warmup
-            .unwrap_or(if history > 1 { first.min(history) } else { 0 });
-        selection = FrameSelection::Each {
-            frames: list,
-            passes: args.passes.unwrap_or(1),
-        };
+        warmups = runs
+            .iter()
+            .map(|run| {
+                args.warmup
+                    .unwrap_or(if history > 1 { run[0].min(history) } else { 0 })
+            })
+            .collect();
     }
 
-    // The bytes the scene was parsed from: read once (a second read could see another
-    // file, or hang on a pipe).
-    let scene_bytes = scene_text.into_bytes();
     let interrupt = interrupt_flag()?;
     let ctx = Context::new(&ContextDesc::from_env())?;
     eprintln!("device: {}", ctx.info().name);
     let identity = Identity {
         scene: source.clone(),
-        scene_hash: nimbus::merge::content_hash(&scene_bytes),
+        scene_hash,
         animated,
         device: ctx.info().name.clone(),
     };
-    let opts = RenderOptions {
+    let opts_for = |frames: FrameSelection, warmup: u32| RenderOptions {
         progress: true,
         warmup_frames: warmup,
         sequence: if picked.is_some() {
@@ -279,12 +360,12 @@ pub(super) fn render(args: RenderArgs) -> Result<ExitCode> {
         sequence_ext: args.sequence_format.clone(),
         sequence_display: display,
         keep_frames: false,
-        frames: selection,
+        frames,
         stop: StopRule {
             target_error: args.target_error,
             time_limit: args.time_limit.map(Duration::from_secs_f64),
         },
-        interrupt: Some(interrupt),
+        interrupt: Some(Arc::clone(&interrupt)),
         counters: false,
         skip_alpha: false,
     };
@@ -308,7 +389,26 @@ pub(super) fn render(args: RenderArgs) -> Result<ExitCode> {
         eprintln!("{}", summary(&path, &scene, result));
         Ok(())
     };
-    let result = renderer::render_each(&ctx, &scene, &plan, &opts, &mut sink)?;
+    let result = if picked.is_some() {
+        let mut last = None;
+        for (run, &warmup) in runs.iter().zip(&warmups) {
+            let selection = FrameSelection::Each {
+                frames: run.clone(),
+                passes: args.passes.unwrap_or(1),
+            };
+            let opts = opts_for(selection, warmup);
+            let result = renderer::render_each(&ctx, &scene, &plan, &opts, &mut sink)?;
+            let stop = result.stop;
+            last = Some(result);
+            if stop == StopReason::Interrupted {
+                break;
+            }
+        }
+        last.context("internal: a frame range with nothing to render")?
+    } else {
+        let opts = opts_for(FrameSelection::Mean, args.warmup.unwrap_or(0));
+        renderer::render_each(&ctx, &scene, &plan, &opts, &mut sink)?
+    };
     let mib = |b: u64| b as f64 / f64::from(1u32 << 20);
     let host = nimbus::budget::peak_host_bytes().map_or_else(String::new, |b| {
         format!(", peak host memory {:.0} MiB", mib(b))

@@ -223,6 +223,11 @@ fn temporary_path(path: &Path) -> PathBuf {
     path.with_file_name(format!(".{name}.{}.tmp{ext}", std::process::id()))
 }
 
+/// True while [`write_atomically`] writes an image: an interrupt handler lets the write
+/// finish (the render stops right after it) instead of ending the process, which would
+/// lose the image and leave its temporary file behind.
+pub static WRITING: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
 /// Writes through `write` into a temporary file beside `path`, flushes it to disk and
 /// renames it over `path`: a reader sees the old file or the complete new one, never a
 /// partial file, and a failed write (full disk, interrupt) leaves the old file intact.
@@ -230,6 +235,15 @@ pub fn write_atomically(
     path: &Path,
     write: impl FnOnce(&Path) -> anyhow::Result<()>,
 ) -> anyhow::Result<()> {
+    /// Clears [`WRITING`] however the write ends.
+    struct Writing;
+    impl Drop for Writing {
+        fn drop(&mut self) {
+            WRITING.store(false, std::sync::atomic::Ordering::SeqCst);
+        }
+    }
+    WRITING.store(true, std::sync::atomic::Ordering::SeqCst);
+    let _writing = Writing;
     let tmp = temporary_path(path);
     let result = write(&tmp).and_then(|()| {
         std::fs::File::open(&tmp)
@@ -293,6 +307,37 @@ fn write_exr(path: &Path, img: &ImageRgb) -> anyhow::Result<()> {
     .write()
     .to_file(path)
     .with_context(|| format!("write EXR {}", path.display()))
+}
+
+/// The `nimbus/<key>` metadata of an image Nimbus wrote (keys without the prefix): an
+/// EXR's header attributes or a PNG's tEXt chunks. The whole image is read and decoded,
+/// so a truncated or damaged file is an error, not an image.
+pub fn read_metadata(path: &Path) -> anyhow::Result<std::collections::BTreeMap<String, String>> {
+    if image_extension(path)? == "exr" {
+        return Ok(read_layers(path)?.attributes);
+    }
+    let file = std::fs::File::open(path).with_context(|| format!("open {}", path.display()))?;
+    let mut reader = png::Decoder::new(std::io::BufReader::new(file))
+        .read_info()
+        .with_context(|| format!("read PNG {}", path.display()))?;
+    let size = reader
+        .output_buffer_size()
+        .with_context(|| format!("PNG {}: image too large", path.display()))?;
+    let mut buffer = vec![0u8; size];
+    reader
+        .next_frame(&mut buffer)
+        .and_then(|_| reader.finish())
+        .with_context(|| format!("read PNG {}", path.display()))?;
+    Ok(reader
+        .info()
+        .uncompressed_latin1_text
+        .iter()
+        .filter_map(|t| {
+            t.keyword
+                .strip_prefix(layers::ATTRIBUTE_PREFIX)
+                .map(|k| (k.to_string(), t.text.clone()))
+        })
+        .collect())
 }
 
 /// Reads the R, G and B channels of the first RGB layer of an EXR file (any sample

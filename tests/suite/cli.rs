@@ -276,6 +276,59 @@ fn merge_never_overwrites_an_input() {
     assert!(out.status.success(), "{}", text(&out.stderr));
 }
 
+/// Parts rendered from one scene file whose density file changed between them are
+/// refused by `nimbus merge` (issue 24: the scene hash covered the scene file alone, so
+/// parts of two different clouds merged into an image of neither).
+#[test]
+fn merge_refuses_parts_rendered_from_different_data() {
+    let dir = scratch("merge-data");
+    let grid = dir.join("density.raw");
+    let scene = dir.join("cube.toml");
+    std::fs::write(
+        &scene,
+        "[render]\nwidth = 8\nheight = 6\n[camera]\nposition = [0, 0, 3]\nlook_at = [0, 0, 0]\n\
+         [[light]]\ntype = \"environment\"\nradiance = 1\n[[medium]]\ntype = \"grid\"\n\
+         bounds_min = [-0.5, -0.5, -0.5]\nbounds_max = [0.5, 0.5, 0.5]\n\
+         density = { file = \"density.raw\", dims = [2, 2, 2] }\n\
+         [integrator]\nvolume = \"baseline\"\n",
+    )
+    .unwrap();
+    let part = |seed: &str, value: f32| {
+        std::fs::write(&grid, bytemuck::cast_slice::<f32, u8>(&[value; 8])).unwrap();
+        let path = dir.join(format!("part{seed}.exr"));
+        let out = nimbus(&[
+            "render",
+            scene.to_str().unwrap(),
+            "--frames",
+            "2",
+            "--seed",
+            seed,
+            "--out",
+            path.to_str().unwrap(),
+        ]);
+        assert!(out.status.success(), "{}", text(&out.stderr));
+        path
+    };
+    let (a, b, c) = (part("1", 1.0), part("2", 3.0), part("3", 3.0));
+    let merged = dir.join("merged.exr");
+    let merge = |x: &std::path::Path, y: &std::path::Path| {
+        nimbus(&[
+            "merge",
+            "--out",
+            merged.to_str().unwrap(),
+            x.to_str().unwrap(),
+            y.to_str().unwrap(),
+        ])
+    };
+    let out = merge(&a, &b);
+    let stderr = text(&out.stderr);
+    assert!(!out.status.success(), "{stderr}");
+    assert!(stderr.contains("scene_hash"), "{stderr}");
+    // The same data merges.
+    let out = merge(&b, &c);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+}
+
 /// `--frame N --passes P` renders one scene frame P times, and says so (issue 24: it
 /// reported "P frame(s)").
 #[test]

@@ -369,6 +369,60 @@ fn an_interrupt_writes_the_frames_rendered_so_far() {
     assert!((1..1_000_000).contains(&frames));
 }
 
+/// Two interrupts in a row (a `timeout` that sends TERM twice, an impatient Ctrl-C) end
+/// the render at once with exit 130, and the user is told whether an image was written
+/// (issue 24: it ended silently with no image); no temporary file is left behind.
+#[test]
+fn a_second_interrupt_says_what_was_written() {
+    let dir = scratch("interrupt-twice");
+    let path = dir.join("twice.exr");
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_nimbus"))
+        .args([
+            "render",
+            "--out",
+            path.to_str().unwrap(),
+            "--frames",
+            "1000000",
+        ])
+        .args(SMALL)
+        .env("NIMBUS_PROGRESS_SECONDS", "0.2")
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    use std::io::BufRead as _;
+    let mut lines = std::io::BufReader::new(child.stderr.take().unwrap()).lines();
+    for line in lines.by_ref() {
+        if line.unwrap().starts_with("progress:") {
+            break;
+        }
+    }
+    for _ in 0..2 {
+        let status = std::process::Command::new("kill")
+            .args(["-TERM", &child.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(status.success());
+    }
+    let rest = lines
+        .map_while(Result::ok)
+        .collect::<Vec<String>>()
+        .join("\n");
+    let code = child.wait().unwrap().code();
+    assert_eq!(code, Some(130), "{rest}");
+    if rest.contains("finishing the write") {
+        read_layers(&path).unwrap();
+    } else {
+        assert!(rest.contains("nothing was written"), "{rest}");
+        assert!(!path.exists());
+    }
+    let left: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .filter(|n| n.to_string_lossy().contains("tmp"))
+        .collect();
+    assert!(left.is_empty(), "temporary files left: {left:?}");
+}
+
 /// `--frame N` renders one frame of an animation, `--frame-range` each frame into the
 /// sequence, `--resume` skips what is there; a static scene has no frames to pick.
 #[test]
@@ -419,9 +473,56 @@ fn frames_of_an_animation_are_their_own_images() {
     }
     let (ok, stderr) = run(&["--frame-range", "1..3", "--sequence", seq_arg, "--resume"]);
     assert!(ok, "{stderr}");
-    assert!(stderr.contains("rendering from frame 3"), "{stderr}");
+    assert!(
+        stderr.contains("2 of frames 1..3 are in") && stderr.contains("rendering the other 1"),
+        "{stderr}"
+    );
     assert!(!stderr.contains("frame_0001.exr"), "{stderr}");
     assert!(seq.join("frame_0003.exr").exists());
+
+    // --resume renders again what is damaged, foreign or missing, and only that (issue
+    // 24: it trusted any file and re-rendered everything after a gap).
+    let frame = |f: u32| seq.join(format!("frame_{f:04}.exr"));
+    let modified = |f: u32| std::fs::metadata(frame(f)).unwrap().modified().unwrap();
+    let kept = modified(3);
+    std::fs::write(frame(1), b"").unwrap();
+    std::fs::remove_file(frame(2)).unwrap();
+    let (ok, stderr) = run(&["--frame-range", "0..3", "--sequence", seq_arg, "--resume"]);
+    assert!(ok, "{stderr}");
+    assert!(stderr.contains("frame_0001.exr cannot be read"), "{stderr}");
+    assert!(stderr.contains("rendering the other 3"), "{stderr}");
+    assert_eq!(modified(3), kept, "frame 3 was rendered again: {stderr}");
+    for f in 0..=3 {
+        read_layers(&frame(f)).unwrap();
+    }
+    // A frame of other settings (another width) or another scene is not this render's.
+    let other = frame(1);
+    let out = nimbus(&[
+        "render",
+        scene,
+        "--width",
+        "20",
+        "--height",
+        "18",
+        "--frame",
+        "1",
+        "--out",
+        other.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let (ok, stderr) = run(&["--frame-range", "0..3", "--sequence", seq_arg, "--resume"]);
+    assert!(ok, "{stderr}");
+    assert!(
+        stderr.contains("frame_0001.exr was rendered with other settings"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("rendering the other 1"), "{stderr}");
+    assert_eq!(read_layers(&other).unwrap().color.width, 24);
+    let (ok, stderr) = run(&["--frame-range", "0..3", "--sequence", seq_arg, "--resume"]);
+    assert!(
+        ok && stderr.contains("every frame of 0..3 is already rendered"),
+        "{stderr}"
+    );
 
     let (ok, stderr) = run(&["--frame", "4", "--out", &path("x.exr")]);
     assert!(!ok && stderr.contains("frames 0..3"), "{stderr}");

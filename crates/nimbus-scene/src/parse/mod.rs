@@ -215,7 +215,51 @@ pub(crate) fn parse_scene(text: &str, file: &Path, overrides: &[FieldOverride]) 
         integrator,
     };
     crate::precision::check_scene(&source, &scene)?;
+    check_camera_outside_sphere_lights(&source, &scene)?;
     Ok(scene)
+}
+
+/// A sphere light emits outwards only, so nothing inside one is lit by it; a camera
+/// inside one would still see its inner side (issue 24: radiance 4 in view, the cloud
+/// beside the camera at 0.06). Refused at every frame the camera or the light moves to,
+/// naming the light: an environment light is light from all around.
+fn check_camera_outside_sphere_lights(source: &Source, scene: &Scene) -> Result<()> {
+    let frames = if scene.camera.keyframes.is_empty() && !scene.lights_animated() {
+        1
+    } else {
+        scene.render.frames
+    };
+    let has_sphere = scene
+        .lights
+        .iter()
+        .any(|l| matches!(l, Light::Sphere { .. }));
+    if !has_sphere {
+        return Ok(());
+    }
+    for frame in 0..frames {
+        let eye = scene.camera.frame_at(frame).position;
+        let lights = if scene.lights_animated() {
+            scene.lights_at(frame)
+        } else {
+            scene.lights.clone()
+        };
+        for (i, light) in lights.iter().enumerate() {
+            if let Light::Sphere { center, radius, .. } = light {
+                let d = (eye - *center).length();
+                if d < *radius {
+                    return Err(source.error(format!(
+                        "[[light]] #{} (type = \"sphere\"): the camera is inside it at frame \
+                         {frame} ({d} m from its centre {:?}, radius {radius}); a sphere \
+                         light emits outwards only, so nothing inside it is lit by it: for \
+                         light from all around use type = \"environment\"",
+                        i + 1,
+                        center.to_array()
+                    )));
+                }
+            }
+        }
+    }
+    Ok(())
 }
 
 fn parse_render(source: &Source, table: &toml::Table) -> Result<RenderSettings> {

@@ -848,3 +848,34 @@ fn convex_media_that_are_not_bounded_polyhedra_are_rejected() {
         dodecahedron([0.0, 1.7, 0.0], 1.0, 1.0)
     ));
 }
+
+/// A sphere light around the camera (issue 24: the camera saw its inside at radiance 4
+/// while it lit nothing inside it) is refused, naming the light and the frame; outside
+/// it, or around the medium only, it is fine.
+#[test]
+fn a_camera_inside_a_sphere_light_is_refused() {
+    let sphere = |center: &str, radius: f32| {
+        format!(
+            "[[light]]\ntype = \"sphere\"\ncenter = {center}\nradius = {radius}\nradiance = 4\n"
+        )
+    };
+    let error = parse_err(&format!("{DIRECTIONAL}{}", sphere("[0, 0, 0]", 50.0)));
+    assert_contains(
+        &error,
+        &[
+            SCENE,
+            "[[light]] #2 (type = \"sphere\")",
+            "camera is inside it at frame 0",
+            "type = \"environment\"",
+        ],
+    );
+    parse_ok(&sphere("[0, 30, 0]", 1.0));
+    // A light that moves over the camera at frame 2 of 3.
+    let keyed = format!(
+        "[render]\nframes = 3\n{}[[light.keyframe]]\nframe = 0\ncenter = [0, 30, 0]\n\
+         [[light.keyframe]]\nframe = 2\ncenter = [0, 0, 0]\n",
+        sphere("[0, 30, 0]", 20.0)
+    );
+    let error = parse_err(&keyed);
+    assert_contains(&error, &["[[light]] #1", "inside it at frame 1"]);
+}
