@@ -94,6 +94,7 @@ pub fn scene_files(scene: &Scene) -> Vec<(String, &Path)> {
             emission,
             emission_scale: _,
             velocity,
+            velocity_scale: _,
             frames,
             // Where its files' grids sit, read from the files hashed below.
             vdb: _,

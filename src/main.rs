@@ -42,6 +42,79 @@ enum Command {
     /// The cost of a sample: render the benchmark cases with work counters and
     /// timestamps, and compare them with a stored baseline (docs/performance.md).
     Bench(BenchArgs),
+    /// Write the benchmark scenes' HDR daylight sky (an equirectangular .exr with a small,
+    /// very bright sun), e.g. `nimbus make-sky target/bench/sky-sun.exr` for
+    /// assets/scenes/bench/sky-sun.toml.
+    MakeSky(MakeSkyArgs),
+}
+
+#[derive(Args)]
+struct MakeSkyArgs {
+    /// The map to write (.exr).
+    out: PathBuf,
+    /// Width in texels.
+    #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(8..=8192))]
+    width: u32,
+    /// Height in texels.
+    #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(4..=4096))]
+    height: u32,
+    /// The sun's elevation above the horizon, degrees.
+    #[arg(long, default_value_t = 25.0, allow_negative_numbers = true, value_parser = parse_angle)]
+    sun_elevation_deg: f64,
+    /// The sun's azimuth, degrees.
+    #[arg(long, default_value_t = 40.0, allow_negative_numbers = true, value_parser = parse_angle)]
+    sun_azimuth_deg: f64,
+    /// The sun's angular diameter, degrees, in [0.06, 28].
+    #[arg(long, default_value_t = 1.5, value_parser = parse_sun_diameter)]
+    sun_diameter_deg: f64,
+}
+
+/// A finite angle in degrees, within [-360, 360].
+fn parse_angle(text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(v) if v.is_finite() && v.abs() <= 360.0 => Ok(v),
+        _ => Err(format!(
+            "{text:?} is not an angle in degrees within [-360, 360]"
+        )),
+    }
+}
+
+/// The sun's diameter in degrees, within [0.06, 28].
+fn parse_sun_diameter(text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(v) if (0.06..=28.0).contains(&v) => Ok(v),
+        _ => Err(format!(
+            "{text:?} is not a diameter in degrees within [0.06, 28]"
+        )),
+    }
+}
+
+/// `nimbus make-sky`: the daylight sky of `nimbus_scene::daylight_sky`, the sun alone
+/// giving 20 W/m² at normal incidence.
+fn make_sky_cmd(args: MakeSkyArgs) -> Result<()> {
+    let (w, h) = (args.width as usize, args.height as usize);
+    let sun = nimbus_scene::sun_direction(
+        args.sun_elevation_deg.to_radians() as f32,
+        args.sun_azimuth_deg.to_radians() as f32,
+    );
+    let texels = nimbus_scene::daylight_sky(w, h, sun, args.sun_diameter_deg.to_radians(), 20.0);
+    let out = &args.out;
+    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    nimbus::output::write_atomically(out, |tmp| {
+        exr::prelude::write_rgb_file(tmp, w, h, |x, y| {
+            let [r, g, b] = texels[y * w + x];
+            (r, g, b)
+        })
+        .with_context(|| format!("writing {}", out.display()))
+    })?;
+    println!(
+        "wrote {} ({w}x{h}, sun {:.2} deg across)",
+        out.display(),
+        args.sun_diameter_deg
+    );
+    Ok(())
 }
 
 #[derive(Args)]
@@ -159,7 +232,7 @@ struct RenderArgs {
     target_error: Option<f64>,
     /// Stop an image before a frame would end past this many seconds of rendering
     /// (set-up and warm-up not counted; with --frame-range, per frame). At least one
-    /// frame is rendered.
+    /// frame is rendered. The warm-up frames stop at this limit too, on their own clock.
     #[arg(long, value_name = "SECONDS", value_parser = parse_seconds)]
     time_limit: Option<f64>,
     /// Exposure multiplier applied before tonemapping a .png (finite, > 0).
@@ -211,7 +284,7 @@ struct ProfileArgs {
     #[arg(long, default_value_t = 32, value_parser = clap::value_parser!(u32).range(1..=100_000))]
     frames: u32,
     /// Frames rendered before measuring.
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(0..=100_000))]
     warmup: u32,
     /// Write the per-pass statistics as JSON.
     #[arg(long)]
@@ -325,6 +398,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
         Command::Devices => devices().map(ok),
         Command::Study(args) => study_cmd(args).map(ok),
         Command::Bench(args) => bench_cmd(args),
+        Command::MakeSky(args) => make_sky_cmd(args).map(ok),
     }
 }
 

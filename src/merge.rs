@@ -259,7 +259,18 @@ pub fn merge_files(out: &Path, inputs: &[PathBuf]) -> Result<RenderInfo> {
     let parts = inputs
         .iter()
         .map(|path| {
+            let is_exr = path
+                .extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
+            ensure!(
+                is_exr,
+                "{}: nimbus merge reads the .exr images of `nimbus render` (their sums and \
+                 standard errors); a .png is tonemapped to 8 bits and cannot be merged: \
+                 render the parts as .exr",
+                path.display()
+            );
             let layers = read_layers(path)?;
+            check_finite(path, &layers)?;
             let info = RenderInfo::from_attributes(&layers.attributes, path)?;
             Ok(Part {
                 path: path.clone(),
@@ -271,6 +282,37 @@ pub fn merge_files(out: &Path, inputs: &[PathBuf]) -> Result<RenderInfo> {
     let (layers, info) = merge(&parts)?;
     write_layers(out, &layers).with_context(|| format!("writing {}", out.display()))?;
     Ok(info)
+}
+
+/// Refuses a part with a non-finite value in any layer, naming it: `nimbus render`
+/// drops non-finite samples and never writes one, so the file was changed or written by
+/// something else, and a merge would spread the NaN over the result.
+fn check_finite(path: &Path, layers: &Layers) -> Result<()> {
+    let width = layers.color.width as usize;
+    let planes: [(&str, Vec<f32>); 4] = [
+        ("RGB", layers.color.data.iter().flatten().copied().collect()),
+        ("A", layers.alpha.clone()),
+        (
+            "stderr.RGB",
+            layers.std_error.data.iter().flatten().copied().collect(),
+        ),
+        ("stderr.A", layers.alpha_std_error.clone()),
+    ];
+    for (name, values) in &planes {
+        let per_pixel = if name.ends_with("RGB") { 3 } else { 1 };
+        if let Some(i) = values.iter().position(|v| !v.is_finite()) {
+            let pixel = i / per_pixel;
+            bail!(
+                "{}: {name} of pixel ({}, {}) is {}: not an image `nimbus render` wrote as \
+                 it is (it never writes a non-finite value); refusing to merge it",
+                path.display(),
+                pixel % width.max(1),
+                pixel / width.max(1),
+                values[i]
+            );
+        }
+    }
+    Ok(())
 }
 
 /// Refuses parts that are not the same render with other seeds.

@@ -159,7 +159,7 @@ case $mode in
     full) bench=(cloud-g0 cloud-g08 sky-sun explosion-matched explosion-mismatched); bench_size=() ;;
 esac
 if [[ " ${bench[*]} " == *" sky-sun "* && ! -f target/bench/sky-sun.exr ]]; then
-    cargo run --release --quiet --example make_sky -- target/bench/sky-sun.exr
+    nimbus make-sky target/bench/sky-sun.exr
 fi
 for scene in "${bench[@]}"; do
     for k in $bounces_list; do

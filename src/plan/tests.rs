@@ -123,3 +123,29 @@ fn grid_scenes_name_what_the_baseline_does_not_take() {
         .explain(&ok)
         .contains("[on ] pass baseline path tracer"));
 }
+
+/// The baseline takes a velocity grid (it only guides ReSTIR's reprojection: issue 24,
+/// it was refused as "animated density") and refuses density frames naming the table.
+#[test]
+fn the_baseline_takes_a_velocity_grid_and_names_density_frames() {
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/volumes");
+    let text = |frames: &str| {
+        format!(
+            "[render]\nframes = 2\n[camera]\nposition = [0, 0, 3]\nlook_at = [0, 0, 0]\n\
+             [[light]]\ntype = \"environment\"\nradiance = 1\n\
+             [[medium]]\ntype = \"grid\"\nbounds_min = [-0.5, -0.5, -0.5]\nbounds_max = [0.5, 0.5, 0.5]\n\
+             density = {{ file = \"{dir}/plume-f0.vol\" }}\n\
+             velocity = {{ file = \"{dir}/plume-velocity.vol\" }}\n{frames}\
+             [integrator]\nvolume = \"baseline\"\n"
+        )
+    };
+    let parse = |t: &str| nimbus_scene::parse_str(t, Path::new("plan.toml")).expect("parses");
+    build(&parse(&text("")), None).expect("a velocity grid alone is fine");
+    let frames =
+        format!("[[medium.frame]]\nframe = 1\ndensity = {{ file = \"{dir}/plume-f1.vol\" }}\n");
+    let err = build(&parse(&text(&frames)), None).unwrap_err().to_string();
+    assert!(
+        err.contains("plan.toml: [[medium]] #1 (type = \"grid\") > [[medium.frame]]"),
+        "{err}"
+    );
+}

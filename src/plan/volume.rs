@@ -63,10 +63,12 @@ pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
         );
     }
     let (index, grid) = grids[0];
-    let animated = grid.velocity.is_some() || !grid.frames.is_empty();
-    if animated && !restir {
+    // A velocity grid only guides ReSTIR's reprojection: the baseline, which keeps no
+    // history, renders the same image without it. Density frames it cannot render yet.
+    if !grid.frames.is_empty() && !restir {
+        let kind = if grid.vdb.is_some() { "vdb" } else { "grid" };
         bail!(
-            "{file}: [[medium]] #{} (type = \"grid\"): animated density (velocity / [[medium.frame]]) is not supported yet by the baseline path tracer; use volume = \"restir\"",
+            "{file}: [[medium]] #{} (type = \"{kind}\") > [[medium.frame]]: animated density is not supported yet by the baseline path tracer; use volume = \"restir\"",
             index + 1
         );
     }

@@ -411,9 +411,23 @@ impl Run<'_> {
             }
         };
         clear_targets(self.ctx, self.targets)?;
-        for &frame in &warmup {
+        // The warm-up stops at the time limit too (it is not part of the measured
+        // frames' budget, but a limit must bound the whole render: issue 24).
+        let warmup_start = Instant::now();
+        for (done, &frame) in warmup.iter().enumerate() {
             if self.interrupted() {
                 bail!("interrupted during the warm-up frames; no image was rendered");
+            }
+            if let Some(limit) = opts.stop.time_limit {
+                if done > 0 && warmup_start.elapsed() >= limit {
+                    self.notes.push(format!(
+                        "the warm-up stopped at the time limit ({:.1} s) after {done} of its \
+                         {} frames",
+                        limit.as_secs_f64(),
+                        warmup.len()
+                    ));
+                    break;
+                }
             }
             self.dispatch(pass, frame)?;
         }

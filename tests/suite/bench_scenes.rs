@@ -1,29 +1,24 @@
 //! The benchmark scenes of `assets/scenes/bench/` (issue 15: paper-like cases for the
 //! equal-time studies of tools/gpu-check.sh) load, plan and fit the memory guard; the
-//! HDR sky they read is generated as `make_sky` writes it (`daylight_sky`).
+//! HDR sky they read is generated as `nimbus make-sky` writes it (`daylight_sky`).
 
 use std::path::Path;
 
 use nimbus::plan::{self, Integrator};
 
-/// Writes `target/bench/sky-sun.exr` (what `cargo run --example make_sky --
-/// target/bench/sky-sun.exr` writes) unless it exists.
+/// Writes `target/bench/sky-sun.exr` with `nimbus make-sky` unless it exists.
 fn ensure_sky(root: &Path) {
     let path = root.join("target/bench/sky-sun.exr");
     if path.exists() {
         return;
     }
-    std::fs::create_dir_all(path.parent().unwrap()).unwrap();
-    let (w, h) = (1024, 512);
-    let sun = nimbus_scene::sun_direction(25f32.to_radians(), 40f32.to_radians());
-    let texels = nimbus_scene::daylight_sky(w, h, sun, 1.5f64.to_radians(), 20.0);
-    let tmp = path.with_extension("tmp.exr");
-    exr::prelude::write_rgb_file(&tmp, w, h, |x, y| {
-        let [r, g, b] = texels[y * w + x];
-        (r, g, b)
-    })
-    .unwrap();
-    std::fs::rename(&tmp, &path).unwrap();
+    let out = crate::common::cli::nimbus(&["make-sky", path.to_str().unwrap()]);
+    assert!(
+        out.status.success(),
+        "{}",
+        crate::common::cli::text(&out.stderr)
+    );
+    assert!(path.exists());
 }
 
 #[test]

@@ -329,6 +329,111 @@ fn merge_refuses_parts_rendered_from_different_data() {
     assert!(out.status.success(), "{}", text(&out.stderr));
 }
 
+/// `nimbus merge` names the part it refuses and why: a PNG (it said "file identifier
+/// missing"), a part holding NaN (it blamed "the renderer"); a value refused only because
+/// of `--set` says it came from there.
+#[test]
+fn refusals_name_the_part_and_the_source_of_the_value() {
+    let dir = scratch("merge-parts");
+    let render = |name: &str, seed: &str| {
+        let path = dir.join(name);
+        let out = nimbus(&[
+            "render",
+            "--width",
+            "8",
+            "--height",
+            "6",
+            "--frames",
+            "2",
+            "--seed",
+            seed,
+            "--out",
+            path.to_str().unwrap(),
+        ]);
+        assert!(out.status.success(), "{}", text(&out.stderr));
+        path
+    };
+    let (a, png) = (render("a.exr", "1"), render("c.png", "3"));
+    let merged = dir.join("m.exr");
+    let merge = |x: &std::path::Path, y: &std::path::Path| {
+        let out = nimbus(&[
+            "merge",
+            "--out",
+            merged.to_str().unwrap(),
+            x.to_str().unwrap(),
+            y.to_str().unwrap(),
+        ]);
+        assert!(!out.status.success());
+        text(&out.stderr)
+    };
+    let stderr = merge(&a, &png);
+    assert!(
+        stderr.contains("c.png") && stderr.contains("render the parts as .exr"),
+        "{stderr}"
+    );
+    // Nimbus never writes a NaN; another tool does.
+    let nan = dir.join("nan.exr");
+    exr::prelude::write_rgba_file(&nan, 8, 6, |x, y| {
+        let g = if (x, y) == (7, 0) { f32::NAN } else { 0.5 };
+        (0.5f32, g, 0.5f32, 1.0f32)
+    })
+    .unwrap();
+    let stderr = merge(&a, &nan);
+    assert!(
+        stderr.contains("nan.exr: RGB of pixel (7, 0) is NaN") && !stderr.contains("the renderer"),
+        "{stderr}"
+    );
+    let out = nimbus(&[
+        "render",
+        "--set",
+        "render.width=abc",
+        "--out",
+        a.to_str().unwrap(),
+    ]);
+    let stderr = text(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        stderr.contains("field `width`") && stderr.contains("comes from --set render.width"),
+        "{stderr}"
+    );
+}
+
+/// A velocity grid is metres per frame times `velocity_scale`; one that moves points
+/// more than a few voxels per frame gets a note naming the field (issue 24: a Houdini
+/// `vel` in units per second smeared a still scene into streaks without a word).
+#[test]
+fn a_fast_velocity_grid_is_noted_with_its_unit() {
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/scenes/plume-anim.toml");
+    let dir = scratch("velocity-unit");
+    let run = |scale: &str| {
+        let out = nimbus(&[
+            "render",
+            scene,
+            "--width",
+            "24",
+            "--height",
+            "18",
+            "--frame",
+            "1",
+            "--set",
+            &format!("medium.1.velocity_scale={scale}"),
+            "--out",
+            dir.join("v.exr").to_str().unwrap(),
+        ]);
+        let stderr = text(&out.stderr);
+        assert!(out.status.success(), "{stderr}");
+        stderr
+    };
+    let stderr = run("1");
+    assert!(!stderr.contains("voxels per frame"), "{stderr}");
+    let stderr = run("1000");
+    assert!(
+        stderr.contains("[[medium]] #1 > velocity moves points up to")
+            && stderr.contains("velocity_scale = 1/fps"),
+        "{stderr}"
+    );
+}
+
 /// `--frame N --passes P` renders one scene frame P times, and says so (issue 24: it
 /// reported "P frame(s)").
 #[test]

@@ -305,6 +305,26 @@ fn time_limit_stops_the_render_and_says_so() {
         .parse()
         .unwrap();
     assert!((1..100_000).contains(&frames));
+
+    // The warm-up is bounded by the limit too (issue 24: a million warm-up frames ran
+    // to the end before the limit applied).
+    let start = std::time::Instant::now();
+    let stderr = render(&[
+        "--out",
+        path.to_str().unwrap(),
+        "--time-limit",
+        "1",
+        "--warmup",
+        "1000000",
+        "--frames",
+        "100000",
+    ]);
+    assert!(
+        stderr.contains("the warm-up stopped at the time limit (1.0 s) after"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("stopped: time limit reached"), "{stderr}");
+    assert!(start.elapsed().as_secs() < 40);
 }
 
 #[test]

@@ -253,6 +253,21 @@ pub fn parse_str(text: &str, source: &Path) -> Result<Scene> {
 }
 
 /// [`parse_str`] with `overrides` applied to the tables before validation.
+/// A value refused only because of an override says so, naming the overrides (issue 24:
+/// `--set render.width=abc` was reported as if the scene file held "abc").
 pub fn parse_str_with(text: &str, source: &Path, overrides: &[FieldOverride]) -> Result<Scene> {
-    parse::parse_scene(text, source, overrides)
+    let result = parse::parse_scene(text, source, overrides);
+    match result {
+        Err(e) if !overrides.is_empty() && parse::parse_scene(text, source, &[]).is_ok() => {
+            let given: Vec<String> = overrides
+                .iter()
+                .map(|o| format!("--set {}={}", o.key, o.value))
+                .collect();
+            Err(anyhow::anyhow!(
+                "{e:#} (the scene file itself is valid: the value comes from {})",
+                given.join(", ")
+            ))
+        }
+        other => other,
+    }
 }

@@ -251,6 +251,9 @@ pub struct GridMedium {
     pub emission: Option<GridSource>,
     pub emission_scale: Vec3,
     pub velocity: Option<GridSource>,
+    /// The velocity grid's values times this are metres per frame (1: the file holds
+    /// metres per frame; 1/24 for metres per second at 24 frames per second).
+    pub velocity_scale: f32,
     /// Sorted by `frame`.
     pub frames: Vec<GridFrame>,
     /// `type = "vdb"`: where its index space sits (every source is then

@@ -196,19 +196,50 @@ fn indirection(
     )
 }
 
+/// Voxels a velocity may move a point per frame before Nimbus says so: more is what a
+/// file of units per second read as metres per frame looks like (a Houdini `vel` at 24
+/// fps moves 24 times too far), and it smears a still scene into streaks.
+pub const VELOCITY_NOTE_VOXELS: f32 = 4.0;
+
 /// The velocity grid as dense RGBA16F texels over the medium's box (an OpenVDB one over
-/// its dense window, as the loader cuts it).
-fn velocity_texels(grid: &GridMedium, label: &str) -> Result<Option<([u32; 3], Vec<u16>)>> {
+/// its dense window, as the loader cuts it), in metres per frame (times
+/// `velocity_scale`), and a note when it moves a point more than
+/// [`VELOCITY_NOTE_VOXELS`] density voxels per frame.
+#[allow(clippy::type_complexity)]
+fn velocity_texels(
+    grid: &GridMedium,
+    label: &str,
+    density_dims: [u32; 3],
+) -> Result<Option<([u32; 3], Vec<u16>, Option<String>)>> {
     let Some(source) = &grid.velocity else {
         return Ok(None);
     };
     let v = nimbus_scene::load_grid(source, 3, &format!("{label} > velocity"))?;
+    let scale = grid.velocity_scale;
     let texels = v
         .data
         .chunks_exact(3)
-        .flat_map(|c| [c[0], c[1], c[2], 0.0].map(|x| half::f16::from_f32(x).to_bits()))
+        .flat_map(|c| [c[0], c[1], c[2], 0.0].map(|x| half::f16::from_f32(x * scale).to_bits()))
         .collect();
-    Ok(Some((v.dims, texels)))
+    let speed = v
+        .data
+        .chunks_exact(3)
+        .map(|c| glam::Vec3::new(c[0], c[1], c[2]).length() * scale)
+        .fold(0.0f32, f32::max);
+    let size = grid.bounds_max - grid.bounds_min;
+    let voxel = (0..3)
+        .map(|a| size[a] / density_dims[a].max(1) as f32)
+        .fold(f32::INFINITY, f32::min);
+    let voxels = speed / voxel;
+    let note = (voxels > VELOCITY_NOTE_VOXELS).then(|| {
+        format!(
+            "{label} > velocity moves points up to {voxels:.1} voxels per frame (|v| up to \
+             {speed:.3} m/frame after velocity_scale = {scale}): velocities are metres per \
+             frame; if the file holds units per second (Houdini, EmberGen), set \
+             velocity_scale = 1/fps (times metres per unit)"
+        )
+    });
+    Ok(Some((v.dims, texels, note)))
 }
 
 /// Rows of the affine map from a world point to the velocity texture's coordinates: the
@@ -267,6 +298,8 @@ pub struct RestirPass {
     restir_uniforms: RestirUniformsGpu,
     /// The levels the plan asked for, `None` for `auto` (the volumes hold those used).
     plan_levels: (u32, Option<u32>, Option<u32>),
+    /// What the velocity grid's magnitude suggests about its unit, if anything.
+    velocity_note: Option<String>,
 }
 
 impl RestirPass {
@@ -283,10 +316,13 @@ impl RestirPass {
         let pixels = u64::from(r.width) * u64::from(r.height);
         let stride_bytes = reservoir_bytes(plan.max_bounces);
         let reservoir_total = u64::from(reservoir_slots(plan)) * pixels * stride_bytes;
-        let velocity = if plan.has_velocity {
-            velocity_texels(grid, &grid_label)?
+        let (velocity, velocity_note) = if plan.has_velocity {
+            match velocity_texels(grid, &grid_label, grid.density.dims()?)? {
+                Some((dims, texels, note)) => (Some((dims, texels)), note),
+                None => (None, None),
+            }
         } else {
-            None
+            (None, None)
         };
         let velocity_uvw = velocity_uvw(grid);
         // The density moves into `volumes`; the rest of the grid records are uploaded.
@@ -435,6 +471,7 @@ impl RestirPass {
             prev_uploaded: None,
             restir_uniforms,
             plan_levels: (plan.mip_candidates, plan.mip_indirect, plan.mip_reuse),
+            velocity_note,
         })
     }
 
@@ -691,7 +728,7 @@ impl Pass for RestirPass {
 
     fn notes(&self) -> Vec<String> {
         let l = self.volumes.levels;
-        let mut notes = Vec::new();
+        let mut notes: Vec<String> = self.velocity_note.iter().cloned().collect();
         if let Some(errors) = &self.volumes.march_errors {
             let list: Vec<String> = errors.iter().map(|e| format!("{e:.3}")).collect();
             notes.push(format!(

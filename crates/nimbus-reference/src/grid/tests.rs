@@ -33,6 +33,7 @@ fn grid_medium(lo: Vec3, hi: Vec3, density_scale: f32, albedo: Vec3, g: f32) -> 
         emission: None,
         emission_scale: Vec3::ONE,
         velocity: None,
+        velocity_scale: 1.0,
         frames: Vec::new(),
         vdb: None,
     }

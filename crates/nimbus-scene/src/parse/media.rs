@@ -39,6 +39,7 @@ pub(super) const MEDIUM_TYPES: &[(&str, &[&str])] = &[
             "emission",
             "emission_scale",
             "velocity",
+            "velocity_scale",
             "frame",
         ],
     ),
@@ -130,8 +131,12 @@ pub(super) fn parse_medium(
             table,
             GridChannels::Vector,
         )?),
+        None if f.has("velocity_scale") => {
+            return Err(f.error("velocity_scale", "has no effect without `velocity`"));
+        }
         None => None,
     };
+    let velocity_scale = f.f32_in("velocity_scale", Some(1.0), 1e-6..=1e6)?;
 
     let mut frames: Vec<(GridFrame, String)> = Vec::new();
     for (i, frame_table) in f.tables("frame")?.into_iter().enumerate() {
@@ -169,6 +174,7 @@ pub(super) fn parse_medium(
         emission,
         emission_scale: f.color("emission_scale", Some(Vec3::ONE), radiometric)?,
         velocity,
+        velocity_scale,
         frames: frames.into_iter().map(|(frame, _)| frame).collect(),
         vdb: None,
     };

@@ -30,6 +30,7 @@ pub(super) const VDB_KEYS: &[&str] = &[
     "emission",
     "emission_scale",
     "velocity",
+    "velocity_scale",
     "frame",
     "to_world",
 ];
@@ -322,6 +323,9 @@ pub(super) fn parse_vdb_medium(
             source.check_same_transform(f, "velocity", &file_transform)?;
             Some(source)
         }
+        None if f.has("velocity_scale") => {
+            return Err(f.error("velocity_scale", "has no effect without `velocity`"));
+        }
         None => None,
     };
 
@@ -387,6 +391,7 @@ pub(super) fn parse_vdb_medium(
         emission: emission.map(|s| s.into_source(&window)),
         emission_scale: f.color("emission_scale", Some(Vec3::ONE), radiometric)?,
         velocity: velocity.map(|s| s.into_source(&window)),
+        velocity_scale: f.f32_in("velocity_scale", Some(1.0), 1e-6..=1e6)?,
         frames: frames
             .into_iter()
             .map(|(frame, source, _)| GridFrame {

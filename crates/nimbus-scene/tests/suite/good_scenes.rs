@@ -338,6 +338,7 @@ sigma_star_floor = 0.125
                 file: volumes.join("velocity.raw"),
                 dims: [4, 3, 2]
             }),
+            velocity_scale: 1.0,
             frames: vec![
                 GridFrame {
                     frame: 2,
