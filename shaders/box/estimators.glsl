@@ -169,6 +169,11 @@ DistanceSample integrand_sample(BoxMedium bm, Light l, vec3 o, vec3 d, vec3 o_lo
 // share at small depth), and wrong where occluders interleave with the segment in depth
 // (false shadows and leaks, the paper's Figs. 12-13). Other box media on the way to the
 // light multiply in their mean transmittance at the same points.
+// Moment-map taps per point of ME along its share of the segment: one per
+// ME_TAP_SPACING level-0 texels of it, at most ME_MAX_TAPS.
+#define ME_MAX_TAPS 8u
+#define ME_TAP_SPACING 2.0
+
 vec3 single_scatter_me(uint m, BoxMedium bm, vec3 o, vec3 d, vec3 o_local, vec3 d_local, float t_enter,
                        vec3 U[MAX_LIGHTS], vec2 interval[MAX_LIGHTS], uint light_count) {
     uint n = max(u_frame.ray_samples, 1u);
@@ -185,22 +190,37 @@ vec3 single_scatter_me(uint m, BoxMedium bm, vec3 o, vec3 d, vec3 o_local, vec3 
         Light light = lights[l];
         BoxPieces pieces = light_pieces(bm, light, o_local, d_local, t_enter, interval[l]);
         MomentFrame f = moment_frames[l];
-        // The mip level whose texels are as wide as the spacing of the n points.
-        vec2 uv_a = moment_texel(f, o + interval[l].x * d);
-        vec2 uv_b = moment_texel(f, o + interval[l].y * d);
-        float spacing = length(uv_b - uv_a) / float(n);
-        uint level = min(uint(floor(log2(max(spacing, 1.0)))), f.levels - 1u);
         vec4 b = vec4(0.0);
         float z = 0.0;
         float T_other = 0.0;
+        // The quantile interval of point k is [t_lo, t_hi): its share of the segment.
+        float t_lo = interval[l].x;
         for (uint k = 0u; k < n; ++k) {
             COUNT_STEP();
             float t = sample_wvds_distance(pieces, (float(k) + 0.5) / float(n));
+            float t_hi = k + 1u < n ? sample_wvds_distance(pieces, float(k + 1u) / float(n)) : interval[l].y;
             vec3 x = o + t * d;
             if (SC_HAS_SHAPES) {
-                b += moment_fetch(f, level, moment_texel(f, x));
+                // The moments over the point's share of the segment: its interval's
+                // footprint on the map, in taps along it at the mip level as wide as
+                // one tap's stretch. (One tap at the mip of the points'
+                // mean spacing left gaps where the pdf crowds the points, e.g. towards
+                // the lit face of a box around the camera: a window's shaft was missed
+                // or misplaced, its pixels up to 85 % off.)
+                vec2 uv_lo = moment_texel(f, o + t_lo * d);
+                vec2 uv_hi = moment_texel(f, o + t_hi * d);
+                float len = length(uv_hi - uv_lo);
+                uint taps = clamp(uint(ceil(len / ME_TAP_SPACING)), 1u, ME_MAX_TAPS);
+                // Domain: taps >= 1.
+                uint level = min(uint(floor(log2(max(len / float(taps), 1.0)))), f.levels - 1u);
+                vec4 bk = vec4(0.0);
+                for (uint j = 0u; j < taps; ++j) {
+                    bk += moment_fetch(f, level, mix(uv_lo, uv_hi, (float(j) + 0.5) / float(taps)));
+                }
+                b += bk / float(taps);
                 z += moment_depth(f, dot(x, f.omega));
             }
+            t_lo = t_hi;
             if (other_media) {
                 T_other += exp(-box_optical_depth_except(x, -light.direction_or_position, 0.0, FAR, m));
             }

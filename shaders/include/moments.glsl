@@ -63,6 +63,13 @@ float msm_shadow_intensity(vec4 b, float z) {
     if (b.x >= 1.0 - 1e-5) {
         return 0.0;
     }
+    // Every filtered texel holds one occluder depth (variance at rounding level): a hard
+    // comparison, without the bias's leak. Behind a wall with a window, most of a medium
+    // lies in such full shadow, and the bias let about 1 % of its unoccluded radiance
+    // through everywhere: +11 % on a whole image whose light comes through the window.
+    if (fma(-b.x, b.x, b.y) <= 1e-6 * max(b.y, 1e-6)) {
+        return z > b.x ? 1.0 : 0.0;
+    }
     b = mix(b, vec4(0.5), MSM_MOMENT_BIAS);
     // Cholesky factorisation of the Hankel matrix B = [1 b1 b2; b1 b2 b3; b2 b3 b4].
     float L32D22 = fma(-b.x, b.y, b.z);
