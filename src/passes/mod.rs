@@ -27,6 +27,7 @@
 //! path (`shaders/box/crepuscular.comp` is `shaders::BOX_CREPUSCULAR`).
 
 pub mod baseline;
+pub mod baseline_frames;
 pub mod crepuscular;
 pub mod restir;
 
@@ -116,6 +117,9 @@ pub fn create(
 ) -> Result<Box<dyn Pass>> {
     Ok(match &plan.integrator {
         Integrator::Crepuscular(p) => Box::new(crepuscular::create(ctx, p, scene, targets)?),
+        Integrator::Baseline(p) if baseline_frames::has_density_frames(scene) => {
+            Box::new(baseline_frames::create(ctx, p, scene, targets)?)
+        }
         Integrator::Baseline(p) => Box::new(baseline::create(
             ctx,
             p,
@@ -138,6 +142,9 @@ pub fn create(
 pub fn footprint(scene: &Scene, plan: &RenderPlan, footprint: &mut Footprint) -> Result<()> {
     match &plan.integrator {
         Integrator::Crepuscular(p) => crepuscular::footprint(scene, p, footprint),
+        Integrator::Baseline(_) if baseline_frames::has_density_frames(scene) => {
+            baseline_frames::footprint(scene, footprint)
+        }
         Integrator::Baseline(_) => baseline::footprint(scene, footprint),
         Integrator::Restir(p) => restir::footprint(scene, p, footprint),
     }

@@ -63,15 +63,6 @@ pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
         );
     }
     let (index, grid) = grids[0];
-    // A velocity grid only guides ReSTIR's reprojection: the baseline, which keeps no
-    // history, renders the same image without it. Density frames it cannot render yet.
-    if !grid.frames.is_empty() && !restir {
-        let kind = if grid.vdb.is_some() { "vdb" } else { "grid" };
-        bail!(
-            "{file}: [[medium]] #{} (type = \"{kind}\") > [[medium.frame]]: animated density is not supported yet by the baseline path tracer; use volume = \"restir\"",
-            index + 1
-        );
-    }
     if restir {
         if let Some(shape) = scene.shapes.first() {
             if integrator.restir.reuse == nimbus_scene::ReuseMode::Vertex {
