@@ -28,6 +28,7 @@ mod grid_sparse;
 mod grid_volume;
 mod hard_cases;
 mod image_harness;
+mod invariants;
 mod layout;
 mod light_keys;
 mod mesh_bvh_gpu;
