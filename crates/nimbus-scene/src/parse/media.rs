@@ -94,8 +94,43 @@ pub(super) fn parse_medium(
         return super::vdb::parse_vdb_medium(&f, albedo, g);
     }
 
-    let bounds_min = f.vec3("bounds_min", None)?;
-    let bounds_max = f.vec3("bounds_max", None)?;
+    let density_table = f
+        .opt_table("density")?
+        .ok_or_else(|| f.error("density", "missing required field"))?;
+    let density = parse_grid_source(&f, "density", density_table, GridChannels::Scalar)?;
+    // The box: the scene's bounds, else (both left out) a .vol density's header box.
+    let (bounds_min, bounds_max) = match (f.has("bounds_min"), f.has("bounds_max"), &density) {
+        (false, false, GridSource::MitsubaVol { file }) => {
+            let header = read_vol_header(file).map_err(|e| f.error("density", e))?;
+            let finite = header.bbox_min.is_finite() && header.bbox_max.is_finite();
+            if !finite {
+                return Err(f.error(
+                    "bounds_min",
+                    format!(
+                        "missing, and the .vol header of {} holds no finite bounding box \
+                         ({:?} .. {:?}): give bounds_min and bounds_max",
+                        file.display(),
+                        header.bbox_min.to_array(),
+                        header.bbox_max.to_array()
+                    ),
+                ));
+            }
+            (header.bbox_min, header.bbox_max)
+        }
+        (false, true, _) => {
+            return Err(f.error(
+                "bounds_min",
+                "missing: give both bounds or neither (a .vol density's header box)",
+            ));
+        }
+        (true, false, _) => {
+            return Err(f.error(
+                "bounds_max",
+                "missing: give both bounds or neither (a .vol density's header box)",
+            ));
+        }
+        _ => (f.vec3("bounds_min", None)?, f.vec3("bounds_max", None)?),
+    };
     for axis in 0..3 {
         let extent = f64::from(bounds_max[axis]) - f64::from(bounds_min[axis]);
         if let Some(message) = positive_up_to(MAX_LENGTH_M)(extent) {
@@ -108,10 +143,6 @@ pub(super) fn parse_medium(
             ));
         }
     }
-    let density_table = f
-        .opt_table("density")?
-        .ok_or_else(|| f.error("density", "missing required field"))?;
-    let density = parse_grid_source(&f, "density", density_table, GridChannels::Scalar)?;
     let emission = match f.opt_table("emission")? {
         Some(table) => Some(parse_grid_source(
             &f,

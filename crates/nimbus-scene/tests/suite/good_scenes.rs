@@ -709,3 +709,52 @@ fn convex_medium_loads_normalized_with_its_polyhedron() {
         dodecahedron([1.0, 0.0, -2.0], 0.8, 1.5)
     ));
 }
+
+/// A `.vol` density without `bounds_min` / `bounds_max` fills its header's bounding box
+/// (issue 24: the bounds were required and the header's box ignored); given bounds place
+/// it instead.
+#[test]
+fn a_vol_density_without_bounds_takes_its_header_box() {
+    let dir = TempDir::new("vol-bounds");
+    let mut bytes = vol_file([2, 3, 4], 1);
+    for (i, v) in [-1.0f32, -2.0, -3.0, 1.0, 2.0, 3.5].iter().enumerate() {
+        bytes[24 + 4 * i..28 + 4 * i].copy_from_slice(&v.to_le_bytes());
+    }
+    dir.write("box.vol", &bytes);
+    let path = dir.0.join("scene.toml");
+    let parse = |bounds: &str| {
+        let text = format!(
+            "{CAMERA}[[medium]]\ntype = \"grid\"\n{bounds}density = {{ file = \"box.vol\" }}\n"
+        );
+        match nimbus_scene::parse_str(&text, &path) {
+            Ok(s) => s,
+            Err(e) => panic!("{e:#}"),
+        }
+    };
+    let grid = |s: &nimbus_scene::Scene| match &s.media[0] {
+        Medium::Grid(g) => (g.bounds_min, g.bounds_max),
+        other => panic!("{other:?}"),
+    };
+    assert_eq!(
+        grid(&parse("")),
+        (Vec3::new(-1.0, -2.0, -3.0), Vec3::new(1.0, 2.0, 3.5))
+    );
+    assert_eq!(
+        grid(&parse("bounds_min = [0, 0, 0]\nbounds_max = [1, 1, 1]\n")),
+        (Vec3::ZERO, Vec3::ONE)
+    );
+    let error = format!(
+        "{:#}",
+        nimbus_scene::parse_str(
+            &format!(
+                "{CAMERA}[[medium]]\ntype = \"grid\"\nbounds_max = [1, 1, 1]\ndensity = {{ file = \"box.vol\" }}\n"
+            ),
+            &path
+        )
+        .unwrap_err()
+    );
+    assert_contains(
+        &error,
+        &["field `bounds_min`", "give both bounds or neither"],
+    );
+}
