@@ -1,8 +1,8 @@
 //! Nimbus: a raw-Vulkan compute renderer for participating media.
 //!
 //! The root package turns a scene into a render plan ([`plan`]) and runs it
-//! ([`renderer`]), one compute pass per module under [`passes`]. See
-//! `shared/ARCHITECTURE.md` for the layering.
+//! ([`renderer`]), one compute pass per module under [`passes`]: scene → plan → passes →
+//! renderer → output (the README's "Layout" lists where each lives).
 
 pub mod bench;
 pub mod budget;

@@ -1,5 +1,5 @@
 // Descriptor binding numbers shared by every pass (set 0). Mirrored in
-// src/bindings.rs; a test checks that the two agree.
+// src/gpu/bindings.rs; a test checks that the two agree.
 #ifndef NIMBUS_BINDINGS_GLSL
 #define NIMBUS_BINDINGS_GLSL
 

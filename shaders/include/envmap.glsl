@@ -1,4 +1,4 @@
-// Environment map: the equirectangular mapping of shared/SCENE_FORMAT.md, nearest-texel
+// Environment map: the equirectangular mapping of docs/scene-format.md, nearest-texel
 // lookup and importance sampling, mirroring crates/nimbus-scene/src/envmap.rs
 // (`direction_to_uv`, `uv_to_direction`, `EnvMap::lookup`, `EnvSampler::sample`/`pdf`).
 //

@@ -17,7 +17,7 @@
 // World x maps to p affinely: for axis-aligned grids through the world box box_min ..
 // box_max (p = (x - box_min) * scale + index_min), else through world_to_index.
 //
-// - A dense grid of SCENE_FORMAT.md (cell-centred, dims n, box bounds_min .. bounds_max) is
+// - A dense grid of docs/scene-format.md (cell-centred, dims n, box bounds_min .. bounds_max) is
 //   lattice 0 .. n - 1 in p-box [0, n]: within half a voxel of a face the clamp makes the
 //   density constant along that axis.
 // - An OpenVDB grid (node-centred) is lattice bmin - 1 .. bmax + 1 (its active voxels and one

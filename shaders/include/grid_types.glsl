@@ -1,6 +1,6 @@
 // The grid medium's parameters, shared by grid.glsl and the shaders that include it (the
 // includer declares `u_grid` of type GridParams before including grid.glsl). Mirrored member
-// by member by the #[repr(C)] structs in src/gpu/records.rs; tests/layout.rs checks them.
+// by member by the #[repr(C)] structs in src/gpu/records.rs; tests/suite/layout.rs checks them.
 #ifndef NIMBUS_GRID_TYPES_GLSL
 #define NIMBUS_GRID_TYPES_GLSL
 

@@ -1,6 +1,6 @@
 // GPU scene records (std430 storage buffers), the frame's parameters (std430) and the
 // push constants of a dispatch. Mirrored member by member by the #[repr(C)] structs in
-// src/gpu/records.rs (same names); tests/layout.rs parses this file and checks every
+// src/gpu/records.rs (same names); tests/suite/layout.rs parses this file and checks every
 // member's type and offset and every struct's size.
 //
 // A float or uint after a vec3 shares the vec3's 16 bytes (std140 and std430 alike), so

@@ -1,5 +1,5 @@
 #version 460
-// Test harness for grid.glsl (tests/grid_volume.rs). One invocation per query; the query's
+// Test harness for grid.glsl (tests/suite/grid_volume.rs). One invocation per query; the query's
 // mode says what to compute along its ray o + t d over [t0, t1]:
 //   MODE_CLOSED_FORM: optical depth, transmittance, the box span and sigma_t at o;
 //   MODE_ESTIMATORS: `samples` ratio-tracking and residual-ratio-tracking estimates of T,

@@ -1,5 +1,5 @@
 //! Descriptor binding numbers (set 0), mirrored from `shaders/include/bindings.glsl`.
-//! `tests/layout.rs` parses the header and checks every value here.
+//! `tests/suite/layout.rs` parses the header and checks every value here.
 
 pub const FRAME_UNIFORMS: u32 = 0;
 pub const ACCUM: u32 = 1;

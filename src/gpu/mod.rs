@@ -1,7 +1,7 @@
 //! The GPU side of the scene: what passes upload and how the shaders see it.
 //!
 //! - [`records`]: every `#[repr(C)]` mirror of a GLSL struct (records, uniforms, push
-//!   constants), checked against the GLSL by `tests/layout.rs`;
+//!   constants), checked against the GLSL by `tests/suite/layout.rs`;
 //! - [`bindings`]: descriptor binding numbers, mirrored from `bindings.glsl`;
 //! - [`scene`]: turning a [`nimbus_scene::Scene`] into those records (box media, shapes,
 //!   lights with their selection CDF, grids with their super-voxels, environment maps);

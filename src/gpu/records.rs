@@ -3,7 +3,7 @@
 //! Each mirror has the GLSL struct's members, in order and by the same names: a `vec3`
 //! is `[f32; 3]` followed by the scalar (or `_padN`) that shares its 16 bytes, so
 //! std140 / std430 and `repr(C)` agree with no implicit padding (which `Pod` forbids).
-//! `tests/layout.rs` parses the GLSL declarations (`shaders/include/scene.glsl`,
+//! `tests/suite/layout.rs` parses the GLSL declarations (`shaders/include/scene.glsl`,
 //! `shaders/include/grid_types.glsl`, `shaders/restir/resources.glsl`) and checks every
 //! member's type and offset and every struct's size.
 

@@ -1,7 +1,7 @@
 //! Rendered images and their files.
 //!
 //! An [`ImageRgb`] holds linear radiance in W/(m²·sr), one float RGB triple per pixel,
-//! row-major with pixel (0, 0) at the top left (`shared/SCENE_FORMAT.md`).
+//! row-major with pixel (0, 0) at the top left (`docs/scene-format.md`).
 //!
 //! - `.exr`: linear float32 RGB, lossless ZIP compression, exactly the stored values.
 //! - `.png`: 8-bit sRGB after an exposure and a tone curve ([`Display`], default the

@@ -165,3 +165,90 @@ fn every_option_of_every_command_has_help() {
         );
     }
 }
+
+/// Paths named in comments (`//`, `//!`, `///` in Rust; `//` in GLSL), backticked or
+/// bare, with a known extension.
+fn comment_paths(text: &str) -> Vec<String> {
+    let mut paths = Vec::new();
+    for line in text.lines() {
+        let Some((_, comment)) = line.split_once("//") else {
+            continue;
+        };
+        // Backticked paths as in the docs (not rustdoc's intra-doc links such as
+        // `[x](super::Y)`), and bare ones ending in a source extension.
+        paths.extend(
+            referenced_paths(comment)
+                .into_iter()
+                .filter(|p| p.contains('/') && !p.contains("::")),
+        );
+        for word in comment.split(|c: char| c.is_whitespace() || "()`,;".contains(c)) {
+            let word = word.trim_end_matches(['.', ':']);
+            let known_dir = ["src/", "shaders/", "tests/", "docs/", "tools/", "assets/"]
+                .iter()
+                .any(|p| word.starts_with(p));
+            let known_ext = [".rs", ".glsl", ".comp", ".md", ".toml", ".sh"]
+                .iter()
+                .any(|e| word.ends_with(e));
+            if known_dir && known_ext && !word.contains(['*', '{', '<', 'N']) {
+                paths.push(word.to_string());
+            }
+        }
+    }
+    paths
+}
+
+/// Every source file under `dir` with one of `exts`.
+fn sources(dir: &Path, exts: &[&str], out: &mut Vec<std::path::PathBuf>) {
+    for entry in std::fs::read_dir(dir).into_iter().flatten().flatten() {
+        let path = entry.path();
+        if path.is_dir() {
+            sources(&path, exts, out);
+        } else if path
+            .extension()
+            .is_some_and(|e| exts.iter().any(|x| e == *x))
+        {
+            out.push(path);
+        }
+    }
+}
+
+/// Issue 25: comments named files that had moved (the bindings module before it went
+/// under src/gpu, the layout test before the suite, the scene contract outside the
+/// repository). Every path a comment names exists, from the repository's root or from
+/// its crate's.
+#[test]
+fn comments_point_only_to_files_that_exist() {
+    let mut files = Vec::new();
+    for dir in ["src", "tests", "shaders", "crates", "examples", "build.rs"] {
+        let path = repo().join(dir);
+        if path.is_file() {
+            files.push(path);
+        } else {
+            sources(&path, &["rs", "glsl", "comp"], &mut files);
+        }
+    }
+    let mut problems = Vec::new();
+    for file in files {
+        let text = std::fs::read_to_string(&file).unwrap();
+        let name = file.strip_prefix(repo()).unwrap().display().to_string();
+        // The crate a file belongs to (crates/<name>/...), else the repository.
+        let crate_root = name
+            .strip_prefix("crates/")
+            .and_then(|rest| rest.split('/').next())
+            .map(|c| repo().join("crates").join(c));
+        let outside = text.contains("shared/SCENE_FORMAT") || text.contains("shared/ARCHITECTURE");
+        if outside && name != "tests/suite/docs.rs" {
+            problems.push(format!("{name} points outside the repository (shared/)"));
+        }
+        for path in comment_paths(&text) {
+            let exists = repo().join(&path).exists()
+                || crate_root.as_ref().is_some_and(|c| c.join(&path).exists());
+            if !exists {
+                problems.push(format!("{name} names `{path}`, which does not exist"));
+            }
+        }
+    }
+    problems.sort();
+    problems.dedup();
+    assert!(problems.is_empty(), "{}", problems.join("\n"));
+}

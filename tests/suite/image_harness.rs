@@ -1,4 +1,4 @@
-//! Tests of the golden-image harness itself (`tests/common`). They keep their goldens in
+//! Tests of the golden-image harness itself (`tests/suite/common`). They keep their goldens in
 //! cargo's temporary directory and never touch `assets/golden`.
 
 use std::path::PathBuf;

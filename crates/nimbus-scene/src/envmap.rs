@@ -1,4 +1,4 @@
-//! Environment maps: loading, the direction ↔ (u, v) mapping of `shared/SCENE_FORMAT.md`,
+//! Environment maps: loading, the direction ↔ (u, v) mapping of `docs/scene-format.md`,
 //! lookup, and importance-sampling tables (CPU side; the GPU mirrors [`EnvMap::lookup`]
 //! and consumes [`EnvSampler::to_gpu_tables`]).
 //!

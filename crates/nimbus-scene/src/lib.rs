@@ -1,7 +1,7 @@
 //! Nimbus scene files: parsing and validation into [`Scene`] and the types it holds
 //! (pure CPU, no Vulkan).
 //!
-//! The format is the contract in `shared/SCENE_FORMAT.md`. [`load`] reads a file,
+//! The format is the contract in `docs/scene-format.md`. [`load`] reads a file,
 //! [`parse_str`] parses text; both return a fully validated [`Scene`] or an error
 //! that names the file, the table and the field, e.g.
 //!
@@ -25,7 +25,7 @@
 //!   checked to exist when the scene is loaded; contents are read later, except the
 //!   48-byte header of `.vol` files.
 //!
-//! # Defaults (beyond those in SCENE_FORMAT.md)
+//! # Defaults (beyond those in docs/scene-format.md)
 //! - `[camera]` is required, with `position` and `look_at`; when `[[camera.keyframe]]`
 //!   entries exist, `position` / `look_at` may be left out and default to the first
 //!   keyframe's. Each keyframe needs `frame`, `position` and `look_at`.

@@ -1,4 +1,4 @@
-//! The validated, in-memory form of a scene file (`shared/SCENE_FORMAT.md`).
+//! The validated, in-memory form of a scene file (`docs/scene-format.md`).
 //!
 //! Everything here is already checked: directions are normalized, colours expanded to
 //! RGB, paths resolved against the scene file's directory, ranges validated. Code that

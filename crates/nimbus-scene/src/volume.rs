@@ -79,7 +79,7 @@ impl VoxelGrid {
     }
 
     /// Trilinear interpolation of channel 0 at `p` in voxel-index space (centres at
-    /// i + 0.5), as SCENE_FORMAT.md specifies: each coordinate is first clamped to
+    /// i + 0.5), as docs/scene-format.md specifies: each coordinate is first clamped to
     /// [0.5, n − 0.5], so within half a voxel of a face (and outside the grid) the
     /// value is that of the outermost centres. A NaN coordinate acts as 0.5.
     pub fn sample_trilinear(&self, p: [f64; 3]) -> f64 {

@@ -1,5 +1,5 @@
-//! The golden-image harness for integration tests (after wgpu's `tests/src/image.rs`
-//! and vello's snapshot tests).
+//! The golden-image harness for integration tests (after the image comparison of wgpu's
+//! test harness and vello's snapshot tests).
 //!
 //! A test renders an image and calls [`compare_with_golden`], which checks it against
 //! `assets/golden/{name}.exr` with two metrics:

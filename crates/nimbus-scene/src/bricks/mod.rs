@@ -18,7 +18,7 @@
 //!
 //! A dense `type = "grid"` of dims `n` is lattice `0 ..= n − 1` with the box `[0, n]`:
 //! within half a voxel of a face the clamp makes the density constant, as
-//! SCENE_FORMAT.md says. An OpenVDB grid with active voxels in `bmin ..= bmax` is lattice
+//! docs/scene-format.md says. An OpenVDB grid with active voxels in `bmin ..= bmax` is lattice
 //! `bmin − 1 ..= bmax + 1` (one layer of background around the active voxels, where
 //! trilinear filtering reaches) with the box `[bmin − 1, bmax + 1] + 0.5`: nothing
 //! clamps inside it.

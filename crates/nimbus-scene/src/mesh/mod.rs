@@ -45,7 +45,7 @@
 //! (about X, then Y, then Z: the convention of box shapes and media). A transform
 //! with a negative scale determinant mirrors the mesh; the loader then swaps two
 //! indices of every triangle so that a triangle's counter-clockwise side (the side
-//! it emits on, see SCENE_FORMAT.md) stays the side the file's normal pointed to,
+//! it emits on, see docs/scene-format.md) stays the side the file's normal pointed to,
 //! as pbrt does.
 //!
 //! # Limits

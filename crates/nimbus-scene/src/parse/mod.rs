@@ -1,4 +1,4 @@
-//! Scene file → validated [`Scene`]: one function per table of `SCENE_FORMAT.md`.
+//! Scene file → validated [`Scene`]: one function per table of `docs/scene-format.md`.
 
 use std::path::Path;
 

@@ -38,7 +38,7 @@
 //!   `x·64 + y·8 + z` as in OpenVDB) and [`SparseGrid::values`]: 512 voxels per brick,
 //!   **x fastest, then y, then z** ([`SparseGrid::brick_voxel_index`]), channels
 //!   interleaved. Inactive voxels inside a brick hold the background value
-//!   (SCENE_FORMAT.md: inactive voxels are the background); OpenVDB's stored inactive
+//!   (docs/scene-format.md: inactive voxels are the background); OpenVDB's stored inactive
 //!   values are skipped.
 //! - Tiles: active constant regions of internal nodes (edge 8 or 128 voxels) and of the
 //!   root (4096, which is always over the voxel limit below). Inactive tiles are
@@ -57,7 +57,7 @@
 //! or a huge allocation.
 //!
 //! # Tests
-//! `tests/vdb.rs` compares the reader, voxel for voxel, with what OpenVDB 10 reads back
+//! `tests/suite/vdb.rs` compares the reader, voxel for voxel, with what OpenVDB 10 reads back
 //! from files it wrote (`tools/make_test_vdbs.py`); the unit tests here cover what
 //! OpenVDB 10's Python module cannot write, and truncate and byte-flip real files.
 

@@ -39,7 +39,7 @@ impl Rng {
 }
 
 /// The direction at polar angle θ from +Y and azimuth φ = atan2(x, −z), written out
-/// from SCENE_FORMAT.md rather than through the crate.
+/// from docs/scene-format.md rather than through the crate.
 fn dir_theta_phi(theta: f64, phi: f64) -> DVec3 {
     DVec3::new(
         theta.sin() * phi.sin(),
