@@ -143,8 +143,10 @@ void restir_main() {
         // Nothing in the medium along the ray: follow the background (a far point).
         on_screen = camera_project(u_prev_frame, u_prev_frame.cam_position + cam.d * 1e6, px);
     }
-    if (!on_screen || px.x < 0.0 || px.y < 0.0 || px.x >= float(u_frame.width) ||
-        px.y >= float(u_frame.height)) {
+    // Written so that a NaN projection (an extreme velocity: f16 texels saturate to inf)
+    // fails it too: NaN compares false.
+    if (!on_screen || !(px.x >= 0.0 && px.y >= 0.0 && px.x < float(u_frame.width) &&
+                        px.y < float(u_frame.height))) {
         // No temporal neighbour: the reservoir stays as it is.
         return;
     }

@@ -432,6 +432,10 @@ fn a_fast_velocity_grid_is_noted_with_its_unit() {
             && stderr.contains("velocity_scale = 1/fps"),
         "{stderr}"
     );
+    // The largest accepted scale overflows the half-float velocity texels to infinity:
+    // reprojection finds no previous pixel, and the frame stays finite.
+    let stderr = run("1e6");
+    assert!(!stderr.contains("not finite"), "{stderr}");
 }
 
 /// `--frame N --passes P` renders one scene frame P times, and says so (issue 24: it

@@ -350,10 +350,17 @@ fn progress_lines_appear_without_a_terminal() {
     assert!(stderr.contains("progress: 6/6 frames"), "{stderr}");
 }
 
-#[test]
-fn an_interrupt_writes_the_frames_rendered_so_far() {
-    let dir = scratch("interrupt");
-    let path = dir.join("partial.exr");
+/// Starts a render of a million frames into `path` (with `args`), waits for its first
+/// progress line, sends `signal` (`"INT"`, `"TERM"`) `count` times 100 ms apart (so that
+/// the kernel does not merge a pending signal with the next), and returns its exit code
+/// and the rest of its standard error.
+fn interrupt_render(
+    path: &Path,
+    signal: &str,
+    count: usize,
+    args: &[&str],
+) -> (Option<i32>, String) {
+    use std::io::BufRead as _;
     let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_nimbus"))
         .args([
             "render",
@@ -362,27 +369,40 @@ fn an_interrupt_writes_the_frames_rendered_so_far() {
             "--frames",
             "1000000",
         ])
-        .args(SMALL)
+        .args(args)
         .env("NIMBUS_PROGRESS_SECONDS", "0.2")
         .stderr(std::process::Stdio::piped())
         .spawn()
         .unwrap();
-    // Wait for the first frames, then Ctrl-C.
-    use std::io::BufRead as _;
     let mut lines = std::io::BufReader::new(child.stderr.take().unwrap()).lines();
     for line in lines.by_ref() {
         if line.unwrap().starts_with("progress:") {
             break;
         }
     }
-    let status = std::process::Command::new("kill")
-        .args(["-INT", &child.id().to_string()])
-        .status()
-        .unwrap();
-    assert!(status.success());
-    let rest: Vec<String> = lines.map_while(Result::ok).collect();
-    let code = child.wait().unwrap().code();
-    assert_eq!(code, Some(130), "{rest:?}");
+    for i in 0..count {
+        // Apart, so that the kernel does not merge a pending signal with the next.
+        if i > 0 {
+            std::thread::sleep(std::time::Duration::from_millis(100));
+        }
+        let status = std::process::Command::new("kill")
+            .args([format!("-{signal}"), child.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(status.success());
+    }
+    let rest = lines
+        .map_while(Result::ok)
+        .collect::<Vec<String>>()
+        .join("\n");
+    (child.wait().unwrap().code(), rest)
+}
+
+#[test]
+fn an_interrupt_writes_the_frames_rendered_so_far() {
+    let path = scratch("interrupt").join("partial.exr");
+    let (code, rest) = interrupt_render(&path, "INT", 1, &SMALL);
+    assert_eq!(code, Some(130), "{rest}");
     let layers = read_layers(&path).unwrap();
     assert_eq!(layers.attributes["stop"], "interrupted");
     let frames: u64 = layers.attributes["frames"].parse().unwrap();
@@ -396,38 +416,9 @@ fn an_interrupt_writes_the_frames_rendered_so_far() {
 fn a_second_interrupt_says_what_was_written() {
     let dir = scratch("interrupt-twice");
     let path = dir.join("twice.exr");
-    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_nimbus"))
-        .args([
-            "render",
-            "--out",
-            path.to_str().unwrap(),
-            "--frames",
-            "1000000",
-        ])
-        .args(SMALL)
-        .env("NIMBUS_PROGRESS_SECONDS", "0.2")
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    use std::io::BufRead as _;
-    let mut lines = std::io::BufReader::new(child.stderr.take().unwrap()).lines();
-    for line in lines.by_ref() {
-        if line.unwrap().starts_with("progress:") {
-            break;
-        }
-    }
-    for _ in 0..2 {
-        let status = std::process::Command::new("kill")
-            .args(["-TERM", &child.id().to_string()])
-            .status()
-            .unwrap();
-        assert!(status.success());
-    }
-    let rest = lines
-        .map_while(Result::ok)
-        .collect::<Vec<String>>()
-        .join("\n");
-    let code = child.wait().unwrap().code();
+    // Frames of a second or so (the default scene at 320x240, 4 spp per frame): the
+    // second signal lands while the first one's frame is still rendering.
+    let (code, rest) = interrupt_render(&path, "TERM", 2, &["--width", "320", "--height", "240"]);
     assert_eq!(code, Some(130), "{rest}");
     if rest.contains("finishing the write") {
         read_layers(&path).unwrap();
