@@ -180,6 +180,49 @@ fn emission_matches_the_cpu_oracle() {
     }
 }
 
+/// An rgb emission grid (a 3-channel half-float `.vol`, each channel another cloud) with
+/// a sun, K = 2: the baseline matches the CPU oracle, so every channel is read as itself.
+#[test]
+fn rgb_emission_vol_matches_the_cpu_oracle() {
+    let ctx = context();
+    let dir = crate::common::cli::scratch("baseline", "rgb-emission");
+    let dims = [12u32, 8, 12];
+    let clouds: Vec<_> = (0..3)
+        .map(|c| nimbus_scene::procedural_cloud(dims, 11 + c))
+        .collect();
+    let rgb = nimbus_scene::VoxelGrid {
+        dims,
+        channels: 3,
+        data: (0..clouds[0].data.len())
+            .flat_map(|i| [0, 1, 2].map(|c| clouds[c].data[i]))
+            .collect(),
+    };
+    let path = dir.join("rgb.vol");
+    nimbus_scene::write_vol_encoded(
+        &path,
+        &rgb,
+        glam::Vec3::ZERO,
+        glam::Vec3::ONE,
+        nimbus_scene::VolEncoding::F16,
+    )
+    .expect("write rgb.vol");
+    let lights =
+        "[[light]]\ntype = \"directional\"\ndirection = [0.5, -0.7, -0.4]\nirradiance = 1.0";
+    let text = cloud_scene("[0.3, 0.5, 2.4]", 0.6, 0.3, 2, 16.0, lights, (16, 12)).replace(
+        "albedo = 0.6",
+        &format!(
+            "albedo = 0.6\nemission = {{ file = {:?} }}\nemission_scale = [3.0, 2.0, 4.0]",
+            path.display().to_string()
+        ),
+    );
+    check_against_oracle(
+        &ctx,
+        &scene(&text, "rgb-emission.toml"),
+        8,
+        "rgb emission K=2",
+    );
+}
+
 /// A homogeneous box medium (a fog layer) below the cloud, K = 1 and 3: the baseline's
 /// mixed free flights and shadow rays match the CPU oracle.
 #[test]

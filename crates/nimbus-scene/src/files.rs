@@ -17,13 +17,68 @@ pub const MAX_GRID_DIM: u32 = 4096;
 /// Most voxels in one grid (2^31).
 pub const MAX_GRID_VOXELS: u64 = 1 << 31;
 
-/// The header of a Mitsuba `.vol` grid file (float32 encoding).
+/// How a Mitsuba `.vol` file stores its values (the header's encoding identifier, as
+/// Mitsuba 0.6's `gridvolume` defines it; Mitsuba 3 writes float32).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum VolEncoding {
+    /// 1: little-endian float32.
+    F32,
+    /// 2: little-endian IEEE half floats.
+    F16,
+    /// 3: bytes, 0..255 mapped to 0..1.
+    U8,
+}
+
+impl VolEncoding {
+    /// Bytes per value.
+    pub fn bytes(self) -> u64 {
+        match self {
+            VolEncoding::F32 => 4,
+            VolEncoding::F16 => 2,
+            VolEncoding::U8 => 1,
+        }
+    }
+
+    /// Decodes `bytes` (`out.len()` values of this encoding) into `out`.
+    pub fn decode(self, bytes: &[u8], out: &mut [f32]) {
+        match self {
+            VolEncoding::F32 => {
+                for (v, b) in out.iter_mut().zip(bytes.chunks_exact(4)) {
+                    *v = f32::from_le_bytes([b[0], b[1], b[2], b[3]]);
+                }
+            }
+            VolEncoding::F16 => {
+                for (v, b) in out.iter_mut().zip(bytes.chunks_exact(2)) {
+                    *v = half::f16::from_le_bytes([b[0], b[1]]).to_f32();
+                }
+            }
+            VolEncoding::U8 => {
+                for (v, &b) in out.iter_mut().zip(bytes) {
+                    *v = f32::from(b) / 255.0;
+                }
+            }
+        }
+    }
+
+    /// The name a message gives the encoding.
+    pub fn name(self) -> &'static str {
+        match self {
+            VolEncoding::F32 => "float32",
+            VolEncoding::F16 => "float16",
+            VolEncoding::U8 => "uint8",
+        }
+    }
+}
+
+/// The header of a Mitsuba `.vol` grid file.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct VolHeader {
     /// Voxels along x, y, z.
     pub dims: [u32; 3],
     /// Values per voxel.
     pub channels: u32,
+    /// How the values are stored.
+    pub encoding: VolEncoding,
     /// The bounding box stored in the file (the scene's `bounds_min` / `bounds_max`
     /// take precedence).
     pub bbox_min: Vec3,
@@ -36,9 +91,9 @@ impl VolHeader {
         self.dims.iter().map(|&d| u64::from(d)).product()
     }
 
-    /// The file size this header implies: header plus float32 data.
+    /// The file size this header implies: header plus the values.
     pub fn expected_file_bytes(&self) -> u64 {
-        VOL_HEADER_BYTES + self.voxel_count() * u64::from(self.channels) * 4
+        VOL_HEADER_BYTES + self.voxel_count() * u64::from(self.channels) * self.encoding.bytes()
     }
 }
 
@@ -112,13 +167,21 @@ pub fn read_vol_header(path: &Path) -> Result<VolHeader> {
         ])
     };
     let float_at = |offset: usize| f32::from_bits(int_at(offset) as u32);
-    let encoding = int_at(4);
-    if encoding != 1 {
-        bail!(
-            "{}: .vol encoding {encoding} is not supported (only 1, float32)",
+    let encoding = match int_at(4) {
+        1 => VolEncoding::F32,
+        2 => VolEncoding::F16,
+        3 => VolEncoding::U8,
+        4 => bail!(
+            "{}: .vol encoding 4 (quantized directions) is not a grid of values: \
+             1 (float32), 2 (float16) or 3 (uint8) are read",
             path.display()
-        );
-    }
+        ),
+        other => bail!(
+            "{}: .vol encoding {other} is not supported: 1 (float32), 2 (float16) or \
+             3 (uint8) are read",
+            path.display()
+        ),
+    };
     let dims = check_grid_dims([8, 12, 16].map(|offset| i64::from(int_at(offset))))
         .map_err(|message| anyhow::anyhow!("{}: .vol header dims: {message}", path.display()))?;
     let channels = int_at(20);
@@ -131,6 +194,7 @@ pub fn read_vol_header(path: &Path) -> Result<VolHeader> {
     let header = VolHeader {
         dims,
         channels,
+        encoding,
         bbox_min: Vec3::new(float_at(24), float_at(28), float_at(32)),
         bbox_max: Vec3::new(float_at(36), float_at(40), float_at(44)),
     };
@@ -138,11 +202,13 @@ pub fn read_vol_header(path: &Path) -> Result<VolHeader> {
     if size != expected {
         bail!(
             "{}: expected {expected} bytes (48-byte header + {} x {} x {} voxels x {channels} \
-             channels x 4 bytes), found {size} bytes",
+             channels x {} bytes of {}), found {size} bytes",
             path.display(),
             dims[0],
             dims[1],
-            dims[2]
+            dims[2],
+            encoding.bytes(),
+            encoding.name()
         );
     }
     Ok(header)

@@ -167,7 +167,8 @@ pub use envmap::{
 };
 pub use fields::MAX_RADIOMETRIC;
 pub use files::{
-    check_grid_dims, read_vol_header, VolHeader, MAX_GRID_DIM, MAX_GRID_VOXELS, VOL_HEADER_BYTES,
+    check_grid_dims, read_vol_header, VolEncoding, VolHeader, MAX_GRID_DIM, MAX_GRID_VOXELS,
+    VOL_HEADER_BYTES,
 };
 pub use geometry::MAX_GOBO_POINTS;
 pub use mesh::{
@@ -187,7 +188,7 @@ pub use vdb::{
     list_grids, read_vdb_grid, read_vdb_topology, GridClass, SparseGrid, ValueType, VdbGridHeader,
     VdbGridInfo, VdbGridKind, VdbTile, VdbTopology, BRICK_VOXELS, LEAF_DIM, MAX_ACTIVE_VOXELS,
 };
-pub use vol_write::write_vol;
+pub use vol_write::{write_vol, write_vol_encoded};
 pub use volume::{
     check_grid_memory, check_same_dims, load_grid, SuperVoxels, VoxelGrid, MAX_GRID_VALUES,
     SUPER_VOXEL_FACTOR,

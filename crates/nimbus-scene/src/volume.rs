@@ -12,7 +12,7 @@ use std::path::Path;
 
 use anyhow::{anyhow, bail, Context, Result};
 
-use crate::files::{file_size, read_vol_header, VOL_HEADER_BYTES};
+use crate::files::{file_size, read_vol_header, VolEncoding, VOL_HEADER_BYTES};
 use crate::procedural::procedural_cloud;
 use crate::types::{GridMedium, GridSource};
 
@@ -83,6 +83,11 @@ impl VoxelGrid {
     /// [0.5, n − 0.5], so within half a voxel of a face (and outside the grid) the
     /// value is that of the outermost centres. A NaN coordinate acts as 0.5.
     pub fn sample_trilinear(&self, p: [f64; 3]) -> f64 {
+        self.sample_trilinear_channel(p, 0)
+    }
+
+    /// [`VoxelGrid::sample_trilinear`] of channel `c`.
+    pub fn sample_trilinear_channel(&self, p: [f64; 3], c: u32) -> f64 {
         let mut lo = [0u32; 3];
         let mut hi = [0u32; 3];
         let mut t = [0f64; 3];
@@ -95,7 +100,7 @@ impl VoxelGrid {
             hi[axis] = (base + 1).min(n - 1);
             t[axis] = c - f64::from(base);
         }
-        let v = |i: u32, j: u32, k: u32| f64::from(self.get(i, j, k));
+        let v = |i: u32, j: u32, k: u32| f64::from(self.get_channel(i, j, k, c));
         let lerp = |a: f64, b: f64, t: f64| a + (b - a) * t;
         let x00 = lerp(v(lo[0], lo[1], lo[2]), v(hi[0], lo[1], lo[2]), t[0]);
         let x10 = lerp(v(lo[0], hi[1], lo[2]), v(hi[0], hi[1], lo[2]), t[0]);
@@ -445,7 +450,8 @@ pub fn load_grid(source: &GridSource, channels: u32, what: &str) -> Result<Voxel
                     dims[2]
                 );
             }
-            let data = read_floats(file, 0, values).with_context(|| what.to_string())?;
+            let data =
+                read_values(file, 0, values, VolEncoding::F32).with_context(|| what.to_string())?;
             VoxelGrid {
                 dims: *dims,
                 channels,
@@ -463,8 +469,8 @@ pub fn load_grid(source: &GridSource, channels: u32, what: &str) -> Result<Voxel
             }
             let values = check_grid_memory(header.dims, channels, what)
                 .with_context(|| format!("{what}: {}", file.display()))?;
-            let data =
-                read_floats(file, VOL_HEADER_BYTES, values).with_context(|| what.to_string())?;
+            let data = read_values(file, VOL_HEADER_BYTES, values, header.encoding)
+                .with_context(|| what.to_string())?;
             VoxelGrid {
                 dims: header.dims,
                 channels,
@@ -569,8 +575,8 @@ impl GridMedium {
     }
 }
 
-/// Reads `count` little-endian float32 values from `path` starting at byte `offset`.
-fn read_floats(path: &Path, offset: u64, count: usize) -> Result<Vec<f32>> {
+/// Reads `count` values of `encoding` from `path` starting at byte `offset`.
+fn read_values(path: &Path, offset: u64, count: usize, encoding: VolEncoding) -> Result<Vec<f32>> {
     let mut data = Vec::new();
     data.try_reserve_exact(count).map_err(|e| {
         anyhow!(
@@ -582,22 +588,22 @@ fn read_floats(path: &Path, offset: u64, count: usize) -> Result<Vec<f32>> {
     file.seek(SeekFrom::Start(offset))
         .with_context(|| format!("cannot seek in {}", path.display()))?;
     let mut reader = BufReader::new(file);
+    let size = encoding.bytes() as usize;
     let mut chunk = vec![0u8; 1 << 20];
+    let mut decoded = vec![0f32; chunk.len() / size];
     while data.len() < count {
-        let n = (count - data.len()).min(chunk.len() / 4);
-        let bytes = &mut chunk[..n * 4];
+        let n = (count - data.len()).min(decoded.len());
+        let bytes = &mut chunk[..n * size];
         reader.read_exact(bytes).with_context(|| {
             format!(
-                "{}: file ended after {} of {count} float32 values",
+                "{}: file ended after {} of {count} {} values",
                 path.display(),
-                data.len()
+                data.len(),
+                encoding.name()
             )
         })?;
-        data.extend(
-            bytes
-                .chunks_exact(4)
-                .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])),
-        );
+        encoding.decode(bytes, &mut decoded[..n]);
+        data.extend_from_slice(&decoded[..n]);
     }
     Ok(data)
 }

@@ -3,7 +3,8 @@
 
 use anyhow::{bail, ensure};
 use glam::{DMat3, DVec3};
-use nimbus_scene::{load_grid, GridMedium, GridSource, Medium, Scene, VoxelGrid};
+use nimbus_scene::vdb::{read_vdb_topology, VdbGridKind};
+use nimbus_scene::{load_grid, read_vol_header, GridMedium, GridSource, Medium, Scene, VoxelGrid};
 
 use crate::common::geometry::{homogeneous, OrientedBox, Region};
 use crate::common::rng::Rng;
@@ -41,7 +42,15 @@ impl GridF64 {
     pub(super) fn emission(&self, x: DVec3) -> DVec3 {
         match &self.emission {
             None => DVec3::ZERO,
-            Some((grid, scale)) => *scale * grid.sample_trilinear(self.index_space(x, grid.dims)),
+            Some((grid, scale)) => {
+                let p = self.index_space(x, grid.dims);
+                if grid.channels == 3 {
+                    *scale
+                        * DVec3::from_array([0, 1, 2].map(|c| grid.sample_trilinear_channel(p, c)))
+                } else {
+                    *scale * grid.sample_trilinear(p)
+                }
+            }
         }
     }
 }
@@ -202,7 +211,23 @@ pub(super) fn load_grids(scene: &Scene) -> anyhow::Result<Vec<Option<LoadedGrid>
                 let emission = m
                     .emission
                     .as_ref()
-                    .map(|e| load_grid(e, 1, &format!("{what} > emission")))
+                    .map(|e| {
+                        // An rgb emission: a 3-channel .vol file or a vec3 .vdb grid.
+                        let channels = match e {
+                            GridSource::MitsubaVol { file } => read_vol_header(file)?.channels,
+                            GridSource::Vdb { file, grid, .. } => {
+                                let header = read_vdb_topology(
+                                    file,
+                                    grid.as_deref(),
+                                    VdbGridKind::Any,
+                                    &what,
+                                )?;
+                                header.value_type.channels() as u32
+                            }
+                            _ => 1,
+                        };
+                        load_grid(e, channels, &format!("{what} > emission"))
+                    })
                     .transpose()?;
                 Some((density, emission))
             }

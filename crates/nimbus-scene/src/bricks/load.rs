@@ -4,35 +4,51 @@
 
 use std::fs::File;
 use std::io::{BufReader, Read, Seek, SeekFrom};
-use std::path::Path;
 
 use anyhow::{anyhow, bail, Context, Result};
 
 use super::{BrickGrid, BrickTopology};
-use crate::files::{file_size, read_vol_header, VOL_HEADER_BYTES};
+use crate::files::{file_size, read_vol_header, VolEncoding, VOL_HEADER_BYTES};
 use crate::types::GridSource;
 use crate::vdb::{read_vdb_grid, read_vdb_topology, VdbGridKind};
 use crate::volume::check_grid_memory;
 
-/// A reader of z-slabs of a float32 grid file whose data starts at byte `offset`.
+/// A dense grid file: raw float32, or a `.vol` file's values after its header.
+struct DenseFile {
+    path: std::path::PathBuf,
+    dims: [u32; 3],
+    /// Values per voxel in the file.
+    channels: u32,
+    /// Byte where the values start.
+    offset: u64,
+    encoding: VolEncoding,
+}
+
+/// A reader of z-slabs of a dense grid file.
 struct SlabReader {
     reader: BufReader<File>,
     offset: u64,
     /// Bytes per z-layer.
     layer: u64,
+    encoding: VolEncoding,
     bytes: Vec<u8>,
     path: std::path::PathBuf,
 }
 
 impl SlabReader {
-    fn open(path: &Path, offset: u64, dims: [u32; 3], channels: u32) -> Result<SlabReader> {
-        let file = File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
+    fn open(f: &DenseFile) -> Result<SlabReader> {
+        let file =
+            File::open(&f.path).with_context(|| format!("cannot open {}", f.path.display()))?;
         Ok(SlabReader {
             reader: BufReader::with_capacity(1 << 20, file),
-            offset,
-            layer: u64::from(dims[0]) * u64::from(dims[1]) * u64::from(channels) * 4,
+            offset: f.offset,
+            layer: u64::from(f.dims[0])
+                * u64::from(f.dims[1])
+                * u64::from(f.channels)
+                * f.encoding.bytes(),
+            encoding: f.encoding,
             bytes: Vec::new(),
-            path: path.to_path_buf(),
+            path: f.path.clone(),
         })
     }
 
@@ -41,7 +57,8 @@ impl SlabReader {
         self.reader
             .seek(SeekFrom::Start(start))
             .with_context(|| format!("cannot seek in {}", self.path.display()))?;
-        self.bytes.resize(out.len() * 4, 0);
+        self.bytes
+            .resize(out.len() * self.encoding.bytes() as usize, 0);
         self.reader.read_exact(&mut self.bytes).with_context(|| {
             format!(
                 "{}: file ended within z layers {z0}..{}",
@@ -49,21 +66,18 @@ impl SlabReader {
                 z0 + layers
             )
         })?;
-        for (v, b) in out.iter_mut().zip(self.bytes.chunks_exact(4)) {
-            *v = f32::from_le_bytes([b[0], b[1], b[2], b[3]]);
-        }
+        self.encoding.decode(&self.bytes, out);
         Ok(())
     }
 }
 
-/// The dims, data offset and file of a raw or `.vol` source, checked against the file.
-fn dense_file(
-    source: &GridSource,
-    channels: u32,
-    what: &str,
-) -> Result<Option<(std::path::PathBuf, [u32; 3], u64)>> {
+/// The dims, channels, data offset and encoding of a raw or `.vol` source, checked
+/// against the file. `channels` as for [`BrickGrid::load`]: 0 takes a `.vol` file of 1 or
+/// 3 channels (raw files are then scalar).
+fn dense_file(source: &GridSource, channels: u32, what: &str) -> Result<Option<DenseFile>> {
     Ok(match source {
         GridSource::Raw { file, dims } => {
+            let channels = channels.max(1);
             let values = check_grid_memory(*dims, channels, what)?;
             let size = file_size(file).map_err(|m| anyhow!("{what}: {m}"))?;
             let expected = values as u64 * 4;
@@ -77,20 +91,40 @@ fn dense_file(
                     dims[2]
                 );
             }
-            Some((file.clone(), *dims, 0))
+            Some(DenseFile {
+                path: file.clone(),
+                dims: *dims,
+                channels,
+                offset: 0,
+                encoding: VolEncoding::F32,
+            })
         }
         GridSource::MitsubaVol { file } => {
             let header = read_vol_header(file).with_context(|| what.to_string())?;
-            if header.channels != channels {
+            let fits = match channels {
+                0 => header.channels == 1 || header.channels == 3,
+                c => header.channels == c,
+            };
+            if !fits {
+                let expected = match channels {
+                    0 => "1 or 3".to_string(),
+                    c => c.to_string(),
+                };
                 bail!(
-                    "{what}: {}: .vol file has {} channel(s), expected {channels}",
+                    "{what}: {}: .vol file has {} channel(s), expected {expected}",
                     file.display(),
                     header.channels
                 );
             }
-            check_grid_memory(header.dims, channels, what)
+            check_grid_memory(header.dims, header.channels, what)
                 .with_context(|| format!("{what}: {}", file.display()))?;
-            Some((file.clone(), header.dims, VOL_HEADER_BYTES))
+            Some(DenseFile {
+                path: file.clone(),
+                dims: header.dims,
+                channels: header.channels,
+                offset: VOL_HEADER_BYTES,
+                encoding: header.encoding,
+            })
         }
         _ => None,
     })
@@ -108,19 +142,17 @@ fn vdb_kind(channels: u32) -> VdbGridKind {
 impl BrickGrid {
     /// Loads a grid into bricks. `channels` says what it holds: 1 for a scalar grid
     /// (density or emission: every value finite and ≥ 0), 3 for a velocity grid (finite,
-    /// any sign), 0 for an emission grid that may be scalar or vec3 (OpenVDB only; other
-    /// sources are scalar). `what` names the grid in messages, e.g.
+    /// any sign), 0 for an emission grid that may be scalar or rgb (OpenVDB vec3 grids and
+    /// 3-channel `.vol` files; raw files and procedural clouds are scalar). `what` names the grid in messages, e.g.
     /// `"scenes/a.toml: [[medium]] #2 > density"`; errors name the file and the voxel
     /// (and for OpenVDB the grid). The memory guard of dense files
     /// ([`check_grid_memory`]) runs before anything is read.
     pub fn load(source: &GridSource, channels: u32, what: &str) -> Result<BrickGrid> {
         let scalar = channels != 3;
-        if let Some((file, dims, offset)) = dense_file(source, channels.max(1), what)? {
-            let ch = channels.max(1);
-            let mut reader =
-                SlabReader::open(&file, offset, dims, ch).with_context(|| what.to_string())?;
-            let name = file.display().to_string();
-            return BrickGrid::from_slabs(dims, ch, &name, scalar, |z0, layers, out| {
+        if let Some(f) = dense_file(source, channels, what)? {
+            let mut reader = SlabReader::open(&f).with_context(|| what.to_string())?;
+            let name = f.path.display().to_string();
+            return BrickGrid::from_slabs(f.dims, f.channels, &name, scalar, |z0, layers, out| {
                 reader.fill(z0, layers, out)
             })
             .with_context(|| what.to_string());
@@ -149,11 +181,9 @@ impl BrickTopology {
     /// procedural cloud: the bricks its envelope may reach), without keeping any values:
     /// dense files are scanned slab by slab, OpenVDB files read up to their topology.
     pub fn of(source: &GridSource, channels: u32, what: &str) -> Result<BrickTopology> {
-        if let Some((file, dims, offset)) = dense_file(source, channels.max(1), what)? {
-            let ch = channels.max(1);
-            let mut reader =
-                SlabReader::open(&file, offset, dims, ch).with_context(|| what.to_string())?;
-            return BrickTopology::scan_slabs(dims, ch, |z0, layers, out| {
+        if let Some(f) = dense_file(source, channels, what)? {
+            let mut reader = SlabReader::open(&f).with_context(|| what.to_string())?;
+            return BrickTopology::scan_slabs(f.dims, f.channels, |z0, layers, out| {
                 reader.fill(z0, layers, out)
             })
             .with_context(|| what.to_string());

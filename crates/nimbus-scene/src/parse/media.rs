@@ -148,7 +148,7 @@ pub(super) fn parse_medium(
             &f,
             "emission",
             table,
-            GridChannels::Scalar,
+            GridChannels::ScalarOrRgb,
         )?),
         None if f.has("emission_scale") => {
             return Err(f.error("emission_scale", "has no effect without `emission`"));
@@ -240,17 +240,40 @@ fn parse_planes(f: &Fields) -> Result<Vec<[f64; 4]>> {
 /// What a grid holds per voxel.
 #[derive(Clone, Copy, PartialEq, Eq)]
 enum GridChannels {
-    /// One float (density, emission); procedural grids allowed.
+    /// One float (density); procedural grids allowed.
     Scalar,
+    /// One float, or (a `.vol` file) three: rgb emission; procedural grids allowed.
+    ScalarOrRgb,
     /// Three floats (velocity); files only.
     Vector,
 }
 
 impl GridChannels {
-    fn count(self) -> u32 {
+    /// Whether a `.vol` file of `n` channels fits.
+    fn takes(self, n: u32) -> bool {
         match self {
-            Self::Scalar => 1,
+            Self::Scalar => n == 1,
+            Self::ScalarOrRgb => n == 1 || n == 3,
+            Self::Vector => n == 3,
+        }
+    }
+
+    /// Channels of a raw float32 file (raw emission is scalar).
+    fn raw_count(self) -> u32 {
+        match self {
+            Self::Scalar | Self::ScalarOrRgb => 1,
             Self::Vector => 3,
+        }
+    }
+
+    fn expected(self) -> &'static str {
+        match self {
+            Self::Scalar => {
+                "1 (a density has one channel; 3-channel .vol files are read as \
+                             rgb `emission` or as `velocity`)"
+            }
+            Self::ScalarOrRgb => "1 or 3 (rgb)",
+            Self::Vector => "3",
         }
     }
 }
@@ -315,14 +338,14 @@ fn parse_grid_source(
             }
             if name.to_ascii_lowercase().ends_with(".vol") {
                 let header = read_vol_header(&path).map_err(|e| f.error("file", e))?;
-                if header.channels != channels.count() {
+                if !channels.takes(header.channels) {
                     return Err(f.error(
                         "file",
                         format!(
                             "{}: .vol file has {} channels, expected {}",
                             path.display(),
                             header.channels,
-                            channels.count()
+                            channels.expected()
                         ),
                     ));
                 }
@@ -347,7 +370,7 @@ fn parse_grid_source(
             })?;
             let size = file_size(&path).map_err(|message| f.error("file", message))?;
             let voxels: u64 = dims.iter().map(|&d| u64::from(d)).product();
-            let expected = voxels * u64::from(channels.count()) * 4;
+            let expected = voxels * u64::from(channels.raw_count()) * 4;
             if size != expected {
                 return Err(f.error(
                     "file",
@@ -358,7 +381,7 @@ fn parse_grid_source(
                         dims[0],
                         dims[1],
                         dims[2],
-                        channels.count()
+                        channels.raw_count()
                     ),
                 ));
             }

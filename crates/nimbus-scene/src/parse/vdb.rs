@@ -300,15 +300,9 @@ pub(super) fn parse_vdb_medium(
 
     let emission = match f.opt_table("emission")? {
         Some(table) => {
+            // A scalar grid, or a vec3 grid of rgb radiance (its values are colours, not
+            // vectors: `to_world` does not rotate them).
             let source = parse_vdb_source(f, "emission", table, VdbGridKind::Any)?;
-            if source.header.value_type.channels() != 1 {
-                return Err(source.error(
-                    f,
-                    "emission",
-                    "it holds vectors; Nimbus takes a scalar emission grid (times \
-                     `emission_scale`)",
-                ));
-            }
             source.check_same_transform(f, "emission", &file_transform)?;
             Some(source)
         }
@@ -388,7 +382,12 @@ pub(super) fn parse_vdb_medium(
         density_scale: f.f32_in("density_scale", Some(1.0), 0.0..=MAX_SIGMA_T)?,
         albedo,
         g,
-        emission: emission.map(|s| s.into_source(&window)),
+        emission: emission.map(|s| {
+            s.into_source(&VdbWindow {
+                vector_map: DMat3::IDENTITY,
+                ..window.clone()
+            })
+        }),
         emission_scale: f.color("emission_scale", Some(Vec3::ONE), radiometric)?,
         velocity: velocity.map(|s| s.into_source(&window)),
         velocity_scale: f.f32_in("velocity_scale", Some(1.0), 1e-6..=1e6)?,

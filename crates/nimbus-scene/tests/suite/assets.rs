@@ -178,3 +178,118 @@ fn plume_animation_scene_and_its_grids_load() {
         "heights {heights:?}"
     );
 }
+
+/// Mitsuba's half (encoding 2) and byte (encoding 3, 0..255 as 0..1) `.vol` files load
+/// through both readers (the dense one the CPU reference uses and the streamed bricks
+/// the renderer uploads) with the values the encoding stores; quantized directions
+/// (4) and unknown encodings are refused naming the file and the encoding.
+#[test]
+fn half_and_byte_vol_files_load_with_their_encodings_values() {
+    use nimbus_scene::{write_vol_encoded, BrickGrid, VolEncoding};
+    let dir = crate::common::TempDir::new("vol-encodings");
+    let mut grid = procedural_cloud([9, 5, 7], 3);
+    let max = grid.data.iter().fold(0f32, |m, &v| m.max(v));
+    grid.data.iter_mut().for_each(|v| *v /= max);
+    for (encoding, quantize) in [
+        (
+            VolEncoding::F16,
+            (|v: f32| half::f16::from_f32(v).to_f32()) as fn(f32) -> f32,
+        ),
+        (VolEncoding::U8, |v: f32| (v * 255.0).round() / 255.0),
+    ] {
+        let path = dir.0.join(format!("{}.vol", encoding.name()));
+        write_vol_encoded(&path, &grid, glam::Vec3::ZERO, glam::Vec3::ONE, encoding).unwrap();
+        let header = nimbus_scene::read_vol_header(&path).unwrap();
+        assert_eq!(header.encoding, encoding);
+        let source = GridSource::MitsubaVol { file: path };
+        let dense = load_grid(&source, 1, "t").unwrap();
+        let bricks = BrickGrid::load(&source, 1, "t").unwrap();
+        for k in 0..7u32 {
+            for j in 0..5u32 {
+                for i in 0..9u32 {
+                    let expected = quantize(grid.get(i, j, k));
+                    assert!(
+                        (dense.get(i, j, k) - expected).abs() <= 1e-7,
+                        "{} ({i}, {j}, {k}): {} vs {expected}",
+                        encoding.name(),
+                        dense.get(i, j, k)
+                    );
+                    let l = glam::IVec3::new(i as i32, j as i32, k as i32) - bricks.origin;
+                    assert_eq!(bricks.get(l), dense.get(i, j, k));
+                }
+            }
+        }
+        // A file one byte short of its encoding's size is refused.
+        let bytes = std::fs::read(match &source {
+            GridSource::MitsubaVol { file } => file,
+            _ => unreachable!(),
+        })
+        .unwrap();
+        let short = dir.write("short.vol", &bytes[..bytes.len() - 1]);
+        let e = format!("{:#}", nimbus_scene::read_vol_header(&short).unwrap_err());
+        crate::common::assert_contains(&e, &["short.vol", encoding.name(), "found"]);
+    }
+    for (id, needles) in [
+        (4i32, vec!["encoding 4", "quantized directions"]),
+        (7, vec!["encoding 7", "float16"]),
+    ] {
+        let mut bytes = crate::common::vol_file([2, 2, 2], 1);
+        bytes[4..8].copy_from_slice(&id.to_le_bytes());
+        let path = dir.write(&format!("enc{id}.vol"), &bytes);
+        let e = format!("{:#}", nimbus_scene::read_vol_header(&path).unwrap_err());
+        let mut all = vec![format!("enc{id}.vol")];
+        all.extend(needles.iter().map(|s| s.to_string()));
+        let all: Vec<&str> = all.iter().map(String::as_str).collect();
+        crate::common::assert_contains(&e, &all);
+    }
+}
+
+/// A 3-channel `.vol` file is an rgb emission (the renderer's bricks hold its three
+/// channels, not a mix of them); as a density it is refused, naming the field and what
+/// 3-channel files are for.
+#[test]
+fn rgb_vol_is_an_emission_and_not_a_density() {
+    use nimbus_scene::BrickGrid;
+    let dir = crate::common::TempDir::new("vol-rgb");
+    let dims = [6u32, 4, 5];
+    let n = (dims[0] * dims[1] * dims[2]) as usize;
+    let data: Vec<f32> = (0..n * 3)
+        .map(|i| (i % 3) as f32 + 0.01 * (i / 3) as f32)
+        .collect();
+    let rgb = VoxelGrid {
+        dims,
+        channels: 3,
+        data,
+    };
+    let path = dir.0.join("rgb.vol");
+    nimbus_scene::write_vol(&path, &rgb, glam::Vec3::ZERO, glam::Vec3::ONE).unwrap();
+    let box_ = "[[medium]]\ntype = \"grid\"\nbounds_min = [0, 0, 0]\nbounds_max = [1, 1, 1]\n";
+    let ok = crate::common::parse_ok(&format!(
+        "{box_}density = {{ procedural = \"cloud\", dims = [6, 4, 5] }}\nemission = {{ file = {:?} }}\n",
+        path.display().to_string()
+    ));
+    let Medium::Grid(m) = &ok.media[0] else {
+        panic!("a grid medium");
+    };
+    let bricks = BrickGrid::load(m.emission.as_ref().unwrap(), 0, "t").unwrap();
+    assert_eq!(bricks.channels, 3);
+    let l = glam::IVec3::new(2, 1, 3) - bricks.origin;
+    let voxel = ((3 * dims[1] + 1) * dims[0] + 2) as usize;
+    for c in 0..3 {
+        assert_eq!(bricks.get_clamped(l, c), rgb.data[voxel * 3 + c as usize]);
+    }
+    let e = crate::common::parse_err(&format!(
+        "{box_}density = {{ file = {:?} }}\n",
+        path.display().to_string()
+    ));
+    crate::common::assert_contains(
+        &e,
+        &[
+            "density",
+            "field `file`",
+            "rgb.vol",
+            "3 channels",
+            "a density has one channel",
+        ],
+    );
+}
