@@ -224,6 +224,14 @@ pub fn device_family(name: &str) -> &str {
 
 /// The stored baseline at `path`.
 pub fn load_baseline(path: &Path) -> Result<BenchReport> {
+    // A regular file of a report's size: a device such as /dev/zero would be read until
+    // memory runs out.
+    let meta = std::fs::metadata(path).with_context(|| format!("reading {}", path.display()))?;
+    anyhow::ensure!(
+        meta.is_file() && meta.len() <= 64 << 20,
+        "{}: not a bench report (not a regular file of at most 64 MiB)",
+        path.display()
+    );
     let text =
         std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
     serde_json::from_str(&text).with_context(|| format!("{}: not a bench report", path.display()))

@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use anyhow::{bail, Context as _, Result};
+use anyhow::{bail, ensure, Context as _, Result};
 use clap::{Args, Parser, Subcommand};
 use nimbus::{load_scene, output, plan, profile, renderer, study};
 
@@ -92,6 +92,18 @@ fn parse_sun_diameter(text: &str) -> Result<f64, String> {
 /// `nimbus make-sky`: the daylight sky of `nimbus_scene::daylight_sky`, the sun alone
 /// giving 20 W/m² at normal incidence.
 fn make_sky_cmd(args: MakeSkyArgs) -> Result<()> {
+    // An environment light's `file` must end in .exr, so a sky written under any other
+    // name could not be used (issue 24: `make-sky abc` wrote an EXR named abc).
+    let exr = args
+        .out
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
+    ensure!(
+        exr && !args.out.is_dir(),
+        "OUT {}: name the sky's file .exr (it is an OpenEXR map, and an environment light's \
+         `file` must end in .exr)",
+        args.out.display()
+    );
     let (w, h) = (args.width as usize, args.height as usize);
     let sun = nimbus_scene::sun_direction(
         args.sun_elevation_deg.to_radians() as f32,
@@ -165,20 +177,27 @@ impl Overrides {
     /// The field overrides, flags first, then every --set in order (a later one wins).
     fn fields(&self, frames: Option<u32>) -> Result<Vec<FieldOverride>> {
         let mut out = Vec::new();
-        let mut int = |key: &str, value: Option<u64>| -> Result<()> {
+        // A refused value names its flag (issue 24: `--width 0` was reported as coming
+        // from `--set render.width=0`).
+        let mut int = |flag: &str, key: &str, value: Option<u64>| -> Result<()> {
             if let Some(v) = value {
-                let v = i64::try_from(v)
-                    .map_err(|_| anyhow::anyhow!("{key} = {v} does not fit a TOML integer"))?;
-                out.push(FieldOverride::new(key, v));
+                let v = i64::try_from(v).map_err(|_| {
+                    anyhow::anyhow!("{flag} {v}: does not fit a TOML integer (at most 2^63 - 1)")
+                })?;
+                out.push(FieldOverride::from_flag(flag, key, v));
             }
             Ok(())
         };
-        int("render.spp", self.spp.map(u64::from))?;
-        int("render.width", self.width.map(u64::from))?;
-        int("render.height", self.height.map(u64::from))?;
-        int("render.seed", self.seed)?;
-        int("render.frames", frames.map(u64::from))?;
-        int("integrator.box_samples", self.box_samples.map(u64::from))?;
+        int("--spp", "render.spp", self.spp.map(u64::from))?;
+        int("--width", "render.width", self.width.map(u64::from))?;
+        int("--height", "render.height", self.height.map(u64::from))?;
+        int("--seed", "render.seed", self.seed)?;
+        int("--frames", "render.frames", frames.map(u64::from))?;
+        int(
+            "--box-samples",
+            "integrator.box_samples",
+            self.box_samples.map(u64::from),
+        )?;
         for text in &self.set {
             out.push(FieldOverride::parse(text)?);
         }
@@ -506,6 +525,14 @@ fn parse_exposure(text: &str) -> std::result::Result<f32, String> {
 }
 
 fn profile_cmd(args: ProfileArgs) -> Result<()> {
+    // Outputs are checked before anything renders (issue 24: a bad --json failed after
+    // the render, without naming the flag).
+    if let Some(path) = &args.json {
+        check_file_writable("--json", path)?;
+    }
+    if let Some(path) = &args.trace {
+        check_file_writable("--trace", path)?;
+    }
     let scene = load_scene(
         args.scene.as_deref(),
         &args.overrides.fields(Some(args.frames))?,
@@ -537,12 +564,13 @@ fn profile_cmd(args: ProfileArgs) -> Result<()> {
     }
     if let Some(path) = &args.json {
         std::fs::write(path, report.json()?)
-            .with_context(|| format!("writing {}", path.display()))?;
+            .with_context(|| format!("--json: writing {}", path.display()))?;
         eprintln!("wrote {}", path.display());
     }
     if let Some(path) = &args.trace {
         let mut file = std::io::BufWriter::new(
-            std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?,
+            std::fs::File::create(path)
+                .with_context(|| format!("--trace: creating {}", path.display()))?,
         );
         nimbus_gpu::write_chrome_trace(&result.frame_timings, &mut file)
             .with_context(|| format!("writing {}", path.display()))?;
@@ -578,21 +606,25 @@ fn devices() -> Result<()> {
 /// Validation errors seen during a run fail it (they are on with NIMBUS_VALIDATION=1).
 /// `nimbus bench`: exit 1 when a work counter moved past the margin.
 fn bench_cmd(args: BenchArgs) -> Result<ExitCode> {
-    let ctx = Context::new(&ContextDesc::from_env())?;
-    let report = nimbus::bench::run(&ctx, args.case.as_deref())?;
-    report_validation(&ctx)?;
+    // Every argument is checked before the device is touched (issue 24: `--case abc`
+    // failed after creating the device without naming the flag, a bad `--json` after
+    // every case had rendered, and `--baseline` read a device file until memory ran out).
+    if let Some(case) = &args.case {
+        let names: Vec<&str> = nimbus::bench::CASES.iter().map(|c| c.name).collect();
+        ensure!(
+            !case.trim().is_empty() && names.iter().any(|n| n.contains(case.as_str())),
+            "--case {case:?}: no bench case matches (cases: {})",
+            names.join(", ")
+        );
+    }
     if let Some(path) = &args.json {
-        nimbus::bench::save(&report, path)?;
-        eprintln!("wrote {}", path.display());
+        check_file_writable("--json", path)?;
     }
-    if args.update {
-        nimbus::bench::save(&report, &args.baseline)?;
-        print!("{}", nimbus::bench::table(&report, None));
-        eprintln!("wrote the baseline {}", args.baseline.display());
-        return Ok(ExitCode::SUCCESS);
-    }
-    let base = if args.baseline.exists() {
-        Some(nimbus::bench::load_baseline(&args.baseline)?)
+    let base = if args.update {
+        check_file_writable("--baseline", &args.baseline)?;
+        None
+    } else if args.baseline.exists() {
+        Some(nimbus::bench::load_baseline(&args.baseline).context("--baseline")?)
     } else {
         eprintln!(
             "no baseline at {} (write one with --update): showing this run alone",
@@ -600,6 +632,19 @@ fn bench_cmd(args: BenchArgs) -> Result<ExitCode> {
         );
         None
     };
+    let ctx = Context::new(&ContextDesc::from_env())?;
+    let report = nimbus::bench::run(&ctx, args.case.as_deref())?;
+    report_validation(&ctx)?;
+    if let Some(path) = &args.json {
+        nimbus::bench::save(&report, path).context("--json")?;
+        eprintln!("wrote {}", path.display());
+    }
+    if args.update {
+        nimbus::bench::save(&report, &args.baseline).context("--baseline")?;
+        print!("{}", nimbus::bench::table(&report, None));
+        eprintln!("wrote the baseline {}", args.baseline.display());
+        return Ok(ExitCode::SUCCESS);
+    }
     print!("{}", nimbus::bench::table(&report, base.as_ref()));
     let Some(base) = base else {
         return Ok(ExitCode::SUCCESS);
@@ -625,6 +670,31 @@ fn bench_cmd(args: BenchArgs) -> Result<ExitCode> {
         println!("  {r}");
     }
     Ok(ExitCode::FAILURE)
+}
+
+/// Refuses an output file named by `flag` that cannot be written, before anything is
+/// rendered: an empty path, a directory, or one whose directory does not exist.
+fn check_file_writable(flag: &str, path: &std::path::Path) -> Result<()> {
+    ensure!(
+        !path.as_os_str().is_empty(),
+        "{flag}: the path is empty; name a file"
+    );
+    ensure!(
+        !path.is_dir(),
+        "{flag} {}: is a directory, not a file",
+        path.display()
+    );
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => std::path::Path::new("."),
+    };
+    ensure!(
+        dir.is_dir(),
+        "{flag} {}: the directory {} does not exist",
+        path.display(),
+        dir.display()
+    );
+    Ok(())
 }
 
 fn report_validation(ctx: &Context) -> Result<()> {

@@ -259,6 +259,15 @@ pub fn merge_files(out: &Path, inputs: &[PathBuf]) -> Result<RenderInfo> {
     let parts = inputs
         .iter()
         .map(|path| {
+            // A directory, a device or a missing file is named as what it is (issue 24:
+            // a directory was refused as "a .png", a device as "file identifier missing").
+            let meta = std::fs::metadata(path)
+                .with_context(|| format!("input {}: cannot read it", path.display()))?;
+            ensure!(
+                meta.is_file(),
+                "input {}: not a regular file (a directory, pipe or device cannot be merged)",
+                path.display()
+            );
             let is_exr = path
                 .extension()
                 .is_some_and(|e| e.eq_ignore_ascii_case("exr"));

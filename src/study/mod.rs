@@ -258,9 +258,11 @@ impl Study {
             "--seeds {}: expected 1..={MAX_SEEDS} renders per configuration",
             opts.seeds
         );
-        let scene_bytes = std::fs::read(&opts.scene)
-            .with_context(|| format!("{}: cannot read scene file", opts.scene.display()))?;
-        let mut base = nimbus_scene::load(&opts.scene)?;
+        // Read once, as `nimbus render` does: a regular file of a scene's size (issue 24:
+        // a device named as the scene was read forever), parsed from the bytes hashed.
+        let scene_text = nimbus_scene::read_scene_file(&opts.scene)?;
+        let mut base = nimbus_scene::parse_str(&scene_text, &opts.scene)?;
+        let scene_bytes = scene_text.into_bytes();
         if let Some(w) = opts.width {
             base.render.width = w;
         }

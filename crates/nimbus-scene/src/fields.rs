@@ -303,6 +303,22 @@ impl<'a> Fields<'a> {
         Ok(self.vec3_f64(key, default.map(|v| v.as_dvec3()))?.as_vec3())
     }
 
+    /// Rotation angles in degrees (an array of 3 numbers), or `default`. An angle past
+    /// one turn is reduced to within one, exactly (f64 `%`): the renderer's rotation is
+    /// f32, whose sine of a huge argument is noise unrelated to the f64 one the overlap
+    /// test uses (`rotation_deg = [1e30, 0, 0]` placed the box one way for the overlap
+    /// test and another for the renderer). Angles within one turn are kept bit for bit.
+    pub fn angles_deg(&self, key: &str, default: Option<DVec3>) -> Result<DVec3> {
+        let v = self.vec3_f64(key, default)?;
+        Ok(DVec3::from_array(v.to_array().map(|a| {
+            if a.abs() > 360.0 {
+                a % 360.0
+            } else {
+                a
+            }
+        })))
+    }
+
     /// A unit direction: an array of 3 numbers that is not the zero vector, normalized.
     pub fn direction(&self, key: &str, default: Option<DVec3>) -> Result<DVec3> {
         let v = self.vec3_f64(key, default)?;

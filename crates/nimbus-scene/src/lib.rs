@@ -65,9 +65,9 @@
 //! | `bounds_min` < `bounds_max` | componentwise |
 //! | grid `dims` | each 1..=4096, product <= 2^31 voxels |
 //! | raw grid files | exactly nx·ny·nz·4 bytes (·3 channels for `velocity`) |
-//! | `.vol` files | magic `VOL`, version 3, encoding 1 (float32), 1 channel (3 for `velocity`), dims as above, size 48 + n·channels·4; `dims`, if given, must match the header |
+//! | `.vol` files | magic `VOL`, version 3, encoding 1 (float32), 2 (float16) or 3 (uint8, read as value / 255), 1 channel (1 or 3 for `emission`, 3 for `velocity`), dims as above, size 48 + n·channels·bytes per value; `dims`, if given, must match the header |
 //! | environment `file` | ends in `.exr` (any case) and exists |
-//! | gobo | 3..=64 `[u, v]` points, convex, non-zero area, no repeated consecutive point; clockwise input is reversed to counter-clockwise |
+//! | gobo | 3..=64 `[u, v]` points, each coordinate within ±1e7 m, convex, non-zero area, no repeated consecutive point; clockwise input is reversed to counter-clockwise |
 //! | quad | `edge_u`, `edge_v` non-zero and not parallel (sin angle > 1e-6) |
 //! | convex `planes` | 4..=64 `[nx, ny, nz, d]`, no zero normal; their intersection bounded (within 1e3·max|d| + 1e8 m), with a non-empty interior, spanning at most 1e7 m (see [`convex`]) |
 //! | media | no two share volume: exact separating-axis test on (rotated) boxes, convex polyhedra and grid AABBs; touching within 1e-6 × the scene scale is allowed |
@@ -260,10 +260,7 @@ pub fn parse_str_with(text: &str, source: &Path, overrides: &[FieldOverride]) ->
     let result = parse::parse_scene(text, source, overrides);
     match result {
         Err(e) if !overrides.is_empty() && parse::parse_scene(text, source, &[]).is_ok() => {
-            let given: Vec<String> = overrides
-                .iter()
-                .map(|o| format!("--set {}={}", o.key, o.value))
-                .collect();
+            let given: Vec<String> = overrides.iter().map(FieldOverride::describe).collect();
             Err(anyhow::anyhow!(
                 "{e:#} (the scene file itself is valid: the value comes from {})",
                 given.join(", ")

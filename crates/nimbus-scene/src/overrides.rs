@@ -19,6 +19,8 @@ pub struct FieldOverride {
     /// The dotted key as given.
     pub key: String,
     pub value: Value,
+    /// Where the value came from, for messages (`--width 0`); `None`: `--set KEY=VALUE`.
+    pub origin: Option<String>,
 }
 
 impl FieldOverride {
@@ -27,7 +29,26 @@ impl FieldOverride {
         FieldOverride {
             key: key.to_owned(),
             value: value.into(),
+            origin: None,
         }
+    }
+
+    /// An override given by a command-line flag of its own (`--width 640` for
+    /// `render.width`): a refusal of the value names the flag, not `--set`.
+    pub fn from_flag(flag: &str, key: &str, value: impl Into<Value>) -> FieldOverride {
+        let value = value.into();
+        FieldOverride {
+            origin: Some(format!("{flag} {value}")),
+            key: key.to_owned(),
+            value,
+        }
+    }
+
+    /// How the override was given: `--width 0`, or `--set KEY=VALUE`.
+    pub fn describe(&self) -> String {
+        self.origin
+            .clone()
+            .unwrap_or_else(|| format!("--set {}={}", self.key, self.value))
     }
 
     /// Parses `key=value` (see the module docs).
@@ -60,6 +81,7 @@ impl FieldOverride {
         Ok(FieldOverride {
             key: key.to_owned(),
             value,
+            origin: None,
         })
     }
 }

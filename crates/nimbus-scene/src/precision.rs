@@ -124,72 +124,107 @@ impl Scene {
                 &[k.position],
             );
         }
+        // Each names the field that places it, so a refusal says what to change.
         for (i, medium) in self.media.iter().enumerate() {
-            let corners = match medium {
+            let (field, corners) = match medium {
                 Medium::Box(b) => {
                     let r = Vec3::splat(0.5 * b.size.length());
-                    vec![b.center - r, b.center + r]
+                    ("field `center`", vec![b.center - r, b.center + r])
                 }
                 Medium::Convex(c) => {
                     let (lo, hi) = c.polyhedron.bounds();
-                    vec![lo.as_vec3(), hi.as_vec3()]
+                    ("field `planes`", vec![lo.as_vec3(), hi.as_vec3()])
                 }
-                Medium::Grid(g) => vec![g.bounds_min, g.bounds_max],
+                Medium::Grid(g) if g.vdb.is_some() => (
+                    "field `density` placed by its transform and `to_world`",
+                    vec![g.bounds_min, g.bounds_max],
+                ),
+                Medium::Grid(g) => (
+                    "fields `bounds_min` / `bounds_max`",
+                    vec![g.bounds_min, g.bounds_max],
+                ),
             };
-            widen(&mut best, || format!("[[medium]] #{}", i + 1), &corners);
+            widen(
+                &mut best,
+                || format!("[[medium]] #{} {field}", i + 1),
+                &corners,
+            );
         }
         for (i, shape) in self.shapes.iter().enumerate() {
-            let corners = match shape {
+            let (field, corners) = match shape {
                 Shape::Quad {
                     corner,
                     edge_u,
                     edge_v,
                     ..
-                } => vec![
-                    *corner,
-                    *corner + *edge_u,
-                    *corner + *edge_v,
-                    *corner + *edge_u + *edge_v,
-                ],
+                } => (
+                    "field `corner`",
+                    vec![
+                        *corner,
+                        *corner + *edge_u,
+                        *corner + *edge_v,
+                        *corner + *edge_u + *edge_v,
+                    ],
+                ),
                 Shape::Box { center, size, .. } => {
                     let r = Vec3::splat(0.5 * size.length());
-                    vec![*center - r, *center + r]
+                    ("field `center`", vec![*center - r, *center + r])
                 }
-                Shape::Sphere { center, radius, .. } => {
+                Shape::Sphere { center, radius, .. } => (
+                    "field `center`",
                     vec![
                         *center - Vec3::splat(*radius),
                         *center + Vec3::splat(*radius),
-                    ]
-                }
+                    ],
+                ),
                 Shape::Mesh { mesh, .. } => {
                     let (lo, hi) = mesh.bounds();
-                    vec![lo, hi]
+                    ("field `file` placed by `to_world`", vec![lo, hi])
                 }
             };
-            widen(&mut best, || format!("[[shape]] #{}", i + 1), &corners);
+            widen(
+                &mut best,
+                || format!("[[shape]] #{} {field}", i + 1),
+                &corners,
+            );
         }
         let frames = self.render.frames.max(1);
-        let light_sets = if self.lights_animated() {
-            (0..frames.min(4096)).map(|f| self.lights_at(f)).collect()
+        let light_sets: Vec<(Option<u32>, Vec<Light>)> = if self.lights_animated() {
+            (0..frames.min(4096))
+                .map(|f| (Some(f), self.lights_at(f)))
+                .collect()
         } else {
-            vec![self.lights.clone()]
+            vec![(None, self.lights.clone())]
         };
-        for lights in &light_sets {
+        for (frame, lights) in &light_sets {
             for (i, light) in lights.iter().enumerate() {
-                let points = match light {
-                    Light::Point { position, .. } => vec![*position],
-                    Light::Sphere { center, radius, .. } => {
+                let (field, points) = match light {
+                    Light::Point { position, .. } => ("position", vec![*position]),
+                    Light::Sphere { center, radius, .. } => (
+                        "center",
                         vec![
                             *center - Vec3::splat(*radius),
                             *center + Vec3::splat(*radius),
-                        ]
-                    }
+                        ],
+                    ),
                     Light::Directional {
                         gobo: Some(gobo), ..
-                    } => vec![gobo.origin],
+                    } => ("gobo_origin", vec![gobo.origin]),
                     _ => continue,
                 };
-                widen(&mut best, || format!("[[light]] #{}", i + 1), &points);
+                let keyed = self.light_keyframes.get(i).is_some_and(|k| !k.is_empty());
+                widen(
+                    &mut best,
+                    || match frame {
+                        Some(f) if keyed => format!(
+                            "[[light]] #{} field `{field}` at frame {f}, from its \
+                             [[light.keyframe]] entries",
+                            i + 1
+                        ),
+                        _ => format!("[[light]] #{} field `{field}`", i + 1),
+                    },
+                    &points,
+                );
             }
         }
         PositionScale {
@@ -314,7 +349,12 @@ pub(crate) fn check_scene(source: &crate::fields::Source, scene: &Scene) -> anyh
                     };
                     let voxel = (g.bounds_max - g.bounds_min) / Vec3::from(dims.map(|d| d as f32));
                     if let Some(p) = scale.feature_problem(f64::from(voxel.min_element())) {
-                        return Err(fail(table, "density", format!("a voxel of {p}")));
+                        let placed = if g.vdb.is_some() {
+                            " (its transform times `to_world`)"
+                        } else {
+                            ""
+                        };
+                        return Err(fail(table, "density", format!("a voxel{placed} of {p}")));
                     }
                 }
             }
@@ -340,6 +380,11 @@ pub(crate) fn check_scene(source: &crate::fields::Source, scene: &Scene) -> anyh
             }
         };
         if let Some(p) = scale.feature_problem(f64::from(size)) {
+            let p = if kind == "mesh" {
+                format!("its extent after `to_world`, {p}")
+            } else {
+                p
+            };
             return Err(fail(
                 format!("[[shape]] #{} (type = \"{kind}\")", i + 1),
                 field,

@@ -841,8 +841,13 @@ impl Camera {
     /// outside the keyed range). Without keyframes it is the static camera.
     pub fn frame_at(&self, frame: u32) -> CameraFrame {
         let (position, look_at) = self.pose_at(frame);
-        let forward = (look_at - position).normalize();
-        let right = forward.cross(self.up).normalize();
+        let mut view = look_at - position;
+        if !view.is_finite() {
+            // Opposite positions near the f32 limit: their difference overflows f32.
+            view = ((look_at.as_dvec3() - position.as_dvec3()) * 0.5f64.powi(64)).as_vec3();
+        }
+        let forward = normalize_scaled(view);
+        let right = normalize_scaled(forward.cross(self.up));
         let up = right.cross(forward);
         CameraFrame {
             position,
@@ -873,6 +878,20 @@ impl Camera {
         let last = keys[keys.len() - 1];
         (last.position, last.look_at)
     }
+}
+
+/// `v.normalize()` computed on `v` scaled by a power of two, so that its squared length
+/// neither overflows (a camera 1e30 m from what it looks at: `normalize` gave zero and
+/// a frame of NaN) nor underflows. Scaling by a power of two is exact: wherever
+/// `normalize` itself works, the result is bit-identical.
+fn normalize_scaled(v: Vec3) -> Vec3 {
+    let m = v.abs().max_element();
+    if !(m > 0.0 && m.is_finite()) {
+        return v.normalize();
+    }
+    let exponent = (m.log2().floor() as i32).clamp(-126, 126);
+    let scale = f32::from_bits(((127 - exponent) as u32) << 23);
+    (v * scale).normalize()
 }
 
 impl CameraFrame {

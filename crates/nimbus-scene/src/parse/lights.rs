@@ -268,6 +268,14 @@ fn parse_gobo_polygon(f: &Fields, value: &Value) -> Result<Vec<Vec2>> {
     for (i, item) in items.iter().enumerate() {
         let [u, v] = crate::fields::parse_numbers::<2>(item)
             .map_err(|message| f.error("gobo", format!("point {i}: {message}")))?;
+        // Lengths are at most MAX_LENGTH_M: the renderer's f32 inside test multiplies two
+        // coordinates, which overflows for points near 1e20 m and more.
+        if u.abs().max(v.abs()) > MAX_LENGTH_M {
+            return Err(f.error(
+                "gobo",
+                format!("point {i} is [{u:e}, {v:e}]: each coordinate must be within ±{MAX_LENGTH_M:e} m"),
+            ));
+        }
         points.push(DVec2::new(u, v));
     }
     let polygon = convex_ccw_polygon(&points)

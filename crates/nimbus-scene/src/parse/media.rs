@@ -60,7 +60,9 @@ pub(super) fn parse_medium(
         let medium = BoxMedium {
             center: f.vec3("center", None)?,
             size: size3(&f, "size")?,
-            rotation_deg: f.vec3("rotation_deg", Some(Vec3::ZERO))?,
+            rotation_deg: f
+                .angles_deg("rotation_deg", Some(glam::DVec3::ZERO))?
+                .as_vec3(),
             sigma_t: f.f32_in("sigma_t", None, 0.0..=MAX_SIGMA_T)?,
             albedo,
             g,
@@ -138,7 +140,7 @@ pub(super) fn parse_medium(
                 "bounds_max",
                 format!(
                     "component {axis}: bounds_max - bounds_min = {extent}, {message} \
-                     (bounds_min must be < bounds_max componentwise)"
+                     (`bounds_min` must be < `bounds_max` componentwise)"
                 ),
             ));
         }

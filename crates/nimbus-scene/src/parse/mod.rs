@@ -490,7 +490,7 @@ fn parse_shape(source: &Source, index: usize, table: &toml::Table) -> Result<Sha
         "box" => Shape::Box {
             center: f.vec3("center", None)?,
             size: size3(&f, "size")?,
-            rotation_deg: f.vec3("rotation_deg", Some(Vec3::ZERO))?,
+            rotation_deg: f.angles_deg("rotation_deg", Some(DVec3::ZERO))?.as_vec3(),
             albedo,
             emission,
         },

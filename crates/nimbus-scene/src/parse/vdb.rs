@@ -81,7 +81,7 @@ pub(super) fn to_world_parts(
             ));
         }
     }
-    let rotate = f.vec3_f64("rotate_deg", Some(DVec3::ZERO))?;
+    let rotate = f.angles_deg("rotate_deg", Some(DVec3::ZERO))?;
     let translate = f.vec3_f64("translate", Some(DVec3::ZERO))?;
     if translate.abs().max_element() > MAX_LENGTH_M {
         return Err(f.error(
@@ -112,8 +112,16 @@ fn parse_vdb_source(
         .ok_or_else(|| f.error("file", "missing required field (an OpenVDB .vdb file)"))?;
     let grid = f.opt_str("grid")?.map(str::to_string);
     let path = existing_file(&f, "file", name, None)?;
-    let header = read_vdb_topology(&path, grid.as_deref(), kind, "")
-        .map_err(|e| parent.error(key, format!("{e:#}")))?;
+    let header = read_vdb_topology(&path, grid.as_deref(), kind, "").map_err(|e| {
+        // The field to change: `grid` when one is named in a file whose grids can be
+        // listed (no such grid, or one of the wrong kind), else the `file` itself.
+        let blame = if grid.is_some() && crate::vdb::list_grids(&path).is_ok() {
+            "grid"
+        } else {
+            "file"
+        };
+        f.error(blame, format!("{e:#}"))
+    })?;
     let source = VdbSource {
         file: path,
         grid,

@@ -12,6 +12,7 @@ mod conventions;
 mod envmap;
 mod fuzz;
 mod good_scenes;
+mod hostile;
 mod mesh_bvh;
 mod mesh_load;
 mod mesh_scenes;
