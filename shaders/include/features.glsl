@@ -51,6 +51,10 @@
 // Per-pixel passes: the film's alpha is wanted (the camera ray's transmittance is
 // computed); off where nothing reads it (profiles, studies, benchmarks).
 #define SC_ID_ALPHA 22
+// Grid passes: some indirection section is two-level (a bounding box of more than 2^24
+// bricks; crates/nimbus-scene/src/bricks/indirection.rs): grid_slot reads the offset's
+// tag. Off, ordinary grids pay nothing for the second level.
+#define SC_ID_TWO_LEVEL_BRICKS 23
 
 // ---------------------------------------------------------------------------------------
 // Values of SC_ESTIMATOR: the box-medium estimators of Velinov & Mitchell.

@@ -116,13 +116,33 @@ bool space_contains(GridSpace s, vec3 x) {
 // ---------------------------------------------------------------------------------------
 // Bricks.
 
+// The bit of a section's offset that says the section is two-level.
+#define INDIRECTION_TWO_LEVEL 0x80000000u
+// Some section is two-level (the pass sets it from its grids): off, the tag is not read.
+layout(constant_id = SC_ID_TWO_LEVEL_BRICKS) const bool SC_TWO_LEVEL_BRICKS = false;
+
 // The slot of brick b in an indirection section (`offset`, `dims` bricks per axis), or
-// NO_BRICK outside it or where no brick is stored.
+// NO_BRICK outside it or where no brick is stored (crates/nimbus-scene/src/bricks/
+// indirection.rs). One-level: an entry per brick, x fastest. Two-level (the offset's
+// INDIRECTION_TWO_LEVEL bit, for bounding boxes of more than 2^24 bricks): a top table
+// with an entry per node of 8^3 bricks, x fastest (the offset of the node's 512-entry
+// leaf table from the section's start, or NO_BRICK), then the leaf tables.
 uint grid_slot(uint offset, uvec3 dims, ivec3 b) {
     if (any(lessThan(b, ivec3(0))) || any(greaterThanEqual(b, ivec3(dims)))) {
         return NO_BRICK;
     }
-    return grid_bricks[offset + uint((b.z * int(dims.y) + b.y) * int(dims.x) + b.x)];
+    if (!SC_TWO_LEVEL_BRICKS || (offset & INDIRECTION_TWO_LEVEL) == 0u) {
+        return grid_bricks[offset + uint((b.z * int(dims.y) + b.y) * int(dims.x) + b.x)];
+    }
+    offset &= ~INDIRECTION_TWO_LEVEL;
+    uvec3 top = (dims + 7u) >> 3;
+    uvec3 n = uvec3(b) >> 3;
+    uint leaf = grid_bricks[offset + (n.z * top.y + n.y) * top.x + n.x];
+    if (leaf == NO_BRICK) {
+        return NO_BRICK;
+    }
+    uvec3 l = uvec3(b) & 7u;
+    return grid_bricks[offset + leaf + (l.z * 8u + l.y) * 8u + l.x];
 }
 
 // The first texel of slot `slot` in an atlas of slots_x x slots_y x ... slots of 9^3.

@@ -133,10 +133,11 @@ bool grid_super_begin(vec3 o, vec3 d, float t0, float t1, out GridSuperDda it) {
 // brick is empty); advances.
 bool grid_super_next(inout GridSuperDda it, out float s0, out float s1, out vec4 bounds) {
     uint index;
+    ivec3 brick = it.cell;
     if (!grid_blocks_next(it, s0, s1, index)) {
         return false;
     }
-    uint slot = grid_bricks[u_grid.space.bricks_offset + index];
+    uint slot = grid_slot(u_grid.space.bricks_offset, u_grid.space.brick_dims, brick);
     bounds = slot == NO_BRICK ? vec4(0.0) : super_voxels[slot];
     COUNT_STEP();
     COUNT(CTR_MAJORANT, 1);

@@ -45,6 +45,8 @@ pub const SC_ID_COUNTER_SLOT: u32 = 20;
 pub const SC_ID_EXACT_SPANS: u32 = 21;
 /// Per-pixel passes: compute the film's alpha (the camera ray's transmittance).
 pub const SC_ID_ALPHA: u32 = 22;
+/// Grid passes: some brick indirection section is two-level.
+pub const SC_ID_TWO_LEVEL_BRICKS: u32 = 23;
 
 // ---------------------------------------------------------------------------------------
 // Values of `SC_ESTIMATOR` in `shaders/box/crepuscular.comp`.
@@ -100,7 +102,7 @@ pub const GRID_EXACT_SPAN_STEPS: u32 = 64;
 pub const GRID_MAX_STEPS: u32 = 1_048_576;
 
 /// Every constant above with its GLSL name.
-pub const ALL: [(&str, u32); 48] = [
+pub const ALL: [(&str, u32); 49] = [
     ("SC_ID_HAS_SHAPES", SC_ID_HAS_SHAPES),
     ("SC_ID_HAS_GOBOS", SC_ID_HAS_GOBOS),
     ("SC_ID_HAS_ENV", SC_ID_HAS_ENV),
@@ -124,6 +126,7 @@ pub const ALL: [(&str, u32); 48] = [
     ("SC_ID_COUNTER_SLOT", SC_ID_COUNTER_SLOT),
     ("SC_ID_EXACT_SPANS", SC_ID_EXACT_SPANS),
     ("SC_ID_ALPHA", SC_ID_ALPHA),
+    ("SC_ID_TWO_LEVEL_BRICKS", SC_ID_TWO_LEVEL_BRICKS),
     ("GRID_EXACT_SPAN_STEPS", GRID_EXACT_SPAN_STEPS),
     ("COUNTER_COUNT", COUNTER_COUNT),
     ("COUNTER_SLOTS", COUNTER_SLOTS),

@@ -601,16 +601,25 @@ impl GpuGrid {
         needs_exact_spans(&self.super_voxels, &self.p_to_world, 1.0)
     }
 
+    /// Whether a brick indirection section of the grid is two-level.
+    pub fn two_level_bricks(&self) -> bool {
+        self.density_layout.indirection.two_level
+            || self
+                .emission
+                .as_ref()
+                .is_some_and(|(_, layout, _)| layout.indirection.two_level)
+    }
+
     /// The indirection sections of the baseline: the density's (at offset 0, as
     /// `uniforms.grid.space` says), then the emission's (or one empty entry).
-    pub fn indirection(&self) -> Indirection {
+    pub fn indirection(&self) -> Result<Vec<u32>> {
         let mut out = Indirection::default();
-        out.push(&self.density_layout.indirection);
+        out.push(&self.density_layout.indirection)?;
         match &self.emission {
-            Some((_, layout, _)) => out.push(&layout.indirection),
-            None => out.push(&[nimbus_scene::bricks::NO_BRICK]),
+            Some((_, layout, _)) => out.push(&layout.indirection)?,
+            None => out.push(&nimbus_scene::bricks::Indirection::new([1, 1, 1])?)?,
         };
-        out
+        Ok(out.finish())
     }
 }
 
@@ -674,7 +683,7 @@ impl GpuGrid {
             Some((e, layout, _)) => grid_space(
                 e,
                 layout,
-                density_layout.indirection.len() as u32,
+                super::sparse::head_len(&density_layout.indirection) as u32,
                 grid.p_to_world(e)?,
                 world_box,
             ),

@@ -1,6 +1,6 @@
 //! Sparse grids as the shaders read them (`shaders/include/grid.glsl`): a
 //! [`nimbus_scene::BrickGrid`] laid out as slots of 9³ texels (a brick and its high-side
-//! apron) in one 3D atlas image, an indirection section (brick → slot) in the shared
+//! apron) in one 3D atlas image, a two-level indirection section (brick → slot) in the shared
 //! `grid_bricks[]` buffer, and the [`GridSpaceGpu`] record that says where its index space
 //! sits in the world. Atlases are uploaded one layer of slots at a time, so the host never
 //! holds a whole atlas.
@@ -14,7 +14,7 @@
 use anyhow::{bail, Result};
 use glam::{DMat3, DMat4, DVec3, IVec3};
 use nimbus_gpu::{vk, Context, Image};
-use nimbus_scene::bricks::{NO_BRICK, SLOT_EDGE, SLOT_TEXELS};
+use nimbus_scene::bricks::{SLOT_EDGE, SLOT_TEXELS};
 use nimbus_scene::BrickGrid;
 
 use super::GridSpaceGpu;
@@ -97,8 +97,9 @@ pub struct SparseLayout {
     pub bricks: Vec<IVec3>,
     /// The slot of this grid's first brick (grids can share an atlas).
     pub first_slot: u32,
-    /// Per brick of `brick_dims` (x fastest): its slot or [`NO_BRICK`].
-    pub indirection: Vec<u32>,
+    /// Per brick of `brick_dims` its slot or `NO_BRICK`
+    /// ([`nimbus_scene::bricks::indirection`]: one- or two-level).
+    pub indirection: nimbus_scene::bricks::Indirection,
     pub brick_dims: [u32; 3],
     /// Slots per axis of the atlas.
     pub slots: [u32; 3],
@@ -127,12 +128,9 @@ impl SparseLayout {
                 bricks.len()
             );
         }
-        let mut indirection = vec![NO_BRICK; grid.indirection.len()];
+        let mut indirection = nimbus_scene::bricks::Indirection::new(grid.brick_dims)?;
         for (i, b) in bricks.iter().enumerate() {
-            let Some(cell) = grid.cell(*b) else {
-                bail!("internal: brick {b} outside the grid's indirection");
-            };
-            indirection[cell] = first_slot + i as u32;
+            indirection.set(*b, first_slot + i as u32)?;
         }
         Ok(SparseLayout {
             bricks,
@@ -299,7 +297,7 @@ pub fn grid_space(
         box_min: box_min.to_array(),
         axis_aligned: u32::from(world_box.is_some() || diagonal),
         box_max: box_max.to_array(),
-        bricks_offset,
+        bricks_offset: layout.indirection.tagged_offset(bricks_offset),
         index_min: grid.index_min.as_vec3().to_array(),
         slots_x: layout.slots[0],
         index_max: grid.index_max.as_vec3().to_array(),
@@ -313,18 +311,59 @@ pub fn grid_space(
     }
 }
 
-/// The indirection sections of a pass, concatenated into one `grid_bricks[]` buffer.
+/// The indirection sections of a pass, concatenated into one `grid_bricks[]` buffer:
+/// every section's head first (a one-level section whole, a two-level one's top table),
+/// then the two-level sections' leaf tables. A section's offset so depends only on the
+/// heads before it, which depend only on the grids' dims: an animated grid's sections
+/// keep their offsets from frame to frame while its occupied nodes change.
 #[derive(Clone, Debug, Default)]
 pub struct Indirection {
-    pub entries: Vec<u32>,
+    entries: Vec<u32>,
+    /// Two-level sections' leaf tables: (section offset, head length, leaf entries).
+    pending: Vec<(usize, usize, Vec<u32>)>,
+    total: u64,
 }
 
 impl Indirection {
-    /// Appends a section; returns its offset.
-    pub fn push(&mut self, section: &[u32]) -> u32 {
-        let offset = self.entries.len() as u32;
-        self.entries.extend_from_slice(section);
-        offset
+    /// Appends a section; returns the offset the shaders read it at (tagged two-level
+    /// where it is: [`nimbus_scene::bricks::Indirection::tagged_offset`]).
+    pub fn push(&mut self, section: &nimbus_scene::bricks::Indirection) -> Result<u32> {
+        self.total += section.len() as u64;
+        if self.total >= u64::from(nimbus_scene::bricks::indirection::TWO_LEVEL) {
+            bail!("the grids' brick indirection sections exceed 2^31 entries");
+        }
+        let offset = self.entries.len();
+        let head = head_len(section);
+        self.entries.extend_from_slice(&section.entries[..head]);
+        if head < section.len() {
+            self.pending
+                .push((offset, head, section.entries[head..].to_vec()));
+        }
+        Ok(section.tagged_offset(offset as u32))
+    }
+
+    /// The buffer: the heads, then the leaf tables, each top entry pointing at its
+    /// table relative to its section's offset.
+    pub fn finish(mut self) -> Vec<u32> {
+        for (offset, head, leaves) in std::mem::take(&mut self.pending) {
+            let at = self.entries.len();
+            for e in &mut self.entries[offset..offset + head] {
+                if *e != nimbus_scene::bricks::NO_BRICK {
+                    *e = (at + (*e as usize - head) - offset) as u32;
+                }
+            }
+            self.entries.extend(leaves);
+        }
+        self.entries
+    }
+}
+
+/// Entries of a section's head: all of a one-level one, a two-level one's top table.
+pub fn head_len(section: &nimbus_scene::bricks::Indirection) -> usize {
+    if section.two_level {
+        nimbus_scene::bricks::indirection::top_cells(section.dims) as usize
+    } else {
+        section.len()
     }
 }
 

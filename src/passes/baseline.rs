@@ -23,10 +23,16 @@ use crate::gpu::{
 use crate::plan::BaselinePlan;
 use crate::shaders;
 
-/// The specialization constants of `pathtrace.comp` for a plan.
-pub fn specialization(plan: &BaselinePlan, exact_spans: bool) -> [(u32, SpecValue); 11] {
+/// The specialization constants of `pathtrace.comp` for a plan; `two_level`: some
+/// brick indirection section of the grid is two-level.
+pub fn specialization(
+    plan: &BaselinePlan,
+    exact_spans: bool,
+    two_level: bool,
+) -> [(u32, SpecValue); 12] {
     [
         (SC_ID_EXACT_SPANS, SpecValue::Bool(exact_spans)),
+        (SC_ID_TWO_LEVEL_BRICKS, SpecValue::Bool(two_level)),
         (SC_ID_HAS_AREA_LIGHTS, SpecValue::Bool(plan.has_area_lights)),
         (SC_ID_HAS_GOBOS, SpecValue::Bool(plan.has_gobos)),
         (SC_ID_HAS_MESHES, SpecValue::Bool(plan.has_meshes)),
@@ -100,7 +106,7 @@ pub fn create(
             o,
             shaders::BASELINE_PATHTRACE,
             &layout,
-            &specialization(plan, grid.needs_exact_spans()),
+            &specialization(plan, grid.needs_exact_spans(), grid.two_level_bricks()),
             targets.film_spec(0),
             "baseline path tracer",
         )?;
@@ -118,7 +124,7 @@ pub fn create(
         let planes = upload_records(ctx, o, &[[0.0f32; 4]], "medium planes")?;
         let (env_texels, env_tables) = upload_env_map(ctx, o, grid.env_map.as_ref())?;
         let uniforms = upload_params(ctx, o, &grid.uniforms, "baseline uniforms")?;
-        let bricks = upload_records(ctx, o, &grid.indirection().entries, "grid bricks")?;
+        let bricks = upload_records(ctx, o, &grid.indirection()?, "grid bricks")?;
         let density = atlas_image(
             ctx,
             o,

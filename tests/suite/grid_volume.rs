@@ -123,7 +123,7 @@ impl Medium {
             },
             atlas_dims: layout.atlas_dims(),
             atlas: layout.atlas_texels(&bricks, 1.0, TexelFormat::R32),
-            bricks: layout.indirection.clone(),
+            bricks: layout.indirection.entries.clone(),
             super_voxels,
         }
     }

@@ -74,7 +74,11 @@ fn openvdb_dump(name: &str) -> (DMat4, HashMap<IVec3, f32>) {
 /// maps back to. Returns the `[[medium]]` table.
 fn raw_twin(dir: &Path, name: &str, to_world: DMat4) -> String {
     let (file_transform, values) = openvdb_dump(name);
-    let m = to_world * file_transform;
+    raw_twin_of(dir, name, to_world * file_transform, &values)
+}
+
+/// The raw twin of the voxels `values` (index space) placed by `m` (index to world).
+fn raw_twin_of(dir: &Path, name: &str, m: DMat4, values: &HashMap<IVec3, f32>) -> String {
     let lo = values.keys().fold(IVec3::MAX, |a, k| a.min(*k)) - 1;
     let hi = values.keys().fold(IVec3::MIN, |a, k| a.max(*k)) + 1;
     let world = |p: DVec3| (m * p.extend(1.0)).truncate();
@@ -316,6 +320,66 @@ fn a_rotated_vdb_renders_as_the_rotated_scene() {
         assert!(
             beyond * 50 <= channels,
             "{volume}: {beyond} channels beyond 4.5 SE"
+        );
+    }
+}
+
+/// `tiles_blosc.vdb` holds voxels up to 10 000 voxels apart around a 128³ tile: its
+/// bounding box spans 1002 x 764 x 1314 bricks, whose one-entry-per-brick indirection
+/// (3.8 GB) was refused. The two-level indirection takes a top table and a leaf table
+/// per occupied node (a few MB), and both integrators render the tile and its
+/// neighbouring leaves as a raw twin of them (the three single voxels thousands of
+/// voxels away are out of view and left out of the twin).
+#[test]
+fn a_grid_spread_over_thousands_of_voxels_renders_as_its_near_voxels() {
+    let ctx = context();
+    let dir = scratch("vdb_render", "tiles");
+    let name = "tiles_blosc.vdb";
+    let file = asset(name).canonicalize().unwrap();
+    let to_world_text = "to_world = { scale = 0.15625, translate = [-1, -1, -1] }";
+    let vdb = format!(
+        "type = \"vdb\"\ndensity = {{ file = \"{}\" }}\n{to_world_text}",
+        file.display()
+    );
+    let parsed = scene(&scene_text(&vdb, "baseline"), "vdb.toml");
+    let nimbus_scene::Medium::Grid(g) = &parsed.media[0] else {
+        panic!("a grid medium");
+    };
+    let bricks = nimbus_scene::BrickGrid::load(&g.density, 1, "t").unwrap();
+    assert_eq!(bricks.brick_dims, [1002, 764, 1314]);
+    assert!(
+        bricks.indirection.len() * 4 < 16 << 20,
+        "indirection of {} entries",
+        bricks.indirection.len()
+    );
+    let (file_transform, values) = openvdb_dump(name);
+    let near: HashMap<IVec3, f32> = values
+        .iter()
+        .filter(|(k, _)| k.min_element() >= 0 && k.max_element() < 200)
+        .map(|(k, v)| (*k, *v))
+        .collect();
+    assert_eq!(values.len() - near.len(), 3, "the far voxels");
+    assert!(near.len() >= 128 * 128 * 128);
+    // The tile (0.1 m voxels) scaled to 2 m across and centred near the origin.
+    let to_world_m =
+        DMat4::from_translation(DVec3::splat(-1.0)) * DMat4::from_scale(DVec3::splat(0.15625));
+    let raw = raw_twin_of(&dir, name, to_world_m * file_transform, &near);
+    for volume in ["baseline", "restir"] {
+        let a = render_checked(&ctx, &scene(&scene_text(&vdb, volume), "vdb.toml"), None);
+        let b = render_checked(&ctx, &scene(&scene_text(&raw, volume), "raw.toml"), None);
+        let centre = a.image.data[15 * 40 + 20];
+        assert!(
+            (centre[0] - 0.2).abs() > 0.02,
+            "{volume}: the tile is seen, {centre:?}"
+        );
+        let (a, b) = ((&a.image, &a.std_error), (&b.image, &b.std_error));
+        assert_means_agree(&format!("{name} {volume}: vdb vs raw"), a, b, 4.0, 0.005);
+        let beyond = channels_beyond(a, b, 4.5);
+        let channels = 3 * a.0.data.len();
+        println!("  {name} {volume}: {beyond} of {channels} channels beyond 4.5 SE");
+        assert!(
+            beyond * 50 <= channels,
+            "{name} {volume}: {beyond} channels beyond 4.5 SE"
         );
     }
 }

@@ -48,8 +48,14 @@ pub const FINAL_RATIO_MAJORANT_SCALE: f32 = 4.0;
 /// The specialization constants of the ReSTIR shaders for a plan; `exact_spans`: some
 /// super-voxel of some density frame is hot for final ratio tracking
 /// ([`crate::gpu::scene::needs_exact_spans`]).
-pub fn specialization(plan: &RestirPlan, exact_spans: bool) -> [(u32, SpecValue); 17] {
+/// `two_level`: some brick indirection section is two-level.
+pub fn specialization(
+    plan: &RestirPlan,
+    exact_spans: bool,
+    two_level: bool,
+) -> [(u32, SpecValue); 18] {
     [
+        (SC_ID_TWO_LEVEL_BRICKS, SpecValue::Bool(two_level)),
         (
             SC_ID_EXACT_SPANS,
             SpecValue::Bool(plan.final_ratio_tracking && exact_spans),
@@ -161,28 +167,28 @@ pub struct Sections {
 fn indirection(
     cur: &DerivedVolume,
     prev: &DerivedVolume,
-    emission: &[u32],
+    emission: &nimbus_scene::bricks::Indirection,
     animated: bool,
-) -> (Vec<u32>, Sections) {
+) -> Result<(Vec<u32>, Sections)> {
     let mut ind = Indirection::default();
-    let density = ind.push(&cur.density_layout.indirection);
-    let emission = ind.push(emission);
+    let density = ind.push(&cur.density_layout.indirection)?;
+    let emission = ind.push(emission)?;
     let density_prev = if animated {
-        ind.push(&prev.density_layout.indirection)
+        ind.push(&prev.density_layout.indirection)?
     } else {
         density
     };
-    let pc_primary = ind.push(&cur.pc_primary_layout.indirection);
-    let pc_indirect = ind.push(&cur.pc_indirect_layout.indirection);
-    let march_reuse = ind.push(&cur.march_reuse_layout.indirection);
+    let pc_primary = ind.push(&cur.pc_primary_layout.indirection)?;
+    let pc_indirect = ind.push(&cur.pc_indirect_layout.indirection)?;
+    let march_reuse = ind.push(&cur.march_reuse_layout.indirection)?;
     let march_reuse_prev = if animated {
-        ind.push(&prev.march_reuse_layout.indirection)
+        ind.push(&prev.march_reuse_layout.indirection)?
     } else {
         march_reuse
     };
-    let march_nee = ind.push(&cur.march_nee_layout.indirection);
-    (
-        ind.entries,
+    let march_nee = ind.push(&cur.march_nee_layout.indirection)?;
+    Ok((
+        ind.finish(),
         Sections {
             density,
             emission,
@@ -193,7 +199,7 @@ fn indirection(
             march_reuse_prev,
             march_nee,
         },
-    )
+    ))
 }
 
 /// Voxels a velocity may move a point per frame before Nimbus says so: more is what a
@@ -282,7 +288,7 @@ pub struct RestirPass {
     grid: GridMedium,
     volumes: Volumes,
     /// The emission's indirection section (the same for every frame).
-    emission_indirection: Vec<u32>,
+    emission_indirection: nimbus_scene::bricks::Indirection,
     scene_lights_radius: f32,
     env_map_luminance: Option<f32>,
     /// The emitting shapes' total power (their LIGHT_AREA record's selection weight).
@@ -341,9 +347,20 @@ impl RestirPass {
         let animated = !grid.frames.is_empty();
         let emission_indirection = match &grid_gpu.emission {
             Some((_, layout, _)) => layout.indirection.clone(),
-            None => vec![nimbus_scene::bricks::NO_BRICK],
+            None => nimbus_scene::bricks::Indirection::new([1, 1, 1])?,
         };
-        let (bricks, sections) = indirection(first, first, &emission_indirection, animated);
+        let (mut bricks, sections) = indirection(first, first, &emission_indirection, animated)?;
+        // An animated grid's frames share their sections' offsets, not their lengths
+        // where a section is two-level (its leaf tables follow the occupied nodes): the
+        // buffer holds the longest pair of frames (at most twice the longest frame).
+        if animated && first.density_layout.indirection.two_level {
+            let mut longest = bricks.len();
+            for i in 0..=grid.frames.len() {
+                let v = volumes.get(i)?;
+                longest = longest.max(indirection(v, v, &emission_indirection, true)?.0.len());
+            }
+            bricks.resize(2 * longest, nimbus_scene::bricks::NO_BRICK);
+        }
         let mut base_uniforms = grid_gpu.uniforms;
         base_uniforms.grid.space.bricks_offset = sections.density;
         base_uniforms.grid.space.slots_x = volumes.sizes.density[0];
@@ -442,7 +459,9 @@ impl RestirPass {
         };
         let exact_spans =
             volumes.needs_exact_spans(&grid_gpu.p_to_world, FINAL_RATIO_MAJORANT_SCALE);
-        let spec = specialization(plan, exact_spans);
+        // The density is the finest grid: its section is two-level if any is.
+        let two_level = first.density_layout.indirection.two_level || grid_gpu.two_level_bricks();
+        let spec = specialization(plan, exact_spans, two_level);
         let (objects, res) =
             GpuObjects::build(ctx, |o| Resources::create(ctx, o, &spec, &inputs, targets))?;
         Ok(RestirPass {
@@ -598,7 +617,7 @@ impl RestirPass {
         );
         ctx.upload_buffer(&o[r.super_voxels], 0, bytemuck::cast_slice(&records))?;
         let animated = !self.grid.frames.is_empty();
-        let (entries, _) = indirection(cur, prev, &self.emission_indirection, animated);
+        let (entries, _) = indirection(cur, prev, &self.emission_indirection, animated)?;
         ctx.upload_buffer(&o[r.bricks], 0, bytemuck::cast_slice(&entries))?;
         self.loaded = want;
         Ok(())

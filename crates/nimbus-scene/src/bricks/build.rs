@@ -31,9 +31,26 @@ impl BrickTopology {
         (shr(self.lattice_max, 3) + 1).to_array().map(|d| d as u32)
     }
 
-    /// Entries of the indirection.
+    /// Entries of the two-level indirection of these bricks (its top table and a leaf
+    /// table per node), an upper bound for the grid's and for its atlas layout's, whose
+    /// slots also hold the low-side neighbours of stored bricks.
     pub fn cells(&self) -> u64 {
-        self.brick_dims().iter().map(|&d| u64::from(d)).product()
+        let mut reach = Vec::with_capacity(self.bricks.len());
+        for b in &self.bricks {
+            let (lo, hi) = (shr((*b - 1).max(IVec3::ZERO), 3), shr(*b, 3));
+            for z in lo.z..=hi.z {
+                for y in lo.y..=hi.y {
+                    for x in lo.x..=hi.x {
+                        // A brick of node (x, y, z): its nodes are what is counted.
+                        reach.push(IVec3::new(x, y, z) * 8);
+                    }
+                }
+            }
+        }
+        super::indirection::entries_for(
+            self.brick_dims(),
+            super::indirection::distinct_nodes(&reach),
+        )
     }
 
     /// The topology of a dense grid of `dims` whose stored bricks are `bricks`.
@@ -228,10 +245,10 @@ impl BrickGrid {
         } = grid;
         for (n, origin) in brick_origins.iter().enumerate() {
             let b = shr(*origin - out.origin, 3);
-            let Some(cell) = out.cell(b) else {
+            if !out.contains_brick(b) {
                 bail!("internal: {name}: leaf {origin} outside its bounding box");
-            };
-            out.indirection[cell] = n as u32;
+            }
+            out.indirection.set(b, n as u32)?;
             out.bricks.push(b);
         }
         out.values = values;

@@ -28,7 +28,7 @@ fn dilated(grid: &BrickGrid) -> Vec<IVec3> {
             for y in -1..=1 {
                 for x in -1..=1 {
                     let n = *b + IVec3::new(x, y, z);
-                    if grid.cell(n).is_some() {
+                    if grid.contains_brick(n) {
                         set.insert(n);
                     }
                 }
@@ -394,7 +394,7 @@ impl BrickGrid {
                 for y in -1..=0 {
                     for x in -1..=0 {
                         let n = *b + IVec3::new(x, y, z);
-                        if self.cell(n).is_some() {
+                        if self.contains_brick(n) {
                             candidates.insert(n);
                         }
                     }

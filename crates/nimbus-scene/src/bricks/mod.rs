@@ -1,8 +1,8 @@
 //! Sparse voxel grids as 8³ bricks: the form every density, emission and derived level
-//! takes on its way to the GPU (bricks in an atlas behind a dense indirection grid, as
+//! takes on its way to the GPU (bricks in an atlas behind a two-level indirection, as
 //! GVDB and NanoVDB do), whether it came from a dense file, the procedural cloud or
-//! OpenVDB. Memory follows the stored bricks, plus 4 bytes of indirection per 8³ brick
-//! of the bounding box.
+//! OpenVDB. Memory follows the stored bricks: 4 bytes of indirection per node of 8³
+//! bricks of the bounding box, and 2 KiB per node that holds a brick ([`indirection`]).
 //!
 //! # Index spaces
 //! A [`BrickGrid`] holds values on an integer **lattice**: lattice point `l` is where a
@@ -34,11 +34,14 @@
 
 mod build;
 mod derive;
+pub mod indirection;
 mod load;
 mod march;
 mod precision;
 #[cfg(test)]
 mod tests;
+
+pub use indirection::Indirection;
 
 pub use build::{
     procedural_cloud_brick_may_be_nonzero, procedural_cloud_super_voxel_may_be_nonzero,
@@ -64,9 +67,6 @@ pub const SLOT_EDGE: i32 = 9;
 pub const SLOT_TEXELS: usize = 729;
 /// An indirection entry without a brick.
 pub const NO_BRICK: u32 = u32::MAX;
-/// Most indirection entries (bricks of the bounding box) a grid may have: 2^27, i.e.
-/// 512 MiB of indirection, a bounding box of 4096 × 4096 × 4096 lattice points.
-pub const MAX_BRICK_CELLS: u64 = 1 << 27;
 
 /// A sparse grid of 8³ bricks; see the module docs for its index spaces.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -83,8 +83,8 @@ pub struct BrickGrid {
     pub index_max: DVec3,
     /// Values per lattice point (1, or 3 for velocity and coloured emission).
     pub channels: u32,
-    /// Per brick of `brick_dims` (x fastest): its index in `bricks`, or [`NO_BRICK`].
-    pub indirection: Vec<u32>,
+    /// Per brick of `brick_dims`: its index in `bricks`, or [`NO_BRICK`].
+    pub indirection: Indirection,
     /// Primed coordinates of the stored bricks, in storage order.
     pub bricks: Vec<IVec3>,
     /// `BRICK_POINTS · channels` values per stored brick, x fastest, channels
@@ -107,8 +107,8 @@ pub fn point_index(local: IVec3) -> usize {
 
 impl BrickGrid {
     /// An empty grid (no bricks) over the primed lattice range `lattice_min ..=
-    /// lattice_max` and p-space box `index_min ..= index_max`. Refuses an indirection of
-    /// more than [`MAX_BRICK_CELLS`] entries before allocating it.
+    /// lattice_max` and p-space box `index_min ..= index_max`. Refuses a top table of
+    /// more than [`indirection::MAX_TOP_CELLS`] entries before allocating it.
     pub fn empty(
         origin: IVec3,
         lattice_min: IVec3,
@@ -121,17 +121,7 @@ impl BrickGrid {
             bail!("internal: brick lattice range {lattice_min} ..= {lattice_max} is invalid");
         }
         let brick_dims = (shr(lattice_max, 3) + 1).to_array().map(|d| d as u32);
-        let cells = brick_dims.iter().map(|&d| u64::from(d)).product::<u64>();
-        if cells > MAX_BRICK_CELLS {
-            bail!(
-                "its bounding box spans {} x {} x {} bricks of 8³ voxels ({cells} indirection \
-                 entries), more than the {MAX_BRICK_CELLS} Nimbus indexes; the active voxels \
-                 are spread over too large a region",
-                brick_dims[0],
-                brick_dims[1],
-                brick_dims[2]
-            );
-        }
+        let indirection = Indirection::new(brick_dims)?;
         Ok(BrickGrid {
             origin,
             lattice_min,
@@ -140,7 +130,7 @@ impl BrickGrid {
             index_min,
             index_max,
             channels,
-            indirection: vec![NO_BRICK; cells as usize],
+            indirection,
             bricks: Vec::new(),
             values: Vec::new(),
             file_transform: None,
@@ -157,18 +147,14 @@ impl BrickGrid {
         BRICK_POINTS * self.channels as usize
     }
 
-    /// The indirection index of brick `b`, if it lies inside `brick_dims`.
-    pub fn cell(&self, b: IVec3) -> Option<usize> {
-        let [nx, ny, nz] = self.brick_dims.map(|d| d as i32);
-        if b.x < 0 || b.y < 0 || b.z < 0 || b.x >= nx || b.y >= ny || b.z >= nz {
-            return None;
-        }
-        Some((b.x + nx * (b.y + ny * b.z)) as usize)
+    /// Whether brick `b` lies inside `brick_dims`.
+    pub fn contains_brick(&self, b: IVec3) -> bool {
+        self.indirection.contains(b)
     }
 
     /// The storage index of brick `b`, if it is stored.
     pub fn find(&self, b: IVec3) -> Option<usize> {
-        let at = *self.indirection.get(self.cell(b)?)?;
+        let at = self.indirection.get(b);
         (at != NO_BRICK).then_some(at as usize)
     }
 
@@ -181,16 +167,16 @@ impl BrickGrid {
     /// Appends brick `b` (not stored yet, inside `brick_dims`) with `values`
     /// (`brick_len` of them).
     pub fn push_brick(&mut self, b: IVec3, values: &[f32]) -> Result<()> {
-        let Some(cell) = self.cell(b) else {
+        if !self.contains_brick(b) {
             bail!(
                 "internal: brick {b} outside the indirection {:?}",
                 self.brick_dims
             );
-        };
-        if self.indirection[cell] != NO_BRICK || values.len() != self.brick_len() {
+        }
+        if self.indirection.get(b) != NO_BRICK || values.len() != self.brick_len() {
             bail!("internal: brick {b} stored twice or with the wrong size");
         }
-        self.indirection[cell] = self.bricks.len() as u32;
+        self.indirection.set(b, self.bricks.len() as u32)?;
         self.bricks.push(b);
         self.values.extend_from_slice(values);
         Ok(())
