@@ -228,6 +228,24 @@ fn a_pipe_or_a_device_as_the_scene_is_refused_without_reading_it() {
     );
 }
 
+/// Renders the default scene at 8x6 with `seed` and `frames` to `path` (a merge part).
+fn render_default_8x6(path: &std::path::Path, seed: &str, frames: &str) {
+    let out = nimbus(&[
+        "render",
+        "--width",
+        "8",
+        "--height",
+        "6",
+        "--frames",
+        frames,
+        "--seed",
+        seed,
+        "--out",
+        path.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+}
+
 /// `nimbus merge --out` naming one of its inputs (by any spelling) is refused and the
 /// input is left as it was (issue 24: it overwrote it).
 #[test]
@@ -235,20 +253,7 @@ fn merge_never_overwrites_an_input() {
     let dir = scratch("merge-overwrite");
     let (a, b) = (dir.join("a.exr"), dir.join("b.exr"));
     for (path, seed) in [(&a, "1"), (&b, "2")] {
-        let out = nimbus(&[
-            "render",
-            "--width",
-            "8",
-            "--height",
-            "6",
-            "--frames",
-            "1",
-            "--seed",
-            seed,
-            "--out",
-            path.to_str().unwrap(),
-        ]);
-        assert!(out.status.success(), "{}", text(&out.stderr));
+        render_default_8x6(path, seed, "1");
     }
     let before = std::fs::read(&a).unwrap();
     let other_spelling = dir.join(".").join("a.exr");
@@ -337,20 +342,7 @@ fn refusals_name_the_part_and_the_source_of_the_value() {
     let dir = scratch("merge-parts");
     let render = |name: &str, seed: &str| {
         let path = dir.join(name);
-        let out = nimbus(&[
-            "render",
-            "--width",
-            "8",
-            "--height",
-            "6",
-            "--frames",
-            "2",
-            "--seed",
-            seed,
-            "--out",
-            path.to_str().unwrap(),
-        ]);
-        assert!(out.status.success(), "{}", text(&out.stderr));
+        render_default_8x6(&path, seed, "2");
         path
     };
     let (a, png) = (render("a.exr", "1"), render("c.png", "3"));

@@ -2,34 +2,17 @@
 //! the fields the parser accepts, the README and docs link only to files in the
 //! repository, and every command's `--help` explains every option.
 
-use std::collections::BTreeMap;
 use std::path::Path;
 
 use crate::common::cli::{nimbus, text};
 
+// The scene crate's reading of the contract's field tables (one parser for both suites).
+#[path = "../../crates/nimbus-scene/tests/suite/common/contract.rs"]
+mod contract;
+use contract::documented_tables;
+
 fn repo() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR"))
-}
-
-/// The field tables of the scene-format page: `### <table>` headings under "## Tables",
-/// each with the fields named in the first column of its rows (`| `field` | ...`).
-fn documented_tables(page: &str) -> BTreeMap<String, Vec<String>> {
-    let mut tables = BTreeMap::new();
-    let mut current: Option<String> = None;
-    let mut in_tables = false;
-    for line in page.lines() {
-        if let Some(h) = line.strip_prefix("## ") {
-            in_tables = h.trim() == "Tables";
-            current = None;
-        } else if let Some(h) = line.strip_prefix("### ").filter(|_| in_tables) {
-            current = Some(h.trim().to_string());
-            tables.insert(h.trim().to_string(), Vec::new());
-        } else if let (Some(table), Some(row)) = (&current, line.strip_prefix("| `")) {
-            let field = row.split('`').next().unwrap_or("").to_string();
-            tables.get_mut(table).unwrap().push(field);
-        }
-    }
-    tables
 }
 
 #[test]

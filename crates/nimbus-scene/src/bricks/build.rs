@@ -31,26 +31,28 @@ impl BrickTopology {
         (shr(self.lattice_max, 3) + 1).to_array().map(|d| d as u32)
     }
 
-    /// Entries of the two-level indirection of these bricks (its top table and a leaf
-    /// table per node), an upper bound for the grid's and for its atlas layout's, whose
-    /// slots also hold the low-side neighbours of stored bricks.
+    /// Entries of the indirection of these bricks: one per brick of the box where that
+    /// is one-level, else the top table and a leaf table per node, an upper bound for the
+    /// grid's and its atlas layout's (whose slots also hold the low-side neighbours of
+    /// stored bricks). The nodes are counted in a set of nodes (1/512 of the bricks).
     pub fn cells(&self) -> u64 {
-        let mut reach = Vec::with_capacity(self.bricks.len());
+        use super::indirection::{dense_cells, entries_for, MAX_DENSE_CELLS};
+        let dims = self.brick_dims();
+        if dense_cells(dims) <= MAX_DENSE_CELLS {
+            return dense_cells(dims);
+        }
+        let mut nodes = std::collections::HashSet::new();
         for b in &self.bricks {
             let (lo, hi) = (shr((*b - 1).max(IVec3::ZERO), 3), shr(*b, 3));
             for z in lo.z..=hi.z {
                 for y in lo.y..=hi.y {
                     for x in lo.x..=hi.x {
-                        // A brick of node (x, y, z): its nodes are what is counted.
-                        reach.push(IVec3::new(x, y, z) * 8);
+                        nodes.insert(IVec3::new(x, y, z));
                     }
                 }
             }
         }
-        super::indirection::entries_for(
-            self.brick_dims(),
-            super::indirection::distinct_nodes(&reach),
-        )
+        entries_for(dims, nodes.len() as u64)
     }
 
     /// The topology of a dense grid of `dims` whose stored bricks are `bricks`.

@@ -73,14 +73,6 @@ pub fn entries_for(dims: [u32; 3], nodes: u64) -> u64 {
     }
 }
 
-/// The distinct nodes of `bricks` (counted with a sort, no table).
-pub fn distinct_nodes(bricks: &[IVec3]) -> u64 {
-    let mut nodes: Vec<IVec3> = bricks.iter().map(|b| super::shr(*b, 3)).collect();
-    nodes.sort_unstable_by_key(|n| (n.z, n.y, n.x));
-    nodes.dedup();
-    nodes.len() as u64
-}
-
 impl Indirection {
     /// An empty indirection over `dims` bricks (every entry [`NO_BRICK`]): one-level up
     /// to [`MAX_DENSE_CELLS`] entries, else two-level. Refuses a top table over
@@ -229,7 +221,6 @@ mod tests {
         }
         // The first two share a node.
         assert_eq!(ind.len() as u64, entries_for(dims, 3));
-        assert_eq!(distinct_nodes(&bricks), 3);
         for (i, b) in bricks.iter().enumerate() {
             assert_eq!(ind.get(*b), i as u32);
         }

@@ -349,28 +349,13 @@ fn inline_templates() -> Vec<(Template, Vec<&'static str>)> {
 }
 
 /// The `### ...` sections under "## Tables" of docs/scene-format.md with the fields in
-/// the first column of their tables (as `tests/suite/docs.rs` of the renderer reads them).
+/// the first column of their tables.
 fn contract() -> BTreeMap<String, Vec<String>> {
     let page = std::fs::read_to_string(
         Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs/scene-format.md"),
     )
     .expect("docs/scene-format.md");
-    let mut tables = BTreeMap::new();
-    let mut current: Option<String> = None;
-    let mut in_tables = false;
-    for line in page.lines() {
-        if let Some(h) = line.strip_prefix("## ") {
-            in_tables = h.trim() == "Tables";
-            current = None;
-        } else if let Some(h) = line.strip_prefix("### ").filter(|_| in_tables) {
-            current = Some(h.trim().to_string());
-            tables.insert(h.trim().to_string(), Vec::new());
-        } else if let (Some(table), Some(row)) = (&current, line.strip_prefix("| `")) {
-            let field = row.split('`').next().unwrap_or("").to_string();
-            tables.get_mut(table).unwrap().push(field);
-        }
-    }
-    tables
+    crate::common::contract::documented_tables(&page)
 }
 
 /// The class of a hostile value, for the tally.
