@@ -288,6 +288,30 @@ impl Footprint {
         } else {
             cells += 1;
         }
+        if let Some(t) = &g.temperature {
+            let what = format!("{file}: [[medium]] #{} > temperature", index + 1);
+            let e = BrickTopology::of(&t.source, 1, &what)?;
+            let slots = slot_bound(&e, false);
+            self.add(
+                format!("{table} field `temperature` (atlas of {slots} bricks)"),
+                Binding::Image3d(atlas_dims(atlas_slots(slots)?)),
+                atlas_bytes(slots, r32)?,
+            );
+            let table_bytes = (nimbus_scene::blackbody::BLACKBODY_TABLE_LEN * 16) as u64;
+            self.add(
+                format!("{table} (blackbody table)"),
+                Binding::Storage,
+                table_bytes,
+            );
+            cells += e.cells();
+            self.host_peak += brick_bytes(&e)
+                + 2 * e.cells() * 4
+                + slots * 12
+                + 2 * layer_bytes(slots, r32)?
+                + table_bytes;
+        } else {
+            cells += 1;
+        }
         self.add(
             format!("{table} (brick indirection)"),
             Binding::Storage,

@@ -93,6 +93,7 @@ pub fn scene_files(scene: &Scene) -> Vec<(String, &Path)> {
             g: _,
             emission,
             emission_scale: _,
+            temperature,
             velocity,
             velocity_scale: _,
             frames,
@@ -102,6 +103,11 @@ pub fn scene_files(scene: &Scene) -> Vec<(String, &Path)> {
         let table = format!("[[medium]] #{}", i + 1);
         let mut sources: Vec<(String, &GridSource)> = vec![(format!("{table} density"), density)];
         sources.extend(emission.iter().map(|e| (format!("{table} emission"), e)));
+        sources.extend(
+            temperature
+                .iter()
+                .map(|t| (format!("{table} temperature"), &t.source)),
+        );
         sources.extend(velocity.iter().map(|v| (format!("{table} velocity"), v)));
         for (j, frame) in frames.iter().enumerate() {
             sources.push((

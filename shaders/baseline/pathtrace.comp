@@ -37,6 +37,8 @@ layout(constant_id = SC_ID_HAS_MEDIA) const bool SC_HAS_MEDIA = false;
 layout(constant_id = SC_ID_MAX_BOUNCES) const uint SC_MAX_BOUNCES = 1u;
 layout(constant_id = SC_ID_PIXEL_JITTER) const bool SC_PIXEL_JITTER = true;
 layout(constant_id = SC_ID_HAS_EMISSION) const bool SC_HAS_EMISSION = false;
+// A temperature grid glows as a blackbody (grid_emission.glsl).
+layout(constant_id = SC_ID_HAS_BLACKBODY) const bool SC_HAS_BLACKBODY = false;
 // The environment is an importance-sampled map (else a constant radiance).
 layout(constant_id = SC_ID_HAS_ENV_MAP) const bool SC_HAS_ENV_MAP = false;
 

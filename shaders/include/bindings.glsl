@@ -34,6 +34,8 @@
 #define BINDING_BVH_NODES 28
 #define BINDING_MESH_TRIANGLES 29
 #define BINDING_EMITTERS 30
+#define BINDING_GRID_TEMPERATURE 31
+#define BINDING_BLACKBODY 32
 
 // Indices into the stats buffer (uint counters).
 #define STAT_NON_FINITE 0

@@ -55,6 +55,9 @@
 // bricks; crates/nimbus-scene/src/bricks/indirection.rs): grid_slot reads the offset's
 // tag. Off, ordinary grids pay nothing for the second level.
 #define SC_ID_TWO_LEVEL_BRICKS 23
+// Grid passes: the medium has a temperature grid; grid_emission adds its blackbody
+// radiance (the temperature atlas and the blackbody table are read).
+#define SC_ID_HAS_BLACKBODY 24
 
 // ---------------------------------------------------------------------------------------
 // Values of SC_ESTIMATOR: the box-medium estimators of Velinov & Mitchell.

@@ -33,6 +33,12 @@ layout(std430, set = 0, binding = BINDING_LIGHTS) readonly buffer LightsBlock {
 // texelFetch), and the emission grid's (R32F or RGBA32F).
 layout(set = 0, binding = BINDING_GRID_DENSITY) uniform sampler3D u_density;
 layout(set = 0, binding = BINDING_GRID_EMISSION) uniform sampler3D u_emission;
+// The temperature grid's atlas (R32F) and the blackbody table (grid_emission.glsl), read
+// only where SC_HAS_BLACKBODY.
+layout(set = 0, binding = BINDING_GRID_TEMPERATURE) uniform sampler3D u_temperature;
+layout(std430, set = 0, binding = BINDING_BLACKBODY) readonly buffer BlackbodyBlock {
+    vec4 blackbody[];
+};
 // Per density slot: (min, max, avg, 0) of sigma_t over its super-voxel.
 layout(std430, set = 0, binding = BINDING_SUPER_VOXELS) readonly buffer SuperVoxelBlock {
     vec4 super_voxels[];

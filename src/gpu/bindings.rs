@@ -39,6 +39,11 @@ pub const BVH_NODES: u32 = 28;
 pub const MESH_TRIANGLES: u32 = 29;
 /// The emitting shapes' primitives with their power CDF (`Emitter emitters[]`).
 pub const EMITTERS: u32 = 30;
+/// The grid medium's temperature atlas (R32F, like the emission's).
+pub const GRID_TEMPERATURE: u32 = 31;
+/// The blackbody table RGB(T)/T uniform in 1/T (`vec4 blackbody[]`,
+/// nimbus_scene::blackbody::BlackbodyTable).
+pub const BLACKBODY: u32 = 32;
 
 /// Index of the non-finite sample counter in the stats buffer.
 pub const STAT_NON_FINITE: usize = 0;
@@ -51,7 +56,7 @@ pub const STAT_LOOPS_CUT: usize = 2;
 pub const STAT_COUNT: usize = 4;
 
 /// Every binding with its GLSL name, for the layout test.
-pub const ALL: [(&str, u32); 31] = [
+pub const ALL: [(&str, u32); 33] = [
     ("BINDING_FRAME_UNIFORMS", FRAME_UNIFORMS),
     ("BINDING_ACCUM", ACCUM),
     ("BINDING_ACCUM_SQ", ACCUM_SQ),
@@ -83,4 +88,6 @@ pub const ALL: [(&str, u32); 31] = [
     ("BINDING_BVH_NODES", BVH_NODES),
     ("BINDING_MESH_TRIANGLES", MESH_TRIANGLES),
     ("BINDING_EMITTERS", EMITTERS),
+    ("BINDING_GRID_TEMPERATURE", GRID_TEMPERATURE),
+    ("BINDING_BLACKBODY", BLACKBODY),
 ];

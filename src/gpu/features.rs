@@ -47,6 +47,8 @@ pub const SC_ID_EXACT_SPANS: u32 = 21;
 pub const SC_ID_ALPHA: u32 = 22;
 /// Grid passes: some brick indirection section is two-level.
 pub const SC_ID_TWO_LEVEL_BRICKS: u32 = 23;
+/// Grid passes: the medium has a temperature grid (blackbody emission).
+pub const SC_ID_HAS_BLACKBODY: u32 = 24;
 
 // ---------------------------------------------------------------------------------------
 // Values of `SC_ESTIMATOR` in `shaders/box/crepuscular.comp`.
@@ -102,7 +104,7 @@ pub const GRID_EXACT_SPAN_STEPS: u32 = 64;
 pub const GRID_MAX_STEPS: u32 = 1_048_576;
 
 /// Every constant above with its GLSL name.
-pub const ALL: [(&str, u32); 49] = [
+pub const ALL: [(&str, u32); 50] = [
     ("SC_ID_HAS_SHAPES", SC_ID_HAS_SHAPES),
     ("SC_ID_HAS_GOBOS", SC_ID_HAS_GOBOS),
     ("SC_ID_HAS_ENV", SC_ID_HAS_ENV),
@@ -127,6 +129,7 @@ pub const ALL: [(&str, u32); 49] = [
     ("SC_ID_EXACT_SPANS", SC_ID_EXACT_SPANS),
     ("SC_ID_ALPHA", SC_ID_ALPHA),
     ("SC_ID_TWO_LEVEL_BRICKS", SC_ID_TWO_LEVEL_BRICKS),
+    ("SC_ID_HAS_BLACKBODY", SC_ID_HAS_BLACKBODY),
     ("GRID_EXACT_SPAN_STEPS", GRID_EXACT_SPAN_STEPS),
     ("COUNTER_COUNT", COUNTER_COUNT),
     ("COUNTER_SLOTS", COUNTER_SLOTS),

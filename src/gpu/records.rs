@@ -287,13 +287,17 @@ pub struct BaselineUniformsGpu {
     pub env_select: f32,
     /// Primitives in the emitter table (0 without area lights).
     pub emitter_count: u32,
-    pub _pad1: f32,
-    pub _pad2: f32,
-    /// Le = emission_scale · trilinear emission grid.
+    /// Kelvin = temperature_offset + temperature_scale · trilinear temperature grid.
+    pub temperature_offset: f32,
+    pub temperature_scale: f32,
+    /// Le = emission_scale · trilinear emission grid ...
     pub emission_scale: [f32; 3],
-    pub _pad3: f32,
+    /// ... + blackbody_scale · RGB(kelvin) (with a temperature grid).
+    pub blackbody_scale: f32,
     /// The emission grid (its own index space and bricks; an empty grid without one).
     pub emission: GridSpaceGpu,
+    /// The temperature grid (an empty grid without one).
+    pub temperature: GridSpaceGpu,
     /// Environment map width and height (1 × 1 without a map).
     pub env_size: [u32; 2],
     pub _pad5: [u32; 2],

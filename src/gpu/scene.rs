@@ -366,12 +366,14 @@ pub struct GpuGrid {
     pub super_voxels: Vec<[f32; 4]>,
     /// The emission grid (unscaled), its slots and atlas format, if the medium emits.
     pub emission: Option<(BrickGrid, SparseLayout, TexelFormat)>,
+    /// The temperature grid (R32F) and its slots, if the medium glows as a blackbody.
+    pub temperature: Option<(BrickGrid, SparseLayout)>,
     /// The density's p-space → world map.
     pub p_to_world: DMat4,
     /// The world box of an axis-aligned (`type = "grid"`) medium.
     pub world_box: Option<(Vec3, Vec3)>,
     /// The uniforms; the density's indirection section is first (offset 0), the
-    /// emission's second (see [`GpuGrid::indirection`]).
+    /// emission's second, the temperature's third (see [`GpuGrid::indirection`]).
     pub uniforms: BaselineUniformsGpu,
     /// Analytic lights (directional, point, sphere), each with its selection CDF, and
     /// the constant environment radiance.
@@ -602,23 +604,32 @@ impl GpuGrid {
     }
 
     /// Whether a brick indirection section of the grid is two-level.
-    pub fn two_level_bricks(&self) -> bool {
-        self.density_layout.indirection.two_level
-            || self
-                .emission
-                .as_ref()
-                .is_some_and(|(_, layout, _)| layout.indirection.two_level)
+    pub fn two_level_bricks(&self) -> Result<bool> {
+        Ok(self.density_layout.indirection.two_level
+            || self.static_sections()?.iter().any(|s| s.two_level))
+    }
+
+    /// The indirection sections of the grids that do not change per frame: the
+    /// emission's and the temperature's (one empty entry for a grid the medium lacks).
+    pub fn static_sections(&self) -> Result<[nimbus_scene::bricks::Indirection; 2]> {
+        let section = |layout: Option<&SparseLayout>| match layout {
+            Some(layout) => Ok(layout.indirection.clone()),
+            None => nimbus_scene::bricks::Indirection::new([1, 1, 1]),
+        };
+        Ok([
+            section(self.emission.as_ref().map(|(_, layout, _)| layout))?,
+            section(self.temperature.as_ref().map(|(_, layout)| layout))?,
+        ])
     }
 
     /// The indirection sections of the baseline: the density's (at offset 0, as
-    /// `uniforms.grid.space` says), then the emission's (or one empty entry).
+    /// `uniforms.grid.space` says), then the [`GpuGrid::static_sections`].
     pub fn indirection(&self) -> Result<Vec<u32>> {
         let mut out = Indirection::default();
         out.push(&self.density_layout.indirection)?;
-        match &self.emission {
-            Some((_, layout, _)) => out.push(&layout.indirection)?,
-            None => out.push(&nimbus_scene::bricks::Indirection::new([1, 1, 1])?)?,
-        };
+        for section in &self.static_sections()? {
+            out.push(section)?;
+        }
         Ok(out.finish())
     }
 }
@@ -679,22 +690,58 @@ impl GpuGrid {
             }
             None => None,
         };
+        let temperature = match &grid.temperature {
+            Some(t) => {
+                let what = format!(
+                    "{}: [[medium]] #{} > temperature",
+                    scene.source.display(),
+                    index + 1
+                );
+                let tg = BrickGrid::load(&t.source, 1, &what)?;
+                let (max, at) = tg.max_value();
+                t.check_brightest(max, &format!("lattice point {}", at + tg.origin), &what)?;
+                let layout = SparseLayout::new(&tg, tg.slot_bricks(), 1)?;
+                Some((tg, layout))
+            }
+            None => None,
+        };
+        // The sections follow the density's: the emission's, then the temperature's
+        // (one empty entry where a grid is missing), as `indirection` lays them out. A
+        // missing grid has 0 channels: grid_emission.glsl does not read it.
+        let no_grid = |offset: usize| GridSpaceGpu {
+            brick_dims: [1, 1, 1],
+            channels: 0,
+            slots_x: 1,
+            slots_y: 1,
+            bricks_offset: offset as u32,
+            ..GridSpaceGpu::default()
+        };
+        let emission_offset = super::sparse::head_len(&density_layout.indirection);
         let emission_space = match &emission {
             Some((e, layout, _)) => grid_space(
                 e,
                 layout,
-                super::sparse::head_len(&density_layout.indirection) as u32,
+                emission_offset as u32,
                 grid.p_to_world(e)?,
                 world_box,
             ),
-            None => GridSpaceGpu {
-                brick_dims: [1, 1, 1],
-                channels: 1,
-                slots_x: 1,
-                slots_y: 1,
-                ..GridSpaceGpu::default()
-            },
+            None => no_grid(emission_offset),
         };
+        let temperature_offset = emission_offset
+            + emission.as_ref().map_or(1, |(_, layout, _)| {
+                super::sparse::head_len(&layout.indirection)
+            });
+        let temperature_space = match &temperature {
+            Some((t, layout)) => grid_space(
+                t,
+                layout,
+                temperature_offset as u32,
+                grid.p_to_world(t)?,
+                world_box,
+            ),
+            None => no_grid(temperature_offset),
+        };
+        let pyro = grid.temperature.as_ref();
         let uniforms = BaselineUniformsGpu {
             grid: GridParamsGpu {
                 bounds_min: grid.bounds_min.to_array(),
@@ -707,6 +754,10 @@ impl GpuGrid {
             g: grid.g,
             emission_scale: grid.emission_scale.to_array(),
             emission: emission_space,
+            temperature_offset: pyro.map_or(0.0, |t| t.offset),
+            temperature_scale: pyro.map_or(0.0, |t| t.scale),
+            blackbody_scale: pyro.map_or(0.0, |t| t.blackbody_scale),
+            temperature: temperature_space,
             env_size: [1, 1],
             ..BaselineUniformsGpu::default()
         };
@@ -733,6 +784,7 @@ impl GpuGrid {
             density_layout,
             super_voxels: non_empty(&super_voxels),
             emission,
+            temperature,
             p_to_world,
             world_box,
             uniforms,

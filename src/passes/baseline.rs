@@ -7,6 +7,7 @@ use nimbus_gpu::{
     vk, BindingDesc, Buffer, Context, DescriptorWrite, GpuObjects, Handle, Profiler, SamplerDesc,
     SpecValue,
 };
+use nimbus_scene::blackbody::BlackbodyTable;
 use nimbus_scene::{CameraFrame, Scene};
 
 use super::{
@@ -29,7 +30,7 @@ pub fn specialization(
     plan: &BaselinePlan,
     exact_spans: bool,
     two_level: bool,
-) -> [(u32, SpecValue); 12] {
+) -> [(u32, SpecValue); 13] {
     [
         (SC_ID_EXACT_SPANS, SpecValue::Bool(exact_spans)),
         (SC_ID_TWO_LEVEL_BRICKS, SpecValue::Bool(two_level)),
@@ -43,6 +44,7 @@ pub fn specialization(
         (SC_ID_MAX_BOUNCES, SpecValue::U32(plan.max_bounces)),
         (SC_ID_PIXEL_JITTER, SpecValue::Bool(plan.pixel_jitter)),
         (SC_ID_HAS_EMISSION, SpecValue::Bool(plan.has_emission)),
+        (SC_ID_HAS_BLACKBODY, SpecValue::Bool(plan.has_blackbody)),
     ]
 }
 
@@ -92,6 +94,8 @@ pub fn create(
             BindingDesc::sampled_image(bindings::GRID_DENSITY),
             BindingDesc::storage_buffer(bindings::SUPER_VOXELS),
             BindingDesc::sampled_image(bindings::GRID_EMISSION),
+            BindingDesc::sampled_image(bindings::GRID_TEMPERATURE),
+            BindingDesc::storage_buffer(bindings::BLACKBODY),
             BindingDesc::storage_buffer(bindings::BOX_MEDIA),
             BindingDesc::storage_buffer(bindings::MEDIUM_PLANES),
             BindingDesc::storage_buffer(bindings::ENV_TEXELS),
@@ -106,7 +110,7 @@ pub fn create(
             o,
             shaders::BASELINE_PATHTRACE,
             &layout,
-            &specialization(plan, grid.needs_exact_spans(), grid.two_level_bricks()),
+            &specialization(plan, grid.needs_exact_spans(), grid.two_level_bricks()?),
             targets.film_spec(0),
             "baseline path tracer",
         )?;
@@ -140,6 +144,15 @@ pub fn create(
                 atlas_image(ctx, o, layout, e, 1.0, *format, "grid emission")?
             }
             None => density,
+        };
+        // Without a temperature grid the (compiled-out) temperature binding sees the
+        // density and the blackbody table is the super-voxels.
+        let (temperature, blackbody) = match &grid.temperature {
+            Some((t, layout)) => (
+                atlas_image(ctx, o, layout, t, 1.0, TexelFormat::R32, "grid temperature")?,
+                upload_records(ctx, o, &BlackbodyTable::get().entries, "blackbody table")?,
+            ),
+            None => (density, super_voxels),
         };
         let sampler = ctx.create_sampler(&SamplerDesc::nearest(), "grid density")?;
         o.add(sampler);
@@ -207,6 +220,15 @@ pub fn create(
                 binding: bindings::GRID_EMISSION,
                 image: &o[emission],
                 sampler,
+            },
+            DescriptorWrite::SampledImage {
+                binding: bindings::GRID_TEMPERATURE,
+                image: &o[temperature],
+                sampler,
+            },
+            DescriptorWrite::StorageBuffer {
+                binding: bindings::BLACKBODY,
+                buffer: &o[blackbody],
             },
         ]);
         let set = ctx.create_descriptor_set(&o[pipeline], &writes, "baseline set")?;

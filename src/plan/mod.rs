@@ -115,7 +115,10 @@ pub struct BaselinePlan {
     pub max_bounces: u32,
     /// Homogeneous box media beside the grid.
     pub has_boxes: bool,
+    /// The grid emits (an emission grid, a temperature grid or both).
     pub has_emission: bool,
+    /// The grid has a temperature grid (blackbody emission).
+    pub has_blackbody: bool,
     pub has_shapes: bool,
     /// Some shapes are triangle meshes.
     pub has_meshes: bool,
@@ -133,7 +136,10 @@ pub struct BaselinePlan {
 pub struct RestirPlan {
     /// K: scattering events per path, 1..=MAX_RESTIR_BOUNCES.
     pub max_bounces: u32,
+    /// The grid emits (an emission grid, a temperature grid or both).
     pub has_emission: bool,
+    /// The grid has a temperature grid (blackbody emission).
+    pub has_blackbody: bool,
     pub has_env: bool,
     pub has_env_map: bool,
     pub pixel_jitter: bool,

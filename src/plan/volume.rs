@@ -128,7 +128,8 @@ pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
     let baseline = BaselinePlan {
         max_bounces: integrator.max_bounces,
         has_boxes: boxes > 0,
-        has_emission: grid.emission.is_some(),
+        has_emission: grid.emission.is_some() || grid.temperature.is_some(),
+        has_blackbody: grid.temperature.is_some(),
         has_shapes: !scene.shapes.is_empty(),
         has_meshes: scene
             .shapes
@@ -174,6 +175,7 @@ pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
                 "the grid does not emit: its emission lookups compiled out".into()
             },
         },
+        blackbody_decision(grid),
         Decision {
             name: "  SC_HAS_ENV",
             enabled: has_env,
@@ -281,7 +283,8 @@ fn restir_plan(
     let k = scene.integrator.max_bounces;
     let plan = RestirPlan {
         max_bounces: k,
-        has_emission: grid.emission.is_some(),
+        has_emission: grid.emission.is_some() || grid.temperature.is_some(),
+        has_blackbody: grid.temperature.is_some(),
         has_env,
         has_env_map,
         pixel_jitter: scene.render.pixel_jitter,
@@ -453,6 +456,7 @@ fn restir_plan(
                 "the grid does not emit: its emission candidates compiled out".into()
             },
         ),
+        blackbody_decision(grid),
         on(
             "  SC_HAS_ENV",
             has_env,
@@ -498,6 +502,22 @@ fn mip_text(level: Option<u32>) -> String {
         None => "auto (the coarsest whose marched transmittance stays within 5 % of the \
                  volume's, measured when it loads)"
             .into(),
+    }
+}
+
+/// SC_HAS_BLACKBODY: whether the grid's emission adds a temperature grid's blackbody
+/// radiance.
+fn blackbody_decision(grid: &nimbus_scene::GridMedium) -> Decision {
+    Decision {
+        name: "  SC_HAS_BLACKBODY",
+        enabled: grid.temperature.is_some(),
+        reason: match &grid.temperature {
+            Some(t) => format!(
+                "temperature grid: Le += {} x RGB({} K + {} K x temperature), table lookup",
+                t.blackbody_scale, t.offset, t.scale
+            ),
+            None => "no temperature grid: blackbody lookups compiled out".into(),
+        },
     }
 }
 

@@ -36,6 +36,7 @@ mod light_keys;
 mod mesh_bvh_gpu;
 mod meshes;
 mod pipeline;
+mod pyro;
 mod render_box;
 mod render_convex;
 mod restir;

@@ -518,6 +518,28 @@ fn emission_matches_the_baseline() {
     );
 }
 
+/// A cloud glowing as a blackbody (a temperature cloud, 1200 to 2400 K) beside a scalar
+/// emission grid, K = 2: the emission candidates see the sum, and ReSTIR converges to the
+/// baseline (crates/nimbus-scene/src/blackbody.rs; criteria in the module docs).
+#[test]
+fn blackbody_matches_the_baseline() {
+    check_cases(
+        Cloud {
+            bounces: 2,
+            medium_extra:
+                "emission = { procedural = \"cloud\", dims = [12, 8, 12], noise_seed = 5 }\n\
+                 emission_scale = [0.5, 0.5, 1.0]\n\
+                 temperature = { procedural = \"cloud\", dims = [16, 10, 16], noise_seed = 8 }\n\
+                 temperature_offset = 1200.0\n\
+                 temperature_scale = 1200.0\n\
+                 blackbody_scale = 1e-3",
+            ..Cloud::default()
+        },
+        &[BOTH],
+        "blackbody K=2",
+    );
+}
+
 /// A floor under the cloud (seen below it and through it) and a box half inside the
 /// cloud's grid, its other half in vacuum: surface vertices on the camera segment and
 /// after scattering, shadows cast into the medium and onto the floor.

@@ -38,7 +38,8 @@
 //!   [`Scene::lights_at`] interpolates linearly by frame (directions by normalized
 //!   lerp) and clamps outside the keyed range, like the camera.
 //! - Media: `albedo` 1 (no absorption), `g` 0, `rotation_deg` [0, 0, 0]; grid
-//!   `density_scale` 1, `emission_scale` 1. Shapes: `albedo` 0, `emission` 0 (no area
+//!   `density_scale` 1, `emission_scale` 1, `temperature_offset` 0, `temperature_scale` 1,
+//!   `blackbody_scale` 1. Shapes: `albedo` 0, `emission` 0 (no area
 //!   light).
 //! - Directional light: `gobo_origin` [0, 0, 0] (an error without `gobo`).
 //! - Environment light: `scale` 1; `radiance` 1 when `file` is given (the two multiply);
@@ -62,6 +63,7 @@
 //! | `size`, `radius`, quad edge lengths, grid extents | (0, 1e7] m |
 //! | `irradiance`, `radiance`, `intensity`, `scale`, `emission_scale` | components >= 0 |
 //! | shape `emission` | each component finite, in [0, 1e12] W/(m²·sr) ([`MAX_RADIOMETRIC`]) |
+//! | `temperature_offset`, `temperature_scale`, `blackbody_scale` | [−1e6, 1e6] K, [0, 1e6] K per unit, [0, 1e12]; each an error without `temperature`; the hottest voxel's blackbody radiance at most 1e12 W/(m²·sr) (checked when the grid loads: [`blackbody`]) |
 //! | `bounds_min` < `bounds_max` | componentwise |
 //! | grid `dims` | each 1..=4096, product <= 2^31 voxels |
 //! | raw grid files | exactly nx·ny·nz·4 bytes (·3 channels for `velocity`) |
@@ -140,7 +142,9 @@
 //! [`Shape::Mesh`] shares (`Arc`); errors name the scene file, the shape, the field
 //! and the mesh file.
 
+pub mod blackbody;
 pub mod bricks;
+pub mod cie1931;
 pub mod convex;
 mod envmap;
 mod fields;

@@ -250,6 +250,8 @@ pub struct GridMedium {
     pub g: f32,
     pub emission: Option<GridSource>,
     pub emission_scale: Vec3,
+    /// Blackbody emission (pyro shading), added to the emission grid's.
+    pub temperature: Option<Temperature>,
     pub velocity: Option<GridSource>,
     /// The velocity grid's values times this are metres per frame (1: the file holds
     /// metres per frame; 1/24 for metres per second at 24 frames per second).
@@ -259,6 +261,21 @@ pub struct GridMedium {
     /// `type = "vdb"`: where its index space sits (every source is then
     /// [`GridSource::Vdb`]); `None` for `type = "grid"`.
     pub vdb: Option<Box<VdbPlacement>>,
+}
+
+/// A grid medium's `temperature` and how it glows: Le(x) = `blackbody_scale` ·
+/// RGB(T(x)) ([`crate::blackbody`]), T(x) = `offset` + `scale` · (the trilinear
+/// temperature grid at x) kelvin, in the absorbed-emission convention of `emission`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Temperature {
+    /// A scalar grid (values finite and ≥ 0) on the medium's box, like `emission`.
+    pub source: GridSource,
+    /// `temperature_offset`, kelvin.
+    pub offset: f32,
+    /// `temperature_scale`, kelvin per grid unit (≥ 0).
+    pub scale: f32,
+    /// `blackbody_scale` (≥ 0).
+    pub blackbody_scale: f32,
 }
 
 /// Where a `type = "vdb"` medium sits, read from its files when the scene loads.

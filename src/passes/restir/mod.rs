@@ -53,7 +53,7 @@ pub fn specialization(
     plan: &RestirPlan,
     exact_spans: bool,
     two_level: bool,
-) -> [(u32, SpecValue); 18] {
+) -> [(u32, SpecValue); 19] {
     [
         (SC_ID_TWO_LEVEL_BRICKS, SpecValue::Bool(two_level)),
         (
@@ -69,6 +69,7 @@ pub fn specialization(
         (SC_ID_MAX_BOUNCES, SpecValue::U32(plan.max_bounces)),
         (SC_ID_PIXEL_JITTER, SpecValue::Bool(plan.pixel_jitter)),
         (SC_ID_HAS_EMISSION, SpecValue::Bool(plan.has_emission)),
+        (SC_ID_HAS_BLACKBODY, SpecValue::Bool(plan.has_blackbody)),
         (SC_ID_HAS_ENV_MAP, SpecValue::Bool(plan.has_env_map)),
         (SC_ID_REUSE_VERTEX, SpecValue::Bool(plan.vertex_reuse)),
         (
@@ -155,6 +156,7 @@ pub fn candidates_per_dispatch(
 pub struct Sections {
     pub density: u32,
     pub emission: u32,
+    pub temperature: u32,
     pub density_prev: u32,
     pub pc_primary: u32,
     pub pc_indirect: u32,
@@ -167,12 +169,13 @@ pub struct Sections {
 fn indirection(
     cur: &DerivedVolume,
     prev: &DerivedVolume,
-    emission: &nimbus_scene::bricks::Indirection,
+    statics: &[nimbus_scene::bricks::Indirection; 2],
     animated: bool,
 ) -> Result<(Vec<u32>, Sections)> {
     let mut ind = Indirection::default();
     let density = ind.push(&cur.density_layout.indirection)?;
-    let emission = ind.push(emission)?;
+    let emission = ind.push(&statics[0])?;
+    let temperature = ind.push(&statics[1])?;
     let density_prev = if animated {
         ind.push(&prev.density_layout.indirection)?
     } else {
@@ -192,6 +195,7 @@ fn indirection(
         Sections {
             density,
             emission,
+            temperature,
             density_prev,
             pc_primary,
             pc_indirect,
@@ -287,8 +291,9 @@ pub struct RestirPass {
     constants: FrameConstants,
     grid: GridMedium,
     volumes: Volumes,
-    /// The emission's indirection section (the same for every frame).
-    emission_indirection: nimbus_scene::bricks::Indirection,
+    /// The emission's and the temperature's indirection sections (the same for every
+    /// frame; [`GpuGrid::static_sections`]).
+    static_sections: [nimbus_scene::bricks::Indirection; 2],
     scene_lights_radius: f32,
     env_map_luminance: Option<f32>,
     /// The emitting shapes' total power (their LIGHT_AREA record's selection weight).
@@ -345,11 +350,8 @@ impl RestirPass {
         let first = volumes.base()?;
         let levels = volumes.levels;
         let animated = !grid.frames.is_empty();
-        let emission_indirection = match &grid_gpu.emission {
-            Some((_, layout, _)) => layout.indirection.clone(),
-            None => nimbus_scene::bricks::Indirection::new([1, 1, 1])?,
-        };
-        let (mut bricks, sections) = indirection(first, first, &emission_indirection, animated)?;
+        let static_sections = grid_gpu.static_sections()?;
+        let (mut bricks, sections) = indirection(first, first, &static_sections, animated)?;
         // An animated grid's frames share their sections' offsets, not their lengths
         // where a section is two-level (its leaf tables follow the occupied nodes): the
         // buffer holds the longest pair of frames (at most twice the longest frame).
@@ -357,7 +359,7 @@ impl RestirPass {
             let mut longest = bricks.len();
             for i in 0..=grid.frames.len() {
                 let v = volumes.get(i)?;
-                longest = longest.max(indirection(v, v, &emission_indirection, true)?.0.len());
+                longest = longest.max(indirection(v, v, &static_sections, true)?.0.len());
             }
             bricks.resize(2 * longest, nimbus_scene::bricks::NO_BRICK);
         }
@@ -367,6 +369,7 @@ impl RestirPass {
         base_uniforms.grid.space.slots_y = volumes.sizes.density[1];
         base_uniforms.grid.sigma_t_max = volumes.sigma_t_max;
         base_uniforms.emission.bricks_offset = sections.emission;
+        base_uniforms.temperature.bricks_offset = sections.temperature;
         let g = &first.grids;
         let density = &g.density;
         let size = grid.bounds_max - grid.bounds_min;
@@ -460,7 +463,8 @@ impl RestirPass {
         let exact_spans =
             volumes.needs_exact_spans(&grid_gpu.p_to_world, FINAL_RATIO_MAJORANT_SCALE);
         // The density is the finest grid: its section is two-level if any is.
-        let two_level = first.density_layout.indirection.two_level || grid_gpu.two_level_bricks();
+        let two_level =
+            first.density_layout.indirection.two_level || grid_gpu.two_level_bricks()?;
         let spec = specialization(plan, exact_spans, two_level);
         let (objects, res) =
             GpuObjects::build(ctx, |o| Resources::create(ctx, o, &spec, &inputs, targets))?;
@@ -480,7 +484,7 @@ impl RestirPass {
             },
             grid: grid.clone(),
             volumes,
-            emission_indirection,
+            static_sections,
             scene_lights_radius: grid_gpu.light_radius,
             env_map_luminance: grid_gpu.env_map_luminance,
             area_power: grid_gpu.emitters.total_power,
@@ -617,7 +621,7 @@ impl RestirPass {
         );
         ctx.upload_buffer(&o[r.super_voxels], 0, bytemuck::cast_slice(&records))?;
         let animated = !self.grid.frames.is_empty();
-        let (entries, _) = indirection(cur, prev, &self.emission_indirection, animated)?;
+        let (entries, _) = indirection(cur, prev, &self.static_sections, animated)?;
         ctx.upload_buffer(&o[r.bricks], 0, bytemuck::cast_slice(&entries))?;
         self.loaded = want;
         Ok(())

@@ -80,6 +80,8 @@ fn layout() -> Vec<BindingDesc> {
         BindingDesc::sampled_image(bindings::GRID_DENSITY),
         BindingDesc::sampled_image(bindings::GRID_DENSITY_PREV),
         BindingDesc::sampled_image(bindings::GRID_EMISSION),
+        BindingDesc::sampled_image(bindings::GRID_TEMPERATURE),
+        BindingDesc::storage_buffer(bindings::BLACKBODY),
         BindingDesc::sampled_image(bindings::MARCH_REUSE),
         BindingDesc::sampled_image(bindings::MARCH_REUSE_PREV),
         BindingDesc::sampled_image(bindings::MARCH_NEE),
@@ -270,6 +272,20 @@ impl Resources {
             // Without emission the (compiled-out) binding sees the density.
             None => density,
         };
+        // Without a temperature grid the (compiled-out) temperature binding sees the
+        // density and the blackbody table is the super-voxels.
+        let (temperature, blackbody) = match &grid.temperature {
+            Some((t, layout)) => (
+                atlas_image(ctx, o, layout, t, 1.0, TexelFormat::R32, "grid temperature")?,
+                upload_records(
+                    ctx,
+                    o,
+                    &nimbus_scene::blackbody::BlackbodyTable::get().entries,
+                    "blackbody table",
+                )?,
+            ),
+            None => (density, super_voxels),
+        };
         let rgba16 = vk::Format::R16G16B16A16_SFLOAT;
         let velocity = match velocity {
             Some((dims, texels)) => image_3d(
@@ -310,6 +326,8 @@ impl Resources {
                     image(bindings::GRID_DENSITY, density, nearest),
                     image(bindings::GRID_DENSITY_PREV, density_prev, nearest),
                     image(bindings::GRID_EMISSION, emission, nearest),
+                    image(bindings::GRID_TEMPERATURE, temperature, nearest),
+                    buffer(bindings::BLACKBODY, blackbody),
                     image(bindings::MARCH_REUSE, march_reuse, linear),
                     image(bindings::MARCH_REUSE_PREV, march_reuse_prev, linear),
                     image(bindings::MARCH_NEE, march_nee, linear),

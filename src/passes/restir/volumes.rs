@@ -499,6 +499,7 @@ mod tests {
         RestirPlan {
             max_bounces: 1,
             has_emission: false,
+            has_blackbody: false,
             has_env: false,
             has_env_map: false,
             pixel_jitter: true,

@@ -4,7 +4,9 @@
 use anyhow::{bail, ensure};
 use glam::{DMat3, DVec3};
 use nimbus_scene::vdb::{read_vdb_topology, VdbGridKind};
-use nimbus_scene::{load_grid, read_vol_header, GridMedium, GridSource, Medium, Scene, VoxelGrid};
+use nimbus_scene::{
+    load_grid, read_vol_header, GridMedium, GridSource, Medium, Scene, Temperature, VoxelGrid,
+};
 
 use crate::common::geometry::{homogeneous, OrientedBox, Region};
 use crate::common::rng::Rng;
@@ -20,6 +22,8 @@ pub(super) struct GridF64 {
     pub(super) majorant: f64,
     /// Emission grid and `emission_scale`.
     pub(super) emission: Option<(VoxelGrid, DVec3)>,
+    /// Temperature grid and its blackbody settings.
+    pub(super) temperature: Option<Box<(VoxelGrid, Temperature)>>,
 }
 
 impl GridF64 {
@@ -39,8 +43,15 @@ impl GridF64 {
                 .sample_trilinear(self.index_space(x, self.density.dims))
     }
 
+    /// Whether the medium emits (an emission grid, a temperature grid or both).
+    pub(super) fn emits(&self) -> bool {
+        self.emission.is_some() || self.temperature.is_some()
+    }
+
+    /// Le at x: `emission_scale` times the emission grid, plus `blackbody_scale` ·
+    /// RGB(T) of the trilinear temperature (the table the renderers read, in f64).
     pub(super) fn emission(&self, x: DVec3) -> DVec3 {
-        match &self.emission {
+        let grid_le = match &self.emission {
             None => DVec3::ZERO,
             Some((grid, scale)) => {
                 let p = self.index_space(x, grid.dims);
@@ -51,7 +62,15 @@ impl GridF64 {
                     *scale * grid.sample_trilinear(p)
                 }
             }
-        }
+        };
+        let blackbody = match &self.temperature {
+            None => DVec3::ZERO,
+            Some(pyro) => {
+                let (grid, t) = &**pyro;
+                t.radiance(grid.sample_trilinear(self.index_space(x, grid.dims)))
+            }
+        };
+        grid_le + blackbody
     }
 }
 
@@ -87,7 +106,7 @@ impl MediumF64 {
                     g,
                 }
             }
-            (Medium::Grid(m), Some((density, emission))) => {
+            (Medium::Grid(m), Some((density, emission, temperature))) => {
                 let (lo, hi) = (m.bounds_min.as_dvec3(), m.bounds_max.as_dvec3());
                 ensure!(hi.cmpgt(lo).all(), "{what}: empty grid bounds {lo} .. {hi}");
                 let density_scale = f64::from(m.density_scale);
@@ -105,6 +124,11 @@ impl MediumF64 {
                         density_scale,
                         majorant: density_scale * max_voxel,
                         emission: emission.map(|e| (e, m.emission_scale.as_dvec3())),
+                        temperature: match (temperature, &m.temperature) {
+                            (Some(grid), Some(t)) => Some(Box::new((grid, t.clone()))),
+                            (None, None) => None,
+                            _ => bail!("{what}: internal: temperature grid not loaded"),
+                        },
                     }),
                     albedo: m.albedo.as_dvec3(),
                     g: f64::from(m.g),
@@ -195,8 +219,8 @@ fn frame0_density(m: &GridMedium) -> &GridSource {
         .map_or(&m.density, |f| &f.density)
 }
 
-/// Loaded grids of one grid medium: density and optional emission.
-pub(super) type LoadedGrid = (VoxelGrid, Option<VoxelGrid>);
+/// Loaded grids of one grid medium: density, optional emission and temperature.
+pub(super) type LoadedGrid = (VoxelGrid, Option<VoxelGrid>, Option<VoxelGrid>);
 
 /// Loads the grids of every grid medium (`None` for boxes), each once.
 pub(super) fn load_grids(scene: &Scene) -> anyhow::Result<Vec<Option<LoadedGrid>>> {
@@ -229,7 +253,21 @@ pub(super) fn load_grids(scene: &Scene) -> anyhow::Result<Vec<Option<LoadedGrid>
                         load_grid(e, channels, &format!("{what} > emission"))
                     })
                     .transpose()?;
-                Some((density, emission))
+                let temperature =
+                    match &m.temperature {
+                        Some(t) => {
+                            let name = format!("{what} > temperature");
+                            let grid = load_grid(&t.source, 1, &name)?;
+                            let (max, at) = grid.data.iter().enumerate().fold(
+                                (0.0f32, 0usize),
+                                |best, (i, &v)| if v > best.0 { (v, i) } else { best },
+                            );
+                            t.check_brightest(max, &format!("voxel {at} (x fastest)"), &name)?;
+                            Some(grid)
+                        }
+                        None => None,
+                    };
+                Some((density, emission, temperature))
             }
         });
     }

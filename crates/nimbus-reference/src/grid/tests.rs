@@ -32,6 +32,7 @@ fn grid_medium(lo: Vec3, hi: Vec3, density_scale: f32, albedo: Vec3, g: f32) -> 
         g,
         emission: None,
         emission_scale: Vec3::ONE,
+        temperature: None,
         velocity: None,
         velocity_scale: 1.0,
         frames: Vec::new(),
@@ -130,7 +131,10 @@ fn constant_grid_matches_the_box_reference_lit_by(light: Light) {
     };
     let box_scene = scene(vec![boxed], vec![floor.clone()], vec![light.clone()]);
     let grid_scene = scene(vec![gridded], vec![floor], vec![light]);
-    let t = tracer(&grid_scene, vec![(constant_grid([5, 4, 3], 1.0), None)]);
+    let t = tracer(
+        &grid_scene,
+        vec![(constant_grid([5, 4, 3], 1.0), None, None)],
+    );
     let origin = DVec3::new(0.0, 0.3, 5.0);
     for (j, target) in [DVec3::new(0.1, -0.1, 0.0), DVec3::new(0.8, -0.9, 0.6)]
         .into_iter()
@@ -311,7 +315,7 @@ fn point_and_sphere_lights_match_closed_forms() {
         vec![floor.clone()],
         vec![point],
     );
-    let t = tracer(&s, vec![(constant_grid([4, 4, 4], 1.0), None)]);
+    let t = tracer(&s, vec![(constant_grid([4, 4, 4], 1.0), None, None)]);
     let to = light_pos - p;
     let (r, l) = (to.length(), to.normalize());
     let t_shadow = (-0.2 * r * inside(-1.0, 1.0)).exp();
@@ -336,7 +340,7 @@ fn point_and_sphere_lights_match_closed_forms() {
     assert_within(&mc, [5.0 * e, 3.0 * e, e], 4.0, "sphere light on the floor");
     // Seen directly through the absorbing layer (deterministic: SE 0 but exact).
     let s = scene(vec![Medium::Grid(layer)], vec![floor], vec![sphere]);
-    let t = tracer(&s, vec![(constant_grid([4, 4, 4], 1.0), None)]);
+    let t = tracer(&s, vec![(constant_grid([4, 4, 4], 1.0), None, None)]);
     let near = center.z + radius; // the sphere's front at x = 0.3, y = 0.6
     let o = DVec3::new(0.3, 0.6, 7.0);
     let tr = (-0.2 * (o.z - near)).exp();
@@ -368,6 +372,7 @@ fn emission_only_is_le_times_one_minus_transmittance() {
             vec![(
                 constant_grid([3, 3, 3], 1.0),
                 Some(constant_grid([2, 2, 2], 1.0)),
+                None,
             )],
         );
         // K = 1: emission at the first collision only, (1 − albedo)·Le·(1 − T).

@@ -177,7 +177,7 @@ impl Tracer {
                 let medium = &self.media[i];
                 let p = x + t * d;
                 if let MediumKind::Grid(grid) = &medium.kind {
-                    if grid.emission.is_some() {
+                    if grid.emits() {
                         radiance += beta * (DVec3::ONE - medium.albedo) * grid.emission(p);
                     }
                 }

@@ -370,6 +370,7 @@ fn unsupported_scenes_and_options_are_errors() {
         g: 0.0,
         emission: None,
         emission_scale: Vec3::ONE,
+        temperature: None,
         velocity: None,
         velocity_scale: 1.0,
         frames: Vec::new(),

@@ -38,6 +38,10 @@ pub(super) const MEDIUM_TYPES: &[(&str, &[&str])] = &[
             "g",
             "emission",
             "emission_scale",
+            "temperature",
+            "temperature_offset",
+            "temperature_scale",
+            "blackbody_scale",
             "velocity",
             "velocity_scale",
             "frame",
@@ -157,6 +161,16 @@ pub(super) fn parse_medium(
         }
         None => None,
     };
+    let temperature = match f.opt_table("temperature")? {
+        Some(table) => Some(parse_grid_source(
+            &f,
+            "temperature",
+            table,
+            GridChannels::Scalar,
+        )?),
+        None => None,
+    };
+    let temperature = temperature_fields(&f, temperature)?;
     let velocity = match f.opt_table("velocity")? {
         Some(table) => Some(parse_grid_source(
             &f,
@@ -206,6 +220,7 @@ pub(super) fn parse_medium(
         g,
         emission,
         emission_scale: f.color("emission_scale", Some(Vec3::ONE), radiometric)?,
+        temperature,
         velocity,
         velocity_scale,
         frames: frames.into_iter().map(|(frame, _)| frame).collect(),
@@ -419,3 +434,28 @@ fn parse_dims(f: &Fields, value: &Value) -> Result<[u32; 3]> {
     }
     check_grid_dims(dims).map_err(|message| f.error("dims", message))
 }
+
+/// The blackbody settings of a grid medium whose `temperature` grid is `source` (`None`:
+/// none, and then none of its settings may be given).
+pub(super) fn temperature_fields(
+    f: &Fields,
+    source: Option<GridSource>,
+) -> Result<Option<Temperature>> {
+    let Some(source) = source else {
+        for key in ["temperature_offset", "temperature_scale", "blackbody_scale"] {
+            if f.has(key) {
+                return Err(f.error(key, "has no effect without `temperature`"));
+            }
+        }
+        return Ok(None);
+    };
+    Ok(Some(Temperature {
+        source,
+        offset: f.f32_in("temperature_offset", Some(0.0), -MAX_KELVIN..=MAX_KELVIN)?,
+        scale: f.f32_in("temperature_scale", Some(1.0), 0.0..=MAX_KELVIN)?,
+        blackbody_scale: f.f32_with("blackbody_scale", Some(1.0), radiometric)?,
+    }))
+}
+
+/// The largest |`temperature_offset`| and `temperature_scale`, in kelvin (per grid unit).
+pub const MAX_KELVIN: f64 = 1e6;

@@ -29,6 +29,10 @@ pub(super) const VDB_KEYS: &[&str] = &[
     "g",
     "emission",
     "emission_scale",
+    "temperature",
+    "temperature_offset",
+    "temperature_scale",
+    "blackbody_scale",
     "velocity",
     "velocity_scale",
     "frame",
@@ -319,6 +323,14 @@ pub(super) fn parse_vdb_medium(
         }
         None => None,
     };
+    let temperature = match f.opt_table("temperature")? {
+        Some(table) => {
+            let source = parse_vdb_source(f, "temperature", table, VdbGridKind::Scalar)?;
+            source.check_same_transform(f, "temperature", &file_transform)?;
+            Some(source)
+        }
+        None => None,
+    };
     let velocity = match f.opt_table("velocity")? {
         Some(table) => {
             let source = parse_vdb_source(f, "velocity", table, VdbGridKind::Vec3)?;
@@ -397,6 +409,10 @@ pub(super) fn parse_vdb_medium(
             })
         }),
         emission_scale: f.color("emission_scale", Some(Vec3::ONE), radiometric)?,
+        temperature: super::media::temperature_fields(
+            f,
+            temperature.map(|s| s.into_source(&window)),
+        )?,
         velocity: velocity.map(|s| s.into_source(&window)),
         velocity_scale: f.f32_in("velocity_scale", Some(1.0), 1e-6..=1e6)?,
         frames: frames

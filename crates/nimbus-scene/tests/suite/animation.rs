@@ -330,6 +330,7 @@ fn grid_medium(frames: &[u32]) -> GridMedium {
         g: 0.0,
         emission: None,
         emission_scale: Vec3::ONE,
+        temperature: None,
         velocity: None,
         velocity_scale: 1.0,
         frames: frames

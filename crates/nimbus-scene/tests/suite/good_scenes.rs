@@ -334,6 +334,7 @@ sigma_star_floor = 0.125
                 file: volumes.join("emission.vol")
             }),
             emission_scale: Vec3::new(1.0, 0.5, 0.25),
+            temperature: None,
             velocity: Some(GridSource::Raw {
                 file: volumes.join("velocity.raw"),
                 dims: [4, 3, 2]
