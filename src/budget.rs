@@ -288,6 +288,26 @@ impl Footprint {
         } else {
             cells += 1;
         }
+        if let Some(albedo) = &g.albedo_grid {
+            let what = format!("{file}: [[medium]] #{} > albedo", index + 1);
+            let e = BrickTopology::of(albedo, 0, &what)?;
+            let slots = slot_bound(&e, false);
+            let format = if e.channels == 3 {
+                TexelFormat::Rgba32
+            } else {
+                r32
+            };
+            self.add(
+                format!("{table} field `albedo` (atlas of {slots} bricks)"),
+                Binding::Image3d(atlas_dims(atlas_slots(slots)?)),
+                atlas_bytes(slots, format)?,
+            );
+            cells += e.cells();
+            self.host_peak +=
+                brick_bytes(&e) + 2 * e.cells() * 4 + slots * 12 + 2 * layer_bytes(slots, format)?;
+        } else {
+            cells += 1;
+        }
         if let Some(t) = &g.temperature {
             let what = format!("{file}: [[medium]] #{} > temperature", index + 1);
             let e = BrickTopology::of(&t.source, 1, &what)?;

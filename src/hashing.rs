@@ -90,6 +90,7 @@ pub fn scene_files(scene: &Scene) -> Vec<(String, &Path)> {
             density,
             density_scale: _,
             albedo: _,
+            albedo_grid,
             g: _,
             emission,
             emission_scale: _,
@@ -103,6 +104,7 @@ pub fn scene_files(scene: &Scene) -> Vec<(String, &Path)> {
         let table = format!("[[medium]] #{}", i + 1);
         let mut sources: Vec<(String, &GridSource)> = vec![(format!("{table} density"), density)];
         sources.extend(emission.iter().map(|e| (format!("{table} emission"), e)));
+        sources.extend(albedo_grid.iter().map(|a| (format!("{table} albedo"), a)));
         sources.extend(
             temperature
                 .iter()

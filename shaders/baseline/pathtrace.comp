@@ -39,6 +39,8 @@ layout(constant_id = SC_ID_PIXEL_JITTER) const bool SC_PIXEL_JITTER = true;
 layout(constant_id = SC_ID_HAS_EMISSION) const bool SC_HAS_EMISSION = false;
 // A temperature grid glows as a blackbody (grid_emission.glsl).
 layout(constant_id = SC_ID_HAS_BLACKBODY) const bool SC_HAS_BLACKBODY = false;
+// The grid's albedo is a grid (grid_albedo in grid_emission.glsl).
+layout(constant_id = SC_ID_HAS_ALBEDO_GRID) const bool SC_HAS_ALBEDO_GRID = false;
 // The environment is an importance-sampled map (else a constant radiance).
 layout(constant_id = SC_ID_HAS_ENV_MAP) const bool SC_HAS_ENV_MAP = false;
 
@@ -172,17 +174,19 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
         float t_collision = sample_collision(o, d, t_end, rng, medium);
 
         if (t_collision < FAR) {
-            vec3 albedo_medium = u_base.albedo;
+            vec3 x = o + t_collision * d;
+            vec3 albedo_medium;
             float g = u_base.g;
             if (medium != NO_INDEX) {
                 BoxMedium bm = media[medium];
                 // Domain: a collision happened, so sigma_t > 0.
                 albedo_medium = bm.sigma_s / bm.sigma_t;
                 g = bm.g;
+            } else {
+                albedo_medium = grid_albedo(x);
             }
             // A real collision: absorbed emission (sigma_a Le over sigma_t), next-event
             // estimation, then continue by HG.
-            vec3 x = o + t_collision * d;
             if (SC_HAS_EMISSION && medium == NO_INDEX) {
                 L += beta * (1.0 - albedo_medium) * grid_emission(x);
             }

@@ -36,6 +36,7 @@
 #define BINDING_EMITTERS 30
 #define BINDING_GRID_TEMPERATURE 31
 #define BINDING_BLACKBODY 32
+#define BINDING_GRID_ALBEDO 33
 
 // Indices into the stats buffer (uint counters).
 #define STAT_NON_FINITE 0

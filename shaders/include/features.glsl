@@ -58,6 +58,8 @@
 // Grid passes: the medium has a temperature grid; grid_emission adds its blackbody
 // radiance (the temperature atlas and the blackbody table are read).
 #define SC_ID_HAS_BLACKBODY 24
+// Grid passes: the medium's albedo is a grid (grid_albedo reads its atlas).
+#define SC_ID_HAS_ALBEDO_GRID 25
 
 // ---------------------------------------------------------------------------------------
 // Values of SC_ESTIMATOR: the box-medium estimators of Velinov & Mitchell.

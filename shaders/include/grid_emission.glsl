@@ -1,8 +1,9 @@
-// Emitted radiance of the grid medium. The includer declares `u_emission` (sampler3D: the
-// emission grid's atlas, R32F for a scalar grid or RGBA32F for an rgb one, texelFetch only),
-// `u_temperature` (R32F, the temperature grid's) and `blackbody[]` (BINDING_BLACKBODY), the
-// bool constant SC_HAS_BLACKBODY, `u_base` (BaselineUniforms, whose `emission` and
-// `temperature` are those grids' GridSpaces) and `u_grid`.
+// Emitted radiance and albedo of the grid medium. The includer declares `u_emission`
+// (sampler3D: the emission grid's atlas, R32F for a scalar grid or RGBA32F for an rgb one,
+// texelFetch only), `u_temperature` (R32F, the temperature grid's), `blackbody[]`
+// (BINDING_BLACKBODY) and `u_albedo` (the albedo grid's atlas, R32F or RGBA32F), the bool
+// constants SC_HAS_BLACKBODY and SC_HAS_ALBEDO_GRID, `u_base` (BaselineUniforms, whose
+// `emission`, `temperature` and `albedo_grid` are those grids' GridSpaces) and `u_grid`.
 #ifndef NIMBUS_GRID_EMISSION_GLSL
 #define NIMBUS_GRID_EMISSION_GLSL
 
@@ -68,6 +69,18 @@ vec3 grid_emission(vec3 x) {
         le += u_base.blackbody_scale * blackbody_rgb(kelvin);
     }
     return le;
+}
+
+// The grid medium's single-scattering albedo at world x: its colour, times the albedo grid
+// there (one channel: grey; three: rgb) where it has one. Trilinear values in [0, 1] stay
+// in [0, 1].
+vec3 grid_albedo(vec3 x) {
+    if (!SC_HAS_ALBEDO_GRID) {
+        return u_base.albedo;
+    }
+    GridSpace s = u_base.albedo_grid;
+    vec4 a = grid_atlas_trilinear(s, u_albedo, x);
+    return u_base.albedo * (s.channels == 1u ? vec3(a.r) : a.rgb);
 }
 
 #endif

@@ -36,6 +36,8 @@ layout(set = 0, binding = BINDING_GRID_EMISSION) uniform sampler3D u_emission;
 // The temperature grid's atlas (R32F) and the blackbody table (grid_emission.glsl), read
 // only where SC_HAS_BLACKBODY.
 layout(set = 0, binding = BINDING_GRID_TEMPERATURE) uniform sampler3D u_temperature;
+// The albedo grid's atlas (R32F or RGBA32F), read only where SC_HAS_ALBEDO_GRID.
+layout(set = 0, binding = BINDING_GRID_ALBEDO) uniform sampler3D u_albedo;
 layout(std430, set = 0, binding = BINDING_BLACKBODY) readonly buffer BlackbodyBlock {
     vec4 blackbody[];
 };

@@ -40,10 +40,10 @@ struct GridParams {
 // The grid medium and what lights it, read by the baseline path tracer and the ReSTIR
 // passes (std430 storage buffer at BINDING_BASELINE_UNIFORMS, named `u_base` by
 // includers).
-// Mirrored by BaselineUniformsGpu. 576 bytes.
+// Mirrored by BaselineUniformsGpu. 736 bytes.
 struct BaselineUniforms {
     GridParams grid;
-    vec3 albedo;            // rgb single-scattering albedo
+    vec3 albedo;            // rgb single-scattering albedo (times albedo_grid with one)
     float g;                // HG asymmetry
     float env_select;       // probability that next-event estimation picks the environment
     uint emitter_count;     // primitives in emitters[] (0 without area lights)
@@ -53,6 +53,7 @@ struct BaselineUniforms {
     float blackbody_scale;  // plus blackbody_scale * RGB(kelvin) (SC_HAS_BLACKBODY)
     GridSpace emission;     // the emission grid (its own index space and bricks)
     GridSpace temperature;  // the temperature grid (SC_HAS_BLACKBODY)
+    GridSpace albedo_grid;  // the albedo grid (SC_HAS_ALBEDO_GRID)
     uvec2 env_size;         // environment map width and height (1 x 1 without a map)
     uvec2 _pad5;
 };

@@ -132,7 +132,6 @@ void restir_main() {
     uint m0 = u_push.aux;
     uint m1 = min(m0 + u_restir.candidates_per_dispatch, u_restir.candidates);
     uint rng = rng_init(pixel, u_push.frame, m0, u_frame.seed);
-    vec3 albedo = u_base.albedo;
     float g = u_base.g;
 
     Reservoir r = m0 == 0u ? res_empty() : res_load(at);
@@ -269,6 +268,8 @@ void restir_main() {
             // p *= sigma_t* T*, Fhat *= T*. Domain: sigma_star > 0 at a collision.
             Fhat *= exp(-tau);
             beta /= sigma_star;
+            // The grid's albedo at x (a box's is in its sigma_s below).
+            vec3 albedo = box == NO_INDEX ? grid_albedo(x) : vec3(0.0);
             vec3 sigma_s = albedo * sigma_t;
             g = u_base.g;
             if (box != NO_INDEX) {

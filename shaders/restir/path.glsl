@@ -479,7 +479,6 @@ vec3 path_value(uint at, Reservoir r, CameraRay cam, CameraRay src, uint mode, i
                                      : reuse_transmittance(set, cam.o, cam.d, t_end);
         return L * T * boxes_transmittance(cam.o, cam.d, t_end);
     }
-    vec3 albedo = u_base.albedo;
     float g = u_base.g;
     // Vertex reuse: x_2 of the owner's path, in world space.
     bool keep_x2 = SC_REUSE_VERTEX && kp >= 2u;
@@ -579,6 +578,7 @@ vec3 path_value(uint at, Reservoir r, CameraRay cam, CameraRay src, uint mode, i
         }
         g = u_base.g;
         float sigma_t = mode == MODE_FINAL ? grid_sigma_t_in(u_density, x) : sigma_t_of(set, x);
+        vec3 albedo = grid_albedo(x);
         if (i == kp && res_emission(r)) {
             if (!SC_HAS_EMISSION) {
                 return vec3(0.0);

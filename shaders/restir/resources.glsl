@@ -21,6 +21,8 @@ layout(constant_id = SC_ID_PIXEL_JITTER) const bool SC_PIXEL_JITTER = true;
 layout(constant_id = SC_ID_HAS_EMISSION) const bool SC_HAS_EMISSION = false;
 // A temperature grid glows as a blackbody (grid_emission.glsl).
 layout(constant_id = SC_ID_HAS_BLACKBODY) const bool SC_HAS_BLACKBODY = false;
+// The grid's albedo is a grid (grid_albedo in grid_emission.glsl).
+layout(constant_id = SC_ID_HAS_ALBEDO_GRID) const bool SC_HAS_ALBEDO_GRID = false;
 layout(constant_id = SC_ID_HAS_ENV_MAP) const bool SC_HAS_ENV_MAP = false;
 // Vertex reuse (x_2 kept in world space) instead of direction reuse.
 layout(constant_id = SC_ID_REUSE_VERTEX) const bool SC_REUSE_VERTEX = false;

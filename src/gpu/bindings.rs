@@ -44,6 +44,8 @@ pub const GRID_TEMPERATURE: u32 = 31;
 /// The blackbody table RGB(T)/T uniform in 1/T (`vec4 blackbody[]`,
 /// nimbus_scene::blackbody::BlackbodyTable).
 pub const BLACKBODY: u32 = 32;
+/// The grid medium's albedo atlas (R32F or RGBA32F).
+pub const GRID_ALBEDO: u32 = 33;
 
 /// Index of the non-finite sample counter in the stats buffer.
 pub const STAT_NON_FINITE: usize = 0;
@@ -56,7 +58,7 @@ pub const STAT_LOOPS_CUT: usize = 2;
 pub const STAT_COUNT: usize = 4;
 
 /// Every binding with its GLSL name, for the layout test.
-pub const ALL: [(&str, u32); 33] = [
+pub const ALL: [(&str, u32); 34] = [
     ("BINDING_FRAME_UNIFORMS", FRAME_UNIFORMS),
     ("BINDING_ACCUM", ACCUM),
     ("BINDING_ACCUM_SQ", ACCUM_SQ),
@@ -90,4 +92,5 @@ pub const ALL: [(&str, u32); 33] = [
     ("BINDING_EMITTERS", EMITTERS),
     ("BINDING_GRID_TEMPERATURE", GRID_TEMPERATURE),
     ("BINDING_BLACKBODY", BLACKBODY),
+    ("BINDING_GRID_ALBEDO", GRID_ALBEDO),
 ];

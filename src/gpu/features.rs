@@ -49,6 +49,8 @@ pub const SC_ID_ALPHA: u32 = 22;
 pub const SC_ID_TWO_LEVEL_BRICKS: u32 = 23;
 /// Grid passes: the medium has a temperature grid (blackbody emission).
 pub const SC_ID_HAS_BLACKBODY: u32 = 24;
+/// Grid passes: the medium's albedo is a grid.
+pub const SC_ID_HAS_ALBEDO_GRID: u32 = 25;
 
 // ---------------------------------------------------------------------------------------
 // Values of `SC_ESTIMATOR` in `shaders/box/crepuscular.comp`.
@@ -104,7 +106,7 @@ pub const GRID_EXACT_SPAN_STEPS: u32 = 64;
 pub const GRID_MAX_STEPS: u32 = 1_048_576;
 
 /// Every constant above with its GLSL name.
-pub const ALL: [(&str, u32); 50] = [
+pub const ALL: [(&str, u32); 51] = [
     ("SC_ID_HAS_SHAPES", SC_ID_HAS_SHAPES),
     ("SC_ID_HAS_GOBOS", SC_ID_HAS_GOBOS),
     ("SC_ID_HAS_ENV", SC_ID_HAS_ENV),
@@ -130,6 +132,7 @@ pub const ALL: [(&str, u32); 50] = [
     ("SC_ID_ALPHA", SC_ID_ALPHA),
     ("SC_ID_TWO_LEVEL_BRICKS", SC_ID_TWO_LEVEL_BRICKS),
     ("SC_ID_HAS_BLACKBODY", SC_ID_HAS_BLACKBODY),
+    ("SC_ID_HAS_ALBEDO_GRID", SC_ID_HAS_ALBEDO_GRID),
     ("GRID_EXACT_SPAN_STEPS", GRID_EXACT_SPAN_STEPS),
     ("COUNTER_COUNT", COUNTER_COUNT),
     ("COUNTER_SLOTS", COUNTER_SLOTS),

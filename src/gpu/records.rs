@@ -298,6 +298,8 @@ pub struct BaselineUniformsGpu {
     pub emission: GridSpaceGpu,
     /// The temperature grid (an empty grid without one).
     pub temperature: GridSpaceGpu,
+    /// The albedo grid (an empty grid without one).
+    pub albedo_grid: GridSpaceGpu,
     /// Environment map width and height (1 × 1 without a map).
     pub env_size: [u32; 2],
     pub _pad5: [u32; 2],

@@ -368,12 +368,15 @@ pub struct GpuGrid {
     pub emission: Option<(BrickGrid, SparseLayout, TexelFormat)>,
     /// The temperature grid (R32F) and its slots, if the medium glows as a blackbody.
     pub temperature: Option<(BrickGrid, SparseLayout)>,
+    /// The albedo grid, its slots and atlas format, if the medium's albedo is a grid.
+    pub albedo_grid: Option<(BrickGrid, SparseLayout, TexelFormat)>,
     /// The density's p-space → world map.
     pub p_to_world: DMat4,
     /// The world box of an axis-aligned (`type = "grid"`) medium.
     pub world_box: Option<(Vec3, Vec3)>,
     /// The uniforms; the density's indirection section is first (offset 0), the
-    /// emission's second, the temperature's third (see [`GpuGrid::indirection`]).
+    /// emission's second, the temperature's third, the albedo's fourth (see
+    /// [`GpuGrid::indirection`]).
     pub uniforms: BaselineUniformsGpu,
     /// Analytic lights (directional, point, sphere), each with its selection CDF, and
     /// the constant environment radiance.
@@ -610,8 +613,9 @@ impl GpuGrid {
     }
 
     /// The indirection sections of the grids that do not change per frame: the
-    /// emission's and the temperature's (one empty entry for a grid the medium lacks).
-    pub fn static_sections(&self) -> Result<[nimbus_scene::bricks::Indirection; 2]> {
+    /// emission's, the temperature's and the albedo's (one empty entry for a grid the
+    /// medium lacks).
+    pub fn static_sections(&self) -> Result<[nimbus_scene::bricks::Indirection; 3]> {
         let section = |layout: Option<&SparseLayout>| match layout {
             Some(layout) => Ok(layout.indirection.clone()),
             None => nimbus_scene::bricks::Indirection::new([1, 1, 1]),
@@ -619,6 +623,7 @@ impl GpuGrid {
         Ok([
             section(self.emission.as_ref().map(|(_, layout, _)| layout))?,
             section(self.temperature.as_ref().map(|(_, layout)| layout))?,
+            section(self.albedo_grid.as_ref().map(|(_, layout, _)| layout))?,
         ])
     }
 
@@ -741,6 +746,42 @@ impl GpuGrid {
             ),
             None => no_grid(temperature_offset),
         };
+        let albedo_grid = match &grid.albedo_grid {
+            Some(source) => {
+                let what = format!(
+                    "{}: [[medium]] #{} > albedo",
+                    scene.source.display(),
+                    index + 1
+                );
+                let a = BrickGrid::load(source, 0, &what)?;
+                let (max, at) = a.max_any_channel();
+                if max > 1.0 {
+                    bail!("{what}: value {max} at lattice point {at}: an albedo must be in [0, 1]");
+                }
+                let layout = SparseLayout::new(&a, a.slot_bricks(), 1)?;
+                let format = if a.channels == 3 {
+                    TexelFormat::Rgba32
+                } else {
+                    TexelFormat::R32
+                };
+                Some((a, layout, format))
+            }
+            None => None,
+        };
+        let albedo_offset = temperature_offset
+            + temperature.as_ref().map_or(1, |(_, layout)| {
+                super::sparse::head_len(&layout.indirection)
+            });
+        let albedo_space = match &albedo_grid {
+            Some((a, layout, _)) => grid_space(
+                a,
+                layout,
+                albedo_offset as u32,
+                grid.p_to_world(a)?,
+                world_box,
+            ),
+            None => no_grid(albedo_offset),
+        };
         let pyro = grid.temperature.as_ref();
         let uniforms = BaselineUniformsGpu {
             grid: GridParamsGpu {
@@ -758,6 +799,7 @@ impl GpuGrid {
             temperature_scale: pyro.map_or(0.0, |t| t.scale),
             blackbody_scale: pyro.map_or(0.0, |t| t.blackbody_scale),
             temperature: temperature_space,
+            albedo_grid: albedo_space,
             env_size: [1, 1],
             ..BaselineUniformsGpu::default()
         };
@@ -785,6 +827,7 @@ impl GpuGrid {
             super_voxels: non_empty(&super_voxels),
             emission,
             temperature,
+            albedo_grid,
             p_to_world,
             world_box,
             uniforms,

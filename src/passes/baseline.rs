@@ -30,7 +30,7 @@ pub fn specialization(
     plan: &BaselinePlan,
     exact_spans: bool,
     two_level: bool,
-) -> [(u32, SpecValue); 13] {
+) -> [(u32, SpecValue); 14] {
     [
         (SC_ID_EXACT_SPANS, SpecValue::Bool(exact_spans)),
         (SC_ID_TWO_LEVEL_BRICKS, SpecValue::Bool(two_level)),
@@ -45,6 +45,7 @@ pub fn specialization(
         (SC_ID_PIXEL_JITTER, SpecValue::Bool(plan.pixel_jitter)),
         (SC_ID_HAS_EMISSION, SpecValue::Bool(plan.has_emission)),
         (SC_ID_HAS_BLACKBODY, SpecValue::Bool(plan.has_blackbody)),
+        (SC_ID_HAS_ALBEDO_GRID, SpecValue::Bool(plan.has_albedo_grid)),
     ]
 }
 
@@ -96,6 +97,7 @@ pub fn create(
             BindingDesc::sampled_image(bindings::GRID_EMISSION),
             BindingDesc::sampled_image(bindings::GRID_TEMPERATURE),
             BindingDesc::storage_buffer(bindings::BLACKBODY),
+            BindingDesc::sampled_image(bindings::GRID_ALBEDO),
             BindingDesc::storage_buffer(bindings::BOX_MEDIA),
             BindingDesc::storage_buffer(bindings::MEDIUM_PLANES),
             BindingDesc::storage_buffer(bindings::ENV_TEXELS),
@@ -153,6 +155,13 @@ pub fn create(
                 upload_records(ctx, o, &BlackbodyTable::get().entries, "blackbody table")?,
             ),
             None => (density, super_voxels),
+        };
+        // Without an albedo grid the (compiled-out) albedo binding sees the density.
+        let albedo = match &grid.albedo_grid {
+            Some((a, layout, format)) => {
+                atlas_image(ctx, o, layout, a, 1.0, *format, "grid albedo")?
+            }
+            None => density,
         };
         let sampler = ctx.create_sampler(&SamplerDesc::nearest(), "grid density")?;
         o.add(sampler);
@@ -229,6 +238,11 @@ pub fn create(
             DescriptorWrite::StorageBuffer {
                 binding: bindings::BLACKBODY,
                 buffer: &o[blackbody],
+            },
+            DescriptorWrite::SampledImage {
+                binding: bindings::GRID_ALBEDO,
+                image: &o[albedo],
+                sampler,
             },
         ]);
         let set = ctx.create_descriptor_set(&o[pipeline], &writes, "baseline set")?;

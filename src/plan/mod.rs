@@ -119,6 +119,8 @@ pub struct BaselinePlan {
     pub has_emission: bool,
     /// The grid has a temperature grid (blackbody emission).
     pub has_blackbody: bool,
+    /// The grid's albedo is a grid.
+    pub has_albedo_grid: bool,
     pub has_shapes: bool,
     /// Some shapes are triangle meshes.
     pub has_meshes: bool,
@@ -140,6 +142,8 @@ pub struct RestirPlan {
     pub has_emission: bool,
     /// The grid has a temperature grid (blackbody emission).
     pub has_blackbody: bool,
+    /// The grid's albedo is a grid.
+    pub has_albedo_grid: bool,
     pub has_env: bool,
     pub has_env_map: bool,
     pub pixel_jitter: bool,

@@ -130,6 +130,7 @@ pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
         has_boxes: boxes > 0,
         has_emission: grid.emission.is_some() || grid.temperature.is_some(),
         has_blackbody: grid.temperature.is_some(),
+        has_albedo_grid: grid.albedo_grid.is_some(),
         has_shapes: !scene.shapes.is_empty(),
         has_meshes: scene
             .shapes
@@ -176,6 +177,7 @@ pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
             },
         },
         blackbody_decision(grid),
+        albedo_grid_decision(grid),
         Decision {
             name: "  SC_HAS_ENV",
             enabled: has_env,
@@ -285,6 +287,7 @@ fn restir_plan(
         max_bounces: k,
         has_emission: grid.emission.is_some() || grid.temperature.is_some(),
         has_blackbody: grid.temperature.is_some(),
+        has_albedo_grid: grid.albedo_grid.is_some(),
         has_env,
         has_env_map,
         pixel_jitter: scene.render.pixel_jitter,
@@ -457,6 +460,7 @@ fn restir_plan(
             },
         ),
         blackbody_decision(grid),
+        albedo_grid_decision(grid),
         on(
             "  SC_HAS_ENV",
             has_env,
@@ -502,6 +506,22 @@ fn mip_text(level: Option<u32>) -> String {
         None => "auto (the coarsest whose marched transmittance stays within 5 % of the \
                  volume's, measured when it loads)"
             .into(),
+    }
+}
+
+/// SC_HAS_ALBEDO_GRID: whether the grid's albedo is read from a grid at every vertex.
+fn albedo_grid_decision(grid: &nimbus_scene::GridMedium) -> Decision {
+    Decision {
+        name: "  SC_HAS_ALBEDO_GRID",
+        enabled: grid.albedo_grid.is_some(),
+        reason: if grid.albedo_grid.is_some() {
+            "albedo grid: read trilinearly at every collision".into()
+        } else {
+            format!(
+                "constant albedo {}: its grid lookups compiled out",
+                grid.albedo
+            )
+        },
     }
 }
 

@@ -595,6 +595,7 @@ fn mirrors() -> Vec<Mirror> {
                 blackbody_scale,
                 emission,
                 temperature,
+                albedo_grid,
                 env_size,
                 _pad5,
             }),

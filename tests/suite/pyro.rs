@@ -214,3 +214,170 @@ fn the_table_the_gpu_reads_agrees_with_this_integration() {
         assert!(err < 2e-3, "{kelvin} K: {got} vs {want}");
     }
 }
+
+// ---------------------------------------------------------------------------------------
+// Albedo grids (`albedo` given as a grid source).
+
+/// Writes a `.vol` albedo grid of `dims` with one channel per seed: channel c is
+/// 0.25 + 0.7 · (procedural cloud `seeds[c]`) / its maximum, in [0.25, 0.95].
+pub(crate) fn albedo_vol(dir: &Path, name: &str, dims: [u32; 3], seeds: &[u64]) -> PathBuf {
+    let clouds: Vec<Vec<f32>> = seeds
+        .iter()
+        .map(|&seed| {
+            let cloud = nimbus_scene::procedural_cloud(dims, seed);
+            let max = cloud.data.iter().fold(0.0f32, |a, &v| a.max(v));
+            cloud.data.iter().map(|v| 0.25 + 0.7 * v / max).collect()
+        })
+        .collect();
+    let grid = nimbus_scene::VoxelGrid {
+        dims,
+        channels: seeds.len() as u32,
+        data: (0..clouds[0].len())
+            .flat_map(|i| clouds.iter().map(move |c| c[i]))
+            .collect(),
+    };
+    let path = dir.join(name);
+    nimbus_scene::write_vol_encoded(
+        &path,
+        &grid,
+        glam::Vec3::ZERO,
+        glam::Vec3::ONE,
+        nimbus_scene::VolEncoding::F32,
+    )
+    .expect("write albedo .vol");
+    path
+}
+
+/// A cloud under a sun and a sky whose `albedo` is `albedo` (a TOML value), K = 3.
+fn albedo_scene(albedo: &str, extra: &str) -> String {
+    format!(
+        r#"
+[render]
+width = 16
+height = 12
+spp = 4
+frames = 32
+seed = 11
+[camera]
+position = [0.3, 0.5, 2.4]
+look_at = [0.0, 0.0, 0.0]
+horizontal_fov_deg = 60
+[[light]]
+type = "directional"
+direction = [0.5, -0.7, -0.4]
+irradiance = 2.0
+[[light]]
+type = "environment"
+radiance = [0.2, 0.3, 0.5]
+[[medium]]
+type = "grid"
+bounds_min = [-1.0, -0.6, -1.0]
+bounds_max = [1.0, 0.6, 1.0]
+density = {{ procedural = "cloud", dims = [32, 20, 32], noise_seed = 3 }}
+density_scale = 16.0
+albedo = {albedo}
+g = 0.3
+{extra}
+[integrator]
+volume = "baseline"
+max_bounces = 3
+"#
+    )
+}
+
+/// An rgb albedo grid renders, channel by channel, as the three grey grids of its
+/// channels: the baseline's image of channel c with the rgb grid agrees with channel c
+/// of the render with grey grid c.
+#[test]
+fn an_rgb_albedo_grid_renders_as_three_grey_ones() {
+    use crate::common::gpu::{assert_means_agree, channels_beyond};
+    let ctx = context();
+    let dir = scratch("pyro", "albedo-rgb");
+    let dims = [12, 8, 12];
+    let seeds = [21, 22, 23];
+    let rgb_path = albedo_vol(&dir, "rgb.vol", dims, &seeds);
+    let table = |p: &Path| format!("{{ file = {:?} }}", p.display().to_string());
+    let rgb = render_checked(
+        &ctx,
+        &scene(&albedo_scene(&table(&rgb_path), ""), "rgb.toml"),
+        None,
+    );
+    let (mut grey, mut grey_se) = (rgb.image.clone(), rgb.std_error.clone());
+    let mut max_diff = 0.0f32;
+    for (c, seed) in seeds.iter().enumerate() {
+        let path = albedo_vol(&dir, &format!("grey{c}.vol"), dims, &[*seed]);
+        let one = render_checked(
+            &ctx,
+            &scene(&albedo_scene(&table(&path), ""), "grey.toml"),
+            None,
+        );
+        for (i, px) in one.image.data.iter().enumerate() {
+            grey.data[i][c] = px[c];
+            grey_se.data[i][c] = one.std_error.data[i][c];
+            max_diff = max_diff.max((px[c] - rgb.image.data[i][c]).abs());
+        }
+    }
+    println!("largest pixel difference {max_diff:e}");
+    let (a, b) = ((&rgb.image, &rgb.std_error), (&grey, &grey_se));
+    assert_means_agree("rgb albedo vs three grey", a, b, 4.0, 0.01);
+    let beyond = channels_beyond(a, b, 4.5);
+    assert!(
+        beyond * 50 <= 3 * grey.data.len(),
+        "{beyond} channels beyond 4.5 SE"
+    );
+}
+
+/// An rgb albedo grid with an emission grid (absorbed emission (1 − albedo(x))·Le) under
+/// a sun and a sky, K = 3: the baseline matches the CPU oracle.
+#[test]
+fn an_rgb_albedo_grid_matches_the_cpu_oracle() {
+    let ctx = context();
+    let dir = scratch("pyro", "albedo-oracle");
+    let path = albedo_vol(&dir, "rgb.vol", [12, 8, 12], &[31, 32, 33]);
+    let text = albedo_scene(
+        &format!("{{ file = {:?} }}", path.display().to_string()),
+        "emission = { procedural = \"cloud\", dims = [12, 8, 12], noise_seed = 9 }\n\
+         emission_scale = [1.0, 0.6, 0.3]",
+    );
+    check_against_oracle(
+        &ctx,
+        &scene(&text, "albedo-grid.toml"),
+        8,
+        "albedo grid K=3",
+    );
+}
+
+/// An albedo grid with a value above 1 is refused when it loads, naming the scene, the
+/// medium, the field and the value.
+#[test]
+fn an_albedo_above_one_is_refused() {
+    let ctx = context();
+    let dir = scratch("pyro", "albedo-above-one");
+    let path = constant_raw(&dir, "albedo.raw", [4, 4, 4], 1.25);
+    let text = albedo_scene(
+        &format!(
+            "{{ file = {:?}, dims = [4, 4, 4] }}",
+            path.display().to_string()
+        ),
+        "",
+    );
+    let scene = scene(&text, "albedo-above-one.toml");
+    let plan = nimbus::plan::build(&scene, None).expect("plan");
+    let Err(err) = nimbus::renderer::render(
+        &ctx,
+        &scene,
+        &plan,
+        &nimbus::renderer::RenderOptions::default(),
+    ) else {
+        panic!("an albedo of 1.25 rendered");
+    };
+    let message = format!("{err:#}");
+    for part in [
+        "albedo-above-one.toml",
+        "[[medium]] #1 > albedo",
+        "1.25",
+        "[0, 1]",
+    ] {
+        assert!(message.contains(part), "{part:?} missing from: {message}");
+    }
+}

@@ -97,6 +97,11 @@ impl<'a> Fields<'a> {
         self.map.contains_key(key)
     }
 
+    /// Whether `key` is given as a table.
+    pub fn is_table(&self, key: &str) -> bool {
+        matches!(self.map.get(key), Some(Value::Table(_)))
+    }
+
     fn required<T>(&self, key: &str, value: Option<T>) -> Result<T> {
         value.ok_or_else(|| self.error(key, "missing required field"))
     }

@@ -58,7 +58,7 @@
 //! | keyframe / medium `frame` | u32, unique within their list (lists are sorted) |
 //! | light keyframes | not on environment lights or directional lights with a `gobo`; keyframe directions non-zero; consecutive keyframe directions (after filling in the light's static one) not nearly opposite: dot >= −0.999 |
 //! | `sigma_t`, `density_scale` | [0, 1e9] 1/m |
-//! | `albedo` (media and shapes) | each component in [0, 1] |
+//! | `albedo` (media and shapes) | each component in [0, 1]; a grid or vdb medium's `albedo` grid (1 or 3 channels): every value in [0, 1], checked when it loads |
 //! | `g` | (−1, 1) exclusive |
 //! | `size`, `radius`, quad edge lengths, grid extents | (0, 1e7] m |
 //! | `irradiance`, `radiance`, `intensity`, `scale`, `emission_scale` | components >= 0 |

@@ -246,12 +246,16 @@ pub struct GridMedium {
     pub bounds_max: Vec3,
     pub density: GridSource,
     pub density_scale: f32,
+    /// The single-scattering albedo: this colour (1 with `albedo_grid`) times the
+    /// albedo grid's value, if there is one.
     pub albedo: Vec3,
+    /// `albedo` given as a grid source: 1 channel (grey) or 3 (rgb), values in [0, 1].
+    pub albedo_grid: Option<GridSource>,
     pub g: f32,
     pub emission: Option<GridSource>,
     pub emission_scale: Vec3,
     /// Blackbody emission (pyro shading), added to the emission grid's.
-    pub temperature: Option<Temperature>,
+    pub temperature: Option<Box<Temperature>>,
     pub velocity: Option<GridSource>,
     /// The velocity grid's values times this are metres per frame (1: the file holds
     /// metres per frame; 1/24 for metres per second at 24 frames per second).

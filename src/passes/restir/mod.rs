@@ -53,7 +53,7 @@ pub fn specialization(
     plan: &RestirPlan,
     exact_spans: bool,
     two_level: bool,
-) -> [(u32, SpecValue); 19] {
+) -> [(u32, SpecValue); 20] {
     [
         (SC_ID_TWO_LEVEL_BRICKS, SpecValue::Bool(two_level)),
         (
@@ -70,6 +70,7 @@ pub fn specialization(
         (SC_ID_PIXEL_JITTER, SpecValue::Bool(plan.pixel_jitter)),
         (SC_ID_HAS_EMISSION, SpecValue::Bool(plan.has_emission)),
         (SC_ID_HAS_BLACKBODY, SpecValue::Bool(plan.has_blackbody)),
+        (SC_ID_HAS_ALBEDO_GRID, SpecValue::Bool(plan.has_albedo_grid)),
         (SC_ID_HAS_ENV_MAP, SpecValue::Bool(plan.has_env_map)),
         (SC_ID_REUSE_VERTEX, SpecValue::Bool(plan.vertex_reuse)),
         (
@@ -157,6 +158,7 @@ pub struct Sections {
     pub density: u32,
     pub emission: u32,
     pub temperature: u32,
+    pub albedo: u32,
     pub density_prev: u32,
     pub pc_primary: u32,
     pub pc_indirect: u32,
@@ -169,13 +171,14 @@ pub struct Sections {
 fn indirection(
     cur: &DerivedVolume,
     prev: &DerivedVolume,
-    statics: &[nimbus_scene::bricks::Indirection; 2],
+    statics: &[nimbus_scene::bricks::Indirection; 3],
     animated: bool,
 ) -> Result<(Vec<u32>, Sections)> {
     let mut ind = Indirection::default();
     let density = ind.push(&cur.density_layout.indirection)?;
     let emission = ind.push(&statics[0])?;
     let temperature = ind.push(&statics[1])?;
+    let albedo = ind.push(&statics[2])?;
     let density_prev = if animated {
         ind.push(&prev.density_layout.indirection)?
     } else {
@@ -196,6 +199,7 @@ fn indirection(
             density,
             emission,
             temperature,
+            albedo,
             density_prev,
             pc_primary,
             pc_indirect,
@@ -293,7 +297,7 @@ pub struct RestirPass {
     volumes: Volumes,
     /// The emission's and the temperature's indirection sections (the same for every
     /// frame; [`GpuGrid::static_sections`]).
-    static_sections: [nimbus_scene::bricks::Indirection; 2],
+    static_sections: [nimbus_scene::bricks::Indirection; 3],
     scene_lights_radius: f32,
     env_map_luminance: Option<f32>,
     /// The emitting shapes' total power (their LIGHT_AREA record's selection weight).
@@ -370,6 +374,7 @@ impl RestirPass {
         base_uniforms.grid.sigma_t_max = volumes.sigma_t_max;
         base_uniforms.emission.bricks_offset = sections.emission;
         base_uniforms.temperature.bricks_offset = sections.temperature;
+        base_uniforms.albedo_grid.bricks_offset = sections.albedo;
         let g = &first.grids;
         let density = &g.density;
         let size = grid.bounds_max - grid.bounds_min;

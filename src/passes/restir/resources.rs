@@ -82,6 +82,7 @@ fn layout() -> Vec<BindingDesc> {
         BindingDesc::sampled_image(bindings::GRID_EMISSION),
         BindingDesc::sampled_image(bindings::GRID_TEMPERATURE),
         BindingDesc::storage_buffer(bindings::BLACKBODY),
+        BindingDesc::sampled_image(bindings::GRID_ALBEDO),
         BindingDesc::sampled_image(bindings::MARCH_REUSE),
         BindingDesc::sampled_image(bindings::MARCH_REUSE_PREV),
         BindingDesc::sampled_image(bindings::MARCH_NEE),
@@ -286,6 +287,13 @@ impl Resources {
             ),
             None => (density, super_voxels),
         };
+        // Without an albedo grid the (compiled-out) albedo binding sees the density.
+        let albedo = match &grid.albedo_grid {
+            Some((a, layout, format)) => {
+                atlas_image(ctx, o, layout, a, 1.0, *format, "grid albedo")?
+            }
+            None => density,
+        };
         let rgba16 = vk::Format::R16G16B16A16_SFLOAT;
         let velocity = match velocity {
             Some((dims, texels)) => image_3d(
@@ -328,6 +336,7 @@ impl Resources {
                     image(bindings::GRID_EMISSION, emission, nearest),
                     image(bindings::GRID_TEMPERATURE, temperature, nearest),
                     buffer(bindings::BLACKBODY, blackbody),
+                    image(bindings::GRID_ALBEDO, albedo, nearest),
                     image(bindings::MARCH_REUSE, march_reuse, linear),
                     image(bindings::MARCH_REUSE_PREV, march_reuse_prev, linear),
                     image(bindings::MARCH_NEE, march_nee, linear),

@@ -500,6 +500,7 @@ mod tests {
             max_bounces: 1,
             has_emission: false,
             has_blackbody: false,
+            has_albedo_grid: false,
             has_env: false,
             has_env_map: false,
             pixel_jitter: true,

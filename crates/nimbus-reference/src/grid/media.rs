@@ -24,6 +24,8 @@ pub(super) struct GridF64 {
     pub(super) emission: Option<(VoxelGrid, DVec3)>,
     /// Temperature grid and its blackbody settings.
     pub(super) temperature: Option<Box<(VoxelGrid, Temperature)>>,
+    /// Albedo grid (1 or 3 channels), multiplying the medium's albedo colour.
+    pub(super) albedo_grid: Option<VoxelGrid>,
 }
 
 impl GridF64 {
@@ -41,6 +43,21 @@ impl GridF64 {
             * self
                 .density
                 .sample_trilinear(self.index_space(x, self.density.dims))
+    }
+
+    /// The albedo grid at x (1 where there is none).
+    pub(super) fn albedo_factor(&self, x: DVec3) -> DVec3 {
+        match &self.albedo_grid {
+            None => DVec3::ONE,
+            Some(grid) => {
+                let p = self.index_space(x, grid.dims);
+                if grid.channels == 3 {
+                    DVec3::from_array([0, 1, 2].map(|c| grid.sample_trilinear_channel(p, c)))
+                } else {
+                    DVec3::splat(grid.sample_trilinear(p))
+                }
+            }
+        }
     }
 
     /// Whether the medium emits (an emission grid, a temperature grid or both).
@@ -106,7 +123,7 @@ impl MediumF64 {
                     g,
                 }
             }
-            (Medium::Grid(m), Some((density, emission, temperature))) => {
+            (Medium::Grid(m), Some((density, emission, temperature, albedo_grid))) => {
                 let (lo, hi) = (m.bounds_min.as_dvec3(), m.bounds_max.as_dvec3());
                 ensure!(hi.cmpgt(lo).all(), "{what}: empty grid bounds {lo} .. {hi}");
                 let density_scale = f64::from(m.density_scale);
@@ -125,10 +142,11 @@ impl MediumF64 {
                         majorant: density_scale * max_voxel,
                         emission: emission.map(|e| (e, m.emission_scale.as_dvec3())),
                         temperature: match (temperature, &m.temperature) {
-                            (Some(grid), Some(t)) => Some(Box::new((grid, t.clone()))),
+                            (Some(grid), Some(t)) => Some(Box::new((grid, (**t).clone()))),
                             (None, None) => None,
                             _ => bail!("{what}: internal: temperature grid not loaded"),
                         },
+                        albedo_grid,
                     }),
                     albedo: m.albedo.as_dvec3(),
                     g: f64::from(m.g),
@@ -219,8 +237,13 @@ fn frame0_density(m: &GridMedium) -> &GridSource {
         .map_or(&m.density, |f| &f.density)
 }
 
-/// Loaded grids of one grid medium: density, optional emission and temperature.
-pub(super) type LoadedGrid = (VoxelGrid, Option<VoxelGrid>, Option<VoxelGrid>);
+/// Loaded grids of one grid medium: density, optional emission, temperature and albedo.
+pub(super) type LoadedGrid = (
+    VoxelGrid,
+    Option<VoxelGrid>,
+    Option<VoxelGrid>,
+    Option<VoxelGrid>,
+);
 
 /// Loads the grids of every grid medium (`None` for boxes), each once.
 pub(super) fn load_grids(scene: &Scene) -> anyhow::Result<Vec<Option<LoadedGrid>>> {
@@ -232,27 +255,36 @@ pub(super) fn load_grids(scene: &Scene) -> anyhow::Result<Vec<Option<LoadedGrid>
             Medium::Grid(m) => {
                 let what = format!("{source}: [[medium]] #{}", i + 1);
                 let density = load_grid(frame0_density(m), 1, &format!("{what} > density"))?;
+                // An rgb grid: a 3-channel .vol file or a vec3 .vdb grid.
+                let scalar_or_rgb = |e: &GridSource, name: &str| {
+                    let channels = match e {
+                        GridSource::MitsubaVol { file } => read_vol_header(file)?.channels,
+                        GridSource::Vdb { file, grid, .. } => {
+                            let header =
+                                read_vdb_topology(file, grid.as_deref(), VdbGridKind::Any, &what)?;
+                            header.value_type.channels() as u32
+                        }
+                        _ => 1,
+                    };
+                    load_grid(e, channels, &format!("{what} > {name}"))
+                };
                 let emission = m
                     .emission
                     .as_ref()
-                    .map(|e| {
-                        // An rgb emission: a 3-channel .vol file or a vec3 .vdb grid.
-                        let channels = match e {
-                            GridSource::MitsubaVol { file } => read_vol_header(file)?.channels,
-                            GridSource::Vdb { file, grid, .. } => {
-                                let header = read_vdb_topology(
-                                    file,
-                                    grid.as_deref(),
-                                    VdbGridKind::Any,
-                                    &what,
-                                )?;
-                                header.value_type.channels() as u32
-                            }
-                            _ => 1,
-                        };
-                        load_grid(e, channels, &format!("{what} > emission"))
-                    })
+                    .map(|e| scalar_or_rgb(e, "emission"))
                     .transpose()?;
+                let albedo_grid = match &m.albedo_grid {
+                    Some(a) => {
+                        let grid = scalar_or_rgb(a, "albedo")?;
+                        let max = grid.data.iter().fold(0.0f32, |a, &v| a.max(v));
+                        ensure!(
+                            max <= 1.0,
+                            "{what} > albedo: value {max}: an albedo must be in [0, 1]"
+                        );
+                        Some(grid)
+                    }
+                    None => None,
+                };
                 let temperature =
                     match &m.temperature {
                         Some(t) => {
@@ -267,7 +299,7 @@ pub(super) fn load_grids(scene: &Scene) -> anyhow::Result<Vec<Option<LoadedGrid>
                         }
                         None => None,
                     };
-                Some((density, emission, temperature))
+                Some((density, emission, temperature, albedo_grid))
             }
         });
     }

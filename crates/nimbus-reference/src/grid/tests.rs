@@ -33,6 +33,7 @@ fn grid_medium(lo: Vec3, hi: Vec3, density_scale: f32, albedo: Vec3, g: f32) -> 
         emission: None,
         emission_scale: Vec3::ONE,
         temperature: None,
+        albedo_grid: None,
         velocity: None,
         velocity_scale: 1.0,
         frames: Vec::new(),
@@ -133,7 +134,7 @@ fn constant_grid_matches_the_box_reference_lit_by(light: Light) {
     let grid_scene = scene(vec![gridded], vec![floor], vec![light]);
     let t = tracer(
         &grid_scene,
-        vec![(constant_grid([5, 4, 3], 1.0), None, None)],
+        vec![(constant_grid([5, 4, 3], 1.0), None, None, None)],
     );
     let origin = DVec3::new(0.0, 0.3, 5.0);
     for (j, target) in [DVec3::new(0.1, -0.1, 0.0), DVec3::new(0.8, -0.9, 0.6)]
@@ -315,7 +316,7 @@ fn point_and_sphere_lights_match_closed_forms() {
         vec![floor.clone()],
         vec![point],
     );
-    let t = tracer(&s, vec![(constant_grid([4, 4, 4], 1.0), None, None)]);
+    let t = tracer(&s, vec![(constant_grid([4, 4, 4], 1.0), None, None, None)]);
     let to = light_pos - p;
     let (r, l) = (to.length(), to.normalize());
     let t_shadow = (-0.2 * r * inside(-1.0, 1.0)).exp();
@@ -340,7 +341,7 @@ fn point_and_sphere_lights_match_closed_forms() {
     assert_within(&mc, [5.0 * e, 3.0 * e, e], 4.0, "sphere light on the floor");
     // Seen directly through the absorbing layer (deterministic: SE 0 but exact).
     let s = scene(vec![Medium::Grid(layer)], vec![floor], vec![sphere]);
-    let t = tracer(&s, vec![(constant_grid([4, 4, 4], 1.0), None, None)]);
+    let t = tracer(&s, vec![(constant_grid([4, 4, 4], 1.0), None, None, None)]);
     let near = center.z + radius; // the sphere's front at x = 0.3, y = 0.6
     let o = DVec3::new(0.3, 0.6, 7.0);
     let tr = (-0.2 * (o.z - near)).exp();
@@ -372,6 +373,7 @@ fn emission_only_is_le_times_one_minus_transmittance() {
             vec![(
                 constant_grid([3, 3, 3], 1.0),
                 Some(constant_grid([2, 2, 2], 1.0)),
+                None,
                 None,
             )],
         );

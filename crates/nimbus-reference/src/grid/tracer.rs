@@ -176,12 +176,17 @@ impl Tracer {
             if let Some((t, i)) = self.sample_collision(x, d, t_hit, rng) {
                 let medium = &self.media[i];
                 let p = x + t * d;
-                if let MediumKind::Grid(grid) = &medium.kind {
-                    if grid.emits() {
-                        radiance += beta * (DVec3::ONE - medium.albedo) * grid.emission(p);
+                let albedo = match &medium.kind {
+                    MediumKind::Grid(grid) => {
+                        let albedo = medium.albedo * grid.albedo_factor(p);
+                        if grid.emits() {
+                            radiance += beta * (DVec3::ONE - albedo) * grid.emission(p);
+                        }
+                        albedo
                     }
-                }
-                beta *= medium.albedo;
+                    MediumKind::Homogeneous { .. } => medium.albedo,
+                };
+                beta *= albedo;
                 scatterings += 1;
                 if beta == DVec3::ZERO {
                     break;

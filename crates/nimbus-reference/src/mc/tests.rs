@@ -371,6 +371,7 @@ fn unsupported_scenes_and_options_are_errors() {
         emission: None,
         emission_scale: Vec3::ONE,
         temperature: None,
+        albedo_grid: None,
         velocity: None,
         velocity_scale: 1.0,
         frames: Vec::new(),

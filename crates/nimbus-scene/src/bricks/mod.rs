@@ -257,6 +257,24 @@ impl BrickGrid {
         best
     }
 
+    /// The largest value of any channel and the absolute lattice point holding it (0 and
+    /// the lattice minimum for an empty grid).
+    pub fn max_any_channel(&self) -> (f32, IVec3) {
+        let mut best = (0.0f32, self.lattice_min);
+        let ch = self.channels as usize;
+        for (i, b) in self.bricks.iter().enumerate() {
+            for (n, v) in self.brick_values(i).chunks_exact(ch).enumerate() {
+                let m = v.iter().fold(0.0f32, |a, &x| a.max(x));
+                if m > best.0 {
+                    let n = n as i32;
+                    let local = IVec3::new(n & 7, (n >> 3) & 7, n >> 6);
+                    best = (m, *b * BRICK_EDGE + local);
+                }
+            }
+        }
+        (best.0, best.1 + self.origin)
+    }
+
     /// Host bytes held: values, brick coordinates and the indirection.
     pub fn memory_bytes(&self) -> u64 {
         (self.values.len() * 4 + self.bricks.len() * 12 + self.indirection.len() * 4) as u64

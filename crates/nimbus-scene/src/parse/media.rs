@@ -58,7 +58,15 @@ pub(super) fn parse_medium(
     table: &toml::Table,
 ) -> Result<(Medium, String, Solid)> {
     let (kind, f) = typed_fields(source, "medium", index, table, MEDIUM_TYPES)?;
-    let albedo = f.color("albedo", Some(Vec3::ONE), unit_interval)?;
+    // Grid and vdb media may give `albedo` as a grid (then the colour is 1).
+    let albedo_table = match kind {
+        "grid" | "vdb" if f.is_table("albedo") => f.opt_table("albedo")?,
+        _ => None,
+    };
+    let albedo = match albedo_table {
+        Some(_) => Vec3::ONE,
+        None => f.color("albedo", Some(Vec3::ONE), unit_interval)?,
+    };
     let g = f.f32_with("g", Some(0.0), open_interval(-1.0, 1.0))?;
     if kind == "box" {
         let medium = BoxMedium {
@@ -97,7 +105,7 @@ pub(super) fn parse_medium(
         return Ok((Medium::Convex(medium), f.name, bounds));
     }
     if kind == "vdb" {
-        return super::vdb::parse_vdb_medium(&f, albedo, g);
+        return super::vdb::parse_vdb_medium(&f, albedo_table, g);
     }
 
     let density_table = f
@@ -171,6 +179,15 @@ pub(super) fn parse_medium(
         None => None,
     };
     let temperature = temperature_fields(&f, temperature)?;
+    let albedo_grid = match albedo_table {
+        Some(table) => Some(parse_grid_source(
+            &f,
+            "albedo",
+            table,
+            GridChannels::ScalarOrRgb,
+        )?),
+        None => None,
+    };
     let velocity = match f.opt_table("velocity")? {
         Some(table) => Some(parse_grid_source(
             &f,
@@ -217,6 +234,7 @@ pub(super) fn parse_medium(
         density,
         density_scale: f.f32_in("density_scale", Some(1.0), 0.0..=MAX_SIGMA_T)?,
         albedo,
+        albedo_grid,
         g,
         emission,
         emission_scale: f.color("emission_scale", Some(Vec3::ONE), radiometric)?,
@@ -440,7 +458,7 @@ fn parse_dims(f: &Fields, value: &Value) -> Result<[u32; 3]> {
 pub(super) fn temperature_fields(
     f: &Fields,
     source: Option<GridSource>,
-) -> Result<Option<Temperature>> {
+) -> Result<Option<Box<Temperature>>> {
     let Some(source) = source else {
         for key in ["temperature_offset", "temperature_scale", "blackbody_scale"] {
             if f.has(key) {
@@ -449,12 +467,12 @@ pub(super) fn temperature_fields(
         }
         return Ok(None);
     };
-    Ok(Some(Temperature {
+    Ok(Some(Box::new(Temperature {
         source,
         offset: f.f32_in("temperature_offset", Some(0.0), -MAX_KELVIN..=MAX_KELVIN)?,
         scale: f.f32_in("temperature_scale", Some(1.0), 0.0..=MAX_KELVIN)?,
         blackbody_scale: f.f32_with("blackbody_scale", Some(1.0), radiometric)?,
-    }))
+    })))
 }
 
 /// The largest |`temperature_offset`| and `temperature_scale`, in kelvin (per grid unit).

@@ -236,7 +236,7 @@ fn axis_aligned_scale(m: &DMat4) -> Option<DVec3> {
 
 pub(super) fn parse_vdb_medium(
     f: &Fields,
-    albedo: Vec3,
+    albedo_table: Option<&toml::Table>,
     g: f32,
 ) -> Result<(Medium, String, Solid)> {
     let to_world = match f.opt_table("to_world")? {
@@ -323,6 +323,20 @@ pub(super) fn parse_vdb_medium(
         }
         None => None,
     };
+    let albedo_grid = match albedo_table {
+        Some(table) => {
+            // A float grid, or a vec3 grid of rgb albedos (Houdini's `Cd`): colours,
+            // which `to_world` does not turn.
+            let source = parse_vdb_source(f, "albedo", table, VdbGridKind::Any)?;
+            source.check_same_transform(f, "albedo", &file_transform)?;
+            Some(source)
+        }
+        None => None,
+    };
+    let albedo = match albedo_grid {
+        Some(_) => Vec3::ONE,
+        None => f.color("albedo", Some(Vec3::ONE), crate::fields::unit_interval)?,
+    };
     let temperature = match f.opt_table("temperature")? {
         Some(table) => {
             let source = parse_vdb_source(f, "temperature", table, VdbGridKind::Scalar)?;
@@ -401,6 +415,12 @@ pub(super) fn parse_vdb_medium(
         density: density.into_source(&window),
         density_scale: f.f32_in("density_scale", Some(1.0), 0.0..=MAX_SIGMA_T)?,
         albedo,
+        albedo_grid: albedo_grid.map(|s| {
+            s.into_source(&VdbWindow {
+                vector_map: DMat3::IDENTITY,
+                ..window.clone()
+            })
+        }),
         g,
         emission: emission.map(|s| {
             s.into_source(&VdbWindow {

@@ -331,6 +331,7 @@ fn grid_medium(frames: &[u32]) -> GridMedium {
         emission: None,
         emission_scale: Vec3::ONE,
         temperature: None,
+        albedo_grid: None,
         velocity: None,
         velocity_scale: 1.0,
         frames: frames

@@ -335,6 +335,7 @@ sigma_star_floor = 0.125
             }),
             emission_scale: Vec3::new(1.0, 0.5, 0.25),
             temperature: None,
+            albedo_grid: None,
             velocity: Some(GridSource::Raw {
                 file: volumes.join("velocity.raw"),
                 dims: [4, 3, 2]

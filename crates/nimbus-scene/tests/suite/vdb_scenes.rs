@@ -247,6 +247,45 @@ fn vec3_emission_is_rgb_and_not_rotated() {
     }
 }
 
+/// `albedo` as a vdb grid (Houdini's `Cd`): a float or vec3 grid on the density's window,
+/// its values colours that `to_world` does not turn, and the colour then 1. A box medium
+/// takes no albedo grid.
+#[test]
+fn vdb_albedo_grid_shares_the_density_window() {
+    let multi = asset("multi.vdb");
+    for (grid, channels) in [("density", 1), ("vel", 3)] {
+        let scene = parse(&medium(&format!(
+            "density = {{ file = \"{0}\", grid = \"density\" }}\n\
+             albedo = {{ file = \"{0}\", grid = \"{grid}\" }}\n\
+             to_world = {{ rotate_deg = [0, 90, 0] }}",
+            multi.display()
+        )))
+        .unwrap_or_else(|e| panic!("{e:#}"));
+        let g = grid_of(&scene);
+        assert_eq!(g.albedo, glam::Vec3::ONE);
+        let (GridSource::Vdb { window: d, .. }, Some(GridSource::Vdb { window: a, .. })) =
+            (&g.density, g.albedo_grid.as_ref())
+        else {
+            panic!("vdb sources");
+        };
+        assert_eq!((a.origin, a.dims, a.flip), (d.origin, d.dims, d.flip));
+        assert_eq!(a.vector_map, glam::DMat3::IDENTITY);
+        let dense = load_grid(g.albedo_grid.as_ref().unwrap(), channels, "t").unwrap();
+        assert_eq!(dense.channels, channels);
+    }
+    let err = parse(
+        "[camera]\nposition = [0, 0, 5]\nlook_at = [0, 0, 0]\n\
+         [[light]]\ntype = \"environment\"\nradiance = 1.0\n\
+         [[medium]]\ntype = \"box\"\ncenter = [0, 0, 0]\nsize = 1.0\nsigma_t = 1.0\n\
+         albedo = { procedural = \"cloud\", dims = [4, 4, 4] }\n",
+    )
+    .unwrap_err();
+    assert_contains(
+        &format!("{err:#}"),
+        &["[[medium]] #1", "`albedo`", "colour"],
+    );
+}
+
 /// Bad files and tables: each error names the scene file, the table, the field, the
 /// `.vdb` file and the grid.
 #[test]
