@@ -63,6 +63,8 @@ pub fn scene_files(scene: &Scene) -> Vec<(String, &Path)> {
         lights,
         light_keyframes: _,
         media,
+        // Follows from the media.
+        overlaps: _,
         shapes,
         integrator: _,
     } = scene;

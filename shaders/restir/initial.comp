@@ -53,8 +53,8 @@ void add_candidate(uint at, inout Reservoir r, inout uint rng, float w, float p_
 // or with split NEE (path.glsl) one environment direction drawn from u2 plus every delta
 // light, all in one loop over light terms as path_value evaluates them. Fhat and beta are
 // the path's target and weight so far (times sigma_s in a medium).
-void add_nee_candidate(uint at, inout Reservoir r, inout uint rng, vec3 x, SurfacePoint surface, vec3 w, float g,
-                       float u_light, vec2 u2, vec3 Fhat, vec3 beta, uint kp, uint jitter_bits) {
+void add_nee_candidate(uint at, inout Reservoir r, inout uint rng, vec3 x, SurfacePoint surface, vec3 w,
+                       VertexMedium vm, float u_light, vec2 u2, vec3 Fhat, vec3 beta, uint kp, uint jitter_bits) {
     LightSample ls;
     uint dir_code;
     if (SC_NEE_SPLIT) {
@@ -96,7 +96,7 @@ void add_nee_candidate(uint at, inout Reservoir r, inout uint rng, vec3 x, Surfa
             L_over_pdf = light_term(0u, k, x, wi, dist);
             L = q * L_over_pdf;
         }
-        vec3 s = vertex_scatter(surface, w, g, wi);
+        vec3 s = vertex_scatter(surface, w, vm, wi);
         if (!any(greaterThan(s * L, vec3(0.0))) || light_blocked(0u, x, wi, dist) || shapes_block(x, wi, dist)) {
             continue;
         }
@@ -132,8 +132,6 @@ void restir_main() {
     uint m0 = u_push.aux;
     uint m1 = min(m0 + u_restir.candidates_per_dispatch, u_restir.candidates);
     uint rng = rng_init(pixel, u_push.frame, m0, u_frame.seed);
-    float g = u_base.g;
-
     Reservoir r = m0 == 0u ? res_empty() : res_load(at);
     for (uint m = m0; m < m1; ++m) {
         // Each walk starts at its own sub-pixel position, which its paths keep.
@@ -232,7 +230,8 @@ void restir_main() {
                 // Scattering candidate by next-event estimation: albedo cos / pi.
                 float u_light = rng_next(rng);
                 vec2 u2 = vec2(rng_next(rng), rng_next(rng));
-                add_nee_candidate(at, r, rng, x, surface, w, g, u_light, u2, Fhat, beta, i, jitter_bits);
+                add_nee_candidate(at, r, rng, x, surface, w, vertex_medium_none(), u_light, u2, Fhat, beta, i,
+                                  jitter_bits);
                 if (i == SC_MAX_BOUNCES) {
                     break;
                 }
@@ -259,27 +258,26 @@ void restir_main() {
             }
             x += z * w;
             walk_z[i - 1u] = z;
-            // The medium there, as path_value finds it: a box's sigma_s and g, or the grid's.
-            box = box_medium_at(x);
-            float sigma_t = box != NO_INDEX ? media[box].sigma_t : grid_sigma_t_in(u_density, x);
-            if (!(sigma_t > 0.0)) {
+            // The media there, as path_value finds them: the grid's sigma_s and g, and the
+            // box's holding x (overlapping media add).
+            float sigma_t_grid = grid_sigma_t_in(u_density, x);
+            vec3 albedo = grid_albedo(x);
+            VertexMedium vm = vertex_medium(x, sigma_t_grid, albedo);
+            if (!(sigma_t_grid + vm.sigma_t_box > 0.0)) {
                 break;
             }
-            // p *= sigma_t* T*, Fhat *= T*. Domain: sigma_star > 0 at a collision.
+            // The density of a collision at z among all media is the summed majorant there:
+            // the grid's sigma_t* (pc_track's where the grid won, looked up where a box did)
+            // plus the box's sigma_t.
+            float sigma_star_total = box != NO_INDEX ? vm.sigma_t_box + pc_sigma_star_at(level, x)
+                                                     : sigma_star + vm.sigma_t_box;
+            // p *= sigma_t* T*, Fhat *= T*. Domain: sigma_star_total > 0 at a collision.
             Fhat *= exp(-tau);
-            beta /= sigma_star;
-            // The grid's albedo at x (a box's is in its sigma_s below).
-            vec3 albedo = box == NO_INDEX ? grid_albedo(x) : vec3(0.0);
-            vec3 sigma_s = albedo * sigma_t;
-            g = u_base.g;
-            if (box != NO_INDEX) {
-                sigma_s = media[box].sigma_s;
-                g = media[box].g;
-            }
+            beta /= sigma_star_total;
 
-            if (SC_HAS_EMISSION && box == NO_INDEX) {
-                // Emission candidate: sigma_a Le at x_i (eq. 25, emission case).
-                vec3 emitted = (vec3(1.0) - albedo) * sigma_t * grid_emission(x);
+            if (SC_HAS_EMISSION && sigma_t_grid > 0.0) {
+                // Emission candidate: the grid's sigma_a Le at x_i (eq. 25, emission case).
+                vec3 emitted = (vec3(1.0) - albedo) * sigma_t_grid * grid_emission(x);
                 add_candidate(at, r, rng, luminance(beta * emitted), luminance(Fhat * emitted), i,
                               jitter_bits | INFO_EMISSION, vec3(0.0), 0u);
             }
@@ -287,22 +285,30 @@ void restir_main() {
             // Scattering candidate by next-event estimation.
             float u_light = rng_next(rng);
             vec2 u2 = vec2(rng_next(rng), rng_next(rng));
-            add_nee_candidate(at, r, rng, x, surface_none(x, w), w, g, u_light, u2, Fhat * sigma_s, beta * sigma_s, i,
-                              jitter_bits);
+            add_nee_candidate(at, r, rng, x, surface_none(x, w), w, vm, u_light, u2, Fhat, beta, i, jitter_bits);
             if (i == SC_MAX_BOUNCES) {
                 break;
             }
-            // Next direction by the phase function, stored quantized (the walk continues
-            // along the stored direction, so the path is exactly what was evaluated).
-            vec3 w_sampled = sample_hg(w, g, vec2(rng_next(rng), rng_next(rng)));
+            // Next direction by the phase functions, stored quantized (the walk continues
+            // along the stored direction, so the path is exactly what was evaluated). Where
+            // a box overlaps the grid, the box's phase function is drawn with probability
+            // q_box, and the direction's density is the mixture (one random number more,
+            // only there).
+            float q_box = medium_box_share(vm);
+            float g_pick = vm.g_grid;
+            if (q_box >= 1.0 || (q_box > 0.0 && rng_next(rng) < q_box)) {
+                g_pick = vm.g_box;
+            }
+            vec3 w_sampled = sample_hg(w, g_pick, vec2(rng_next(rng), rng_next(rng)));
             uint omega = oct_encode(w_sampled);
             vec3 w_next = oct_decode(omega);
-            float rho_sampled = hg_phase(dot(w, w_sampled), g);
-            float rho_next = hg_phase(dot(w, w_next), g);
+            float c_sampled = dot(w, w_sampled);
+            float pdf_sampled = (1.0 - q_box) * hg_phase(c_sampled, vm.g_grid) + q_box * hg_phase(c_sampled, vm.g_box);
+            vec3 s_next = medium_scatter(vm, dot(w, w_next));
             walk_omega[i - 1u] = omega;
-            Fhat *= sigma_s * rho_next;
-            // p *= rho(w_sampled). Domain: rho_sampled > 0 (HG is positive for |g| < 1).
-            beta *= sigma_s * (rho_next / rho_sampled);
+            Fhat *= s_next;
+            // p *= pdf(w_sampled). Domain: pdf_sampled > 0 (HG is positive for |g| < 1).
+            beta *= s_next / pdf_sampled;
             w = w_next;
             // Russian roulette after the third bounce, by beta = Fhat / p (p *= q).
             if (i >= 3u && !russian_roulette(beta, rng)) {

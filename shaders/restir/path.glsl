@@ -267,11 +267,35 @@ float pc_track(uint level, vec3 o, vec3 d, float t_end, float tau_target, out fl
     return FAR;
 }
 
+// sigma_t* of level `level` (the conservative piecewise-constant grid pc_track walks) at
+// x: 0 outside the density's box and in empty bricks.
+float pc_sigma_star_at(uint level, vec3 x) {
+    GridLevel L;
+    if (level == LEVEL_PRIMARY) {
+        L = u_restir.pc_primary;
+    } else {
+        L = u_restir.pc_indirect;
+    }
+    GridSpace s = u_grid.space;
+    vec3 p = space_to_index(s, x);
+    if (!(all(greaterThanEqual(p, s.index_min)) && all(lessThanEqual(p, s.index_max)))) {
+        return 0.0;
+    }
+    // Domain: factor >= 1.
+    float f = max(float(L.factor), 1.0);
+    ivec3 cell = clamp(ivec3(floor(p / f)), ivec3(0), L.lattice_max);
+    uint slot = grid_slot(L.bricks_offset, L.brick_dims, cell >> 3);
+    if (slot == NO_BRICK) {
+        return 0.0;
+    }
+    return texelFetch(u_pc, grid_slot_origin(slot, L.slots_x, L.slots_y) + (cell & 7), 0).r;
+}
+
 // ---------------------------------------------------------------------------------------
-// Homogeneous box media beside the grid (SC_HAS_MEDIA). They are disjoint from the grid
-// and from each other; their transmittance is the closed form everywhere (targets, NEE
-// and final shading alike), and a box is its own piecewise-constant majorant in tracking
-// (sigma* = sigma_t). A vertex in a box scatters by the box's sigma_s and g.
+// Homogeneous box media beside the grid (SC_HAS_MEDIA). They are disjoint from each other
+// and may overlap the grid, where the extinctions add; their transmittance is the closed
+// form everywhere (targets, NEE and final shading alike), and a box is its own
+// piecewise-constant majorant in tracking (sigma* = sigma_t).
 
 // The box medium holding x, NO_INDEX if none (the grid or vacuum).
 uint box_medium_at(vec3 x) {
@@ -286,6 +310,61 @@ uint box_medium_at(vec3 x) {
         }
     }
     return NO_INDEX;
+}
+
+// How a medium vertex at x scatters: the grid's sigma_s (albedo there times its sigma_t,
+// `sigma_t_grid`, 0 outside the grid) and g, and the sigma_s and g of the box holding x
+// (zero without one). Where a box overlaps the grid both scatter: a path vertex there is
+// one of either medium, with the summed density (docs/scene-format.md, "Overlapping
+// media"), so its value is the sum of the two media's sigma_s rho.
+struct VertexMedium {
+    vec3 sigma_s_grid;
+    float g_grid;
+    vec3 sigma_s_box;
+    float g_box;
+    float sigma_t_box;
+};
+
+// No medium (a surface vertex).
+VertexMedium vertex_medium_none() {
+    VertexMedium m;
+    m.sigma_s_grid = vec3(0.0);
+    m.g_grid = 0.0;
+    m.sigma_s_box = vec3(0.0);
+    m.g_box = 0.0;
+    m.sigma_t_box = 0.0;
+    return m;
+}
+
+// The media at x, the grid's sigma_t (`sigma_t_grid`) and albedo there given.
+VertexMedium vertex_medium(vec3 x, float sigma_t_grid, vec3 albedo_grid) {
+    VertexMedium m = vertex_medium_none();
+    m.sigma_s_grid = albedo_grid * sigma_t_grid;
+    m.g_grid = u_base.g;
+    uint box = box_medium_at(x);
+    if (box != NO_INDEX) {
+        m.sigma_s_box = media[box].sigma_s;
+        m.g_box = media[box].g;
+        m.sigma_t_box = media[box].sigma_t;
+    }
+    return m;
+}
+
+// sum over the media at the vertex of sigma_s rho(cos), rho the HG phase function.
+vec3 medium_scatter(VertexMedium m, float cos_theta) {
+    vec3 s = m.sigma_s_grid * hg_phase(cos_theta, m.g_grid);
+    if (SC_HAS_MEDIA) {
+        s += m.sigma_s_box * hg_phase(cos_theta, m.g_box);
+    }
+    return s;
+}
+
+// The probability that the vertex's next direction follows the box's phase function
+// (in proportion to the luminance of its sigma_s), 0 without a box.
+float medium_box_share(VertexMedium m) {
+    float lb = SC_HAS_MEDIA ? luminance(m.sigma_s_box) : 0.0;
+    float lg = luminance(m.sigma_s_grid);
+    return lb > 0.0 ? lb / (lg + lb) : 0.0;
 }
 
 // Transmittance of the box media along o + t d, t in [0, t1] (1 without them).
@@ -419,10 +498,10 @@ float env_sample_pdf(vec3 wi) {
 }
 
 // How a vertex scatters light arriving from wi into the travel direction: the surface's
-// BRDF x cosine on a surface, the phase function (w: the travel direction into the
-// vertex, asymmetry g) in a medium.
-vec3 vertex_scatter(SurfacePoint surface, vec3 w, float g, vec3 wi) {
-    return surface.shape != NO_INDEX ? surface_reflect(surface, wi) : vec3(hg_phase(dot(w, wi), g));
+// BRDF x cosine on a surface, sigma_s times the phase function (w: the travel direction
+// into the vertex) of each medium there.
+vec3 vertex_scatter(SurfacePoint surface, vec3 w, VertexMedium vm, vec3 wi) {
+    return surface.shape != NO_INDEX ? surface_reflect(surface, wi) : medium_scatter(vm, dot(w, wi));
 }
 
 // The light terms a path's last vertex adds up: 1, the stored light vertex; with split
@@ -479,7 +558,8 @@ vec3 path_value(uint at, Reservoir r, CameraRay cam, CameraRay src, uint mode, i
                                      : reuse_transmittance(set, cam.o, cam.d, t_end);
         return L * T * boxes_transmittance(cam.o, cam.d, t_end);
     }
-    float g = u_base.g;
+    // The medium vertex's scattering, set at each medium vertex.
+    VertexMedium vm = vertex_medium_none();
     // Vertex reuse: x_2 of the owner's path, in world space.
     bool keep_x2 = SC_REUSE_VERTEX && kp >= 2u;
     vec3 x2_world = vec3(0.0);
@@ -520,12 +600,8 @@ vec3 path_value(uint at, Reservoir r, CameraRay cam, CameraRay src, uint mode, i
                 w_next = oct_decode(res_omega(at, i - 1u));
             }
             // Scattering at x_{i-1} from the travel direction w to w_next: the BRDF on a
-            // surface, the phase function in the medium.
-            if (surface.shape != NO_INDEX) {
-                f *= surface_reflect(surface, w_next);
-            } else {
-                f *= hg_phase(dot(w, w_next), g);
-            }
+            // surface, sigma_s times the phase function of each medium there.
+            f *= vertex_scatter(surface, w, vm, w_next);
             w = w_next;
         }
         bool on_surface = SC_HAS_SHAPES && z < 0.0;
@@ -563,32 +639,20 @@ vec3 path_value(uint at, Reservoir r, CameraRay cam, CameraRay src, uint mode, i
             continue;
         }
         x += z * w;
-        uint box = box_medium_at(x);
-        if (box != NO_INDEX) {
-            // Scattering in a box: its sigma_s and g (the grid's emission is not there).
-            if (i == kp && res_emission(r)) {
-                return vec3(0.0);
-            }
-            f *= media[box].sigma_s;
-            g = media[box].g;
-            if (!any(greaterThan(f, vec3(0.0)))) {
-                return vec3(0.0);
-            }
-            continue;
-        }
-        g = u_base.g;
         float sigma_t = mode == MODE_FINAL ? grid_sigma_t_in(u_density, x) : sigma_t_of(set, x);
         vec3 albedo = grid_albedo(x);
+        vm = vertex_medium(x, sigma_t, albedo);
         if (i == kp && res_emission(r)) {
-            if (!SC_HAS_EMISSION) {
+            if (!SC_HAS_EMISSION || !(sigma_t > 0.0)) {
                 return vec3(0.0);
             }
-            // Emission path: sigma_a Le at x_k' (absorbed-emission convention).
+            // Emission path: the grid's sigma_a Le at x_k' (absorbed-emission convention;
+            // a box does not emit).
             return f * (vec3(1.0) - albedo) * sigma_t * grid_emission(x) * geometry;
         }
-        // Scattering at x_i: sigma_s = albedo sigma_t.
-        f *= albedo * sigma_t;
-        if (!any(greaterThan(f, vec3(0.0)))) {
+        // Scattering at x_i by the media there (sigma_s rho, applied with the next
+        // direction).
+        if (!any(greaterThan(f * (vm.sigma_s_grid + vm.sigma_s_box), vec3(0.0)))) {
             return vec3(0.0);
         }
     }
@@ -604,7 +668,7 @@ vec3 path_value(uint at, Reservoir r, CameraRay cam, CameraRay src, uint mode, i
         float dist;
         vec3 L = k == 0u ? light_eval(lbase, res_light(r), stored_dir, r.light_dir, r.light_point, x, wi, dist)
                          : q * light_term(lbase, k, x, wi, dist);
-        vec3 s = vertex_scatter(surface, w, g, wi) * L;
+        vec3 s = vertex_scatter(surface, w, vm, wi) * L;
         if (!any(greaterThan(s, vec3(0.0))) || light_blocked(lbase, x, wi, dist) || shapes_block(x, wi, dist)) {
             continue;
         }

@@ -18,6 +18,16 @@ pub(super) fn build(
     let file = scene.source.display();
 
     // Reject what the crepuscular pass does not render, naming where it is.
+    if let Some(&(a, b)) = scene.overlaps.first() {
+        bail!(
+            "{file}: [[medium]] #{} and [[medium]] #{} overlap: the crepuscular pass takes \
+             disjoint box media only (its analytic single scattering is per box); the \
+             baseline path tracer renders overlapping media beside a grid medium \
+             ([integrator] volume = \"baseline\")",
+            a + 1,
+            b + 1
+        );
+    }
     for (i, light) in scene.lights.iter().enumerate() {
         let kind = match light {
             Light::Directional { .. } | Light::Environment { .. } => continue,

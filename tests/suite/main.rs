@@ -35,6 +35,7 @@ mod layout;
 mod light_keys;
 mod mesh_bvh_gpu;
 mod meshes;
+mod overlap;
 mod pipeline;
 mod pyro;
 mod render_box;

@@ -563,6 +563,28 @@ fn albedo_grid_matches_the_baseline() {
     );
 }
 
+/// A fog box reaching into the cloud (its own albedo, a backward g, with an emitting
+/// cloud) and a second one in vacuum beside it, K = 3: where box and grid overlap a vertex
+/// scatters by both media's sigma_s rho and the walk's collision density is the summed
+/// majorant; ReSTIR converges to the baseline, which races the media's free flights
+/// (tests/suite/overlap.rs checks that against the CPU oracle).
+#[test]
+fn a_box_overlapping_the_grid_matches_the_baseline() {
+    let boxes = "[[medium]]\ntype = \"box\"\ncenter = [0.3, -0.2, 0.5]\nsize = [0.8, 0.6, 0.8]\n\
+                 sigma_t = 3.0\nalbedo = [0.8, 0.7, 0.9]\ng = -0.3\n\
+                 [[medium]]\ntype = \"box\"\ncenter = [-0.6, -0.3, 1.25]\nsize = [0.6, 0.6, 0.4]\n\
+                 sigma_t = 2.0\nalbedo = 0.6\ng = 0.5\n";
+    let cloud = Cloud {
+        bounces: 3,
+        medium_extra: "emission = { procedural = \"cloud\", dims = [12, 8, 12], noise_seed = 5 }\n\
+             emission_scale = [0.5, 0.3, 0.2]",
+        shapes: boxes,
+        ..Cloud::default()
+    };
+    assert_eq!(cloud.scene("overlap.toml").overlaps, [(0, 1)]);
+    check_cases(cloud, &[BOTH], "box overlapping the grid K=3");
+}
+
 /// A floor under the cloud (seen below it and through it) and a box half inside the
 /// cloud's grid, its other half in vacuum: surface vertices on the camera segment and
 /// after scattering, shadows cast into the medium and onto the floor.

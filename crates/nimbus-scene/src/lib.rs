@@ -72,7 +72,7 @@
 //! | gobo | 3..=64 `[u, v]` points, each coordinate within ±1e7 m, convex, non-zero area, no repeated consecutive point; clockwise input is reversed to counter-clockwise |
 //! | quad | `edge_u`, `edge_v` non-zero and not parallel (sin angle > 1e-6) |
 //! | convex `planes` | 4..=64 `[nx, ny, nz, d]`, no zero normal; their intersection bounded (within 1e3·max|d| + 1e8 m), with a non-empty interior, spanning at most 1e7 m (see [`convex`]) |
-//! | media | no two share volume: exact separating-axis test on (rotated) boxes, convex polyhedra and grid AABBs; touching within 1e-6 × the scene scale is allowed |
+//! | media | may share volume: the pairs that do are found by an exact separating-axis test on (rotated) boxes, convex polyhedra and grid extents (touching within 1e-6 × the scene scale is not sharing) and listed in [`Scene::overlaps`]; integrators that take disjoint media refuse them when the render is planned |
 //! | `max_bounces` | 1..=1024 |
 //! | `volume` | `"restir"`, `"baseline"` |
 //! | `box_estimator` | `"mcwvds"`, `"reds"`, `"rees"`, `"rm"`, `"mcds"`, `"me"` |

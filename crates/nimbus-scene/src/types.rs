@@ -23,6 +23,11 @@ pub struct Scene {
     /// [`Scene::lights_at`] rather than reading it directly.
     pub light_keyframes: Vec<Vec<LightKeyframe>>,
     pub media: Vec<Medium>,
+    /// Pairs `(i, j)`, i < j, of `media` indices that share volume (their extinctions
+    /// add there): found by the loader's exact test, which lets touching media be.
+    /// Integrators that take only disjoint media refuse a scene with any. A scene built
+    /// in code lists its own (empty: none).
+    pub overlaps: Vec<(usize, usize)>,
     pub shapes: Vec<Shape>,
     pub integrator: Integrator,
 }

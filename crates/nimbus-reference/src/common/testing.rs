@@ -31,6 +31,7 @@ pub(crate) fn test_scene(
         },
         lights,
         media,
+        overlaps: Vec::new(),
         shapes,
         integrator: nimbus_scene::Integrator::default(),
     }

@@ -113,12 +113,21 @@ impl Tracer {
         t_max: f64,
         rng: &mut Rng,
     ) -> Option<(f64, usize)> {
+        // Each medium's first collision, independently; the nearest wins. For disjoint
+        // media that is the first medium entered that collides; where media overlap, it
+        // picks a medium in proportion to its σt there (extinctions add). Each later
+        // medium is sampled only up to the nearest so far (memoryless).
+        let mut best: Option<(f64, usize)> = None;
         for (t0, t1, i) in spans_by_entry(&self.media, |m| m.span(o, d, t_max)) {
+            let t1 = best.map_or(t1, |(t, _)| t1.min(t));
+            if t1 <= t0 {
+                continue;
+            }
             if let Some(t) = self.media[i].sample_collision(o, d, t0, t1, rng) {
-                return Some((t, i));
+                best = Some((t, i));
             }
         }
-        None
+        best
     }
 
     /// V·T towards a light at distance `t_max` (∞ for distant lights): 0 if occluded,

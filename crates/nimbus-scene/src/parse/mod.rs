@@ -181,13 +181,13 @@ pub(crate) fn parse_scene(text: &str, file: &Path, overrides: &[FieldOverride]) 
         media.push(medium);
         medium_bounds.push((name, bounds));
     }
-    // Media must not share volume (touching is fine).
-    for (i, (name_a, a)) in medium_bounds.iter().enumerate() {
-        for (name_b, b) in &medium_bounds[i + 1..] {
+    // Which media share volume (touching is not sharing): the integrators decide what
+    // they render.
+    let mut overlaps = Vec::new();
+    for (i, (_, a)) in medium_bounds.iter().enumerate() {
+        for (j, (_, b)) in medium_bounds.iter().enumerate().skip(i + 1) {
             if a.overlaps(b) {
-                return Err(source.error(format!(
-                    "{name_a} and {name_b} overlap; media must not overlap"
-                )));
+                overlaps.push((i, j));
             }
         }
     }
@@ -211,6 +211,7 @@ pub(crate) fn parse_scene(text: &str, file: &Path, overrides: &[FieldOverride]) 
         lights,
         light_keyframes,
         media,
+        overlaps,
         shapes,
         integrator,
     };

@@ -576,29 +576,22 @@ fn bad_gobos_are_rejected() {
     assert_contains(&error, &["field `gobo_origin`", "without `gobo`"]);
 }
 
+/// Media may share volume: the loader lists the pairs that do ([`Scene::overlaps`]) by
+/// an exact test, and touching or merely nearby media are no pair.
 #[test]
-fn overlapping_media_are_rejected() {
+fn overlapping_media_are_found_exactly() {
+    let overlaps = |text: &str| parse_ok(text).overlaps;
     let boxes = |second_center: &str, rotation: &str| {
         format!(
             "{BOX}sigma_t = 1\n[[medium]]\ntype = \"box\"\ncenter = {second_center}\nsize = [1, 1, 1]\n\
              rotation_deg = {rotation}\nsigma_t = 1\n"
         )
     };
-    let error = parse_err(&boxes("[0.5, 0.5, 0]", "[0, 0, 0]"));
-    assert_contains(
-        &error,
-        &[
-            SCENE,
-            "[[medium]] #1 (type = \"box\")",
-            "[[medium]] #2 (type = \"box\")",
-            "overlap",
-        ],
-    );
+    assert_eq!(overlaps(&boxes("[0.5, 0.5, 0]", "[0, 0, 0]")), [(0, 1)]);
     // A 45° cube reaches √0.5 ≈ 0.707 along X: at x = 1.2 it overlaps the unit cube,
     // at x = 1.25 it does not.
-    let error = parse_err(&boxes("[1.2, 0, 0]", "[0, 0, 45]"));
-    assert_contains(&error, &["#1", "#2", "overlap"]);
-    parse_ok(&boxes("[1.25, 0, 0]", "[0, 0, 45]"));
+    assert_eq!(overlaps(&boxes("[1.2, 0, 0]", "[0, 0, 45]")), [(0, 1)]);
+    assert!(overlaps(&boxes("[1.25, 0, 0]", "[0, 0, 45]")).is_empty());
     // Edge-on cubes, rotated about different axes: only the edge-edge axis of SAT
     // separates them, and pushing them 1 cm closer makes them overlap.
     let edge_on = |y: f64| {
@@ -607,9 +600,11 @@ fn overlapping_media_are_rejected() {
              center = [0, {y}, 0]\nsize = [1, 1, 1]\nrotation_deg = [0, 0, 45]\nsigma_t = 1\n"
         )
     };
-    parse_ok(&edge_on(std::f64::consts::SQRT_2 + 0.01));
-    let error = parse_err(&edge_on(std::f64::consts::SQRT_2 - 0.01));
-    assert_contains(&error, &["#1", "#2", "overlap"]);
+    assert!(overlaps(&edge_on(std::f64::consts::SQRT_2 + 0.01)).is_empty());
+    assert_eq!(
+        overlaps(&edge_on(std::f64::consts::SQRT_2 - 0.01)),
+        [(0, 1)]
+    );
 
     let grid = |min: &str, max: &str| {
         format!(
@@ -617,31 +612,28 @@ fn overlapping_media_are_rejected() {
              density = {{ procedural = \"cloud\", dims = [2, 2, 2] }}\n"
         )
     };
-    let error = parse_err(&format!(
-        "{}{}",
-        grid("[0, 0, 0]", "[2, 2, 2]"),
-        grid("[1, 1, 1]", "[3, 3, 3]")
-    ));
-    assert_contains(
-        &error,
-        &[
-            "[[medium]] #1 (type = \"grid\")",
-            "[[medium]] #2 (type = \"grid\")",
-            "overlap",
-        ],
+    assert_eq!(
+        overlaps(&format!(
+            "{}{}",
+            grid("[0, 0, 0]", "[2, 2, 2]"),
+            grid("[1, 1, 1]", "[3, 3, 3]")
+        )),
+        [(0, 1)]
     );
-    parse_ok(&format!(
+    assert!(overlaps(&format!(
         "{}{}",
         grid("[0, 0, 0]", "[2, 2, 2]"),
         grid("[2, 0, 0]", "[3, 3, 3]")
-    ));
-    let error = parse_err(&format!(
-        "{}{BOX}sigma_t = 1\n",
-        grid("[0.4, 0.4, 0.4]", "[2, 2, 2]")
-    ));
-    assert_contains(
-        &error,
-        &["#1 (type = \"grid\")", "#2 (type = \"box\")", "overlap"],
+    ))
+    .is_empty());
+    // Three media: the grid overlaps both boxes, the boxes are apart.
+    assert_eq!(
+        overlaps(&format!(
+            "{}{BOX}sigma_t = 1\n[[medium]]\ntype = \"box\"\ncenter = [1.5, 1.5, 1.5]\n\
+             size = [0.5, 0.5, 0.5]\nsigma_t = 2\n",
+            grid("[0.4, 0.4, 0.4]", "[2, 2, 2]")
+        )),
+        [(0, 1), (0, 2)]
     );
 }
 
@@ -833,20 +825,18 @@ fn convex_media_that_are_not_bounded_polyhedra_are_rejected() {
         &error,
         &[table, "field `planes`", "width across a face", "32-bit"],
     );
-    // A dodecahedron overlapping a box is refused, one beside it is not (it reaches
+    // A dodecahedron overlapping a box is a pair, one beside it is not (it reaches
     // 1.176 r below its centre, the box 0.5 above the origin).
-    let error = parse_err(&format!(
+    let scene = parse_ok(&format!(
         "{}{BOX}sigma_t = 1\n",
         dodecahedron([0.0, 1.0, 0.0], 1.0, 1.0)
     ));
-    assert_contains(
-        &error,
-        &["#1 (type = \"convex\")", "#2 (type = \"box\")", "overlap"],
-    );
-    parse_ok(&format!(
+    assert_eq!(scene.overlaps, [(0, 1)]);
+    let scene = parse_ok(&format!(
         "{}{BOX}sigma_t = 1\n",
         dodecahedron([0.0, 1.7, 0.0], 1.0, 1.0)
     ));
+    assert!(scene.overlaps.is_empty());
 }
 
 /// A sphere light around the camera (issue 24: the camera saw its inside at radiance 4
