@@ -1,21 +1,23 @@
-//! Writes an emissive explosion at any resolution: a billowing fireball of smoke (nine
-//! noise-displaced puffs around a core, with a rising column) whose hot core emits, as
-//! Mitsuba `.vol` files, together with a scene file that renders it with Volumetric
-//! ReSTIR at 640x360:
+//! Writes a pyro explosion at any resolution: a billowing fireball of smoke (nine
+//! noise-displaced puffs around a core, with a rising column) whose hot core glows as a
+//! blackbody, as Mitsuba `.vol` files, together with a scene file that renders it with
+//! Volumetric ReSTIR at 640x360, sitting in a layer of ground fog on a dark ground:
 //!
 //! ```sh
 //! cargo run --release --example make_explosion -- target/explosion 256
 //! ```
-//! writes `target/explosion/explosion-256-density.vol`, `explosion-256-emission.vol` and
-//! `explosion-256.toml` (N defaults to 128).
+//! writes `target/explosion/explosion-256-density.vol`, `explosion-256-temperature.vol`
+//! and `explosion-256.toml` (N defaults to 128).
 //!
 //! - Density in [0, 1] over the box [-1, 1]³ (m): each puff is 1 deep inside and falls
 //!   to 0 over its outer quarter, its radius displaced by low-frequency noise (±30 %);
 //!   the union is the largest puff value, times high-frequency detail noise. Exactly 0
 //!   on the outermost voxel layer and wherever no puff reaches (most of the box).
-//! - Emission (a scalar, times the scene's orange `emission_scale`): the temperature,
-//!   1 at the core falling to 0 at 0.55 m, broken up by noise, and only where there is
-//!   smoke (the papers' absorbed-emission convention: σa · Le is the emitted power).
+//! - Temperature (unitless, as simulation tools write it; the scene maps it to
+//!   1200 + 900 · value kelvin): up to 1.5 at the core falling to 0 at 0.55 m, broken up
+//!   by noise, and only where there is smoke. The scene's `temperature` turns it into
+//!   blackbody radiance (absorbed-emission convention: σa · Le is the emitted power), so
+//!   the fire is white-yellow where hottest and dull red at its edges.
 //!
 //! The same explosion at every resolution: shapes and noise live in world coordinates,
 //! so finer grids resolve finer detail of the same fireball.
@@ -104,7 +106,7 @@ fn main() -> Result<()> {
     std::fs::create_dir_all(&out_dir).with_context(|| format!("creating {}", out_dir.display()))?;
     let puffs = puffs();
     let voxels = (n as usize).pow(3);
-    let (mut density, mut emission) = (Vec::with_capacity(voxels), Vec::with_capacity(voxels));
+    let (mut density, mut temperature) = (Vec::with_capacity(voxels), Vec::with_capacity(voxels));
     let size = f64::from(BOUNDS_MAX.x - BOUNDS_MIN.x);
     for k in 0..n {
         for j in 0..n {
@@ -118,7 +120,7 @@ fn main() -> Result<()> {
                     explosion(&puffs, p)
                 };
                 density.push(d);
-                emission.push(t);
+                temperature.push(t);
             }
         }
     }
@@ -129,13 +131,18 @@ fn main() -> Result<()> {
         data,
     };
     let density_path = out_dir.join(format!("explosion-{n}-density.vol"));
-    let emission_path = out_dir.join(format!("explosion-{n}-emission.vol"));
+    let temperature_path = out_dir.join(format!("explosion-{n}-temperature.vol"));
     nimbus_scene::write_vol(&density_path, &grid(density), BOUNDS_MIN, BOUNDS_MAX)?;
-    nimbus_scene::write_vol(&emission_path, &grid(emission), BOUNDS_MIN, BOUNDS_MAX)?;
+    nimbus_scene::write_vol(
+        &temperature_path,
+        &grid(temperature),
+        BOUNDS_MIN,
+        BOUNDS_MAX,
+    )?;
     println!(
         "wrote {} and {} ({n}^3, {nonzero} non-zero voxels, {:.1} % of the box)",
         density_path.display(),
-        emission_path.display(),
+        temperature_path.display(),
         100.0 * nonzero as f64 / voxels as f64
     );
     let scene_path = out_dir.join(format!("explosion-{n}.toml"));
@@ -146,9 +153,11 @@ fn main() -> Result<()> {
             .to_string())
     };
     let scene = format!(
-        r#"# An emissive explosion ({n}^3 voxels), written by examples/make_explosion.rs.
-# Smoke that absorbs half of what it scatters glows where it is hot (absorbed
-# emission: sigma_a * Le), under a dim dusk sky and a low sun.
+        r#"# A pyro explosion ({n}^3 voxels), written by examples/make_explosion.rs.
+# Smoke that absorbs half of what it scatters glows as a blackbody where it is hot
+# (1200 + 900 x temperature kelvin; absorbed emission: sigma_a * Le), sitting in a
+# layer of ground fog (a box medium overlapping the grid) on a dark ground, under a
+# dim dusk sky and a low sun.
 
 [render]
 width = 640
@@ -178,15 +187,32 @@ density = {{ file = "{}" }}
 density_scale = 30.0
 albedo = [0.55, 0.5, 0.45]
 g = 0.3
-emission = {{ file = "{}" }}
-emission_scale = [7.0, 2.6, 0.6]
+temperature = {{ file = "{}" }}
+temperature_offset = 1200.0
+temperature_scale = 900.0
+blackbody_scale = 0.05
+
+[[medium]]
+type = "box"
+center = [0.0, -0.9, 0.0]
+size = [8.0, 0.5, 8.0]
+sigma_t = 0.3
+albedo = [0.85, 0.87, 0.9]
+g = 0.5
+
+[[shape]]
+type = "quad"
+corner = [-4.0, -1.15, 4.0]
+edge_u = [8.0, 0.0, 0.0]
+edge_v = [0.0, 0.0, -8.0]
+albedo = [0.18, 0.16, 0.14]
 
 [integrator]
 volume = "restir"
 max_bounces = 4
 "#,
         abs(&density_path)?,
-        abs(&emission_path)?
+        abs(&temperature_path)?
     );
     std::fs::write(&scene_path, scene)
         .with_context(|| format!("writing {}", scene_path.display()))?;
