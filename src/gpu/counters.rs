@@ -56,7 +56,11 @@ pub fn specialization(slot: Option<u32>) -> Vec<(u32, SpecValue)> {
             (SC_ID_COUNTERS, SpecValue::Bool(true)),
             (SC_ID_COUNTER_SLOT, SpecValue::U32(s.min(COUNTER_SLOTS - 1))),
         ],
-        None => Vec::new(),
+        // Said explicitly: every constant a shader declares is set (nimbus_gpu::spirv).
+        None => vec![
+            (SC_ID_COUNTERS, SpecValue::Bool(false)),
+            (SC_ID_COUNTER_SLOT, SpecValue::U32(0)),
+        ],
     }
 }
 

@@ -15,7 +15,11 @@
 //!    `shaders/include/features.glsl` and their Rust twins into [`crate::gpu::features`];
 //!    new bindings into `shaders/include/bindings.glsl` and [`crate::gpu::bindings`]; a new
 //!    uniform or record struct into [`crate::gpu::records`] with named scalar members
-//!    (`tests/suite/layout.rs` checks all of these against the GLSL).
+//!    (`tests/suite/layout.rs` checks all of these against the GLSL). When the pipeline
+//!    is created, `nimbus_gpu::spirv` reads the compiled module and refuses it if the
+//!    pass leaves a specialization constant the shader declares unset (it would take
+//!    the shader's default silently), lacks a binding the shader uses or gives it another
+//!    kind, or gives a push-constant range shorter than the shader's block.
 //! 2. **Plan**: a settings struct and a variant of [`Integrator`] in `src/plan/`, with its
 //!    decision rows (what runs, which features are on, and why); `--explain` prints them.
 //! 3. **Pass**: `src/passes/<pass>.rs`, a struct implementing [`Pass`]: `new` creates its

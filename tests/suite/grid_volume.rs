@@ -278,7 +278,18 @@ impl Gpu {
                 nimbus::shaders::TESTS_GRID_VOLUME,
                 &layout,
                 std::mem::size_of::<GpuPush>() as u32,
-                &[],
+                // Both branches compiled in: exact spans for hot super-voxels, and the
+                // two-level tag read (one-level sections carry no tag, so they read alike).
+                &[
+                    (
+                        nimbus::gpu::features::SC_ID_EXACT_SPANS,
+                        nimbus_gpu::SpecValue::Bool(true),
+                    ),
+                    (
+                        nimbus::gpu::features::SC_ID_TWO_LEVEL_BRICKS,
+                        nimbus_gpu::SpecValue::Bool(true),
+                    ),
+                ],
                 "grid volume test",
             ),
         }

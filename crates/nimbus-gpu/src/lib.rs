@@ -48,6 +48,7 @@ pub mod objects;
 pub mod pipeline;
 pub mod pipeline_cache;
 pub mod profiler;
+pub mod spirv;
 
 pub use ash::vk;
 pub use buffer::{Buffer, BufferDesc};

@@ -187,6 +187,11 @@ impl Context {
         if let Some((id, _)) = desc.specialization.iter().find(|(id, _)| !seen.insert(*id)) {
             bail!("pipeline '{name}': specialization constant {id} is given twice");
         }
+        // The module's own declarations against the description (crate::spirv).
+        let layout: Vec<(u32, vk::DescriptorType)> =
+            desc.bindings.iter().map(|b| (b.binding, b.ty)).collect();
+        let given: Vec<u32> = desc.specialization.iter().map(|(id, _)| *id).collect();
+        crate::spirv::check(name, desc.spirv, &layout, &given, desc.push_constant_size)?;
         let entry = CString::new(desc.entry)
             .with_context(|| format!("pipeline '{name}': entry point name contains NUL"))?;
         let key = PipelineKey::new(desc);

@@ -53,7 +53,7 @@ pub fn specialization(
     plan: &RestirPlan,
     exact_spans: bool,
     two_level: bool,
-) -> [(u32, SpecValue); 20] {
+) -> [(u32, SpecValue); 21] {
     [
         (SC_ID_TWO_LEVEL_BRICKS, SpecValue::Bool(two_level)),
         (
@@ -69,6 +69,8 @@ pub fn specialization(
         (SC_ID_MAX_BOUNCES, SpecValue::U32(plan.max_bounces)),
         (SC_ID_PIXEL_JITTER, SpecValue::Bool(plan.pixel_jitter)),
         (SC_ID_HAS_EMISSION, SpecValue::Bool(plan.has_emission)),
+        // Convex media beside a grid are refused by the plan.
+        (SC_ID_HAS_CONVEX, SpecValue::Bool(false)),
         (SC_ID_HAS_BLACKBODY, SpecValue::Bool(plan.has_blackbody)),
         (SC_ID_HAS_ALBEDO_GRID, SpecValue::Bool(plan.has_albedo_grid)),
         (SC_ID_HAS_ENV_MAP, SpecValue::Bool(plan.has_env_map)),

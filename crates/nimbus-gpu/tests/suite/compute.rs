@@ -148,7 +148,11 @@ fn synchronization_validation_catches_a_missing_barrier() {
                 entry: "main",
                 bindings: &[BindingDesc::storage_buffer(0)],
                 push_constant_size: 8,
-                specialization: &[],
+                specialization: &[
+                    (0, SpecValue::U32(1)),
+                    (1, SpecValue::Bool(false)),
+                    (2, SpecValue::F32(0.0)),
+                ],
             },
             "hazard",
         )
@@ -188,5 +192,56 @@ fn synchronization_validation_catches_a_missing_barrier() {
     ctx.destroy_descriptor_set(set);
     ctx.destroy_buffer(out);
     ctx.destroy_compute_pipeline(pipeline);
+    crate::common::assert_no_validation_errors(&ctx);
+}
+
+/// The module's own declarations are checked against the description (nimbus_gpu::spirv):
+/// each of these breaks one on purpose and is refused, naming what is out of step.
+#[test]
+fn a_pipeline_out_of_step_with_its_spirv_is_refused() {
+    let ctx = crate::common::validated_context();
+    let spirv = crate::common::compile_compute(SHADER, "spec_push.comp");
+    let all = [
+        (0, SpecValue::U32(1)),
+        (1, SpecValue::Bool(false)),
+        (2, SpecValue::F32(0.0)),
+    ];
+    let reflection = nimbus_gpu::spirv::reflect(&spirv);
+    assert_eq!(
+        reflection.spec_ids.iter().copied().collect::<Vec<_>>(),
+        [0, 1, 2]
+    );
+    assert_eq!(reflection.push_constant_size, Some(8));
+    assert_eq!(
+        reflection.bindings.get(&0),
+        Some(&nimbus_gpu::spirv::ResourceKind::Buffer)
+    );
+    let attempt = |bindings: &[BindingDesc], push: u32, spec: &[(u32, SpecValue)]| {
+        ctx.create_compute_pipeline(
+            &ComputePipelineDesc {
+                spirv: &spirv,
+                entry: "main",
+                bindings,
+                push_constant_size: push,
+                specialization: spec,
+            },
+            "out of step",
+        )
+        .map(|p| ctx.destroy_compute_pipeline(p))
+        .map_err(|e| format!("{e:#}"))
+    };
+    let storage = [BindingDesc::storage_buffer(0)];
+    attempt(&storage, 8, &all).expect("in step");
+    // A forgotten specialization constant.
+    let err = attempt(&storage, 8, &all[..2]).unwrap_err();
+    assert!(err.contains("specialization constant(s) [2]"), "{err}");
+    // A binding missing from the layout, and one of the wrong kind.
+    let err = attempt(&[], 8, &all).unwrap_err();
+    assert!(err.contains("binding 0"), "{err}");
+    let err = attempt(&[BindingDesc::sampled_image(0)], 8, &all).unwrap_err();
+    assert!(err.contains("binding 0 is a Buffer"), "{err}");
+    // A push-constant range shorter than the block.
+    let err = attempt(&storage, 4, &all).unwrap_err();
+    assert!(err.contains("push constants take 8 bytes"), "{err}");
     crate::common::assert_no_validation_errors(&ctx);
 }
