@@ -259,7 +259,8 @@ struct RenderArgs {
     exposure: f32,
     /// Leave out the environment where camera rays see it directly (it still lights the
     /// scene): the image is then the foreground alone, premultiplied by its alpha, ready
-    /// to composite over a plate ([render] transparent_background = true).
+    /// to composite over a plate ([render] transparent_background = true). A .png is
+    /// then RGBA with straight alpha.
     #[arg(long)]
     transparent: bool,
     /// Tone curve of a .png: aces (Narkowicz's ACES fit), filmic (Hable's curve) or

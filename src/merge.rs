@@ -212,17 +212,26 @@ pub fn layers_of(result: &RenderResult, info: &RenderInfo) -> Layers {
 }
 
 /// Writes a render's image to `path`: an `.exr` with every layer and the metadata in
-/// its header, or a tonemapped `.png` with the metadata as text chunks.
+/// its header, or a tonemapped `.png` with the metadata as text chunks, RGBA (straight
+/// alpha) for a `transparent` render.
 pub fn write_render(
     path: &Path,
     result: &RenderResult,
     info: &RenderInfo,
     display: &crate::output::Display,
+    transparent: bool,
 ) -> Result<()> {
     if crate::output::image_extension(path)? == "exr" {
         write_layers(path, &layers_of(result, info))
     } else {
-        crate::output::write_png_with_metadata(path, &result.image, display, &info.attributes())
+        let alpha = transparent.then_some(result.alpha.as_slice());
+        crate::output::write_png_with_metadata(
+            path,
+            &result.image,
+            alpha,
+            display,
+            &info.attributes(),
+        )
     }
 }
 

@@ -243,18 +243,7 @@ pub(super) fn render(args: RenderArgs) -> Result<ExitCode> {
     let out = match (&args.out, args.frame_range) {
         (Some(out), _) => {
             output::check_writable(out).context("--out")?;
-            // A transparent render is its alpha: the PNG writer keeps RGB only, so a .png
-            // would silently lose it.
-            let png = out
-                .extension()
-                .is_some_and(|e| e.eq_ignore_ascii_case("png"));
-            ensure!(
-                !(png && scene.render.transparent_background),
-                "--out {}: a transparent render (--transparent or [render] \
-                 transparent_background) needs its alpha, and Nimbus writes PNGs as RGB: \
-                 write an .exr (premultiplied RGBA)",
-                out.display()
-            );
+            // A transparent render's .png is RGBA (straight alpha).
             Some(out.clone())
         }
         (None, Some(_)) => None,
@@ -266,7 +255,8 @@ pub(super) fn render(args: RenderArgs) -> Result<ExitCode> {
         ensure!(
             !(args.sequence_format == "png" && scene.render.transparent_background),
             "--sequence-format png: a transparent render needs its alpha, and Nimbus writes \
-             PNGs as RGB: use the exr sequence format (premultiplied RGBA)"
+             sequence frames as RGB PNGs: use the exr sequence format (premultiplied RGBA), \
+             or --out x.png for one RGBA image"
         );
         ensure!(
             args.frame.is_none(),
@@ -384,8 +374,14 @@ pub(super) fn render(args: RenderArgs) -> Result<ExitCode> {
         let partial = result.stop == StopReason::Interrupted;
         let path = sequence_path(dir, frame, &args.sequence_format, partial);
         let info = identity.info(&scene, result, &selection_words(result));
-        write_render(&path, result, &info, &display)
-            .with_context(|| format!("writing frame {frame}"))?;
+        write_render(
+            &path,
+            result,
+            &info,
+            &display,
+            scene.render.transparent_background,
+        )
+        .with_context(|| format!("writing frame {frame}"))?;
         eprintln!("{}", summary(&path, &scene, result));
         Ok(())
     };
@@ -421,7 +417,13 @@ pub(super) fn render(args: RenderArgs) -> Result<ExitCode> {
     match &out {
         Some(out) => {
             let info = identity.info(&scene, &result, &selection_words(&result));
-            write_render(out, &result, &info, &display)?;
+            write_render(
+                out,
+                &result,
+                &info,
+                &display,
+                scene.render.transparent_background,
+            )?;
             eprintln!("{}, {memory}", summary(out, &scene, &result));
         }
         None => eprintln!("rendered the frames, {memory}"),

@@ -136,15 +136,17 @@ pub fn write_image_with(path: &Path, img: &ImageRgb, display: &Display) -> anyho
     check_image(path, img)?;
     write_atomically(path, |tmp| match extension.as_str() {
         "exr" => write_exr(tmp, img),
-        _ => tonemap::write_png(tmp, img, display, &[software_text()]),
+        _ => tonemap::write_png(tmp, img, None, display, &[software_text()]),
     })
 }
 
 /// Writes `img` as a tonemapped sRGB PNG with `metadata` as tEXt chunks named
-/// `nimbus/<key>` (beside `Software`).
+/// `nimbus/<key>` (beside `Software`); with `alpha` (the premultiplied image's coverage,
+/// one value per pixel) an RGBA PNG of straight alpha.
 pub fn write_png_with_metadata(
     path: &Path,
     img: &ImageRgb,
+    alpha: Option<&[f32]>,
     display: &Display,
     metadata: &std::collections::BTreeMap<String, String>,
 ) -> anyhow::Result<()> {
@@ -160,7 +162,9 @@ pub fn write_png_with_metadata(
             .iter()
             .map(|(k, v)| (format!("{}{k}", layers::ATTRIBUTE_PREFIX), v.clone())),
     );
-    write_atomically(path, |tmp| tonemap::write_png(tmp, img, display, &text))
+    write_atomically(path, |tmp| {
+        tonemap::write_png(tmp, img, alpha, display, &text)
+    })
 }
 
 /// The PNG `Software` text: Nimbus and its version.

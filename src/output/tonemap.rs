@@ -122,17 +122,59 @@ pub fn tonemap_srgb8_with(img: &ImageRgb, display: &Display) -> Vec<[u8; 3]> {
 pub(super) fn write_png(
     path: &Path,
     img: &ImageRgb,
+    alpha: Option<&[f32]>,
     display: &Display,
     text: &[(String, String)],
 ) -> anyhow::Result<()> {
-    let bytes: Vec<u8> = tonemap_srgb8_with(img, display)
-        .into_iter()
-        .flatten()
-        .collect();
+    let bytes: Vec<u8> = match alpha {
+        None => tonemap_srgb8_with(img, display)
+            .into_iter()
+            .flatten()
+            .collect(),
+        Some(alpha) => {
+            anyhow::ensure!(
+                alpha.len() == img.data.len(),
+                "PNG {}: {} alpha values for {} pixels",
+                path.display(),
+                alpha.len(),
+                img.data.len()
+            );
+            // PNG alpha is straight: the premultiplied colour is divided by alpha before
+            // the tone curve, and a pixel of alpha 0 is black.
+            let straight = ImageRgb {
+                width: img.width,
+                height: img.height,
+                data: img
+                    .data
+                    .iter()
+                    .zip(alpha)
+                    .map(|(c, &a)| {
+                        if a > 0.0 {
+                            c.map(|v| v / a.min(1.0))
+                        } else {
+                            [0.0; 3]
+                        }
+                    })
+                    .collect(),
+            };
+            tonemap_srgb8_with(&straight, display)
+                .into_iter()
+                .zip(alpha)
+                .flat_map(|(rgb, &a)| {
+                    let a8 = (a.clamp(0.0, 1.0) * 255.0).round() as u8;
+                    [rgb[0], rgb[1], rgb[2], a8]
+                })
+                .collect()
+        }
+    };
     let file =
         std::fs::File::create(path).with_context(|| format!("create PNG {}", path.display()))?;
     let mut encoder = png::Encoder::new(std::io::BufWriter::new(file), img.width, img.height);
-    encoder.set_color(png::ColorType::Rgb);
+    encoder.set_color(if alpha.is_some() {
+        png::ColorType::Rgba
+    } else {
+        png::ColorType::Rgb
+    });
     encoder.set_depth(png::BitDepth::Eight);
     encoder.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
     for (keyword, value) in text {

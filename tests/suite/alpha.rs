@@ -60,6 +60,81 @@ fn a_transparent_film_leaves_out_exactly_the_background_alpha_uncovers() {
     assert!(seen > 0, "no pixel sees the sky through the window");
 }
 
+/// A transparent render to a .png is RGBA with straight alpha: its alpha is the EXR's
+/// to 8 bits (the window room: walls opaque, the sky through dusty air partly
+/// transparent), a pixel of alpha 0 is black, and every pixel's colour is its
+/// premultiplied colour divided by alpha, tonemapped.
+#[test]
+fn a_transparent_png_carries_the_alpha() {
+    let dir = scratch("transparent-png");
+    let (e, p) = (dir.join("fore.exr"), dir.join("fore.png"));
+    let common = [
+        "--width",
+        "32",
+        "--height",
+        "24",
+        "--frames",
+        "2",
+        "--spp",
+        "2",
+        "--transparent",
+    ];
+    let exr = render(&[&common[..], &["--out", e.to_str().unwrap()]].concat());
+    let out = nimbus(&[&["render"], &common[..], &["--out", p.to_str().unwrap()]].concat());
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(&p).unwrap()));
+    let mut reader = decoder.read_info().unwrap();
+    let mut bytes = vec![0u8; reader.output_buffer_size().unwrap()];
+    let frame = reader.next_frame(&mut bytes).unwrap();
+    assert_eq!(frame.color_type, png::ColorType::Rgba);
+    assert_eq!((frame.width, frame.height), (32, 24));
+    let straight = nimbus::output::ImageRgb {
+        width: 32,
+        height: 24,
+        data: exr
+            .color
+            .data
+            .iter()
+            .zip(&exr.alpha)
+            .map(|(c, &a)| {
+                if a > 0.0 {
+                    c.map(|v| v / a.min(1.0))
+                } else {
+                    [0.0; 3]
+                }
+            })
+            .collect(),
+    };
+    let display = nimbus::output::Display {
+        exposure: 1.0,
+        tonemap: nimbus::output::Tonemap::Aces,
+    };
+    let rgb8 = nimbus::output::tonemap_srgb8_with(&straight, &display);
+    // The window shows the sky through dusty air: those pixels are partly transparent.
+    let (mut see_through, mut opaque) = (0, 0);
+    for (i, px) in bytes.chunks_exact(4).enumerate() {
+        let a = exr.alpha[i];
+        assert_eq!(
+            px[3],
+            (a.clamp(0.0, 1.0) * 255.0).round() as u8,
+            "pixel {i}"
+        );
+        assert_eq!(&px[..3], &rgb8[i][..], "pixel {i}");
+        if px[3] == 0 {
+            assert_eq!(&px[..3], &[0, 0, 0], "pixel {i}");
+        }
+        if px[3] < 255 {
+            see_through += 1;
+        } else {
+            opaque += 1;
+        }
+    }
+    assert!(
+        see_through > 0 && opaque > 0,
+        "{see_through} see-through, {opaque} opaque pixels"
+    );
+}
+
 /// Alpha of the cloud (a 64x40x64 procedural grid) from the baseline and from ReSTIR,
 /// pixel centres only, against 1 − exp(−∫σt) by the f64 midpoint rule along the same
 /// camera rays (4000 steps through the grid: far finer than a voxel).

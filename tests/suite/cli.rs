@@ -460,20 +460,29 @@ fn one_frame_rendered_several_times_is_reported_as_passes() {
     assert!(stderr.contains("frame 2: 4 pass(es) x 1 spp"), "{stderr}");
 }
 
-/// A transparent render to a .png (RGB only) is refused before rendering, and a time
-/// limit past the writable range says why (issue 24).
+/// A transparent PNG sequence (frames written as RGB) is refused before rendering, and
+/// a time limit past the writable range says why (issue 24). A single transparent .png
+/// is RGBA (alpha.rs).
 #[test]
-fn a_transparent_png_and_an_absurd_time_limit_are_refused_with_the_reason() {
+fn a_transparent_png_sequence_and_an_absurd_time_limit_are_refused_with_the_reason() {
     let dir = scratch("transparent-png");
-    let png = dir.join("t.png");
-    let out = nimbus(&["render", "--transparent", "--out", png.to_str().unwrap()]);
+    let out = nimbus(&[
+        "render",
+        "--transparent",
+        "--sequence",
+        dir.join("seq").to_str().unwrap(),
+        "--sequence-format",
+        "png",
+        "--out",
+        dir.join("t.exr").to_str().unwrap(),
+    ]);
     let stderr = text(&out.stderr);
     assert!(!out.status.success());
     assert!(
-        stderr.contains("t.png") && stderr.contains("alpha"),
+        stderr.contains("sequence") && stderr.contains("alpha"),
         "{stderr}"
     );
-    assert!(!png.exists());
+    assert!(!dir.join("t.exr").exists());
     let out = nimbus(&[
         "render",
         "--time-limit",
