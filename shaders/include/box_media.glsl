@@ -32,6 +32,23 @@ bool medium_is_convex(BoxMedium bm) {
     return SC_HAS_CONVEX && bm.plane_count > 0u;
 }
 
+// Whether the local point x_local (inside bm's bounding box) lies in bm: always for a
+// box, on the inner side of every plane (to within rounding: 1e-5 of the plane's
+// offset plus 1e-6 m) for a convex medium.
+bool medium_contains_local(BoxMedium bm, vec3 x_local) {
+    if (!medium_is_convex(bm)) {
+        return true;
+    }
+    uint count = min(bm.plane_count, MAX_CONVEX_PLANES);
+    for (uint i = 0u; i < count; ++i) {
+        vec4 plane = medium_planes[bm.plane_first + i];
+        if (dot(plane.xyz, x_local) > plane.w + 1e-5 * abs(plane.w) + 1e-6) {
+            return false;
+        }
+    }
+    return true;
+}
+
 // Clip the span (t_in, t_out) of o + t d (local frame) by convex medium bm's planes:
 // each plane keeps the side n . x <= d. A ray parallel to a plane (|n . d| < 1e-30)
 // keeps the span when it starts inside it and misses otherwise.

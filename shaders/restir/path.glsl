@@ -297,7 +297,7 @@ float pc_sigma_star_at(uint level, vec3 x) {
 // form everywhere (targets, NEE and final shading alike), and a box is its own
 // piecewise-constant majorant in tracking (sigma* = sigma_t).
 
-// The box medium holding x, NO_INDEX if none (the grid or vacuum).
+// The box or convex medium holding x, NO_INDEX if none (the grid or vacuum).
 uint box_medium_at(vec3 x) {
     uint count = SC_HAS_MEDIA ? u_frame.box_media_count : 0u;
     for (uint m = 0u; m < count; ++m) {
@@ -305,7 +305,7 @@ uint box_medium_at(vec3 x) {
         vec3 p = x - bm.center;
         vec3 local = vec3(dot(bm.world_to_local[0].xyz, p), dot(bm.world_to_local[1].xyz, p),
                           dot(bm.world_to_local[2].xyz, p));
-        if (all(lessThanEqual(abs(local), bm.half_size))) {
+        if (all(lessThanEqual(abs(local), bm.half_size)) && medium_contains_local(bm, local)) {
             return m;
         }
     }

@@ -16,10 +16,11 @@ use super::{
 };
 use crate::budget::Footprint;
 use crate::gpu::features::*;
+use crate::gpu::scene::{medium_records, MediumRecords};
 use crate::gpu::sparse::TexelFormat;
 use crate::gpu::{
-    bindings, box_records, non_empty, shape_records, BaselineUniformsGpu, FrameUniforms, GpuGrid,
-    LightGpu, LightSet, MeshBuffers, PassPush, RecordCounts,
+    bindings, non_empty, shape_records, BaselineUniformsGpu, FrameUniforms, GpuGrid, LightGpu,
+    LightSet, MeshBuffers, PassPush, RecordCounts,
 };
 use crate::plan::BaselinePlan;
 use crate::shaders;
@@ -44,8 +45,7 @@ pub fn specialization(
         (SC_ID_MAX_BOUNCES, SpecValue::U32(plan.max_bounces)),
         (SC_ID_PIXEL_JITTER, SpecValue::Bool(plan.pixel_jitter)),
         (SC_ID_HAS_EMISSION, SpecValue::Bool(plan.has_emission)),
-        // Convex media beside a grid are refused by the plan.
-        (SC_ID_HAS_CONVEX, SpecValue::Bool(false)),
+        (SC_ID_HAS_CONVEX, SpecValue::Bool(plan.has_convex)),
         (SC_ID_HAS_BLACKBODY, SpecValue::Bool(plan.has_blackbody)),
         (SC_ID_HAS_ALBEDO_GRID, SpecValue::Bool(plan.has_albedo_grid)),
     ]
@@ -76,7 +76,10 @@ pub fn create(
 ) -> Result<BaselinePass> {
     let shapes = shape_records(scene);
     let meshes = MeshBuffers::build(scene);
-    let boxes = box_records(scene);
+    let MediumRecords {
+        media: boxes,
+        planes: medium_planes,
+    } = medium_records(scene);
     let constants = FrameConstants {
         env_radiance: grid.env_radiance,
         env_size: grid.uniforms.env_size,
@@ -128,8 +131,8 @@ pub fn create(
         let emitters = upload_records(ctx, o, &non_empty(&grid.emitters.records), "emitters")?;
         let super_voxels = upload_records(ctx, o, &grid.super_voxels, "super-voxels")?;
         let boxes = upload_records(ctx, o, &non_empty(&boxes), "box media")?;
-        // Convex media are refused beside grids: their (compiled-out) planes are empty.
-        let planes = upload_records(ctx, o, &[[0.0f32; 4]], "medium planes")?;
+        // The convex media's planes (one zeroed record without any: compiled out).
+        let planes = upload_records(ctx, o, &non_empty(&medium_planes), "medium planes")?;
         let (env_texels, env_tables) = upload_env_map(ctx, o, grid.env_map.as_ref())?;
         let uniforms = upload_params(ctx, o, &grid.uniforms, "baseline uniforms")?;
         let bricks = upload_records(ctx, o, &grid.indirection()?, "grid bricks")?;

@@ -115,6 +115,8 @@ pub struct BaselinePlan {
     pub max_bounces: u32,
     /// Homogeneous box media beside the grid.
     pub has_boxes: bool,
+    /// Some of them are convex polyhedra (`type = "convex"`).
+    pub has_convex: bool,
     /// The grid emits (an emission grid, a temperature grid or both).
     pub has_emission: bool,
     /// The grid has a temperature grid (blackbody emission).
@@ -187,6 +189,8 @@ pub struct RestirPlan {
     pub has_meshes: bool,
     /// Homogeneous box media beside the grid (SC_HAS_MEDIA).
     pub has_boxes: bool,
+    /// Some of them are convex polyhedra (SC_HAS_CONVEX).
+    pub has_convex: bool,
     /// Some shapes emit: area lights in NEE, emission seen by camera rays
     /// (SC_HAS_AREA_LIGHTS).
     pub has_area_lights: bool,

@@ -38,17 +38,7 @@ pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
             _ => None,
         })
         .collect();
-    if let Some(i) = scene
-        .media
-        .iter()
-        .position(|m| matches!(m, Medium::Convex(_)))
-    {
-        bail!(
-            "{file}: [[medium]] #{} (type = \"convex\"): convex media next to a grid are not \
-             supported yet by {integrator_name} (box media are)",
-            i + 1
-        );
-    }
+    let has_convex = scene.media.iter().any(|m| matches!(m, Medium::Convex(_)));
     if grids.len() > 1 {
         bail!(
             "{file}: [[medium]] #{}: {integrator_name} takes one grid medium, this scene has {}",
@@ -72,7 +62,7 @@ pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
         {
             bail!(
                 "{file}: [[medium]] #{} and [[medium]] #{} overlap: Volumetric ReSTIR takes box \
-                 media that overlap the grid but not each other; the baseline path tracer \
+                 and convex media that overlap the grid but not each other; the baseline path tracer \
                  renders any overlap, extinctions added ([integrator] volume = \"baseline\")",
                 a + 1,
                 b + 1
@@ -142,6 +132,7 @@ pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
     let baseline = BaselinePlan {
         max_bounces: integrator.max_bounces,
         has_boxes: boxes > 0,
+        has_convex,
         has_emission: grid.emission.is_some() || grid.temperature.is_some(),
         has_blackbody: grid.temperature.is_some(),
         has_albedo_grid: grid.albedo_grid.is_some(),
@@ -333,6 +324,7 @@ fn restir_plan(
             .iter()
             .any(|s| matches!(s, nimbus_scene::Shape::Mesh { .. })),
         has_boxes: boxes > 0,
+        has_convex: scene.media.iter().any(|m| matches!(m, Medium::Convex(_))),
         has_area_lights: scene.shapes.iter().any(|s| s.emits()),
         has_gobos: gobo_count(scene) > 0,
     };

@@ -166,8 +166,8 @@ fn bad_scenes_give_clear_errors() {
         ),
         (
             "convex-grid.toml",
-            "[camera]\nposition = [0, 0, 3]\nlook_at = [0, 0, 0]\n[[medium]]\ntype = \"grid\"\nbounds_min = [-1, -1, -1]\nbounds_max = [1, 1, 1]\ndensity = { procedural = \"cloud\", dims = [8, 8, 8] }\n[[medium]]\ntype = \"convex\"\nplanes = [[1, 0, 0, 3], [-1, 0, 0, -2], [0, 1, 0, 1], [0, -1, 0, 1], [0, 0, 1, 1], [0, 0, -1, 1]]\nsigma_t = 1\n",
-            &["convex-grid.toml", "[[medium]] #2", "convex", "not supported yet"][..],
+            "[camera]\nposition = [0, 0, 3]\nlook_at = [0, 0, 0]\n[[medium]]\ntype = \"grid\"\nbounds_min = [-1, -1, -1]\nbounds_max = [1, 1, 1]\ndensity = { procedural = \"cloud\", dims = [8, 8, 8] }\n[[medium]]\ntype = \"convex\"\nplanes = [[1, 0, 0, 3], [-1, 0, 0, -2], [0, 1, 0, 1], [0, -1, 0, 1], [0, 0, 1, 1], [0, 0, -1, 1]]\nsigma_t = 1\n[[medium]]\ntype = \"box\"\ncenter = [2.5, 0, 0]\nsize = [0.5, 0.5, 0.5]\nsigma_t = 1\n",
+            &["convex-grid.toml", "[[medium]] #2 and [[medium]] #3 overlap", "volume = \"baseline\""][..],
         ),
     ];
     for (name, body, needles) in cases {

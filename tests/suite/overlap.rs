@@ -147,3 +147,58 @@ fn restir_and_the_crepuscular_pass_refuse_what_they_do_not_take() {
         assert!(err.contains(part), "{part:?} missing from: {err}");
     }
 }
+
+/// A dodecahedron (a convex medium) reaching into the grid and a rotated box beside it
+/// (K = 3): the baseline matches the CPU oracle, the convex medium's planes clipping its
+/// free flights and shadow rays where it overlaps the grid's density.
+#[test]
+fn a_convex_medium_overlapping_a_grid_matches_the_cpu_oracle() {
+    let ctx = context();
+    let dir = scratch("overlap", "convex");
+    let cloud = nimbus_scene::procedural_cloud(DIMS, 7);
+    let density = write_raw(&dir, "cloud.raw", &cloud.data);
+    let s = scene(
+        &grid_scene(&density, &convex_and_box()),
+        "grid-and-convex.toml",
+    );
+    assert_eq!(s.overlaps, [(0, 1)]);
+    check_against_oracle(&ctx, &s, 8, "grid overlapping a convex medium K=3");
+}
+
+/// A regular dodecahedron of circumradius 0.6 centred at (0.7, 0.1, 0.4) (σt 2.5, its
+/// own albedo and g), half inside the grid, and a box beside the grid.
+pub(crate) fn convex_and_box() -> String {
+    let phi = (1.0 + 5.0f64.sqrt()) / 2.0;
+    let normals = [
+        [0.0, 1.0, phi],
+        [0.0, -1.0, phi],
+        [0.0, 1.0, -phi],
+        [0.0, -1.0, -phi],
+        [1.0, phi, 0.0],
+        [-1.0, phi, 0.0],
+        [1.0, -phi, 0.0],
+        [-1.0, -phi, 0.0],
+        [phi, 0.0, 1.0],
+        [-phi, 0.0, 1.0],
+        [phi, 0.0, -1.0],
+        [-phi, 0.0, -1.0],
+    ];
+    let centre = [0.7, 0.1, 0.4];
+    // Inradius of a regular dodecahedron: 0.7947 × its circumradius.
+    let inradius = 0.7947 * 0.6;
+    let planes: Vec<String> = normals
+        .iter()
+        .map(|n| {
+            let len: f64 = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
+            let u = n.map(|c: f64| c / len.sqrt());
+            let d = inradius + u[0] * centre[0] + u[1] * centre[1] + u[2] * centre[2];
+            format!("[{}, {}, {}, {d}]", u[0], u[1], u[2])
+        })
+        .collect();
+    format!(
+        "[[medium]]\ntype = \"convex\"\nplanes = [{}]\nsigma_t = 2.5\nalbedo = [0.4, 0.7, 0.9]\n\
+         g = -0.4\n[[medium]]\ntype = \"box\"\ncenter = [-1.5, 0.0, 0.2]\nsize = [0.6, 0.6, 0.6]\n\
+         rotation_deg = [20, 0, 30]\nsigma_t = 1.5\nalbedo = 0.7\ng = 0.6",
+        planes.join(", ")
+    )
+}

@@ -585,6 +585,22 @@ fn a_box_overlapping_the_grid_matches_the_baseline() {
     check_cases(cloud, &[BOTH], "box overlapping the grid K=3");
 }
 
+/// A dodecahedron (convex medium) half inside the cloud and a box beside it, K = 3: a
+/// vertex in the polyhedron is found by its planes (box_medium_at), overlapping the grid
+/// it scatters by both media, and ReSTIR converges to the baseline
+/// (tests/suite/overlap.rs checks the baseline against the CPU oracle).
+#[test]
+fn a_convex_medium_overlapping_the_grid_matches_the_baseline() {
+    let media = crate::overlap::convex_and_box();
+    let cloud = Cloud {
+        bounces: 3,
+        shapes: &media,
+        ..Cloud::default()
+    };
+    assert_eq!(cloud.scene("convex.toml").overlaps, [(0, 1)]);
+    check_cases(cloud, &[BOTH], "convex overlapping the grid K=3");
+}
+
 /// A floor under the cloud (seen below it and through it) and a box half inside the
 /// cloud's grid, its other half in vacuum: surface vertices on the camera segment and
 /// after scattering, shadows cast into the medium and onto the floor.

@@ -30,8 +30,8 @@ use crate::gpu::features::*;
 use crate::gpu::sparse::{atlas_bytes, atlas_dims, atlas_slots, layer_bytes, slot_bound};
 use crate::gpu::sparse::{upload_atlas, Indirection, TexelFormat};
 use crate::gpu::{
-    box_records, non_empty, shape_records, BaselineUniformsGpu, FrameUniforms, GpuGrid, LightGpu,
-    LightSet, MeshBuffers, RecordCounts, RestirPush, RestirUniformsGpu,
+    non_empty, shape_records, BaselineUniformsGpu, FrameUniforms, GpuGrid, LightGpu, LightSet,
+    MeshBuffers, RecordCounts, RestirPush, RestirUniformsGpu,
 };
 use crate::plan::RestirPlan;
 use glam::IVec3;
@@ -69,8 +69,7 @@ pub fn specialization(
         (SC_ID_MAX_BOUNCES, SpecValue::U32(plan.max_bounces)),
         (SC_ID_PIXEL_JITTER, SpecValue::Bool(plan.pixel_jitter)),
         (SC_ID_HAS_EMISSION, SpecValue::Bool(plan.has_emission)),
-        // Convex media beside a grid are refused by the plan.
-        (SC_ID_HAS_CONVEX, SpecValue::Bool(false)),
+        (SC_ID_HAS_CONVEX, SpecValue::Bool(plan.has_convex)),
         (SC_ID_HAS_BLACKBODY, SpecValue::Bool(plan.has_blackbody)),
         (SC_ID_HAS_ALBEDO_GRID, SpecValue::Bool(plan.has_albedo_grid)),
         (SC_ID_HAS_ENV_MAP, SpecValue::Bool(plan.has_env_map)),
@@ -381,7 +380,10 @@ impl RestirPass {
         let density = &g.density;
         let size = grid.bounds_max - grid.bounds_min;
         let shapes = shape_records(scene);
-        let boxes = box_records(scene);
+        let crate::gpu::scene::MediumRecords {
+            media: boxes,
+            planes: medium_planes,
+        } = crate::gpu::scene::medium_records(scene);
         let candidates_per_dispatch = candidates_per_dispatch(
             ctx.info().loop_budget(),
             plan,
@@ -457,6 +459,7 @@ impl RestirPass {
             shapes: &shapes,
             meshes: &meshes,
             boxes: &boxes,
+            planes: &medium_planes,
             first,
             base_uniforms: &base_uniforms,
             velocity: velocity.as_ref(),

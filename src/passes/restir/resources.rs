@@ -53,8 +53,9 @@ pub struct Inputs<'a> {
     /// The scene's shapes and its meshes' BVHs (surface vertices).
     pub shapes: &'a [ShapeGpu],
     pub meshes: &'a MeshBuffers,
-    /// The box media beside the grid.
+    /// The box and convex media beside the grid, and the convex media's planes.
     pub boxes: &'a [BoxMediumGpu],
+    pub planes: &'a [[f32; 4]],
     pub first: &'a DerivedVolume,
     pub base_uniforms: &'a BaselineUniformsGpu,
     /// The velocity grid as dense RGBA16F texels over the medium's world box.
@@ -138,6 +139,7 @@ impl Resources {
             shapes,
             meshes,
             boxes,
+            planes: medium_planes,
             first,
             base_uniforms,
             velocity,
@@ -173,8 +175,8 @@ impl Resources {
         let bvh_nodes = upload_records(ctx, o, &meshes.nodes, "mesh BVH nodes")?;
         let mesh_triangles = upload_records(ctx, o, &meshes.triangles, "mesh triangles")?;
         let boxes = upload_records(ctx, o, &non_empty(boxes), "box media")?;
-        // Convex media are refused beside grids: their (compiled-out) planes are empty.
-        let planes = upload_records(ctx, o, &[[0.0f32; 4]], "medium planes")?;
+        // The convex media's planes (one zeroed record without any: compiled out).
+        let planes = upload_records(ctx, o, &non_empty(medium_planes), "medium planes")?;
         let records = &first.grids.super_voxels;
         let mut padded = records.clone();
         padded.resize(padded.len().max(slot_count(sizes.density)), [0.0; 4]);

@@ -525,6 +525,7 @@ mod tests {
             has_shapes: false,
             has_meshes: false,
             has_boxes: false,
+            has_convex: false,
             has_area_lights: false,
             has_gobos: false,
         }
