@@ -291,19 +291,19 @@ void restir_main() {
             }
             // Next direction by the phase functions, stored quantized (the walk continues
             // along the stored direction, so the path is exactly what was evaluated). Where
-            // a box overlaps the grid, the box's phase function is drawn with probability
-            // q_box, and the direction's density is the mixture (one random number more,
-            // only there).
+            // media overlap, a box's phase function is drawn with probability q_box (which
+            // box, in proportion to its sigma_s), and the direction's density is the
+            // mixture (random numbers more only there).
             float q_box = medium_box_share(vm);
             float g_pick = vm.g_grid;
             if (q_box >= 1.0 || (q_box > 0.0 && rng_next(rng) < q_box)) {
-                g_pick = vm.g_box;
+                g_pick = medium_pick_box_g(vm, rng);
             }
             vec3 w_sampled = sample_hg(w, g_pick, vec2(rng_next(rng), rng_next(rng)));
             uint omega = oct_encode(w_sampled);
             vec3 w_next = oct_decode(omega);
             float c_sampled = dot(w, w_sampled);
-            float pdf_sampled = (1.0 - q_box) * hg_phase(c_sampled, vm.g_grid) + q_box * hg_phase(c_sampled, vm.g_box);
+            float pdf_sampled = medium_phase_pdf(vm, q_box, c_sampled);
             vec3 s_next = medium_scatter(vm, dot(w, w_next));
             walk_omega[i - 1u] = omega;
             Fhat *= s_next;

@@ -54,20 +54,6 @@ pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
     }
     let (index, grid) = grids[0];
     if restir {
-        // Boxes may overlap the grid; a vertex sums the grid's scattering and one box's.
-        if let Some(&(a, b)) = scene
-            .overlaps
-            .iter()
-            .find(|(a, b)| *a != index && *b != index)
-        {
-            bail!(
-                "{file}: [[medium]] #{} and [[medium]] #{} overlap: Volumetric ReSTIR takes box \
-                 and convex media that overlap the grid but not each other; the baseline path tracer \
-                 renders any overlap, extinctions added ([integrator] volume = \"baseline\")",
-                a + 1,
-                b + 1
-            );
-        }
         if let Some(shape) = scene.shapes.first() {
             if integrator.restir.reuse == nimbus_scene::ReuseMode::Vertex {
                 bail!(

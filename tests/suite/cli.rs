@@ -165,9 +165,9 @@ fn bad_scenes_give_clear_errors() {
             &["point.toml", "[[light]] #1", "not supported yet"][..],
         ),
         (
-            "convex-grid.toml",
-            "[camera]\nposition = [0, 0, 3]\nlook_at = [0, 0, 0]\n[[medium]]\ntype = \"grid\"\nbounds_min = [-1, -1, -1]\nbounds_max = [1, 1, 1]\ndensity = { procedural = \"cloud\", dims = [8, 8, 8] }\n[[medium]]\ntype = \"convex\"\nplanes = [[1, 0, 0, 3], [-1, 0, 0, -2], [0, 1, 0, 1], [0, -1, 0, 1], [0, 0, 1, 1], [0, 0, -1, 1]]\nsigma_t = 1\n[[medium]]\ntype = \"box\"\ncenter = [2.5, 0, 0]\nsize = [0.5, 0.5, 0.5]\nsigma_t = 1\n",
-            &["convex-grid.toml", "[[medium]] #2 and [[medium]] #3 overlap", "volume = \"baseline\""][..],
+            "two-grids.toml",
+            "[camera]\nposition = [0, 0, 3]\nlook_at = [0, 0, 0]\n[[medium]]\ntype = \"grid\"\nbounds_min = [-1, -1, -1]\nbounds_max = [1, 1, 1]\ndensity = { procedural = \"cloud\", dims = [8, 8, 8] }\n[[medium]]\ntype = \"grid\"\nbounds_min = [0, 0, 0]\nbounds_max = [2, 2, 2]\ndensity = { procedural = \"cloud\", dims = [8, 8, 8] }\n",
+            &["two-grids.toml", "[[medium]] #2", "one grid medium"][..],
         ),
     ];
     for (name, body, needles) in cases {

@@ -601,6 +601,28 @@ fn a_convex_medium_overlapping_the_grid_matches_the_baseline() {
     check_cases(cloud, &[BOTH], "convex overlapping the grid K=3");
 }
 
+/// Two fog boxes overlapping each other and the cloud (each its own albedo and g), K = 3:
+/// a vertex where all three meet scatters by all three, its next direction follows one
+/// of them in proportion to its sigma_s, and ReSTIR converges to the baseline.
+#[test]
+fn boxes_overlapping_each_other_and_the_grid_match_the_baseline() {
+    let boxes = "[[medium]]\ntype = \"box\"\ncenter = [0.3, -0.2, 0.5]\nsize = [0.8, 0.6, 0.8]\n\
+                 sigma_t = 3.0\nalbedo = [0.8, 0.7, 0.9]\ng = -0.3\n\
+                 [[medium]]\ntype = \"box\"\ncenter = [0.5, 0.0, 0.3]\nsize = [0.6, 0.6, 0.6]\n\
+                 rotation_deg = [0, 35, 10]\nsigma_t = 2.0\nalbedo = [0.5, 0.9, 0.6]\ng = 0.7\n";
+    let cloud = Cloud {
+        bounces: 3,
+        shapes: boxes,
+        ..Cloud::default()
+    };
+    assert_eq!(cloud.scene("boxes.toml").overlaps, [(0, 1), (0, 2), (1, 2)]);
+    check_cases(
+        cloud,
+        &[BOTH],
+        "boxes overlapping each other and the grid K=3",
+    );
+}
+
 /// A floor under the cloud (seen below it and through it) and a box half inside the
 /// cloud's grid, its other half in vacuum: surface vertices on the camera segment and
 /// after scattering, shadows cast into the medium and onto the floor.
