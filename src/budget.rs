@@ -268,9 +268,21 @@ impl Footprint {
             + 2 * density.cells() * 4
             + slots * (12 + 12 + 16)
             + 2 * layer_bytes(slots, r32)?;
-        if let Some(emission) = &g.emission {
-            let what = format!("{file}: [[medium]] #{} > emission", index + 1);
-            let e = BrickTopology::of(emission, 0, &what)?;
+        // The grids that do not change per frame, each an atlas and an indirection
+        // section (one empty entry without it): emission and albedo (1 or 3 channels),
+        // temperature (1, with the blackbody table).
+        let statics = [
+            ("emission", g.emission.as_ref(), 0),
+            ("albedo", g.albedo_grid.as_ref(), 0),
+            ("temperature", g.temperature.as_ref().map(|t| &t.source), 1),
+        ];
+        for (field, source, channels) in statics {
+            let Some(source) = source else {
+                cells += 1;
+                continue;
+            };
+            let what = format!("{file}: [[medium]] #{} > {field}", index + 1);
+            let e = BrickTopology::of(source, channels, &what)?;
             let slots = slot_bound(&e, false);
             let format = if e.channels == 3 {
                 TexelFormat::Rgba32
@@ -278,59 +290,22 @@ impl Footprint {
                 r32
             };
             self.add(
-                format!("{table} field `emission` (atlas of {slots} bricks)"),
+                format!("{table} field `{field}` (atlas of {slots} bricks)"),
                 Binding::Image3d(atlas_dims(atlas_slots(slots)?)),
                 atlas_bytes(slots, format)?,
             );
             cells += e.cells();
             self.host_peak +=
                 brick_bytes(&e) + 2 * e.cells() * 4 + slots * 12 + 2 * layer_bytes(slots, format)?;
-        } else {
-            cells += 1;
         }
-        if let Some(albedo) = &g.albedo_grid {
-            let what = format!("{file}: [[medium]] #{} > albedo", index + 1);
-            let e = BrickTopology::of(albedo, 0, &what)?;
-            let slots = slot_bound(&e, false);
-            let format = if e.channels == 3 {
-                TexelFormat::Rgba32
-            } else {
-                r32
-            };
-            self.add(
-                format!("{table} field `albedo` (atlas of {slots} bricks)"),
-                Binding::Image3d(atlas_dims(atlas_slots(slots)?)),
-                atlas_bytes(slots, format)?,
-            );
-            cells += e.cells();
-            self.host_peak +=
-                brick_bytes(&e) + 2 * e.cells() * 4 + slots * 12 + 2 * layer_bytes(slots, format)?;
-        } else {
-            cells += 1;
-        }
-        if let Some(t) = &g.temperature {
-            let what = format!("{file}: [[medium]] #{} > temperature", index + 1);
-            let e = BrickTopology::of(&t.source, 1, &what)?;
-            let slots = slot_bound(&e, false);
-            self.add(
-                format!("{table} field `temperature` (atlas of {slots} bricks)"),
-                Binding::Image3d(atlas_dims(atlas_slots(slots)?)),
-                atlas_bytes(slots, r32)?,
-            );
+        if g.temperature.is_some() {
             let table_bytes = (nimbus_scene::blackbody::BLACKBODY_TABLE_LEN * 16) as u64;
             self.add(
                 format!("{table} (blackbody table)"),
                 Binding::Storage,
                 table_bytes,
             );
-            cells += e.cells();
-            self.host_peak += brick_bytes(&e)
-                + 2 * e.cells() * 4
-                + slots * 12
-                + 2 * layer_bytes(slots, r32)?
-                + table_bytes;
-        } else {
-            cells += 1;
+            self.host_peak += table_bytes;
         }
         self.add(
             format!("{table} (brick indirection)"),
