@@ -382,7 +382,9 @@ struct StudyArgs {
     seeds: u32,
     /// Report the mean of each measured frame's own error, at the GPU time of one frame
     /// (steady-state single-frame error, as the Volumetric ReSTIR paper measures), instead
-    /// of the error of the mean over the frames.
+    /// of the error of the mean over the frames. An animated scene needs it: every
+    /// configuration then measures the same --frames scene frames after the longest
+    /// warm-up, each against a reference of that scene frame.
     #[arg(long)]
     per_frame: bool,
 }

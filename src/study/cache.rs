@@ -4,9 +4,10 @@
 //! ([`scene_inputs`]), the reference settings (its integrand's `max_bounces` among
 //! them), the resolution and the Nimbus version.
 
+use std::ops::Range;
 use std::path::{Path, PathBuf};
 
-use anyhow::{anyhow, Context as _, Result};
+use anyhow::{anyhow, ensure, Context as _, Result};
 use nimbus_scene::{Scene, VolumeIntegrator};
 
 use super::metrics::ReferenceNoise;
@@ -43,6 +44,10 @@ pub(super) struct ReferenceJob {
     pub(super) key: String,
     pub(super) exr: PathBuf,
     sidecar: PathBuf,
+    /// An animated scene's measured scene frames: the reference is one image per frame
+    /// (`passes = frames` dispatches each), cached as one EXR with the frames stacked
+    /// top to bottom.
+    pub(super) window: Option<Range<u32>>,
 }
 
 impl ReferenceJob {
@@ -56,9 +61,10 @@ impl ReferenceJob {
         inputs: &[InputFile],
         stem: &str,
         cache_dir: &Path,
+        window: Option<Range<u32>>,
     ) -> Self {
         let r = &scene.render;
-        let settings: Vec<(String, String)> = [
+        let mut settings: Vec<(String, String)> = [
             ("nimbus_version", env!("CARGO_PKG_VERSION").to_owned()),
             ("width", r.width.to_string()),
             ("height", r.height.to_string()),
@@ -83,6 +89,10 @@ impl ReferenceJob {
         .into_iter()
         .map(|(k, v)| (k.to_owned(), v))
         .collect();
+        // A static scene's key is what it was before animated references existed.
+        if let Some(w) = &window {
+            settings.push(("scene_frames".to_owned(), format!("{}..{}", w.start, w.end)));
+        }
         let mut hash = fnv1a64(FNV_OFFSET, scene_bytes);
         for (k, v) in &settings {
             hash = fnv1a64(hash, format!("\n{k}={v}").as_bytes());
@@ -102,16 +112,57 @@ impl ReferenceJob {
             settings,
             inputs: inputs.to_vec(),
             key,
+            window,
         }
     }
 }
 
 /// The reference image with what is known about it.
 pub(super) struct Reference {
+    /// An animated scene's reference holds one frame per scene frame of the window,
+    /// stacked top to bottom ([`Reference::frame`]).
     pub(super) image: ImageRgb,
     pub(super) noise: ReferenceNoise,
     pub(super) device: String,
     pub(super) cached: bool,
+}
+
+impl Reference {
+    /// Frame `i` of a stacked reference of frames `height` rows tall (the whole image
+    /// for a static scene's reference, `i` = 0).
+    pub(super) fn frame(&self, i: usize, height: u32) -> Result<ImageRgb> {
+        let w = self.image.width as usize;
+        let h = height as usize;
+        let data = self
+            .image
+            .data
+            .get(i * w * h..(i + 1) * w * h)
+            .ok_or_else(|| anyhow!("internal: the reference has no frame {i}"))?
+            .to_vec();
+        Ok(ImageRgb {
+            width: self.image.width,
+            height,
+            data,
+        })
+    }
+}
+
+/// Frames `images` (of equal sizes) stacked top to bottom into one image.
+pub(super) fn stack(images: &[ImageRgb]) -> Result<ImageRgb> {
+    let first = images
+        .first()
+        .ok_or_else(|| anyhow!("internal: no frames to stack"))?;
+    ensure!(
+        images
+            .iter()
+            .all(|i| (i.width, i.height) == (first.width, first.height)),
+        "internal: frames of different sizes"
+    );
+    Ok(ImageRgb {
+        width: first.width,
+        height: first.height * images.len() as u32,
+        data: images.iter().flat_map(|i| i.data.iter().copied()).collect(),
+    })
 }
 
 /// The cached reference when both files exist and the sidecar's key matches.
@@ -137,14 +188,15 @@ pub(super) fn load_cached(job: &ReferenceJob) -> Result<Option<Reference>> {
     }
     let image = read_exr(&job.exr)?;
     let r = &job.scene.render;
-    if (image.width, image.height) != (r.width, r.height) {
+    let frames = job.window.as_ref().map_or(1, |w| w.len() as u32);
+    if (image.width, image.height) != (r.width, r.height * frames) {
         eprintln!(
             "warning: {} is {}x{}, not {}x{}; rendering the reference again",
             job.exr.display(),
             image.width,
             image.height,
             r.width,
-            r.height
+            r.height * frames
         );
         return Ok(None);
     }
@@ -235,7 +287,7 @@ mod tests {
         scene.render.height = 2;
         scene.render.spp = spp;
         let plan = crate::plan::build(&scene, None).unwrap();
-        ReferenceJob::new(scene, plan, scene_bytes, &[], "window", dir)
+        ReferenceJob::new(scene, plan, scene_bytes, &[], "window", dir, None)
     }
 
     /// A grid scene in `dir` that reads files: raw density, velocity and
@@ -366,7 +418,9 @@ mod tests {
         let scene = scene_with_files(&dir);
         let job = |inputs: &[InputFile]| {
             let base = reference_job(&dir, b"scene", 4);
-            ReferenceJob::new(base.scene, base.plan, b"scene", inputs, "window", &dir)
+            ReferenceJob::new(
+                base.scene, base.plan, b"scene", inputs, "window", &dir, None,
+            )
         };
         let before = scene_inputs(&scene).unwrap();
         let key = job(&before).key;

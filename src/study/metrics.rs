@@ -100,7 +100,7 @@ pub(super) struct ErrorMetrics {
 
 /// The mean of `all`'s MSE (RMSE = sqrt of the mean MSE), relative MSE and mean
 /// relative difference; `None` when empty.
-fn mean_of(all: &[ErrorMetrics]) -> Option<ErrorMetrics> {
+pub(super) fn mean_of(all: &[ErrorMetrics]) -> Option<ErrorMetrics> {
     if all.is_empty() {
         return None;
     }

@@ -247,6 +247,10 @@ pub struct Study {
     /// Renders per configuration.
     seeds: u32,
     per_frame: bool,
+    /// An animated scene's measured scene frames, the same for every configuration (each
+    /// warms up on the frames just before them) and each measured against its own
+    /// reference image; `None` for a static scene.
+    window: Option<std::ops::Range<u32>>,
 }
 
 impl Study {
@@ -270,21 +274,17 @@ impl Study {
             base.render.height = h;
         }
         base.render.frames = opts.frames;
+        // An animated scene is measured frame by frame, each frame against its own
+        // reference (a window of scene frames after the warm-up, see `Study::window`).
+        let animated = base.is_animated();
         ensure!(
-            base.camera.keyframes.is_empty(),
-            "{}: [[camera.keyframe]]: a study needs a static camera (the reference and the \
-             configurations average different numbers of frames)",
+            !animated || opts.per_frame,
+            "{}: the scene is animated ([[camera.keyframe]], [[light.keyframe]] or \
+             [[medium.frame]]): a study of it needs --per-frame, which measures each frame \
+             against a reference of that same scene frame (the error of a mean over \
+             frames would mix different images)",
             opts.scene.display()
         );
-        if let Some(i) = base.light_keyframes.iter().position(|k| !k.is_empty()) {
-            bail!(
-                "{}: [[light]] #{} has [[light.keyframe]]s: a study needs static lights (the \
-                 reference and the configurations average different numbers of frames, so \
-                 animated lights would give them different images)",
-                opts.scene.display(),
-                i + 1
-            );
-        }
         let (width, height) = (base.render.width, base.render.height);
 
         // Parse the --vary lists.
@@ -295,6 +295,12 @@ impl Study {
                 !varies.iter().any(|v| v.key == vary.key),
                 "--vary {text}: {} is already varied by an earlier --vary",
                 vary.key
+            );
+            ensure!(
+                !(animated && vary.key == "frames"),
+                "--vary {text}: the scene is animated, so its frames are the animation's: \
+                 every configuration measures the same --frames scene frames after the \
+                 longest warm-up; vary spp or candidates for more work per frame"
             );
             if vary.key == "seed" && opts.seeds > 1 {
                 bail!(
@@ -362,7 +368,8 @@ impl Study {
         let derived_seeds = derive_seeds(base.render.seed, opts.seeds, ref_fold);
 
         // Plan every configuration and the reference of its integrand.
-        let mut references: Vec<ReferenceJob> = Vec::new();
+        // (scene, plan) of each reference, made jobs once the window is known.
+        let mut pending: Vec<(Scene, RenderPlan)> = Vec::new();
         let mut integrands: Vec<Assignment> = Vec::new();
         let mut configurations: Vec<Configuration> = Vec::new();
         let mut left_out: Vec<Assignment> = Vec::new();
@@ -423,16 +430,9 @@ impl Study {
                             )
                         }
                     })?;
-                    references.push(ReferenceJob::new(
-                        ref_scene,
-                        ref_plan,
-                        &scene_bytes,
-                        &inputs,
-                        &stem,
-                        &cache_dir,
-                    ));
+                    pending.push((ref_scene, ref_plan));
                     integrands.push(integrand);
-                    references.len() - 1
+                    pending.len() - 1
                 }
             };
 
@@ -467,6 +467,28 @@ impl Study {
         }
         let baseline = resolve_baseline(opts.baseline.as_deref(), &varies)?;
 
+        // An animated scene: every configuration measures the same scene frames, those
+        // after the longest warm-up (each configuration warms up on the frames just
+        // before them, as an interactive viewer would have rendered them).
+        let window = animated.then(|| {
+            let start = configurations.iter().map(|c| c.warmup).max().unwrap_or(1);
+            start..start.saturating_add(opts.frames)
+        });
+        let references: Vec<ReferenceJob> = pending
+            .into_iter()
+            .map(|(scene, plan)| {
+                ReferenceJob::new(
+                    scene,
+                    plan,
+                    &scene_bytes,
+                    &inputs,
+                    &stem,
+                    &cache_dir,
+                    window.clone(),
+                )
+            })
+            .collect();
+
         // Make sure the results can be written before spending time on renders.
         let out_dir = opts
             .out_dir
@@ -487,6 +509,7 @@ impl Study {
             warmup: opts.warmup,
             seeds: opts.seeds,
             per_frame: opts.per_frame,
+            window,
         })
     }
 }
@@ -919,10 +942,11 @@ mod tests {
         remove_scratch(&opts);
     }
 
-    /// Animated lights would give the reference (many frames) and the configurations
-    /// (fewer) different integrands, as an animated camera would.
+    /// An animated scene is measured frame by frame against each frame's own reference:
+    /// without --per-frame it is refused, as is varying its frames; with it, every
+    /// configuration measures the frames after the longest warm-up.
     #[test]
-    fn a_study_needs_a_static_scene() {
+    fn an_animated_scene_is_measured_frame_by_frame() {
         let opts = grid_options("animated");
         let scene = std::fs::read_to_string(&opts.scene).unwrap();
         let light = "[[light]]\ntype = \"directional\"\nirradiance = 1\n\
@@ -931,9 +955,29 @@ mod tests {
         std::fs::write(&opts.scene, format!("{scene}{light}")).unwrap();
         let message = format!("{:#}", Study::new(&opts).err().expect("an error"));
         assert!(
-            message.contains("[[light]] #1") && message.contains("static lights"),
+            message.contains("animated") && message.contains("--per-frame"),
             "{message}"
         );
+        let per_frame = StudyOptions {
+            per_frame: true,
+            frames: 3,
+            warmup: 2,
+            ..opts.clone()
+        };
+        let bad = StudyOptions {
+            vary: vec!["frames=1,2".into()],
+            ..per_frame.clone()
+        };
+        let message = format!("{:#}", Study::new(&bad).err().expect("an error"));
+        assert!(message.contains("--vary frames=1,2"), "{message}");
+        let study = Study::new(&StudyOptions {
+            vary: vec!["volume=baseline,restir".into(), "temporal_limit=3".into()],
+            ..per_frame
+        })
+        .unwrap();
+        // ReSTIR warms up 4·Q = 12 frames, so every configuration measures 12..15.
+        assert_eq!(study.window, Some(12..15));
+        assert!(study.references.iter().all(|r| r.window == study.window));
         remove_scratch(&opts);
     }
 

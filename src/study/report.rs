@@ -192,6 +192,17 @@ impl Study {
                 }
             );
         }
+        if let Some(w) = &self.window {
+            let _ = writeln!(
+                out,
+                "- animated scene: every configuration measures scene frames {}..{} (after \
+                 the longest warm-up), each against the reference of that scene frame (its \
+                 frames x spp above are per scene frame); each configuration warms up on \
+                 the scene frames just before them",
+                w.start,
+                w.end - 1
+            );
+        }
         if self.references.len() > 1 {
             let _ = writeln!(
                 out,

@@ -2,21 +2,23 @@
 //! distinct configuration rendered once per seed and measured, and the results
 //! written.
 
+use std::ops::Range;
 use std::time::Instant;
 
-use anyhow::{Context as _, Result};
+use anyhow::{ensure, Context as _, Result};
 use nimbus_gpu::Context;
 
-use super::cache::{load_cached, store_cached, Reference, ReferenceJob};
+use super::cache::{load_cached, stack, store_cached, Reference, ReferenceJob};
 use super::metrics::{
-    equal_time_over_seeds, frame_gpu_ms, mean_metrics, measure, summarize, ReferenceNoise, SeedRun,
+    equal_time_over_seeds, frame_gpu_ms, mean_metrics, mean_of, measure, summarize, ReferenceNoise,
+    SeedRun,
 };
 use super::report::{
     csv, equal_time_text, equivalents_text, left_out_text, markdown_table, noise_text, sig, table,
 };
 use super::vary::{format_pairs, group_series, series_key, series_label, Assignment, KNOB_KEYS};
 use super::{plot, scene_stem, Configuration, Row, Study};
-use crate::renderer::{self, RenderOptions, RenderResult};
+use crate::renderer::{self, FrameSelection, RenderOptions, RenderResult};
 
 impl Study {
     /// Renders (or loads) the references, measures every distinct configuration with
@@ -189,6 +191,9 @@ impl Study {
             skip_alpha: true,
             ..Default::default()
         };
+        if let Some(window) = &self.window {
+            return self.measure_window(ctx, config, &scene, opts, window, reference);
+        }
         let result = renderer::render(ctx, &scene, &config.plan, &opts).context("rendering")?;
         let (gpu_ms_per_frame, mut gpu_ms_total) = frame_gpu_ms(&result.frame_timings)
             .with_context(|| format!("on device '{}'", ctx.info().name))?;
@@ -208,6 +213,62 @@ impl Study {
             gpu_ms_per_frame,
             gpu_ms_total,
             metrics,
+        })
+    }
+
+    /// An animated scene's configuration: the scene frames of `window`, each its own
+    /// image of one dispatch after the configuration's warm-up on the frames before
+    /// them, each measured against its own frame of `reference`; the error is the mean
+    /// of the frames' errors at the GPU time of one frame.
+    fn measure_window(
+        &self,
+        ctx: &Context,
+        config: &Configuration,
+        scene: &nimbus_scene::Scene,
+        opts: RenderOptions,
+        window: &Range<u32>,
+        reference: &Reference,
+    ) -> Result<SeedRun> {
+        let opts = RenderOptions {
+            keep_frames: false,
+            frames: FrameSelection::Each {
+                frames: window.clone().collect(),
+                passes: 1,
+            },
+            ..opts
+        };
+        let mut timings = Vec::new();
+        let mut errors = Vec::new();
+        let mut non_finite = 0;
+        renderer::render_each(ctx, scene, &config.plan, &opts, &mut |result| {
+            let i = errors.len();
+            let frame = reference.frame(i, scene.render.height)?;
+            errors.push(measure(&result.image, &frame)?);
+            timings.extend(result.frame_timings.iter().cloned());
+            non_finite += result.non_finite_samples;
+            Ok(())
+        })
+        .context("rendering")?;
+        ensure!(
+            errors.len() == window.len(),
+            "internal: {} of the window's {} frames were rendered",
+            errors.len(),
+            window.len()
+        );
+        if non_finite > 0 {
+            eprintln!(
+                "warning: {}, seed {}: {non_finite} sample(s) were not finite and were dropped",
+                config_label(&config.assignment),
+                scene.render.seed
+            );
+        }
+        let (gpu_ms_per_frame, _) =
+            frame_gpu_ms(&timings).with_context(|| format!("on device '{}'", ctx.info().name))?;
+        Ok(SeedRun {
+            seed: scene.render.seed,
+            gpu_ms_per_frame,
+            gpu_ms_total: gpu_ms_per_frame,
+            metrics: mean_of(&errors).context("no frames to measure")?,
         })
     }
 
@@ -240,25 +301,45 @@ impl Study {
             skip_alpha: true,
             ..Default::default()
         };
-        let result = renderer::render(ctx, &job.scene, &job.plan, &opts)
-            .with_context(|| format!("rendering the reference ({})", reference_label(job)))?;
+        let (result, image, std_error) = match &job.window {
+            None => {
+                let result =
+                    renderer::render(ctx, &job.scene, &job.plan, &opts).with_context(|| {
+                        format!("rendering the reference ({})", reference_label(job))
+                    })?;
+                let (image, std_error) = (result.image.clone(), result.std_error.clone());
+                (result, image, std_error)
+            }
+            Some(window) => {
+                // One image per scene frame, each the mean of `frames` dispatches.
+                let opts = RenderOptions {
+                    frames: FrameSelection::Each {
+                        frames: window.clone().collect(),
+                        passes: r.frames,
+                    },
+                    ..opts
+                };
+                let (mut images, mut errors) = (Vec::new(), Vec::new());
+                let result = renderer::render_each(ctx, &job.scene, &job.plan, &opts, &mut |r| {
+                    images.push(r.image.clone());
+                    errors.push(r.std_error.clone());
+                    Ok(())
+                })
+                .with_context(|| format!("rendering the reference ({})", reference_label(job)))?;
+                (result, stack(&images)?, stack(&errors)?)
+            }
+        };
         warn_non_finite(&result, "reference");
-        let noise = ReferenceNoise::of(&result.image, &result.std_error);
+        let noise = ReferenceNoise::of(&image, &std_error);
         let device = ctx.info().name.clone();
-        store_cached(
-            job,
-            &result.image,
-            &noise,
-            &device,
-            result.wall_time.as_secs_f64(),
-        )?;
+        store_cached(job, &image, &noise, &device, result.wall_time.as_secs_f64())?;
         eprintln!(
             "reference rendered in {:.1} s, cached as {}",
             result.wall_time.as_secs_f64(),
             job.exr.display()
         );
         Ok(Reference {
-            image: result.image,
+            image,
             noise,
             device,
             cached: false,

@@ -146,6 +146,77 @@ fn study_measures_error_against_time_and_caches_the_reference() {
     assert!(text(&third.stderr).contains("rendering reference"));
 }
 
+/// An animated scene (a sun brightening 16-fold over six frames) is measured frame by
+/// frame, each against the reference of its own scene frame: the error then falls with
+/// spp as noise does. Measured against another frame's reference, the frames' change
+/// (30-50 % per frame) would dominate and barely fall.
+#[test]
+fn an_animated_study_measures_each_frame_against_its_own_reference() {
+    let dir = scratch("animated");
+    let scene = dir.join("tiny.toml");
+    let animated = TINY_BOX.replace(
+        "irradiance = [3.0, 2.0, 1.0]\n",
+        "irradiance = [3.0, 2.0, 1.0]\n\
+         [[light.keyframe]]\nframe = 0\nirradiance = [0.5, 0.3, 0.2]\n\
+         [[light.keyframe]]\nframe = 6\nirradiance = [8.0, 4.8, 3.2]\n",
+    );
+    assert_ne!(animated, TINY_BOX);
+    std::fs::write(&scene, animated).unwrap();
+    let (cache, out) = (dir.join("cache"), dir.join("out"));
+    let s = scene.to_str().unwrap();
+    let refused = nimbus(&["study", s, "--vary", "spp=1,4"]);
+    assert!(!refused.status.success());
+    assert!(
+        text(&refused.stderr).contains("--per-frame"),
+        "{}",
+        text(&refused.stderr)
+    );
+    let run = nimbus(&[
+        "study",
+        s,
+        "--per-frame",
+        "--frames",
+        "3",
+        "--warmup",
+        "2",
+        "--vary",
+        "spp=1,4",
+        "--reference-frames",
+        "16",
+        "--cache-dir",
+        cache.to_str().unwrap(),
+        "--out-dir",
+        out.to_str().unwrap(),
+    ]);
+    let stderr = text(&run.stderr);
+    assert!(run.status.success(), "{stderr}");
+    let md = std::fs::read_to_string(out.join("study.md")).unwrap();
+    assert!(md.contains("measures scene frames 2..4"), "{md}");
+    let (header, rows) = read_csv(&out.join("study.csv"));
+    let rmse = column(&header, &rows, "rmse");
+    assert!(rmse.iter().all(|r| r.is_finite() && *r > 0.0), "{rmse:?}");
+    assert!(
+        rmse[1] < 0.7 * rmse[0],
+        "RMSE {rmse:?} does not fall with spp as noise does"
+    );
+    // One stacked EXR of the three frames: 16 x 48.
+    let exr = std::fs::read_dir(&cache)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| p.extension().is_some_and(|e| e == "exr"))
+        .expect("a cached reference");
+    let image = nimbus::output::read_exr(&exr).unwrap();
+    assert_eq!((image.width, image.height), (16, 48));
+    // The frames differ as the sun brightens (frame 3 is (0.5 + 7.5·3/6)/(0.5 + 7.5·2/6)
+    // = 1.42 times frame 2, the box lit by it alone).
+    let mean = |rows: std::ops::Range<usize>| {
+        let d = &image.data[rows.start * 16..rows.end * 16];
+        d.iter().map(|p| f64::from(p[0])).sum::<f64>() / d.len() as f64
+    };
+    let ratio = mean(16..32) / mean(0..16);
+    assert!((ratio - 1.42).abs() < 0.1, "frame 3 / frame 2 = {ratio}");
+}
+
 /// Bad flags fail before any rendering, naming the flag and what it accepts.
 #[test]
 fn study_errors_name_the_flag() {
