@@ -35,8 +35,8 @@ pub(super) const KNOB_KEYS: [&str; 3] = ["spp", "frames", "box_samples"];
 /// their values needs its own reference: `max_bounces` (K, the scattering orders
 /// summed). The others change how it is estimated: the estimators and `volume` (the
 /// same integral), spp, frames and seeds (how many samples, which ones), and the
-/// ReSTIR knobs (unbiased reuse). `frames` would change it for animated lights or
-/// media, which a study refuses (the reference needs a static scene).
+/// ReSTIR knobs (unbiased reuse). An animated scene's frames are scene frames, so a
+/// study of one refuses `--vary frames` (each frame has its own reference).
 pub(super) const INTEGRAND_KEYS: [&str; 1] = ["max_bounces"];
 
 /// The `[integrator] volume` names of the scene format.
