@@ -60,6 +60,9 @@
 #define SC_ID_HAS_BLACKBODY 24
 // Grid passes: the medium's albedo is a grid (grid_albedo reads its atlas).
 #define SC_ID_HAS_ALBEDO_GRID 25
+// ReSTIR's spatial reuse moves x_1 between pixels by its optical depth through the
+// conservative grid instead of its distance (restir/combine.glsl).
+#define SC_ID_SPATIAL_TAU_SHIFT 26
 
 // ---------------------------------------------------------------------------------------
 // Values of SC_ESTIMATOR: the box-medium estimators of Velinov & Mitchell.

@@ -24,6 +24,85 @@ bool cand_same_target[MAX_CANDIDATES];
 // Candidate i's camera-ray depth anchor (CameraRay.anchor; 0 unless temporal reuse sets it).
 float cand_anchor[MAX_CANDIDATES];
 
+// ---------------------------------------------------------------------------------------
+// The optical-depth shift of spatial reuse (SC_SPATIAL_TAU_SHIFT; spatial.comp defines
+// COMBINE_SPATIAL). Direction reuse keeps a neighbour's first distance z_1, which puts x_1
+// outside the medium or deep inside it on this pixel's ray. This shift keeps x_1's optical
+// depth tau_1 through the conservative grid (level LEVEL_PRIMARY, the one regular tracking
+// drew it on: tau_1 is its Exp(1) draw) and finds x_1 where this ray reaches tau_1. In the
+// tau_1 coordinate the shift is the identity (Jacobian 1), so every target of a
+// combination is taken per unit of tau_1: p / sigma*(x_1), sigma* on the evaluating ray
+// (the ratio of the two rays' sigma* is the shift's Jacobian in z_1). Headers keep the
+// z_1 measure: a reservoir's p_hat is divided by sigma* at its own x_1 on loading and
+// the combined one multiplied by sigma* at the pixel's x_1 on storing (w_sum, an
+// estimate of the integral, is the same in both). Paths without a medium x_1 (the camera
+// ray ends on a light or a surface) keep the distance shift, a translation.
+#ifndef COMBINE_SPATIAL
+#define COMBINE_SPATIAL 0
+#endif
+
+// Whether this combination shifts x_1 by optical depth.
+bool tau_shift() {
+    return COMBINE_SPATIAL != 0 && SC_SPATIAL_TAU_SHIFT;
+}
+
+// The anchor of the pixel's camera ray that puts the chosen sample's x_1 where the
+// combination evaluated it (CameraRay.anchor: store_combined translates z_1 by it).
+float combine_here_anchor = 0.0;
+
+// tau_1 of the path stored at `at` on its owner's ray (< 0: no medium x_1 to shift; the
+// path keeps its distance) and sigma* at its x_1 (1 without the shift). sigma* = 0 (no
+// majorant at x_1, so no density: the path's target is 0 everywhere) gives tau_1 = -2.
+float path_tau(uint at, Reservoir r, CameraRay owner, out float sigma_star) {
+    sigma_star = 1.0;
+    if (!tau_shift() || res_vertices(r) < 1u) {
+        return -1.0;
+    }
+    float z1 = res_z(at, 1u);
+    if (!(z1 >= 0.0)) {
+        return -1.0;
+    }
+    // x_1 on the owner's own ray (path_value's translation by the owner's anchor is 0).
+    vec3 x1 = owner.o + z1 * owner.d;
+    sigma_star = pc_sigma_star_at(LEVEL_PRIMARY, x1);
+    if (!(sigma_star > 0.0)) {
+        return -2.0;
+    }
+    float s_unused;
+    float tau;
+    pc_track(LEVEL_PRIMARY, owner.o, owner.d, z1, FAR, s_unused, tau);
+    return tau;
+}
+
+// The target of the path stored at `at` (header r, owner ray `owner`, tau_1 `tau1` and
+// sigma* `sigma_own` from path_tau) on camera ray `ray` (same = ray is the owner's own):
+// luminance of path_value, per unit of tau_1 under the optical-depth shift. `anchor` is
+// the ray's anchor that places x_1 there (for store_combined); `sigma_here` the sigma*
+// that converts the result back to the z_1 measure (1 without the shift).
+float shifted_target(uint at, Reservoir r, CameraRay ray, CameraRay owner, bool same, float tau1, float sigma_own,
+                     out float anchor, out float sigma_here, inout uint rng) {
+    anchor = ray.anchor;
+    sigma_here = 1.0;
+    if (tau1 >= 0.0) {
+        if (same) {
+            sigma_here = sigma_own;
+        } else {
+            float tau;
+            float z = pc_track(LEVEL_PRIMARY, ray.o, ray.d, FAR, tau1, sigma_here, tau);
+            // This ray's optical depth stays below tau_1: the shifted path does not exist.
+            if (z >= FAR || !(sigma_here > 0.0)) {
+                return 0.0;
+            }
+            // path_value puts x_1 at z_1 - owner.anchor + ray.anchor.
+            anchor = z - res_z(at, 1u) + owner.anchor;
+            ray.anchor = anchor;
+        }
+    }
+    float p = luminance(path_value(at, r, ray, owner, MODE_TARGET, rng));
+    // Domain: sigma_here > 0 (checked above, or 1).
+    return p / sigma_here;
+}
+
 // Registers candidate `i` (its header's M unless clamped later).
 void candidate_set(uint i, uint at, uvec2 pixel, uint set) {
     cand_at[i] = at;
@@ -72,6 +151,7 @@ void combine_finish(inout Reservoir s, float total, bool taken) {
 // candidate (n if none) and the combined header (its p_hat = p_0 of the chosen sample).
 uint combine_candidates_talbot(uint n, inout uint rng, out Reservoir s) {
     s = res_empty();
+    combine_here_anchor = cand_anchor[0];
     float k = 0.0;
     for (uint i = 0u; i < n; ++i) {
         k += cand_M[i];
@@ -86,18 +166,28 @@ uint combine_candidates_talbot(uint n, inout uint rng, out Reservoir s) {
         }
         uint code = res_jitter(ri);
         CameraRay owner = candidate_ray(i, code);
+        // Under the optical-depth shift, tau_1 and the own-measure target p_hat / sigma*.
+        float sigma_own;
+        float tau1 = path_tau(cand_at[i], ri, owner, sigma_own);
+        if (tau1 == -2.0) {
+            continue;
+        }
+        // Domain: sigma_own > 0 (path_tau).
+        float p_hat_i = ri.p_hat / sigma_own;
         // The target here (j = 0) first, then at the sample's own pixel (j = i): if either
         // is 0, w_i = 0 whatever the other pixels give, and they are not evaluated.
         float p_sum = 0.0;
         float p_own = 0.0;
         float p_here = 0.0;
+        float anchor_here = cand_anchor[0];
+        float sigma_here = 1.0;
         bool dead = false;
         // A combined reservoir already holds the target at its own pixel (computed by the
         // same function for the same ray, frame and path).
         bool has_own = (ri.info & INFO_REUSE_TARGET) != 0u;
         // The target of candidate 0's function for this sample, once known (< 0: not yet),
         // which every candidate with the same target function shares.
-        float p_shared = has_own && cand_same_target[i] ? ri.p_hat : -1.0;
+        float p_shared = has_own && cand_same_target[i] ? p_hat_i : -1.0;
         for (uint step = 0u; step < n && !dead; ++step) {
             // Visit order: 0, i, then the others ascending (0, 1, 2, ... when i = 0).
             uint j = i == 0u ? step : (step == 0u ? 0u : (step == 1u ? i : (step <= i ? step - 1u : step)));
@@ -105,12 +195,16 @@ uint combine_candidates_talbot(uint n, inout uint rng, out Reservoir s) {
                 continue;
             }
             float p;
+            float anchor_j = j == i ? owner.anchor : cand_anchor[j];
+            float sigma_j = j == i ? sigma_own : 1.0;
             if (j == i && has_own) {
-                p = ri.p_hat;
+                p = p_hat_i;
             } else if (cand_same_target[j] && p_shared >= 0.0) {
+                // (Temporal reuse only, where x_1 keeps its distance.)
                 p = p_shared;
             } else {
-                p = luminance(path_value(cand_at[i], ri, candidate_ray(j, code), owner, MODE_TARGET, rng));
+                p = shifted_target(cand_at[i], ri, candidate_ray(j, code), owner, j == i, tau1, sigma_own, anchor_j,
+                                   sigma_j, rng);
             }
             if (cand_same_target[j]) {
                 p_shared = p;
@@ -122,6 +216,8 @@ uint combine_candidates_talbot(uint n, inout uint rng, out Reservoir s) {
             }
             if (j == 0u) {
                 p_here = p;
+                anchor_here = anchor_j;
+                sigma_here = sigma_j;
                 dead = dead || !(p > 0.0);
             }
         }
@@ -131,9 +227,11 @@ uint combine_candidates_talbot(uint n, inout uint rng, out Reservoir s) {
         }
         float m = p_own * k / p_sum;
         // Domain: p_hat_i > 0 (checked above).
-        float w = p_here / ri.p_hat * ri.w_sum * m;
-        if (combine_stream(s, ri, p_here, w, rng)) {
+        float w = p_here / p_hat_i * ri.w_sum * m;
+        // The header keeps the z_1 measure of this pixel's ray.
+        if (combine_stream(s, ri, p_here * sigma_here, w, rng)) {
             chosen = i;
+            combine_here_anchor = anchor_here;
         }
     }
     combine_finish(s, k, chosen != n);
@@ -141,14 +239,21 @@ uint combine_candidates_talbot(uint n, inout uint rng, out Reservoir s) {
 }
 
 // The target function at candidate j's pixel and frame for the sample of reservoir ri
-// (stored at candidate i, jitter code `code`, owned by camera ray `owner`); candidate i's
-// own value comes from the header when the reservoir already holds it.
-float candidate_target(uint i, uint j, Reservoir ri, uint code, CameraRay owner, inout uint rng) {
+// (stored at candidate i, jitter code `code`, owned by camera ray `owner`, tau_1 and
+// sigma* from path_tau); candidate i's own value comes from the header when the reservoir
+// already holds it. Per unit of tau_1 under the optical-depth shift (see shifted_target,
+// which also gives `anchor` and `sigma_here`).
+float candidate_target(uint i, uint j, Reservoir ri, uint code, CameraRay owner, float tau1, float sigma_own,
+                       out float anchor, out float sigma_here, inout uint rng) {
     bool has_own = (ri.info & INFO_REUSE_TARGET) != 0u;
+    anchor = j == i ? owner.anchor : cand_anchor[j];
+    sigma_here = j == i ? sigma_own : 1.0;
     if (has_own && (j == i || (cand_same_target[i] && cand_same_target[j]))) {
-        return ri.p_hat;
+        // Domain: sigma_own > 0 (path_tau).
+        return ri.p_hat / sigma_own;
     }
-    return luminance(path_value(cand_at[i], ri, candidate_ray(j, code), owner, MODE_TARGET, rng));
+    return shifted_target(cand_at[i], ri, candidate_ray(j, code), owner, j == i, tau1, sigma_own, anchor, sigma_here,
+                          rng);
 }
 
 // As combine_candidates_talbot, with pairwise MIS (Bitterli 2022; Lin et al. 2022,
@@ -160,6 +265,7 @@ float candidate_target(uint i, uint j, Reservoir ri, uint code, CameraRay owner,
 // estimate stays unbiased; 3k target evaluations instead of (k + 1)^2.
 uint combine_candidates_pairwise(uint n, inout uint rng, out Reservoir s) {
     s = res_empty();
+    combine_here_anchor = cand_anchor[0];
     float total = 0.0;
     float k = 0.0;
     for (uint i = 0u; i < n; ++i) {
@@ -178,7 +284,18 @@ uint combine_candidates_pairwise(uint n, inout uint rng, out Reservoir s) {
         }
         uint code = res_jitter(ri);
         CameraRay owner = candidate_ray(i, code);
-        float p_here = candidate_target(i, 0u, ri, code, owner, rng);
+        float sigma_own;
+        float tau1 = path_tau(cand_at[i], ri, owner, sigma_own);
+        if (tau1 == -2.0) {
+            continue;
+        }
+        // Domain: sigma_own > 0 (path_tau).
+        float p_hat_i = ri.p_hat / sigma_own;
+        float anchor_here;
+        float sigma_here;
+        float anchor_unused;
+        float sigma_unused;
+        float p_here = candidate_target(i, 0u, ri, code, owner, tau1, sigma_own, anchor_here, sigma_here, rng);
         if (!(p_here > 0.0)) {
             continue;
         }
@@ -192,14 +309,15 @@ uint combine_candidates_pairwise(uint n, inout uint rng, out Reservoir s) {
                     if (!(cand_M[j] > 0.0)) {
                         continue;
                     }
-                    float pj = candidate_target(0u, j, ri, code, owner, rng);
+                    float pj = candidate_target(0u, j, ri, code, owner, tau1, sigma_own, anchor_unused,
+                                                sigma_unused, rng);
                     // Domain: c p_here > 0, so the denominator is > 0.
                     m += c * p_here / (cand_M[j] * pj + c * p_here);
                 }
                 m /= k;
             }
         } else {
-            float p_own = candidate_target(i, i, ri, code, owner, rng);
+            float p_own = candidate_target(i, i, ri, code, owner, tau1, sigma_own, anchor_unused, sigma_unused, rng);
             if (!(p_own > 0.0)) {
                 continue;
             }
@@ -208,9 +326,11 @@ uint combine_candidates_pairwise(uint n, inout uint rng, out Reservoir s) {
         }
         // w_i = m_i p_0(y_i) W_i, W_i = w_sum_i / (M_i p_hat_i), stored scaled by the
         // total M (Algorithm 2). Domain: p_hat_i > 0 and M_i > 0 (checked above).
-        float w = p_here / ri.p_hat * ri.w_sum * (m * total / ri.M);
-        if (combine_stream(s, ri, p_here, w, rng)) {
+        float w = p_here / p_hat_i * ri.w_sum * (m * total / ri.M);
+        // The header keeps the z_1 measure of this pixel's ray.
+        if (combine_stream(s, ri, p_here * sigma_here, w, rng)) {
             chosen = i;
+            combine_here_anchor = anchor_here;
         }
     }
     combine_finish(s, total, chosen != n);

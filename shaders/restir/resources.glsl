@@ -32,6 +32,8 @@ layout(constant_id = SC_ID_FINAL_RATIO_TRACKING) const bool SC_FINAL_RATIO_TRACK
 layout(constant_id = SC_ID_HAS_VELOCITY) const bool SC_HAS_VELOCITY = false;
 // Spatial reuse weights by pairwise MIS instead of Talbot's.
 layout(constant_id = SC_ID_MIS_PAIRWISE) const bool SC_MIS_PAIRWISE = false;
+// Spatial reuse shifts x_1 by its optical depth tau_1 (restir/combine.glsl).
+layout(constant_id = SC_ID_SPATIAL_TAU_SHIFT) const bool SC_SPATIAL_TAU_SHIFT = false;
 layout(constant_id = SC_ID_NEE_SPLIT) const bool SC_NEE_SPLIT = false;
 layout(constant_id = SC_ID_DIRECT_EACH_WALK) const bool SC_DIRECT_EACH_WALK = false;
 // Opaque shapes beside the grid: paths may have surface vertices (restir/path.glsl).
@@ -76,7 +78,7 @@ struct RestirUniforms {
     float march_nee_step;     // NEE march step (m)
     float history_confidence; // the lights' confidence in the previous frame (temporal.comp)
     uvec3 velocity_dims;      // dims of the velocity grid (1 x 1 x 1 without one)
-    uint _pad3;
+    float spatial_max_m;      // spatial reuse only where the reservoir's M is below (0: everywhere)
     vec4 velocity_uvw_x;      // rows of the world -> velocity texture coordinate affine map
     vec4 velocity_uvw_y;
     vec4 velocity_uvw_z;

@@ -8,6 +8,8 @@
 // One round: reads slot u_push.src, writes slot u_push.dst (u_push.aux = round).
 
 #extension GL_GOOGLE_include_directive : require
+// The optical-depth shift of x_1 (SC_SPATIAL_TAU_SHIFT) applies here, not in temporal reuse.
+#define COMBINE_SPATIAL 1
 #include "combine.glsl"
 
 void restir_main();
@@ -30,6 +32,11 @@ void restir_main() {
     candidate_set(0u, res_at(u_push.src, pixel), pixel, SET_CURRENT);
     uint n = 1u;
     uint neighbors = min(u_restir.spatial_neighbors, MAX_SPATIAL_NEIGHBORS);
+    // Only where the history is short (spatial_max_history): elsewhere the pixel's
+    // reservoir passes through (combined with itself alone).
+    if (u_restir.spatial_max_m > 0.0 && cand_M[0] >= u_restir.spatial_max_m) {
+        neighbors = 0u;
+    }
     float radius = u_restir.spatial_radius;
     // Random rotation of the sequence for this pixel, frame and round.
     float r0 = rng_next(rng);
@@ -52,5 +59,8 @@ void restir_main() {
     uint src_at = chosen < n ? cand_at[chosen] : cand_at[0];
     uint code = res_jitter(s);
     CameraRay owner = candidate_ray(chosen < n ? chosen : 0u, code);
-    store_combined(dst, s, src_at, owner, camera_ray(pixel, code, SET_CURRENT));
+    // Under the optical-depth shift, the anchor that puts x_1 where it was evaluated.
+    CameraRay here = camera_ray(pixel, code, SET_CURRENT);
+    here.anchor = combine_here_anchor;
+    store_combined(dst, s, src_at, owner, here);
 }

@@ -51,6 +51,7 @@ pub const SC_ID_TWO_LEVEL_BRICKS: u32 = 23;
 pub const SC_ID_HAS_BLACKBODY: u32 = 24;
 /// Grid passes: the medium's albedo is a grid.
 pub const SC_ID_HAS_ALBEDO_GRID: u32 = 25;
+pub const SC_ID_SPATIAL_TAU_SHIFT: u32 = 26;
 
 // ---------------------------------------------------------------------------------------
 // Values of `SC_ESTIMATOR` in `shaders/box/crepuscular.comp`.
@@ -106,7 +107,7 @@ pub const GRID_EXACT_SPAN_STEPS: u32 = 64;
 pub const GRID_MAX_STEPS: u32 = 1_048_576;
 
 /// Every constant above with its GLSL name.
-pub const ALL: [(&str, u32); 51] = [
+pub const ALL: [(&str, u32); 52] = [
     ("SC_ID_HAS_SHAPES", SC_ID_HAS_SHAPES),
     ("SC_ID_HAS_GOBOS", SC_ID_HAS_GOBOS),
     ("SC_ID_HAS_ENV", SC_ID_HAS_ENV),
@@ -133,6 +134,7 @@ pub const ALL: [(&str, u32); 51] = [
     ("SC_ID_TWO_LEVEL_BRICKS", SC_ID_TWO_LEVEL_BRICKS),
     ("SC_ID_HAS_BLACKBODY", SC_ID_HAS_BLACKBODY),
     ("SC_ID_HAS_ALBEDO_GRID", SC_ID_HAS_ALBEDO_GRID),
+    ("SC_ID_SPATIAL_TAU_SHIFT", SC_ID_SPATIAL_TAU_SHIFT),
     ("GRID_EXACT_SPAN_STEPS", GRID_EXACT_SPAN_STEPS),
     ("COUNTER_COUNT", COUNTER_COUNT),
     ("COUNTER_SLOTS", COUNTER_SLOTS),

@@ -363,7 +363,8 @@ pub struct RestirUniformsGpu {
     pub history_confidence: f32,
     /// Velocity grid dims (1 × 1 × 1 without one).
     pub velocity_dims: [u32; 3],
-    pub _pad3: u32,
+    /// Spatial reuse only where the temporal reservoir's M < this (0: everywhere).
+    pub spatial_max_m: f32,
     /// Rows of the affine map from world points to the velocity texture's coordinates.
     pub velocity_uvw_x: [f32; 4],
     pub velocity_uvw_y: [f32; 4],

@@ -173,6 +173,13 @@ pub struct RestirPlan {
     pub mip_reuse: Option<u32>,
     /// Pairwise MIS in spatial reuse instead of Talbot's.
     pub pairwise_mis: bool,
+    /// Spatial reuse moves x_1 by its optical depth through the conservative grid
+    /// (`spatial_shift = "optical_depth"`; the grid alone carries the majorant: with box
+    /// or convex media the distance shift is kept).
+    pub spatial_tau_shift: bool,
+    /// Spatial reuse only where the reservoir's M after temporal reuse is below this
+    /// many times M (0: everywhere).
+    pub spatial_max_history: f32,
     /// The temporal stage's output (not the spatial one) is the next frame's history.
     pub history_before_spatial: bool,
     /// σ* ≥ this fraction of the local maximum density.

@@ -296,6 +296,10 @@ fn restir_plan(
         mip_indirect: s.mip_indirect,
         mip_reuse: s.mip_reuse,
         pairwise_mis: s.mis == nimbus_scene::MisMode::Pairwise,
+        spatial_max_history: s.spatial_max_history,
+        // `boxes`: the media beside the grid (box and convex).
+        spatial_tau_shift: s.spatial_shift == nimbus_scene::SpatialShift::OpticalDepth
+            && boxes == 0,
         history_before_spatial: s.temporal_history == nimbus_scene::HistoryMode::Temporal,
         sigma_star_floor: s.sigma_star_floor,
         direct_each_walk: s.direct == nimbus_scene::DirectMode::EachWalk,
@@ -365,11 +369,26 @@ fn restir_plan(
             spatial,
             if spatial {
                 format!(
-                    "{} round(s) of {} neighbours within {} px, {} MIS, T~ marched on mip {}, {} reuse",
+                    "{} round(s) of {} neighbours within {} px{}, {} MIS, x_1 shifted by its {}, T~ marched on mip {}, {} reuse",
                     plan.spatial_rounds,
                     plan.spatial_neighbors,
                     plan.spatial_radius_px,
+                    if plan.spatial_max_history > 0.0 {
+                        format!(
+                            " where the history holds M < {} x {}",
+                            plan.spatial_max_history, plan.candidates
+                        )
+                    } else {
+                        String::new()
+                    },
                     if plan.pairwise_mis { "pairwise" } else { "Talbot" },
+                    if plan.spatial_tau_shift {
+                        "optical depth"
+                    } else if s.spatial_shift == nimbus_scene::SpatialShift::OpticalDepth {
+                        "distance (spatial_shift = \"optical_depth\" needs the grid to be the only medium)"
+                    } else {
+                        "distance"
+                    },
                     mip_text(plan.mip_reuse),
                     if plan.vertex_reuse {
                         "vertex"

@@ -189,7 +189,7 @@ fn effective_scene(scene: &Scene, plan: &RenderPlan) -> Scene {
     let defaults = nimbus_scene::Integrator::default();
     let mut s = scene.clone();
     let i = &mut s.integrator;
-    match plan.integrator {
+    match &plan.integrator {
         plan::Integrator::Crepuscular(_) => {
             i.volume = defaults.volume;
             i.restir = defaults.restir;
@@ -199,12 +199,43 @@ fn effective_scene(scene: &Scene, plan: &RenderPlan) -> Scene {
             i.box_estimator = defaults.box_estimator;
             i.box_samples = defaults.box_samples;
         }
-        plan::Integrator::Restir(_) => {
+        plan::Integrator::Restir(p) => {
             i.box_estimator = defaults.box_estimator;
             i.box_samples = defaults.box_samples;
+            if !spatial_on(p) {
+                // Without spatial reuse its settings are read by nothing.
+                let r = &mut i.restir;
+                let d = &defaults.restir;
+                r.spatial_neighbors = 0;
+                r.spatial_rounds = 0;
+                r.spatial_radius_px = d.spatial_radius_px;
+                r.spatial_shift = d.spatial_shift;
+                r.spatial_max_history = d.spatial_max_history;
+            }
         }
     }
     s
+}
+
+/// Whether a ReSTIR plan runs spatial reuse.
+fn spatial_on(p: &plan::RestirPlan) -> bool {
+    p.spatial_neighbors > 0 && p.spatial_rounds > 0
+}
+
+/// The plan as far as its passes read it: without spatial reuse, ReSTIR's spatial
+/// settings are read by nothing (`mis` is: temporal reuse combines with it too).
+fn effective_plan(plan: &RenderPlan) -> RenderPlan {
+    let mut p = plan.clone();
+    if let plan::Integrator::Restir(r) = &mut p.integrator {
+        if !spatial_on(r) {
+            r.spatial_neighbors = 0;
+            r.spatial_rounds = 0;
+            r.spatial_radius_px = 0.0;
+            r.spatial_tau_shift = false;
+            r.spatial_max_history = 0.0;
+        }
+    }
+    p
 }
 
 /// One measured configuration: one row of the tables and one point of the plot.
@@ -437,8 +468,9 @@ impl Study {
             };
 
             let effective = effective_scene(&scene, &plan);
+            let effective_p = effective_plan(&plan);
             let same_as = configurations.iter().position(|c: &Configuration| {
-                c.plan == plan
+                effective_plan(&c.plan) == effective_p
                     && c.seeds == seeds
                     && effective_scene(&c.scene, &c.plan) == effective
             });
@@ -690,6 +722,22 @@ mod tests {
         assert_eq!(
             same_as(&study),
             [None, None, spp1, spp2, spp1, spp2, spp1, spp2]
+        );
+        remove_scratch(&opts);
+
+        // Without spatial reuse ReSTIR reads none of its settings.
+        let opts = StudyOptions {
+            vary: vec![
+                "spatial_neighbors=0,3".into(),
+                "spatial_shift=distance,optical_depth".into(),
+                "spatial_max_history=0,8".into(),
+            ],
+            ..grid_options("dedupe-spatial")
+        };
+        let study = Study::new(&opts).unwrap();
+        assert_eq!(
+            same_as(&study),
+            [None, Some(0), Some(0), Some(0), None, None, None, None]
         );
         remove_scratch(&opts);
     }

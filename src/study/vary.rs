@@ -110,6 +110,12 @@ pub(super) fn apply(scene: &mut Scene, key: &str, value: &str) -> Result<Option<
         "spatial_rounds" => {
             scene.integrator.restir.spatial_rounds = parse_range(key, value, 0, 16)?;
         }
+        "spatial_max_history" => {
+            scene.integrator.restir.spatial_max_history = match value.parse::<f32>() {
+                Ok(r) if (0.0..=1025.0).contains(&r) => r,
+                _ => bail!("{key}: {value:?} is not a number in [0, 1025]"),
+            };
+        }
         "reuse" => {
             scene.integrator.restir.reuse = match value {
                 "direction" => nimbus_scene::ReuseMode::Direction,
@@ -134,6 +140,13 @@ pub(super) fn apply(scene: &mut Scene, key: &str, value: &str) -> Result<Option<
                 "talbot" => nimbus_scene::MisMode::Talbot,
                 "pairwise" => nimbus_scene::MisMode::Pairwise,
                 _ => bail!("{key}: unknown MIS {value:?}; valid: talbot, pairwise"),
+            };
+        }
+        "spatial_shift" => {
+            scene.integrator.restir.spatial_shift = match value {
+                "distance" => nimbus_scene::SpatialShift::Distance,
+                "optical_depth" => nimbus_scene::SpatialShift::OpticalDepth,
+                _ => bail!("{key}: unknown shift {value:?}; valid: distance, optical_depth"),
             };
         }
         "temporal_history" => {
@@ -453,6 +466,8 @@ mod tests {
             ("mip_reuse", "2"),
             ("final_transmittance", "ratio"),
             ("mis", "pairwise"),
+            ("spatial_shift", "optical_depth"),
+            ("spatial_max_history", "8"),
             ("temporal_history", "temporal"),
             ("sigma_star_floor", "0.25"),
             ("nee", "one"),
@@ -483,6 +498,10 @@ mod tests {
         assert!(r.final_ratio_tracking);
         assert_eq!(r.nee, nimbus_scene::NeeMode::One);
         assert_eq!(r.direct, nimbus_scene::DirectMode::Escape);
+        assert_eq!(
+            (r.spatial_shift, r.spatial_max_history),
+            (nimbus_scene::SpatialShift::OpticalDepth, 8.0)
+        );
         for (key, value) in [
             ("temporal", "yes"),
             ("reuse", "path"),

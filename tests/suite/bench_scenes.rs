@@ -84,7 +84,12 @@ fn motion_benchmarks_are_the_generators_output_and_plan() {
     names.sort();
     assert_eq!(
         names,
-        ["camera-g0.toml", "camera-g08.toml", "sun-g0.toml", "sun-g08.toml"]
+        [
+            "camera-g0.toml",
+            "camera-g08.toml",
+            "sun-g0.toml",
+            "sun-g08.toml"
+        ]
     );
     for name in &names {
         let committed = std::fs::read_to_string(dir.join(name)).unwrap();

@@ -641,7 +641,7 @@ fn mirrors() -> Vec<Mirror> {
                 march_nee_step,
                 history_confidence,
                 velocity_dims,
-                _pad3,
+                spatial_max_m,
                 velocity_uvw_x,
                 velocity_uvw_y,
                 velocity_uvw_z,

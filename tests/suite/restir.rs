@@ -411,9 +411,14 @@ const VERTEX: Case = Case {
 };
 
 const LEVERS: Case = Case {
-    label: "temporal + 2 spatial rounds, pairwise MIS, pre-spatial history, sigma* floor",
+    label: "temporal + 2 spatial rounds, pairwise MIS, optical-depth shift, pre-spatial history, sigma* floor",
     restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 2\nspatial_neighbors = 4\nspatial_radius_px = 10\n\
-             mis = \"pairwise\"\ntemporal_history = \"temporal\"\nsigma_star_floor = 0.25",
+             mis = \"pairwise\"\nspatial_shift = \"optical_depth\"\ntemporal_history = \"temporal\"\nsigma_star_floor = 0.25",
+};
+const TAU_SHIFT: Case = Case {
+    label: "temporal + spatial, x_1 shifted by its optical depth",
+    restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 1\nspatial_neighbors = 3\nspatial_radius_px = 10\n\
+             spatial_shift = \"optical_depth\"",
 };
 const PAIRWISE: Case = Case {
     label: "temporal + spatial, pairwise MIS, one light per vertex",
@@ -482,7 +487,7 @@ fn single_scattering_matches_the_baseline() {
             bounces: 1,
             ..Cloud::default()
         },
-        &[NO_REUSE, TEMPORAL, SPATIAL, BOTH, PAIRWISE],
+        &[NO_REUSE, TEMPORAL, SPATIAL, BOTH, PAIRWISE, TAU_SHIFT],
         "K=1",
     );
 }

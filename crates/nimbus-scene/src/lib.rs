@@ -87,6 +87,8 @@
 //! | restir `mis` | `"talbot"`, `"pairwise"` |
 //! | restir `temporal_history` | `"spatial"`, `"temporal"` |
 //! | restir `sigma_star_floor` | [0, 1] |
+//! | restir `spatial_shift` | `"distance"`, `"optical_depth"` |
+//! | restir `spatial_max_history` | [0, 1025] (0: spatial reuse on every pixel) |
 //! | restir `nee` | `"auto"`, `"one"`, `"split"` (only with delta lights and an environment alone besides) |
 //! | restir `direct` | `"each_walk"`, `"escape"` |
 //! | grid `procedural` | `"cloud"` (not allowed for `velocity`) |

@@ -510,6 +510,18 @@ pub enum MisMode {
     Pairwise,
 }
 
+/// How ReSTIR's spatial reuse moves a path's first vertex x_1 to another pixel's camera
+/// ray (`spatial_shift`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SpatialShift {
+    /// The paper's direction reuse: x_1 keeps its distance z_1 from the camera.
+    Distance,
+    /// x_1 keeps its optical depth τ_1 through the conservative piecewise-constant grid
+    /// (the Exp(1) draw of regular tracking, replayed along the other ray), so it stays
+    /// in the medium; the Jacobian is the ratio of the two rays' σ* at the vertices.
+    OpticalDepth,
+}
+
 /// Which reservoir of a frame becomes the next frame's temporal history
 /// (`temporal_history`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -574,6 +586,12 @@ pub struct RestirSettings {
     pub final_ratio_tracking: bool,
     /// Spatial reuse's MIS weights (`mis`).
     pub mis: MisMode,
+    /// How spatial reuse moves x_1 between pixels (`spatial_shift`).
+    pub spatial_shift: SpatialShift,
+    /// Spatial reuse only on pixels whose reservoir after temporal reuse holds an M below
+    /// this many times `candidates` (the history was dropped or is short: first frames,
+    /// disocclusions, changed light); 0: on every pixel (`spatial_max_history`).
+    pub spatial_max_history: f32,
     /// What the next frame reuses temporally (`temporal_history`).
     pub temporal_history: HistoryMode,
     /// σ* of candidate generation is at least this fraction of the largest density in
@@ -607,6 +625,8 @@ impl Default for RestirSettings {
             mip_reuse: None,
             final_ratio_tracking: false,
             mis: MisMode::Talbot,
+            spatial_shift: SpatialShift::Distance,
+            spatial_max_history: 0.0,
             temporal_history: HistoryMode::Temporal,
             sigma_star_floor: 0.0,
             nee: NeeMode::Auto,

@@ -53,7 +53,7 @@ pub fn specialization(
     plan: &RestirPlan,
     exact_spans: bool,
     two_level: bool,
-) -> [(u32, SpecValue); 21] {
+) -> [(u32, SpecValue); 22] {
     [
         (SC_ID_TWO_LEVEL_BRICKS, SpecValue::Bool(two_level)),
         (
@@ -80,6 +80,10 @@ pub fn specialization(
         ),
         (SC_ID_HAS_VELOCITY, SpecValue::Bool(plan.has_velocity)),
         (SC_ID_MIS_PAIRWISE, SpecValue::Bool(plan.pairwise_mis)),
+        (
+            SC_ID_SPATIAL_TAU_SHIFT,
+            SpecValue::Bool(plan.spatial_tau_shift),
+        ),
         (SC_ID_NEE_SPLIT, SpecValue::Bool(plan.nee_split)),
         (
             SC_ID_DIRECT_EACH_WALK,
@@ -444,6 +448,7 @@ impl RestirPass {
             reservoir_stride: (stride_bytes / 4) as u32,
             candidates_per_dispatch,
             spatial_radius: plan.spatial_radius_px,
+            spatial_max_m: plan.spatial_max_history * plan.candidates as f32,
             march_reuse_step: march_step(grid, density, levels.reuse),
             march_nee_step: march_step(grid, density, levels.indirect),
             velocity_dims: velocity.as_ref().map_or([1, 1, 1], |v| v.0),

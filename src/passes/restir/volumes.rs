@@ -518,6 +518,8 @@ mod tests {
             mip_indirect: Some(level),
             mip_reuse: Some(level),
             pairwise_mis: false,
+            spatial_tau_shift: false,
+            spatial_max_history: 0.0,
             nee_split: false,
             direct_each_walk: true,
             history_before_spatial: false,

@@ -98,6 +98,8 @@ pub const RESTIR_KEYS: &[&str] = &[
     "mip_reuse",
     "final_transmittance",
     "mis",
+    "spatial_shift",
+    "spatial_max_history",
     "temporal_history",
     "sigma_star_floor",
     "nee",
@@ -568,6 +570,19 @@ fn parse_restir(source: &Source, table: &toml::Table) -> Result<RestirSettings> 
             "mis",
             Some(d.mis),
             &[("talbot", MisMode::Talbot), ("pairwise", MisMode::Pairwise)],
+        )?,
+        spatial_max_history: f.f32_in(
+            "spatial_max_history",
+            Some(d.spatial_max_history),
+            0.0..=1025.0,
+        )?,
+        spatial_shift: f.choice(
+            "spatial_shift",
+            Some(d.spatial_shift),
+            &[
+                ("distance", SpatialShift::Distance),
+                ("optical_depth", SpatialShift::OpticalDepth),
+            ],
         )?,
         temporal_history: f.choice(
             "temporal_history",

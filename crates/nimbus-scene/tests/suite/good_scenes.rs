@@ -220,6 +220,7 @@ temporal_limit = 20
 spatial_neighbors = 5
 spatial_radius_px = 30.5
 spatial_rounds = 2
+spatial_max_history = 2.5
 reuse = "vertex"
 mip_candidates = 2
 mip_indirect = 3
@@ -228,6 +229,7 @@ final_transmittance = "ratio"
 nee = "split"
 direct = "escape"
 mis = "pairwise"
+spatial_shift = "optical_depth"
 temporal_history = "temporal"
 sigma_star_floor = 0.125
 "#;
@@ -425,6 +427,8 @@ sigma_star_floor = 0.125
                 mip_reuse: Some(0),
                 final_ratio_tracking: true,
                 mis: MisMode::Pairwise,
+                spatial_shift: SpatialShift::OpticalDepth,
+                spatial_max_history: 2.5,
                 temporal_history: HistoryMode::Temporal,
                 sigma_star_floor: 0.125,
                 nee: NeeMode::Split,
