@@ -127,6 +127,7 @@ profile() {
     nimbus profile "$@" --frames "$frames" >"$out/profile-$name.txt" 2>&1
 }
 paper=(--set integrator.restir.temporal_limit=4 --set integrator.restir.spatial_neighbors=3
+    --set integrator.restir.spatial_when=always
     --set integrator.restir.temporal_history=spatial --set integrator.restir.mip_indirect=2
     --set integrator.restir.mip_reuse=1 --set integrator.restir.nee=one)
 for k in 1 3; do
@@ -170,6 +171,23 @@ for scene in "${bench[@]}"; do
     done
 done
 
+# Issue 26's motion benchmarks (assets/scenes/bench/motion, tools/make_motion_bench.py):
+# the same per-frame metric, each measured frame against a reference of that scene frame
+# (the window after ReSTIR's warm-up), ReSTIR with and without spatial reuse (its default
+# runs it on frames whose camera moved) and with the optical-depth shift.
+case $mode in
+    quick) motion=(sun-g0); motion_k=1 ;;
+    *) motion=(camera-g0 sun-g0 camera-g08); motion_k=3 ;;
+esac
+for scene in "${motion[@]}"; do
+    step "study motion $scene k$motion_k" nimbus study "assets/scenes/bench/motion/$scene.toml" \
+        "${bench_size[@]}" --reference-frames "${ref[1]}" --reference-spp 16 "${cache[@]}" \
+        --seeds "$seeds" --per-frame --frames 8 --vary "max_bounces=$motion_k" \
+        --vary volume=baseline,restir --vary "spp=$spp_list" --vary spatial_neighbors=0,3 \
+        --vary spatial_when=always --vary spatial_shift=distance,optical_depth \
+        --baseline volume=baseline --out-dir "$out/study-motion-$scene-k$motion_k"
+done
+
 # What the ReSTIR levers buy at K = 3 (the same metric): split against the paper's NEE,
 # spatial reuse on and off, Q = 4 against 20 (the baseline renders once).
 lever_k=3
@@ -177,7 +195,7 @@ lever_k=3
 step "study levers" nimbus study "assets/scenes/bench/${bench[0]}.toml" "${bench_size[@]}" "${ref[@]}" \
     "${cache[@]}" --seeds "$seeds" --per-frame --frames "$frames" \
     --vary "max_bounces=$lever_k" --vary volume=baseline,restir --vary "spp=$spp_list" \
-    --vary nee=one,split --vary spatial_neighbors=0,3 --vary temporal_limit=4,20 \
+    --vary nee=one,split --vary spatial_neighbors=0,3 --vary spatial_when=always --vary temporal_limit=4,20 \
     --baseline volume=baseline --out-dir "$out/study-restir-levers-k$lever_k"
 
 if [[ $mode != lent ]]; then

@@ -161,6 +161,9 @@ pub struct RestirPlan {
     pub temporal_limit: u32,
     pub spatial_neighbors: u32,
     pub spatial_radius_px: f32,
+    /// Spatial reuse only on frames whose camera moved since the previous frame
+    /// (`spatial_when = "camera_moves"`).
+    pub spatial_camera_moves: bool,
     pub spatial_rounds: u32,
     /// Vertex reuse instead of direction reuse.
     pub vertex_reuse: bool,

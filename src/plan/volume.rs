@@ -287,8 +287,18 @@ fn restir_plan(
         candidates: s.candidates,
         temporal: s.temporal,
         temporal_limit: s.temporal_limit,
-        spatial_neighbors: s.spatial_neighbors,
-        spatial_radius_px: s.spatial_radius_px,
+        // spatial_when = "camera_moves" under a camera that never moves: no spatial pass.
+        spatial_neighbors: if s.spatial_when == nimbus_scene::SpatialWhen::CameraMoves
+            && scene.camera.keyframes.is_empty()
+        {
+            0
+        } else {
+            s.spatial_neighbors
+        },
+        spatial_radius_px: s
+            .spatial_radius_px
+            .unwrap_or_else(|| nimbus_scene::auto_spatial_radius_px(scene.render.width)),
+        spatial_camera_moves: s.spatial_when == nimbus_scene::SpatialWhen::CameraMoves,
         spatial_rounds: s.spatial_rounds,
         vertex_reuse: s.reuse == nimbus_scene::ReuseMode::Vertex,
         final_ratio_tracking: s.final_ratio_tracking,
@@ -369,7 +379,12 @@ fn restir_plan(
             spatial,
             if spatial {
                 format!(
-                    "{} round(s) of {} neighbours within {} px{}, {} MIS, x_1 shifted by its {}, T~ marched on mip {}, {} reuse",
+                    "{}{} round(s) of {} neighbours within {} px{}, {} MIS, x_1 shifted by its {}, T~ marched on mip {}, {} reuse",
+                    if plan.spatial_camera_moves {
+                        "on frames whose camera moved: "
+                    } else {
+                        ""
+                    },
                     plan.spatial_rounds,
                     plan.spatial_neighbors,
                     plan.spatial_radius_px,
@@ -396,6 +411,13 @@ fn restir_plan(
                         "direction"
                     }
                 )
+            } else if s.spatial_neighbors > 0
+                && s.spatial_rounds > 0
+                && plan.spatial_camera_moves
+            {
+                "spatial_when = \"camera_moves\" and the camera does not move (it pays where the \
+                 temporal history is weak, docs/restir.md)"
+                    .into()
             } else {
                 "spatial_neighbors or spatial_rounds is 0".into()
             },

@@ -209,6 +209,7 @@ fn effective_scene(scene: &Scene, plan: &RenderPlan) -> Scene {
                 r.spatial_neighbors = 0;
                 r.spatial_rounds = 0;
                 r.spatial_radius_px = d.spatial_radius_px;
+                r.spatial_when = d.spatial_when;
                 r.spatial_shift = d.spatial_shift;
                 r.spatial_max_history = d.spatial_max_history;
             }
@@ -231,6 +232,7 @@ fn effective_plan(plan: &RenderPlan) -> RenderPlan {
             r.spatial_neighbors = 0;
             r.spatial_rounds = 0;
             r.spatial_radius_px = 0.0;
+            r.spatial_camera_moves = false;
             r.spatial_tau_shift = false;
             r.spatial_max_history = 0.0;
         }
@@ -731,6 +733,8 @@ mod tests {
                 "spatial_neighbors=0,3".into(),
                 "spatial_shift=distance,optical_depth".into(),
                 "spatial_max_history=0,8".into(),
+                // (The test scene's camera holds still.)
+                "spatial_when=always".into(),
             ],
             ..grid_options("dedupe-spatial")
         };

@@ -103,8 +103,16 @@ pub(super) fn apply(scene: &mut Scene, key: &str, value: &str) -> Result<Option<
         }
         "spatial_radius_px" => {
             scene.integrator.restir.spatial_radius_px = match value.parse::<f32>() {
-                Ok(r) if (0.0..=16384.0).contains(&r) => r,
-                _ => bail!("{key}: {value:?} is not a number in [0, 16384]"),
+                _ if value == "auto" => None,
+                Ok(r) if (0.0..=16384.0).contains(&r) => Some(r),
+                _ => bail!("{key}: {value:?} is not a number in [0, 16384] or auto"),
+            };
+        }
+        "spatial_when" => {
+            scene.integrator.restir.spatial_when = match value {
+                "always" => nimbus_scene::SpatialWhen::Always,
+                "camera_moves" => nimbus_scene::SpatialWhen::CameraMoves,
+                _ => bail!("{key}: unknown choice {value:?}; valid: always, camera_moves"),
             };
         }
         "spatial_rounds" => {
@@ -467,6 +475,7 @@ mod tests {
             ("final_transmittance", "ratio"),
             ("mis", "pairwise"),
             ("spatial_shift", "optical_depth"),
+            ("spatial_when", "always"),
             ("spatial_max_history", "8"),
             ("temporal_history", "temporal"),
             ("sigma_star_floor", "0.25"),
@@ -489,7 +498,8 @@ mod tests {
             ),
             (8, false, 20, 0)
         );
-        assert_eq!((r.spatial_radius_px, r.spatial_rounds), (2.5, 2));
+        assert_eq!((r.spatial_radius_px, r.spatial_rounds), (Some(2.5), 2));
+        assert_eq!(r.spatial_when, nimbus_scene::SpatialWhen::Always);
         assert_eq!(r.reuse, nimbus_scene::ReuseMode::Vertex);
         assert_eq!(
             (r.mip_candidates, r.mip_indirect, r.mip_reuse),

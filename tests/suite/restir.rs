@@ -398,31 +398,31 @@ const TEMPORAL: Case = Case {
 };
 const SPATIAL: Case = Case {
     label: "spatial only",
-    restir: "temporal = false\nspatial_rounds = 1\nspatial_neighbors = 3\nspatial_radius_px = 10",
+    restir: "temporal = false\nspatial_rounds = 1\nspatial_neighbors = 3\nspatial_when = \"always\"\nspatial_radius_px = 10",
 };
 const BOTH: Case = Case {
     label: "temporal + spatial",
-    restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 1\nspatial_neighbors = 3\nspatial_radius_px = 10",
+    restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 1\nspatial_neighbors = 3\nspatial_when = \"always\"\nspatial_radius_px = 10",
 };
 const VERTEX: Case = Case {
     label: "temporal + spatial, vertex reuse, one light per vertex, direct paths of escaping walks",
-    restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 1\nspatial_neighbors = 3\nspatial_radius_px = 10\nreuse = \"vertex\"\n\
+    restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 1\nspatial_neighbors = 3\nspatial_when = \"always\"\nspatial_radius_px = 10\nreuse = \"vertex\"\n\
              nee = \"one\"\ndirect = \"escape\"",
 };
 
 const LEVERS: Case = Case {
     label: "temporal + 2 spatial rounds, pairwise MIS, optical-depth shift, pre-spatial history, sigma* floor",
-    restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 2\nspatial_neighbors = 4\nspatial_radius_px = 10\n\
+    restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 2\nspatial_neighbors = 4\nspatial_when = \"always\"\nspatial_radius_px = 10\n\
              mis = \"pairwise\"\nspatial_shift = \"optical_depth\"\ntemporal_history = \"temporal\"\nsigma_star_floor = 0.25",
 };
 const TAU_SHIFT: Case = Case {
     label: "temporal + spatial, x_1 shifted by its optical depth",
-    restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 1\nspatial_neighbors = 3\nspatial_radius_px = 10\n\
+    restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 1\nspatial_neighbors = 3\nspatial_when = \"always\"\nspatial_radius_px = 10\n\
              spatial_shift = \"optical_depth\"",
 };
 const PAIRWISE: Case = Case {
     label: "temporal + spatial, pairwise MIS, one light per vertex",
-    restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 1\nspatial_neighbors = 3\nspatial_radius_px = 10\nmis = \"pairwise\"\n\
+    restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 1\nspatial_neighbors = 3\nspatial_when = \"always\"\nspatial_radius_px = 10\nmis = \"pairwise\"\n\
              nee = \"one\"",
 };
 
@@ -941,7 +941,7 @@ fn degenerate_reuse_settings_stay_finite() {
     let ctx = context();
     for (restir, label) in [
         (
-            "spatial_radius_px = 0\nspatial_neighbors = 3\nspatial_rounds = 2",
+            "spatial_radius_px = 0\nspatial_neighbors = 3\nspatial_when = \"always\"\nspatial_rounds = 2",
             "radius-0",
         ),
         ("temporal_limit = 1", "q-1"),
@@ -993,7 +993,7 @@ fn explain_lists_the_restir_passes() {
     let spatial = scene_file(
         "explain-spatial",
         &Cloud {
-            restir: "spatial_neighbors = 3\nnee = \"one\"",
+            restir: "spatial_neighbors = 3\nspatial_when = \"always\"\nnee = \"one\"",
             ..Cloud::default()
         },
     );
@@ -1114,7 +1114,7 @@ fn unsupported_scenes_are_plan_errors() {
 
     let at_limits = Cloud {
         bounces: 16,
-        restir: "spatial_neighbors = 16",
+        restir: "spatial_neighbors = 16\nspatial_when = \"always\"",
         ..Cloud::default()
     };
     let plan = nimbus::plan::build(&at_limits.scene("restir-limits.toml"), None).expect("plan");

@@ -191,7 +191,7 @@ fn a_moving_camera_keeps_each_frames_mean() {
     );
     // Temporal reuse alone (the defaults), and with spatial reuse by the optical-depth
     // shift on the pixels whose history is short (the camera's motion drops it).
-    let spatial = "[integrator.restir]\nspatial_neighbors = 3\nspatial_radius_px = 4\n\
+    let spatial = "[integrator.restir]\nspatial_neighbors = 3\nspatial_radius_px = 4\nspatial_when = \"always\"\n\
                    spatial_shift = \"optical_depth\"\nspatial_max_history = 8\n";
     for (label, extra) in [
         ("temporal", ""),

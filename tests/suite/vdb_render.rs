@@ -159,6 +159,8 @@ max_bounces = 2
 [integrator.restir]
 temporal_limit = 4
 spatial_neighbors = 3
+spatial_when = "always"
+spatial_radius_px = 10
 temporal_history = "spatial"
 "#
     )

@@ -248,6 +248,29 @@ impl<'a> Fields<'a> {
         }
     }
 
+    /// A number in `range`, or `"auto"` (`None`); `default` when absent.
+    pub fn f32_or_auto(
+        &self,
+        key: &str,
+        default: Option<f32>,
+        range: RangeInclusive<f64>,
+    ) -> Result<Option<f32>> {
+        match self.map.get(key) {
+            None => Ok(default),
+            Some(Value::String(s)) if s == "auto" => Ok(None),
+            Some(Value::String(s)) => Err(self.error(
+                key,
+                format!(
+                    "\"{s}\" is not \"auto\" or a number in [{}, {}]",
+                    range.start(),
+                    range.end()
+                ),
+            )),
+            Some(Value::Integer(_) | Value::Float(_)) => self.f32_in(key, None, range).map(Some),
+            Some(other) => Err(self.wrong_type(key, "a number or \"auto\"", other)),
+        }
+    }
+
     pub fn opt_bool(&self, key: &str) -> Result<Option<bool>> {
         match self.map.get(key) {
             Some(Value::Boolean(b)) => Ok(Some(*b)),

@@ -80,7 +80,8 @@
 //! | restir `candidates` | 1..=4096 |
 //! | restir `temporal_limit` | 1..=1024 (turn temporal reuse off with `temporal = false`) |
 //! | restir `spatial_neighbors` | 0..=16 ([`MAX_SPATIAL_NEIGHBORS`]) |
-//! | restir `spatial_radius_px` | [0, 16384] |
+//! | restir `spatial_radius_px` | [0, 16384], or `"auto"` |
+//! | restir `spatial_when` | `"always"`, `"camera_moves"` |
 //! | restir `spatial_rounds` | 0..=16 |
 //! | restir `mip_candidates` | 0..=16 |
 //! | restir `mip_indirect`, `mip_reuse` | 0..=16, or `"auto"` |

@@ -510,6 +510,26 @@ pub enum MisMode {
     Pairwise,
 }
 
+/// The smallest automatic spatial radius: below it the neighbours would round to the
+/// pixel itself.
+pub const MIN_AUTO_SPATIAL_RADIUS_PX: f32 = 1.5;
+
+/// `spatial_radius_px = "auto"` at `width` pixels: 10 px at 1920 (the paper's), in
+/// proportion to the width, at least [`MIN_AUTO_SPATIAL_RADIUS_PX`].
+pub fn auto_spatial_radius_px(width: u32) -> f32 {
+    (10.0 * width as f32 / 1920.0).max(MIN_AUTO_SPATIAL_RADIUS_PX)
+}
+
+/// On which frames ReSTIR's spatial reuse runs (`spatial_when`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SpatialWhen {
+    /// Every frame (the paper's).
+    Always,
+    /// Frames whose camera differs from the previous frame's: where the temporal history
+    /// is weak (measured: docs/restir.md, "Spatial reuse in motion").
+    CameraMoves,
+}
+
 /// How ReSTIR's spatial reuse moves a path's first vertex x_1 to another pixel's camera
 /// ray (`spatial_shift`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -570,7 +590,11 @@ pub struct RestirSettings {
     pub temporal: bool,
     pub temporal_limit: u32,
     pub spatial_neighbors: u32,
-    pub spatial_radius_px: f32,
+    /// Pixels; `None` (`"auto"`, the default): 10 px at 1920 pixels wide, in proportion
+    /// to the width (the paper's angular radius), at least [`MIN_AUTO_SPATIAL_RADIUS_PX`].
+    pub spatial_radius_px: Option<f32>,
+    /// On which frames spatial reuse runs (`spatial_when`).
+    pub spatial_when: SpatialWhen,
     pub spatial_rounds: u32,
     pub reuse: ReuseMode,
     pub mip_candidates: u32,
@@ -616,8 +640,9 @@ impl Default for RestirSettings {
             candidates: 4,
             temporal: true,
             temporal_limit: 20,
-            spatial_neighbors: 0,
-            spatial_radius_px: 10.0,
+            spatial_neighbors: 3,
+            spatial_radius_px: None,
+            spatial_when: SpatialWhen::CameraMoves,
             spatial_rounds: 1,
             reuse: ReuseMode::Direction,
             mip_candidates: 1,

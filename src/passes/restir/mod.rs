@@ -297,6 +297,10 @@ pub struct RestirPass {
     objects: GpuObjects,
     res: Resources,
     settings: ScheduleSettings,
+    /// `spatial_when = "camera_moves"`, and whether this frame's camera moved (set by
+    /// `prepare`): the frame's spatial rounds run only then.
+    spatial_camera_moves: bool,
+    spatial_now: bool,
     constants: FrameConstants,
     grid: GridMedium,
     volumes: Volumes,
@@ -487,6 +491,8 @@ impl RestirPass {
             objects,
             res,
             settings: schedule_settings(plan, candidates_per_dispatch),
+            spatial_camera_moves: plan.spatial_camera_moves,
+            spatial_now: true,
             constants: FrameConstants {
                 env_radiance: grid_gpu.env_radiance,
                 env_size: grid_gpu.uniforms.env_size,
@@ -685,6 +691,10 @@ impl Pass for RestirPass {
             self.prev_uploaded = Some(prev);
         }
         self.upload_density(ctx, scene_frame, prev_frame)?;
+        // spatial_when = "camera_moves": spatial reuse on frames whose camera moved (a
+        // choice made per frame from the cameras alone, never from the samples).
+        self.spatial_now =
+            !self.spatial_camera_moves || scene.camera.frame_at(scene_frame) != camera;
         // Whether the previous frame's target function is this frame's: the same camera,
         // light set and density (a static scene, or a held frame of an animation).
         let same = scene.camera.frame_at(scene_frame) == camera
@@ -728,7 +738,15 @@ impl Pass for RestirPass {
         dispatch_index: u32,
         mut profiler: Option<&mut Profiler>,
     ) -> Result<()> {
-        let (dispatches, last) = schedule(dispatch_index, self.prev_slot, &self.settings);
+        let settings = ScheduleSettings {
+            spatial_neighbors: if self.spatial_now {
+                self.settings.spatial_neighbors
+            } else {
+                0
+            },
+            ..self.settings
+        };
+        let (dispatches, last) = schedule(dispatch_index, self.prev_slot, &settings);
         let mut open: Option<Stage> = None;
         for (n, d) in dispatches.iter().enumerate() {
             if n > 0 {

@@ -511,6 +511,7 @@ mod tests {
             temporal_limit: 4,
             spatial_neighbors: 3,
             spatial_radius_px: 10.0,
+            spatial_camera_moves: false,
             spatial_rounds: 1,
             vertex_reuse: false,
             final_ratio_tracking: false,

@@ -91,6 +91,7 @@ pub const RESTIR_KEYS: &[&str] = &[
     "temporal_limit",
     "spatial_neighbors",
     "spatial_radius_px",
+    "spatial_when",
     "spatial_rounds",
     "reuse",
     "mip_candidates",
@@ -544,10 +545,18 @@ fn parse_restir(source: &Source, table: &toml::Table) -> Result<RestirSettings> 
             Some(d.spatial_neighbors),
             0..=MAX_SPATIAL_NEIGHBORS,
         )?,
-        spatial_radius_px: f.f32_in(
+        spatial_radius_px: f.f32_or_auto(
             "spatial_radius_px",
-            Some(d.spatial_radius_px),
+            d.spatial_radius_px,
             0.0..=f64::from(MAX_IMAGE_SIDE),
+        )?,
+        spatial_when: f.choice(
+            "spatial_when",
+            Some(d.spatial_when),
+            &[
+                ("always", SpatialWhen::Always),
+                ("camera_moves", SpatialWhen::CameraMoves),
+            ],
         )?,
         spatial_rounds: f.u32_in("spatial_rounds", Some(d.spatial_rounds), 0..=16)?,
         reuse: f.choice(

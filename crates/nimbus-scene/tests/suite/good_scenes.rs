@@ -27,11 +27,12 @@ fn minimal_scene_gets_every_default() {
     assert_eq!(restir.candidates, 4);
     assert!(restir.temporal);
     assert_eq!(restir.temporal_limit, 20);
-    assert_eq!(restir.spatial_neighbors, 0);
+    assert_eq!(restir.spatial_neighbors, 3);
+    assert_eq!(restir.spatial_when, SpatialWhen::CameraMoves);
     assert_eq!(restir.temporal_history, HistoryMode::Temporal);
     assert_eq!(restir.nee, NeeMode::Auto);
     assert_eq!(restir.direct, DirectMode::EachWalk);
-    assert_eq!(restir.spatial_radius_px, 10.0);
+    assert_eq!(restir.spatial_radius_px, None);
     assert_eq!(restir.spatial_rounds, 1);
     assert_eq!(restir.reuse, ReuseMode::Direction);
     assert_eq!(
@@ -219,6 +220,7 @@ temporal = false
 temporal_limit = 20
 spatial_neighbors = 5
 spatial_radius_px = 30.5
+spatial_when = "always"
 spatial_rounds = 2
 spatial_max_history = 2.5
 reuse = "vertex"
@@ -419,7 +421,8 @@ sigma_star_floor = 0.125
                 temporal: false,
                 temporal_limit: 20,
                 spatial_neighbors: 5,
-                spatial_radius_px: 30.5,
+                spatial_radius_px: Some(30.5),
+                spatial_when: SpatialWhen::Always,
                 spatial_rounds: 2,
                 reuse: ReuseMode::Vertex,
                 mip_candidates: 2,
@@ -680,7 +683,12 @@ look_at = [0, 0, 0]
 #[test]
 fn integers_are_accepted_as_floats() {
     let scene = parse_ok("[integrator.restir]\nspatial_radius_px = 4\n");
-    assert_eq!(scene.integrator.restir.spatial_radius_px, 4.0);
+    assert_eq!(scene.integrator.restir.spatial_radius_px, Some(4.0));
+    let scene = parse_ok("[integrator.restir]\nspatial_radius_px = \"auto\"\n");
+    assert_eq!(scene.integrator.restir.spatial_radius_px, None);
+    assert_eq!(auto_spatial_radius_px(1920), 10.0);
+    assert_eq!(auto_spatial_radius_px(960), 5.0);
+    assert_eq!(auto_spatial_radius_px(160), MIN_AUTO_SPATIAL_RADIUS_PX);
     assert_eq!(scene.integrator.restir.candidates, 4);
 }
 
