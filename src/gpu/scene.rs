@@ -93,6 +93,7 @@ impl GpuScene {
                     radiance,
                     file: None,
                     scale,
+                    ..
                 } => env_radiance += *radiance * *scale,
                 // The map's radiance lives in its texels (`GpuEnvMap`).
                 Light::Environment { file: Some(_), .. } => {}
@@ -419,6 +420,7 @@ impl GpuEnvMap {
                 radiance,
                 scale,
                 file: Some(file),
+                ..
             } = light
             {
                 let map = nimbus_scene::EnvMap::load_exr(file, *radiance * *scale)?;
@@ -519,6 +521,7 @@ impl LightSet {
                     radiance,
                     scale,
                     file,
+                    ..
                 } => {
                     if file.is_none() {
                         env_radiance += *radiance * *scale;

@@ -123,6 +123,7 @@ mod tests {
             radiance: Vec3::splat(l),
             file: None,
             scale: Vec3::ONE,
+            rotation_deg: 0.0,
         }
     }
 

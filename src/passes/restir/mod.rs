@@ -519,6 +519,7 @@ impl RestirPass {
                     radiance,
                     scale,
                     file: None,
+                    ..
                 } => Some(*radiance * *scale),
                 _ => None,
             })

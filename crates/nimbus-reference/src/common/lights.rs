@@ -83,6 +83,7 @@ pub(crate) fn suns_and_environment(
                 radiance,
                 file,
                 scale,
+                ..
             } => {
                 environments += 1;
                 match file {
@@ -134,6 +135,7 @@ pub(crate) fn suns_and_sky(scene: &Scene, what: &str) -> anyhow::Result<(Vec<Sun
                 radiance,
                 file: None,
                 scale,
+                ..
             } => environment += radiance.as_dvec3() * scale.as_dvec3(),
             Light::Environment { file: Some(f), .. } => bail!(
                 "{source}: light {i}: environment maps ({}) are not supported by the {what} \

@@ -102,6 +102,7 @@ pub(crate) fn constant_env(radiance: Vec3) -> Light {
         radiance,
         file: None,
         scale: Vec3::ONE,
+        rotation_deg: 0.0,
     }
 }
 

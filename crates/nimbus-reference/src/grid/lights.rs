@@ -168,6 +168,7 @@ pub(super) fn build_lights(
                 radiance,
                 file: None,
                 scale,
+                ..
             } => LightF64::Environment(Environment::Constant(
                 radiance.as_dvec3() * scale.as_dvec3(),
             )),
@@ -194,6 +195,7 @@ pub(super) fn load_env_maps(scene: &Scene) -> anyhow::Result<Vec<(usize, EnvMap)
             radiance,
             file: Some(file),
             scale,
+            ..
         } = light
         {
             let map = EnvMap::load_exr(file, *radiance * *scale)

@@ -442,6 +442,7 @@ fn results_are_deterministic_and_options_checked() {
         radiance: Vec3::ONE,
         file: Some(PathBuf::from("/nonexistent/sky.exr")),
         scale: Vec3::ONE,
+        rotation_deg: 0.0,
     });
     assert!(radiance_grid_mc(&missing, o, d, &opts).is_err());
 }

@@ -347,6 +347,7 @@ fn unsupported_scenes_and_options_are_errors() {
         radiance: Vec3::ONE,
         file: Some(PathBuf::from("no-such-sky.exr")),
         scale: Vec3::ONE,
+        rotation_deg: 0.0,
     };
     for (light, words) in [
         (point, "point lights"),
@@ -614,6 +615,7 @@ fn a_map_lights_a_floor_from_above_only() {
         radiance: Vec3::ONE,
         file: Some(path),
         scale: Vec3::splat(2.0),
+        rotation_deg: 0.0,
     };
     let s = box_scene(Vec::new(), vec![floor], vec![map]);
     let opts = McOptions {
