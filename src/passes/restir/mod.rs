@@ -19,7 +19,7 @@ pub mod volumes;
 use anyhow::Result;
 
 use nimbus_gpu::{compute_barrier, vk, Context, GpuObjects, Profiler, SpecValue};
-use nimbus_scene::{CameraFrame, GridMedium, GridSource, Scene};
+use nimbus_scene::{GridMedium, GridSource, Scene};
 
 use self::resources::{Inputs, Resources};
 use self::schedule::{schedule, ScheduleSettings, Stage};
@@ -653,8 +653,8 @@ impl Pass for RestirPass {
         ]
     }
 
-    fn frame_uniforms(&self, scene: &Scene, camera: &CameraFrame) -> FrameUniforms {
-        self.constants.uniforms(scene, camera)
+    fn frame_uniforms(&self, scene: &Scene, frame: u32) -> FrameUniforms {
+        self.constants.uniforms(scene, frame)
     }
 
     /// Uploads what changes per frame: the lights of this frame and the previous one,
@@ -667,9 +667,10 @@ impl Pass for RestirPass {
         prev_frame: u32,
     ) -> Result<()> {
         self.upload_lights(ctx, scene, scene_frame, prev_frame)?;
-        // The previous frame's camera (the first frame's own camera on frame 0).
+        // The previous frame's camera and environment map turn (the first frame's own
+        // on frame 0).
         let camera = scene.camera.frame_at(prev_frame);
-        let prev = self.constants.uniforms(scene, &camera);
+        let prev = self.constants.uniforms(scene, prev_frame);
         if self.prev_uploaded.map(|u| bytemuck::bytes_of(&u).to_vec())
             != Some(bytemuck::bytes_of(&prev).to_vec())
         {
