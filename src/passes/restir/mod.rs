@@ -301,6 +301,9 @@ pub struct RestirPass {
     static_sections: [nimbus_scene::bricks::Indirection; 3],
     scene_lights_radius: f32,
     env_map_luminance: Option<f32>,
+    /// The environment map's luminance for the history confidence of a turning map (only
+    /// when the lights are animated and the environment has a map).
+    env_change: Option<history::EnvLuminance>,
     /// The emitting shapes' total power (their LIGHT_AREA record's selection weight).
     area_power: f64,
     base_uniforms: BaselineUniformsGpu,
@@ -497,6 +500,16 @@ impl RestirPass {
             static_sections,
             scene_lights_radius: grid_gpu.light_radius,
             env_map_luminance: grid_gpu.env_map_luminance,
+            env_change: grid_gpu
+                .env_map
+                .as_ref()
+                .filter(|_| scene.lights_animated())
+                .map(|m| {
+                    history::EnvLuminance::from_texels(m.size[0], m.size[1], |i| {
+                        let t = m.texels[i];
+                        nimbus_scene::luminance([t[0], t[1], t[2]])
+                    })
+                }),
             area_power: grid_gpu.emitters.total_power,
             base_uniforms,
             loaded: (0, 0),
@@ -696,6 +709,7 @@ impl Pass for RestirPass {
                 &scene.lights_at(scene_frame),
                 (self.grid.bounds_min + self.grid.bounds_max) * 0.5,
                 self.env_irradiance(scene),
+                self.env_change.as_ref(),
             )
         } else {
             1.0
