@@ -128,7 +128,7 @@ vec3 sample_light(vec3 x, vec3 d, float g, vec3 n, bool on_surface, inout uint r
                   out float dist, out float t_occlude, out uint target) {
     float u = rng_next(rng);
     vec2 u2 = vec2(rng_next(rng), rng_next(rng));
-    LightSample s = light_sample(0u, x, u, u2);
+    LightSample s = light_sample(0u, u_frame.env_rotation, x, u, u2);
     wi = s.wi;
     dist = s.dist;
     t_occlude = light_is_area(0u, s.index) ? s.dist * (1.0 - 1e-4) : s.dist;
@@ -244,7 +244,7 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
         } else {
             // Escaped: the environment, seen directly by the camera segment only.
             if (SC_HAS_ENV && bounce == 0u) {
-                L += beta * (SC_HAS_ENV_MAP ? env_lookup(d) : u_frame.env_radiance) * u_frame.background;
+                L += beta * env_radiance_along(d, u_frame.env_rotation) * u_frame.background;
             }
             break;
         }

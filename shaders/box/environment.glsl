@@ -2,7 +2,9 @@
 // the box media and the Lambertian shapes by next-event estimation.
 //
 // The environment is a constant radiance (u_frame.env_radiance) or, with SC_HAS_ENV_MAP,
-// an equirectangular map (envmap.glsl; its texels are already times `radiance · scale`).
+// an equirectangular map (envmap.glsl; its texels are already times `radiance · scale`),
+// turned about +Y by the frame's u_frame.env_rotation (looked up, sampled and its pdf
+// evaluated turned).
 // Its light reaches the camera after a scattering only through next-event estimation
 // here: a path that continues after a scattering and escapes adds nothing (only the
 // camera ray sees the environment), so every scattering order is counted once and no
@@ -43,7 +45,7 @@ vec3 sky_radiance(vec3 w) {
     if (!SC_HAS_ENV) {
         return vec3(0.0);
     }
-    return SC_HAS_ENV_MAP ? env_lookup(w) : u_frame.env_radiance;
+    return SC_HAS_ENV_MAP ? env_lookup_rotated(w, u_frame.env_rotation) : u_frame.env_radiance;
 }
 
 // Visibility times transmittance from x towards the environment along unit w: 0 behind
@@ -66,13 +68,13 @@ vec3 sample_sky_inscatter(vec3 x, vec3 d, float g, inout uint rng) {
         // Sample the map or the phase function, each with probability 1/2.
         if (rng_next(rng) < 0.5) {
             float pdf_map;
-            env_sample(u, w, pdf_map);
+            env_sample_rotated(u, u_frame.env_rotation, w, pdf_map);
         } else {
             w = sample_hg(d, g, u);
         }
         float phase = hg_phase(dot(d, w), g);
         // Domain: phase > 0 for |g| < 1, so the mixture pdf is > 0; weight <= 2.
-        weight = phase / (0.5 * (env_pdf(w) + phase));
+        weight = phase / (0.5 * (env_pdf_rotated(w, u_frame.env_rotation) + phase));
     } else {
         // Sample the phase function: p / pdf = 1.
         w = sample_hg(d, g, u);
@@ -96,7 +98,7 @@ vec3 sample_sky_reflect(vec3 x_off, vec3 n, inout uint rng) {
         // Sample the map or the cosine lobe, each with probability 1/2.
         if (rng_next(rng) < 0.5) {
             float pdf_map;
-            env_sample(u, w, pdf_map);
+            env_sample_rotated(u, u_frame.env_rotation, w, pdf_map);
         } else {
             w = sample_cosine_hemisphere(n, u);
         }
@@ -106,7 +108,7 @@ vec3 sample_sky_reflect(vec3 x_off, vec3 n, inout uint rng) {
             return vec3(0.0);
         }
         // Domain: lobe > 0, so the mixture pdf is > 0; weight <= 2.
-        weight = lobe / (0.5 * (env_pdf(w) + lobe));
+        weight = lobe / (0.5 * (env_pdf_rotated(w, u_frame.env_rotation) + lobe));
     } else {
         // Sample the cosine lobe: (cos / pi) / pdf = 1.
         w = sample_cosine_hemisphere(n, u);

@@ -20,6 +20,13 @@
 //
 // An all-black map still has valid (fallback, sin θ-weighted) tables, so everything here
 // stays finite; the renderer should skip the light when `EnvSampler::is_black()`.
+//
+// Rotation (`rotation_deg` θ, `EnvRotation` of envmap.rs): the map turned about world +Y,
+// right-handed (positive θ turns +X towards −Z), given as rot = (cos θ, sin θ). The
+// *_rotated functions look up and evaluate the pdf of world direction d at
+// d_map = R_y(−θ) d, and sample d_map from the tables and return R_y(θ) d_map (a turn
+// keeps solid angle: the pdf is the map's). rot = (1, 0) exactly skips the turn, so an
+// unturned map renders bit for bit as without these functions.
 #ifndef NIMBUS_ENVMAP_GLSL
 #define NIMBUS_ENVMAP_GLSL
 
@@ -190,6 +197,44 @@ float env_pdf(vec3 d) {
     }
     // sin_theta > 0.
     return env_pdf_uv_texel(env_texel_of_uv(uv)) / (2.0 * PI * PI * sin_theta);
+}
+
+// Whether rot = (cos θ, sin θ) turns anything (exactly (1, 0) does not).
+bool env_turned(vec2 rot) {
+    return rot.y != 0.0 || rot.x != 1.0;
+}
+
+// The map's direction of world direction d: R_y(−θ) d.
+vec3 env_world_to_map(vec3 d, vec2 rot) {
+    if (!env_turned(rot)) {
+        return d;
+    }
+    return vec3(rot.x * d.x - rot.y * d.z, d.y, rot.y * d.x + rot.x * d.z);
+}
+
+// The world direction of the map's direction d: R_y(θ) d.
+vec3 env_map_to_world(vec3 d, vec2 rot) {
+    if (!env_turned(rot)) {
+        return d;
+    }
+    return vec3(rot.x * d.x + rot.y * d.z, d.y, rot.x * d.z - rot.y * d.x);
+}
+
+// env_lookup of the map turned by rot.
+vec3 env_lookup_rotated(vec3 d, vec2 rot) {
+    return env_lookup(env_world_to_map(d, rot));
+}
+
+// env_pdf of the map turned by rot.
+float env_pdf_rotated(vec3 d, vec2 rot) {
+    return env_pdf(env_world_to_map(d, rot));
+}
+
+// env_sample of the map turned by rot: dir is in the world.
+vec3 env_sample_rotated(vec2 u, vec2 rot, out vec3 dir, out float pdf_solid_angle) {
+    vec3 L = env_sample(u, dir, pdf_solid_angle);
+    dir = env_map_to_world(dir, rot);
+    return L;
 }
 
 #endif

@@ -11,7 +11,10 @@
 //   bool constants SC_HAS_ENV, SC_HAS_ENV_MAP, and envmap.glsl's buffers (included here).
 //
 // A light set is `light_count` records starting at `base`: ReSTIR keeps the current frame's
-// set at 0 and the previous frame's right after it, for animated lights.
+// set at 0 and the previous frame's right after it, for animated lights. The environment
+// map's turn of the set's frame, `env_rot` = (cos, sin) (FrameUniforms::env_rotation of
+// that frame: u_frame's for the current one), goes with `base` wherever the environment
+// is looked up or sampled.
 //
 // Measures: a directional light and a point light are deltas (their "radiance" is E and
 // I / d^2, their pdf a selection probability); the environment is sampled in solid angle;
@@ -71,12 +74,12 @@ bool light_is_area(uint base, uint index) {
     return SC_HAS_AREA_LIGHTS && index < u_frame.light_count && lights[base + index].type == LIGHT_AREA;
 }
 
-// Constant environment radiance or the map's texel along d.
-vec3 env_radiance_along(vec3 d) {
+// Constant environment radiance or the texel along d of the map turned by env_rot.
+vec3 env_radiance_along(vec3 d, vec2 env_rot) {
     if (!SC_HAS_ENV) {
         return vec3(0.0);
     }
-    return SC_HAS_ENV_MAP ? env_lookup(d) : u_frame.env_radiance;
+    return SC_HAS_ENV_MAP ? env_lookup_rotated(d, env_rot) : u_frame.env_radiance;
 }
 
 // Nearest emitting sphere of the set at `base` along o + t d in (t_min, t_max): its
@@ -102,8 +105,8 @@ float nearest_sphere_light(uint base, vec3 o, vec3 d, float t_min, float t_max, 
 // Pick a light for next-event estimation at x: the environment with probability
 // env_select, else an analytic light (or the area light) by the power CDF; for the area
 // light, u's place within its CDF interval picks the primitive. u in [0, 1), u2 in
-// [0, 1)^2.
-LightSample light_sample(uint base, vec3 x, float u, vec2 u2) {
+// [0, 1)^2. The map is turned by env_rot.
+LightSample light_sample(uint base, vec2 env_rot, vec3 x, float u, vec2 u2) {
     LightSample s = light_sample_none();
     float p_env = u_base.env_select;
     if (SC_HAS_ENV && u >= 1.0 - p_env) {
@@ -111,7 +114,7 @@ LightSample light_sample(uint base, vec3 x, float u, vec2 u2) {
         if (SC_HAS_ENV_MAP) {
             // Importance sampled by luminance x sin(theta).
             float pdf_sa;
-            s.L = env_sample(u2, s.wi, pdf_sa);
+            s.L = env_sample_rotated(u2, env_rot, s.wi, pdf_sa);
             s.pdf = p_env * pdf_sa;
         } else {
             // Uniform direction.
@@ -221,15 +224,17 @@ LightSample light_sample(uint base, vec3 x, float u, vec2 u2) {
 
 // Re-evaluate a stored light vertex from shading point x: the light `index` of the set at
 // `base` (or LIGHT_ENV), with `dir` the stored direction (directional lights ignore it,
-// the environment uses it), `prim` the emitter primitive (the area light) and `point` the
-// stored point (sphere and area lights). Returns the arriving radiance in the light's
-// measure and sets wi / dist; zero when the vertex cannot be reached from x (the back of
-// a sphere or of an emitting triangle, a point light at x, x outside a gobo prism).
-vec3 light_eval(uint base, uint index, vec3 dir, uint prim, vec3 point, vec3 x, out vec3 wi, out float dist) {
+// the environment uses it, turned by env_rot), `prim` the emitter primitive (the area
+// light) and `point` the stored point (sphere and area lights). Returns the arriving
+// radiance in the light's measure and sets wi / dist; zero when the vertex cannot be
+// reached from x (the back of a sphere or of an emitting triangle, a point light at x, x
+// outside a gobo prism).
+vec3 light_eval(uint base, vec2 env_rot, uint index, vec3 dir, uint prim, vec3 point, vec3 x, out vec3 wi,
+                out float dist) {
     wi = dir;
     dist = FAR;
     if (index == LIGHT_ENV) {
-        return env_radiance_along(dir);
+        return env_radiance_along(dir, env_rot);
     }
     if (index >= u_frame.light_count) {
         return vec3(0.0);
@@ -274,15 +279,16 @@ bool light_blocked(uint base, vec3 x, vec3 wi, float dist) {
 
 // What a camera ray from o along d sees at its end beyond the media: the nearest emitting
 // sphere (its radiance) or the environment (weighted by u_frame.background: 0 for a
-// transparent film). `t_end` is where the ray ends (FAR when it escapes).
-vec3 light_seen(uint base, vec3 o, vec3 d, out float t_end) {
+// transparent film; the map turned by env_rot). `t_end` is where the ray ends (FAR when
+// it escapes).
+vec3 light_seen(uint base, vec2 env_rot, vec3 o, vec3 d, out float t_end) {
     uint index;
     t_end = nearest_sphere_light(base, o, d, 0.0, FAR, index);
     if (index != NO_INDEX) {
         return lights[base + index].irradiance;
     }
     // The background is weighted for a transparent film (u_frame.background = 0).
-    return env_radiance_along(d) * u_frame.background;
+    return env_radiance_along(d, env_rot) * u_frame.background;
 }
 
 #endif

@@ -132,7 +132,7 @@ struct FrameUniforms {
     uint light_count;       // analytic lights in one light set of lights[]
     uint ray_samples;       // box estimators: samples N along one camera segment
     uvec2 env_size;         // environment map width and height (1 x 1 without a map; the crepuscular pass)
-    uvec2 _pad3;
+    vec2 env_rotation;      // (cos, sin) of the map's turn about +Y this frame (envmap.glsl); (1, 0): none
 };
 
 // Push constants of a dispatch. 16 bytes.

@@ -62,7 +62,7 @@ void add_nee_candidate(uint at, inout Reservoir r, inout uint rng, vec3 x, Surfa
         vec3 wi;
         if (SC_HAS_ENV_MAP) {
             float pdf_drawn;
-            env_sample(u2, wi, pdf_drawn);
+            env_sample_rotated(u2, u_frame.env_rotation, wi, pdf_drawn);
         } else {
             wi = sample_uniform_sphere(u2);
         }
@@ -71,12 +71,12 @@ void add_nee_candidate(uint at, inout Reservoir r, inout uint rng, vec3 x, Surfa
         dir_code = oct_encode(wi);
         ls.wi = oct_decode(dir_code);
         ls.index = LIGHT_ENV;
-        ls.pdf = env_sample_pdf(ls.wi);
-        ls.L = env_radiance_along(ls.wi);
+        ls.pdf = env_sample_pdf(ls.wi, u_frame.env_rotation);
+        ls.L = env_radiance_along(ls.wi, u_frame.env_rotation);
         // Domain: pdf > 0 (checked below before use).
         ls.L_over_pdf = ls.pdf > 0.0 ? ls.L / ls.pdf : vec3(0.0);
     } else {
-        ls = light_sample(0u, x, u_light, u2);
+        ls = light_sample(0u, u_frame.env_rotation, x, u_light, u2);
         dir_code = light_is_area(0u, ls.index) ? ls.prim : oct_encode(ls.wi);
     }
     if (!(ls.pdf > 0.0)) {
@@ -93,7 +93,7 @@ void add_nee_candidate(uint at, inout Reservoir r, inout uint rng, vec3 x, Surfa
         vec3 L = ls.L;
         vec3 L_over_pdf = ls.L_over_pdf;
         if (k > 0u) {
-            L_over_pdf = light_term(0u, k, x, wi, dist);
+            L_over_pdf = light_term(0u, u_frame.env_rotation, k, x, wi, dist);
             L = q * L_over_pdf;
         }
         vec3 s = vertex_scatter(surface, w, vm, wi);

@@ -514,7 +514,7 @@ bool shapes_block(vec3 x, vec3 wi, float dist) {
 // or the emission of a shape on its emitting side) and where it ends (t_end, FAR if it
 // escapes).
 vec3 camera_end(uint set, vec3 o, vec3 d, out float t_end) {
-    vec3 L = light_seen(light_base(set), o, d, t_end);
+    vec3 L = light_seen(light_base(set), env_rotation_of(set), o, d, t_end);
     SurfacePoint s = surface_along(o, d, t_end);
     if (s.shape != NO_INDEX) {
         t_end = s.t;
@@ -554,9 +554,10 @@ bool path_x1(uint at, Reservoir r, CameraRay cam, out vec3 x1) {
 // other lights are the environment alone, whose sampler never fails (q > 0 wherever it
 // draws), and the reservoir's light vertex is the environment direction (LIGHT_ENV).
 
-// The density q the environment sample is drawn with (solid angle).
-float env_sample_pdf(vec3 wi) {
-    return SC_HAS_ENV_MAP ? env_pdf(wi) : uniform_sphere_pdf();
+// The density q the environment sample is drawn with (solid angle), the map turned by
+// env_rot (the turn keeps the density's values, at turned directions).
+float env_sample_pdf(vec3 wi, vec2 env_rot) {
+    return SC_HAS_ENV_MAP ? env_pdf_rotated(wi, env_rot) : uniform_sphere_pdf();
 }
 
 // How a vertex scatters light arriving from wi into the travel direction: the surface's
@@ -573,8 +574,9 @@ uint light_terms() {
 }
 
 // Term k >= 1 of split NEE at x: delta light k - 1 of the set at `base` (its radiance,
-// direction and distance; zero for a light that is not a delta light).
-vec3 light_term(uint base, uint k, vec3 x, out vec3 wi, out float dist) {
+// direction and distance; zero for a light that is not a delta light). env_rot is the
+// set's environment turn (light_eval's; a delta light does not read it).
+vec3 light_term(uint base, vec2 env_rot, uint k, vec3 x, out vec3 wi, out float dist) {
     uint l = k - 1u;
     uint type = lights[base + l].type;
     if (type != LIGHT_DIRECTIONAL && type != LIGHT_POINT) {
@@ -582,7 +584,7 @@ vec3 light_term(uint base, uint k, vec3 x, out vec3 wi, out float dist) {
         dist = FAR;
         return vec3(0.0);
     }
-    return light_eval(base, l, vec3(0.0, 1.0, 0.0), 0u, vec3(0.0), x, wi, dist);
+    return light_eval(base, env_rot, l, vec3(0.0, 1.0, 0.0), 0u, vec3(0.0), x, wi, dist);
 }
 
 // ---------------------------------------------------------------------------------------
@@ -608,6 +610,9 @@ vec3 path_value(uint at, Reservoir r, CameraRay cam, CameraRay src, uint mode, i
     }
     uint set = cam.set;
     uint lbase = light_base(set);
+    // The environment as the set's frame turns it: a path reused from the previous frame
+    // sees this frame's map along its stored direction when evaluated in this frame.
+    vec2 env_rot = env_rotation_of(set);
     uint kp = res_vertices(r);
     if (kp == 0u) {
         // The camera ray ends on a light: L^s times the transmittance of the whole ray.
@@ -722,14 +727,14 @@ vec3 path_value(uint at, Reservoir r, CameraRay cam, CameraRay src, uint mode, i
     // weighted by the environment sample's density q (one loop: the transmittance code is
     // compiled once).
     vec3 stored_dir = oct_decode(r.light_dir);
-    float q = SC_NEE_SPLIT ? env_sample_pdf(stored_dir) : 1.0;
+    float q = SC_NEE_SPLIT ? env_sample_pdf(stored_dir, env_rot) : 1.0;
     vec3 light = vec3(0.0);
     uint terms = light_terms();
     for (uint k = 0u; k < terms; ++k) {
         vec3 wi;
         float dist;
-        vec3 L = k == 0u ? light_eval(lbase, res_light(r), stored_dir, r.light_dir, r.light_point, x, wi, dist)
-                         : q * light_term(lbase, k, x, wi, dist);
+        vec3 L = k == 0u ? light_eval(lbase, env_rot, res_light(r), stored_dir, r.light_dir, r.light_point, x, wi, dist)
+                         : q * light_term(lbase, env_rot, k, x, wi, dist);
         vec3 s = vertex_scatter(surface, w, vm, wi) * L;
         if (!any(greaterThan(s, vec3(0.0))) || light_blocked(lbase, x, wi, dist) || shapes_block(x, wi, dist)) {
             continue;

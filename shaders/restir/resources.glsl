@@ -146,6 +146,12 @@ uint light_base(uint set) {
     return set == SET_CURRENT ? 0u : u_frame.light_count;
 }
 
+// The environment map's turn (cos, sin) in a set's frame: a path reused from the
+// previous frame is evaluated in this frame with this frame's turn.
+vec2 env_rotation_of(uint set) {
+    return set == SET_CURRENT ? u_frame.env_rotation : u_prev_frame.env_rotation;
+}
+
 // The reservoir of `pixel` in slot `slot`: slot s of pixel p starts at uint
 // (s * pixels + p) * stride, stride = reservoir_stride (see reservoir.glsl).
 uint res_at(uint slot, uvec2 pixel) {

@@ -209,7 +209,9 @@ pub struct FrameUniforms {
     /// Environment map width and height (1 × 1 without a map); the crepuscular pass
     /// reads it (the grid passes read `BaselineUniformsGpu::env_size`).
     pub env_size: [u32; 2],
-    pub _pad3: [u32; 2],
+    /// (cos θ, sin θ) of the environment map's turn about +Y at this frame
+    /// (`nimbus_scene::EnvRotation`); exactly (1, 0) for none, which the shaders skip.
+    pub env_rotation: [f32; 2],
 }
 
 /// `PassPush` in scene.glsl: the push constants of every dispatch.

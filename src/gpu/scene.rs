@@ -8,7 +8,9 @@ use bytemuck::{Pod, Zeroable};
 use super::records::*;
 use super::sparse::{grid_space, Indirection, SparseLayout, TexelFormat};
 use glam::{DMat4, Mat3, Vec3};
-use nimbus_scene::{rotation_xyz_deg, BrickGrid, CameraFrame, Gobo, Light, Medium, Scene, Shape};
+use nimbus_scene::{
+    rotation_xyz_deg, BrickGrid, CameraFrame, EnvRotation, Gobo, Light, Medium, Scene, Shape,
+};
 
 /// Every record of a scene the box pass reads. Storage buffers cannot be empty, so an
 /// empty list still uploads one zeroed record; the counts say how many are real.
@@ -93,6 +95,7 @@ impl GpuScene {
                     radiance,
                     file: None,
                     scale,
+                    ..
                 } => env_radiance += *radiance * *scale,
                 // The map's radiance lives in its texels (`GpuEnvMap`).
                 Light::Environment { file: Some(_), .. } => {}
@@ -185,12 +188,13 @@ pub struct RecordCounts {
     pub ray_samples: u32,
 }
 
-/// The per-frame uniforms: camera frame `camera`, environment radiance `env` and the
-/// record counts of the pass.
+/// The per-frame uniforms: camera frame `camera`, environment radiance `env`, the
+/// environment map's turn `env_rotation` and the record counts of the pass.
 pub fn frame_uniforms(
     scene: &Scene,
     camera: &CameraFrame,
     env: Vec3,
+    env_rotation: EnvRotation,
     counts: RecordCounts,
 ) -> FrameUniforms {
     let r = &scene.render;
@@ -215,7 +219,7 @@ pub fn frame_uniforms(
         light_count: counts.lights,
         ray_samples: counts.ray_samples,
         env_size: [1, 1],
-        _pad3: [0; 2],
+        env_rotation: [env_rotation.cos as f32, env_rotation.sin as f32],
     }
 }
 
@@ -419,6 +423,7 @@ impl GpuEnvMap {
                 radiance,
                 scale,
                 file: Some(file),
+                ..
             } = light
             {
                 let map = nimbus_scene::EnvMap::load_exr(file, *radiance * *scale)?;
@@ -519,6 +524,7 @@ impl LightSet {
                     radiance,
                     scale,
                     file,
+                    ..
                 } => {
                     if file.is_none() {
                         env_radiance += *radiance * *scale;

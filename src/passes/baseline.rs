@@ -8,7 +8,7 @@ use nimbus_gpu::{
     SpecValue,
 };
 use nimbus_scene::blackbody::BlackbodyTable;
-use nimbus_scene::{CameraFrame, Scene};
+use nimbus_scene::Scene;
 
 use super::{
     atlas_image, compute_pipeline, upload_env_map, upload_params, upload_records, FrameConstants,
@@ -278,8 +278,8 @@ impl Pass for BaselinePass {
         self.image.label()
     }
 
-    fn frame_uniforms(&self, scene: &Scene, camera: &CameraFrame) -> FrameUniforms {
-        self.image.frame_uniforms(scene, camera)
+    fn frame_uniforms(&self, scene: &Scene, frame: u32) -> FrameUniforms {
+        self.image.frame_uniforms(scene, frame)
     }
 
     /// Light keyframes: the lights of `scene_frame` (their records and the environment's

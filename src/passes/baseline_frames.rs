@@ -9,7 +9,7 @@
 
 use anyhow::Result;
 use nimbus_gpu::{vk, Context, Profiler};
-use nimbus_scene::{CameraFrame, GridMedium, Medium, Scene};
+use nimbus_scene::{GridMedium, Medium, Scene};
 
 use super::baseline::{self, BaselinePass};
 use super::{FrameUniforms, Pass, Targets};
@@ -100,8 +100,8 @@ impl Pass for BaselineFrames {
         self.passes[self.active].label()
     }
 
-    fn frame_uniforms(&self, scene: &Scene, camera: &CameraFrame) -> FrameUniforms {
-        self.passes[self.active].frame_uniforms(scene, camera)
+    fn frame_uniforms(&self, scene: &Scene, frame: u32) -> FrameUniforms {
+        self.passes[self.active].frame_uniforms(scene, frame)
     }
 
     /// Picks the pass of the frame's density grid and lets it follow the lights.

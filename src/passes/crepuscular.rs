@@ -11,7 +11,7 @@ use nimbus_gpu::{
     compute_barrier, vk, BindingDesc, Buffer, BufferDesc, ComputePipeline, Context, DescriptorSet,
     DescriptorWrite, GpuObjects, Handle, Profiler, SpecValue,
 };
-use nimbus_scene::{BoxEstimator, CameraFrame, Scene, Shape};
+use nimbus_scene::{BoxEstimator, Scene, Shape};
 
 use super::{
     compute_pipeline, upload_env_map, upload_records, FrameConstants, ImagePass, Pass, Targets,
@@ -445,8 +445,8 @@ impl Pass for CrepuscularPass {
         vec!["crepuscular", "crepuscular/moments"]
     }
 
-    fn frame_uniforms(&self, scene: &Scene, camera: &CameraFrame) -> FrameUniforms {
-        self.image.frame_uniforms(scene, camera)
+    fn frame_uniforms(&self, scene: &Scene, frame: u32) -> FrameUniforms {
+        self.image.frame_uniforms(scene, frame)
     }
 
     /// Light keyframes: the records of `scene_frame`'s lights (direction, irradiance, their

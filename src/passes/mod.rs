@@ -42,7 +42,7 @@ use nimbus_gpu::{
     Context, DescriptorSet, DescriptorWrite, GpuObjects, Handle, Image, ImageDesc, Profiler,
     SpecValue,
 };
-use nimbus_scene::{BrickGrid, CameraFrame, GridMedium, Medium, Scene};
+use nimbus_scene::{BrickGrid, GridMedium, Medium, Scene};
 
 use crate::budget::Footprint;
 use crate::gpu::sparse::{SparseLayout, TexelFormat};
@@ -62,9 +62,9 @@ pub trait Pass {
     /// The scope name in profiles (`frame/<label>/…`).
     fn label(&self) -> &'static str;
 
-    /// The frame uniforms for camera frame `camera`: the pass knows its record counts
-    /// and the constant environment radiance.
-    fn frame_uniforms(&self, scene: &Scene, camera: &CameraFrame) -> FrameUniforms;
+    /// The frame uniforms of scene frame `frame` (its camera and environment map turn):
+    /// the pass knows its record counts and the constant environment radiance.
+    fn frame_uniforms(&self, scene: &Scene, frame: u32) -> FrameUniforms;
 
     /// Uploads what changes for the scene's frame `scene_frame` (animated lights,
     /// density frames, the previous camera) before that frame is recorded.
@@ -231,10 +231,17 @@ pub struct FrameConstants {
 }
 
 impl FrameConstants {
-    pub fn uniforms(&self, scene: &Scene, camera: &CameraFrame) -> FrameUniforms {
+    /// The uniforms of scene frame `frame`: its camera, and its environment map's turn.
+    pub fn uniforms(&self, scene: &Scene, frame: u32) -> FrameUniforms {
+        let camera = scene.camera.frame_at(frame);
+        let rotation = if scene.lights_animated() {
+            nimbus_scene::environment_rotation(&scene.lights_at(frame))
+        } else {
+            nimbus_scene::environment_rotation(&scene.lights)
+        };
         FrameUniforms {
             env_size: self.env_size,
-            ..frame_uniforms(scene, camera, self.env_radiance, self.counts)
+            ..frame_uniforms(scene, &camera, self.env_radiance, rotation, self.counts)
         }
     }
 }
@@ -317,8 +324,8 @@ impl Pass for ImagePass {
         self.label
     }
 
-    fn frame_uniforms(&self, scene: &Scene, camera: &CameraFrame) -> FrameUniforms {
-        self.constants.uniforms(scene, camera)
+    fn frame_uniforms(&self, scene: &Scene, frame: u32) -> FrameUniforms {
+        self.constants.uniforms(scene, frame)
     }
 
     fn record(
@@ -363,11 +370,22 @@ impl Pass for ImagePass {
     }
 }
 
-/// Whether a pass holding the lights of scene frame `held` (`None`: the scene's un-keyed
-/// lights, which any keyed frame may differ from) must upload those of `frame`: only
-/// where light keyframes make them differ.
+/// Whether a pass holding the light records of scene frame `held` (`None`: the scene's
+/// un-keyed lights, which any keyed frame may differ from) must upload those of `frame`:
+/// only where light keyframes make them differ. An environment map's turn is no part of
+/// the records (it reaches the shaders in the frame uniforms), so a turn alone uploads
+/// nothing (and traces no moment map again).
 pub fn lights_change(scene: &Scene, held: Option<u32>, frame: u32) -> bool {
-    scene.lights_animated() && held.is_none_or(|f| scene.lights_at(frame) != scene.lights_at(f))
+    let unturned = |f: u32| {
+        let mut lights = scene.lights_at(f);
+        for light in &mut lights {
+            if let nimbus_scene::Light::Environment { rotation_deg, .. } = light {
+                *rotation_deg = 0.0;
+            }
+        }
+        lights
+    };
+    scene.lights_animated() && held.is_none_or(|f| unturned(frame) != unturned(f))
 }
 
 /// Workgroups covering the frame's image, one invocation per pixel.

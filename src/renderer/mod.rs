@@ -273,7 +273,7 @@ pub fn render_each(
             batch: error_batch(plan),
             profiler: None,
             dispatches: 0,
-            last_camera: None,
+            last_uniforms: None,
             last_scene_frame: None,
             progress: Progress::new(opts.progress),
             counter_labels: pass.counter_labels(),
@@ -359,7 +359,8 @@ struct Run<'a> {
     profiler: Option<Profiler>,
     /// Dispatches so far, warm-up included (they seed the random numbers).
     dispatches: u32,
-    last_camera: Option<nimbus_scene::CameraFrame>,
+    /// The frame uniforms last uploaded (their bytes).
+    last_uniforms: Option<Vec<u8>>,
     last_scene_frame: Option<u32>,
     progress: Progress,
     /// The pass's counter slots by label ([`Pass::counter_labels`]).
@@ -447,11 +448,12 @@ impl Run<'_> {
     /// Records and submits one frame of scene frame `frame`; returns its timestamps.
     fn dispatch(&mut self, pass: &mut dyn Pass, frame: u32) -> Result<Option<Vec<ScopeResult>>> {
         let ctx = self.ctx;
-        let camera = self.scene.camera.frame_at(frame);
-        let uniforms = pass.frame_uniforms(self.scene, &camera);
-        if self.last_camera != Some(camera) {
-            ctx.upload_buffer(self.targets.uniforms, 0, bytemuck::bytes_of(&uniforms))?;
-            self.last_camera = Some(camera);
+        // The camera and the environment map's turn change per frame in an animation.
+        let uniforms = pass.frame_uniforms(self.scene, frame);
+        let bytes = bytemuck::bytes_of(&uniforms);
+        if self.last_uniforms.as_deref() != Some(bytes) {
+            ctx.upload_buffer(self.targets.uniforms, 0, bytes)?;
+            self.last_uniforms = Some(bytes.to_vec());
         }
         let previous = self
             .last_scene_frame

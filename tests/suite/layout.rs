@@ -484,7 +484,7 @@ fn mirrors() -> Vec<Mirror> {
                 light_count,
                 ray_samples,
                 env_size,
-                _pad3,
+                env_rotation,
             }),
         },
         Mirror {

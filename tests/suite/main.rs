@@ -22,6 +22,7 @@ mod cli_hostile;
 mod counters;
 mod docs;
 mod emitters;
+mod env_rotation;
 mod envmap_gpu;
 mod generators;
 mod grid_gobos;

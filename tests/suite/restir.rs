@@ -64,7 +64,7 @@ use nimbus_gpu::Context;
 /// Independent ReSTIR renders per case (different seeds).
 const RUNS: u64 = 16;
 /// Frames of each ReSTIR run.
-const RUN_FRAMES: u32 = 24;
+pub(crate) const RUN_FRAMES: u32 = 24;
 /// Frames and samples per pixel per frame of the baseline reference (2048 paths per
 /// pixel: its standard error is a fifth to a third of the ReSTIR side's).
 const REFERENCE_FRAMES: u32 = 64;
@@ -83,7 +83,7 @@ const ROUNDING_ABS: f64 = 1e-6;
 
 /// A sun and a sky: the directional light is seen only through the medium, the sky
 /// also directly.
-const SUN_AND_SKY: &str = r#"
+pub(crate) const SUN_AND_SKY: &str = r#"
 [[light]]
 type = "directional"
 direction = [0.5, -0.7, -0.4]
@@ -100,24 +100,25 @@ const CLOUD_DENSITY: &str =
 /// The scene the tests vary: `[render]`, the camera, `lights`, one grid medium (its
 /// `density` line, `scale`, `g` and `medium_extra` lines), the integrator and an
 /// `[integrator.restir]` table holding `restir`.
-struct Cloud<'a> {
-    size: (u32, u32),
-    frames: u32,
-    spp: u32,
-    seed: u64,
-    position: &'a str,
-    lights: &'a str,
-    density: &'a str,
-    scale: f32,
+#[derive(Clone, Copy)]
+pub(crate) struct Cloud<'a> {
+    pub(crate) size: (u32, u32),
+    pub(crate) frames: u32,
+    pub(crate) spp: u32,
+    pub(crate) seed: u64,
+    pub(crate) position: &'a str,
+    pub(crate) lights: &'a str,
+    pub(crate) density: &'a str,
+    pub(crate) scale: f32,
     /// The medium's `albedo` (a colour or a grid table).
-    albedo: &'a str,
-    g: f32,
-    medium_extra: &'a str,
-    volume: &'a str,
-    bounces: u32,
-    restir: &'a str,
+    pub(crate) albedo: &'a str,
+    pub(crate) g: f32,
+    pub(crate) medium_extra: &'a str,
+    pub(crate) volume: &'a str,
+    pub(crate) bounces: u32,
+    pub(crate) restir: &'a str,
     /// `[[shape]]` tables.
-    shapes: &'a str,
+    pub(crate) shapes: &'a str,
 }
 
 impl Default for Cloud<'_> {
@@ -192,7 +193,7 @@ max_bounces = {bounces}
         )
     }
 
-    fn scene(&self, name: &str) -> nimbus_scene::Scene {
+    pub(crate) fn scene(&self, name: &str) -> nimbus_scene::Scene {
         scene(&self.text(), name)
     }
 }
@@ -202,11 +203,11 @@ max_bounces = {bounces}
 
 /// An estimate of an image: per pixel channel a mean and its standard error, and the
 /// image mean per channel with its standard error.
-struct Estimate {
-    mean: Vec<[f64; 3]>,
-    se: Vec<[f64; 3]>,
-    image_mean: [f64; 3],
-    image_mean_se: [f64; 3],
+pub(crate) struct Estimate {
+    pub(crate) mean: Vec<[f64; 3]>,
+    pub(crate) se: Vec<[f64; 3]>,
+    pub(crate) image_mean: [f64; 3],
+    pub(crate) image_mean_se: [f64; 3],
 }
 
 /// The baseline reference of `cloud` (volume = "baseline", [`REFERENCE_FRAMES`] ×
@@ -383,9 +384,9 @@ fn compare(restir: &Estimate, reference: &Estimate) -> Comparison {
 }
 
 /// One ReSTIR configuration: a label and the lines of its `[integrator.restir]`.
-struct Case {
-    label: &'static str,
-    restir: &'static str,
+pub(crate) struct Case {
+    pub(crate) label: &'static str,
+    pub(crate) restir: &'static str,
 }
 
 const NO_REUSE: Case = Case {
@@ -400,7 +401,7 @@ const SPATIAL: Case = Case {
     label: "spatial only",
     restir: "temporal = false\nspatial_rounds = 1\nspatial_neighbors = 3\nspatial_when = \"always\"\nspatial_radius_px = 10",
 };
-const BOTH: Case = Case {
+pub(crate) const BOTH: Case = Case {
     label: "temporal + spatial",
     restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 1\nspatial_neighbors = 3\nspatial_when = \"always\"\nspatial_radius_px = 10",
 };
@@ -420,7 +421,7 @@ const TAU_SHIFT: Case = Case {
     restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 1\nspatial_neighbors = 3\nspatial_when = \"always\"\nspatial_radius_px = 10\n\
              spatial_shift = \"optical_depth\"",
 };
-const PAIRWISE: Case = Case {
+pub(crate) const PAIRWISE: Case = Case {
     label: "temporal + spatial, pairwise MIS, one light per vertex",
     restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 1\nspatial_neighbors = 3\nspatial_when = \"always\"\nspatial_radius_px = 10\nmis = \"pairwise\"\n\
              nee = \"one\"",
@@ -438,17 +439,30 @@ fn check_cases(base: Cloud, cases: &[Case], group: &str) {
         reference.image_mean_se,
         start.elapsed()
     );
+    check_cases_against(&ctx, &reference, base, cases, group);
+}
+
+/// Every case of `base` against `reference` (criteria in the module docs): [`RUNS`]
+/// ReSTIR renders of [`RUN_FRAMES`] frames each (of an animated scene: its frames 0,
+/// 1, ...).
+pub(crate) fn check_cases_against(
+    ctx: &Context,
+    reference: &Estimate,
+    base: Cloud,
+    cases: &[Case],
+    group: &str,
+) {
     let mut failures = Vec::new();
     for case in cases {
         let start = std::time::Instant::now();
         let estimate = restir_runs(
-            &ctx,
+            ctx,
             &Cloud {
                 restir: case.restir,
                 ..base
             },
         );
-        let cmp = compare(&estimate, &reference);
+        let cmp = compare(&estimate, reference);
         println!(
             "{group}, {}: mean {:?}, rel. diff [{:+.3}%, {:+.3}%, {:+.3}%], mean z [{:+.2}, {:+.2}, {:+.2}], \
              worst pixel z {:.2}, {} of {} channels ({:.2}%) beyond {PIXEL_Z} SE ({:.1?})",
@@ -470,7 +484,7 @@ fn check_cases(base: Cloud, cases: &[Case], group: &str) {
             failures.push(format!("{group}, {}: {why}", case.label));
         }
     }
-    assert_no_validation_errors(&ctx);
+    assert_no_validation_errors(ctx);
     assert!(
         failures.is_empty(),
         "ReSTIR differs from the baseline:\n{}",

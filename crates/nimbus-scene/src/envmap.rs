@@ -17,6 +17,15 @@
 //! to exactly 1 over the sphere. Every texel with non-zero radiance has non-zero
 //! weight (texels are non-negative, sin θ_y > 0), so L / pdf is an unbiased
 //! estimator of ∫ L dω.
+//!
+//! # Rotation
+//! An environment light's `rotation_deg` θ turns the map about world +Y, right-handed:
+//! positive θ turns +X towards −Z. World direction d sees the map at
+//! d_map = R_y(−θ) d = (d.x cos θ − d.z sin θ, d.y, d.x sin θ + d.z cos θ), i.e.
+//! u = frac(0.5 + atan2(d.x, −d.z) / (2π) + θ / 360°) and v unchanged: what the
+//! unrotated map shows at u₀ appears at u₀ − θ/360° ([`EnvRotation`]). Sampling draws
+//! d_map from the map's tables and returns R_y(θ) d_map; a rotation preserves solid
+//! angle, so the pdf is the map's pdf of d_map.
 
 use std::f64::consts::PI;
 use std::path::Path;
@@ -74,6 +83,87 @@ pub fn uv_to_direction(u: f64, v: f64) -> DVec3 {
     let (sin_theta, cos_theta) = theta.sin_cos();
     let (sin_phi, cos_phi) = phi.sin_cos();
     DVec3::new(sin_theta * sin_phi, cos_theta, -sin_theta * cos_phi)
+}
+
+/// A turn of an environment map about world +Y by θ (see the module docs): cos θ and
+/// sin θ, exact at multiples of 90°.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EnvRotation {
+    pub cos: f64,
+    pub sin: f64,
+}
+
+impl EnvRotation {
+    /// No turn.
+    pub const IDENTITY: EnvRotation = EnvRotation { cos: 1.0, sin: 0.0 };
+
+    /// The turn by `degrees` (any finite value; a non-finite one gives no turn). The
+    /// angle is reduced to [0°, 360°) and then to within 45° of a multiple of 90°
+    /// exactly (f64 `rem_euclid` and a Sterbenz subtraction), so 90° is exactly (0, 1)
+    /// and 180° exactly (−1, 0).
+    pub fn from_degrees(degrees: f64) -> EnvRotation {
+        if !degrees.is_finite() {
+            return Self::IDENTITY;
+        }
+        let r = degrees.rem_euclid(360.0);
+        let quadrant = (r / 90.0).round();
+        // |rest| <= 45; exact: r and 90 q are within a factor of 2 of each other (or q = 0).
+        let rest = r - 90.0 * quadrant;
+        let (s, c) = rest.to_radians().sin_cos();
+        let (sin, cos) = match quadrant as i64 {
+            1 => (c, -s),
+            2 => (-s, -c),
+            3 => (-c, s),
+            _ => (s, c), // 0 and 4 (r just below 360 rounds up to a full turn)
+        };
+        // + 0.0 turns a −0 into +0, so that 0° and 180° give exactly (±1, +0).
+        EnvRotation {
+            cos: cos + 0.0,
+            sin: sin + 0.0,
+        }
+    }
+
+    /// Whether the turn is exactly none.
+    pub fn is_identity(self) -> bool {
+        self == Self::IDENTITY
+    }
+
+    /// The map's direction of world direction `d`: R_y(−θ) d. Identity returns `d`
+    /// unchanged (bit for bit).
+    pub fn world_to_map(self, d: DVec3) -> DVec3 {
+        if self.is_identity() {
+            return d;
+        }
+        let (c, s) = (self.cos, self.sin);
+        DVec3::new(c * d.x - s * d.z, d.y, s * d.x + c * d.z)
+    }
+
+    /// The world direction of the map's direction `d`: R_y(θ) d (the inverse of
+    /// [`world_to_map`](Self::world_to_map)).
+    pub fn map_to_world(self, d: DVec3) -> DVec3 {
+        if self.is_identity() {
+            return d;
+        }
+        let (c, s) = (self.cos, self.sin);
+        DVec3::new(c * d.x + s * d.z, d.y, c * d.z - s * d.x)
+    }
+}
+
+/// The turn of the environment map among `lights` (the environment light with a
+/// `file`; a scene has at most one that renders), identity without one: a constant
+/// environment looks the same turned.
+pub fn environment_rotation(lights: &[crate::Light]) -> EnvRotation {
+    lights
+        .iter()
+        .find_map(|l| match l {
+            crate::Light::Environment {
+                file: Some(_),
+                rotation_deg,
+                ..
+            } => Some(EnvRotation::from_degrees(f64::from(*rotation_deg))),
+            _ => None,
+        })
+        .unwrap_or(EnvRotation::IDENTITY)
 }
 
 /// The texel (x, y) containing (u, v) on a `width`×`height` map: x = ⌊uW⌋ wrapped

@@ -338,13 +338,19 @@ impl<'a> Fields<'a> {
     /// test and another for the renderer). Angles within one turn are kept bit for bit.
     pub fn angles_deg(&self, key: &str, default: Option<DVec3>) -> Result<DVec3> {
         let v = self.vec3_f64(key, default)?;
-        Ok(DVec3::from_array(v.to_array().map(|a| {
-            if a.abs() > 360.0 {
-                a % 360.0
-            } else {
-                a
-            }
-        })))
+        Ok(DVec3::from_array(
+            v.to_array().map(crate::types::reduce_degrees),
+        ))
+    }
+
+    /// One angle in degrees, or `default`: any finite number (see
+    /// [`Fields::opt_f64`]), NOT reduced (the caller decides: a keyframe's angle is
+    /// interpolated unwrapped).
+    pub fn angle_deg(&self, key: &str, default: Option<f64>) -> Result<f64> {
+        match self.opt_f64(key)? {
+            Some(a) => Ok(a),
+            None => self.required(key, default),
+        }
     }
 
     /// A unit direction: an array of 3 numbers that is not the zero vector, normalized.

@@ -30,9 +30,10 @@
 //!   entries exist, `position` / `look_at` may be left out and default to the first
 //!   keyframe's. Each keyframe needs `frame`, `position` and `look_at`.
 //! - `[[light.keyframe]]` (a Nimbus addition) animates a directional light without a
-//!   gobo (`direction`, `irradiance`), a point light (`position`, `intensity`) or a
-//!   sphere light (`center`, `radiance`); each keyframe needs `frame` and may give any
-//!   of its light's two animatable fields. A field a keyframe leaves out holds the
+//!   gobo (`direction`, `irradiance`), a point light (`position`, `intensity`), a
+//!   sphere light (`center`, `radiance`) or an environment light (`rotation_deg`, its
+//!   map's turn about +Y, interpolated unwrapped and then reduced to one turn); each
+//!   keyframe needs `frame` and may give any of its light's animatable fields. A field a keyframe leaves out holds the
 //!   light's static value at that keyframe. The static field may itself be left out
 //!   when the first keyframe (lowest `frame`) gives it, and defaults to that value.
 //!   [`Scene::lights_at`] interpolates linearly by frame (directions by normalized
@@ -42,7 +43,8 @@
 //!   `blackbody_scale` 1. Shapes: `albedo` 0, `emission` 0 (no area
 //!   light).
 //! - Directional light: `gobo_origin` [0, 0, 0] (an error without `gobo`).
-//! - Environment light: `scale` 1; `radiance` 1 when `file` is given (the two multiply);
+//! - Environment light: `scale` 1, `rotation_deg` 0 (any finite angle, reduced modulo
+//!   360 exactly past one turn); `radiance` 1 when `file` is given (the two multiply);
 //!   one of `radiance` / `file` is required.
 //! - Procedural grids: `noise_seed` 0.
 //!
@@ -56,7 +58,7 @@
 //! | `horizontal_fov_deg` | (0, 180) exclusive |
 //! | camera | `position` ≠ `look_at` (relative 1e-6), `up` not within ~0.006° of the view direction, also for every keyframe and every interpolated pose in `0..frames` |
 //! | keyframe / medium `frame` | u32, unique within their list (lists are sorted) |
-//! | light keyframes | not on environment lights or directional lights with a `gobo`; keyframe directions non-zero; consecutive keyframe directions (after filling in the light's static one) not nearly opposite: dot >= −0.999 |
+//! | light keyframes | not on directional lights with a `gobo`; keyframe directions non-zero; consecutive keyframe directions (after filling in the light's static one) not nearly opposite: dot >= −0.999 |
 //! | `sigma_t`, `density_scale` | [0, 1e9] 1/m |
 //! | `albedo` (media and shapes) | each component in [0, 1]; a grid or vdb medium's `albedo` grid (1 or 3 channels): every value in [0, 1], checked when it loads |
 //! | `g` | (−1, 1) exclusive |
@@ -169,8 +171,8 @@ use anyhow::{anyhow, Result};
 
 pub use bricks::{BrickGrid, BrickTopology};
 pub use envmap::{
-    direction_to_uv, luminance, uv_to_direction, EnvMap, EnvSampler, MAX_ENVMAP_HEIGHT,
-    MAX_ENVMAP_WIDTH,
+    direction_to_uv, environment_rotation, luminance, uv_to_direction, EnvMap, EnvRotation,
+    EnvSampler, MAX_ENVMAP_HEIGHT, MAX_ENVMAP_WIDTH,
 };
 pub use fields::MAX_RADIOMETRIC;
 pub use files::{

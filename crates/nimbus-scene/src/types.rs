@@ -112,11 +112,15 @@ pub enum Light {
         gobo: Option<Gobo>,
     },
     /// Environment light: `radiance` times the optional equirectangular `file`
-    /// (times `scale`).
+    /// (times `scale`), the map turned about world +Y by `rotation_deg`
+    /// ([`EnvRotation`](crate::EnvRotation) says how).
     Environment {
         radiance: Vec3,
         file: Option<PathBuf>,
         scale: Vec3,
+        /// Degrees about +Y, right-handed (positive turns +X towards −Z), within one
+        /// turn: [−360, 360] ([`reduce_degrees`]). Turns nothing of a constant radiance.
+        rotation_deg: f32,
     },
     Point {
         position: Vec3,
@@ -139,8 +143,8 @@ pub struct LightKeyframe {
     pub state: LightState,
 }
 
-/// The animatable fields of a light (environment lights and directional lights with a
-/// gobo are not animatable).
+/// The animatable fields of a light (directional lights with a gobo are not
+/// animatable; an environment light animates its rotation only).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum LightState {
     Directional {
@@ -155,6 +159,11 @@ pub enum LightState {
     Sphere {
         center: Vec3,
         radiance: Vec3,
+    },
+    Environment {
+        /// Degrees as written, NOT reduced to one turn, so that keyframes 350 and 370
+        /// interpolate through 360 (a 20° turn); [`Light::with_state`] reduces it.
+        rotation_deg: f64,
     },
 }
 
@@ -660,6 +669,17 @@ impl Default for RestirSettings {
     }
 }
 
+/// An angle in degrees past one turn reduced to within one, exactly (f64 `%`, sign
+/// kept); an angle within one turn (|a| <= 360) is returned bit for bit. Rotations are
+/// applied in f32, whose sine of a huge argument is noise unrelated to the f64 one.
+pub fn reduce_degrees(a: f64) -> f64 {
+    if a.abs() > 360.0 {
+        a % 360.0
+    } else {
+        a
+    }
+}
+
 /// Rotation matrix for `rotation_deg` = [rx, ry, rz]: about X, then Y, then Z, so
 /// world = Rz · Ry · Rx · local.
 pub fn rotation_xyz_deg(rotation_deg: Vec3) -> Mat3 {
@@ -689,8 +709,9 @@ impl Scene {
     /// The lights at `frame` of an animation: each light with its `[[light.keyframe]]`
     /// values applied, linearly interpolated between keyframes by frame and clamped
     /// outside the keyed range (the convention of [`Camera::frame_at`]); directions are
-    /// interpolated by normalized lerp. Equal to `self.lights` when no light is
-    /// animated. Same length and order as `self.lights`.
+    /// interpolated by normalized lerp, an environment's rotation as the unwrapped angle
+    /// (then reduced to one turn). Equal to `self.lights` when no light is animated.
+    /// Same length and order as `self.lights`.
     pub fn lights_at(&self, frame: u32) -> Vec<Light> {
         self.lights
             .iter()
@@ -741,7 +762,9 @@ fn light_state_at(keys: &[LightKeyframe], frame: u32) -> Option<LightState> {
             return Some(b.state);
         }
         if frame < b.frame {
-            let s = (frame - a.frame) as f32 / (b.frame - a.frame) as f32;
+            // In f64 for the angles; rounded to f32 it is the f32 quotient exactly
+            // (double rounding is innocuous for one division of integers below 2^24).
+            let s = f64::from(frame - a.frame) / f64::from(b.frame - a.frame);
             return Some(a.state.lerp(b.state, s));
         }
     }
@@ -749,10 +772,12 @@ fn light_state_at(keys: &[LightKeyframe], frame: u32) -> Option<LightState> {
 }
 
 impl LightState {
-    /// Interpolates from `self` (s = 0) to `other` (s = 1): positions and colours
-    /// linearly, directions by normalized lerp (keeping `self`'s direction if the two
-    /// are exactly opposite at the midpoint). Different light types give `self`.
-    pub fn lerp(self, other: Self, s: f32) -> Self {
+    /// Interpolates from `self` (s = 0) to `other` (s = 1): positions, colours and
+    /// rotation angles (unwrapped, in f64) linearly, directions by normalized lerp
+    /// (keeping `self`'s direction if the two are exactly opposite at the midpoint).
+    /// Different light types give `self`. Vectors and colours use `s` rounded to f32.
+    pub fn lerp(self, other: Self, s: f64) -> Self {
+        let s32 = s as f32;
         match (self, other) {
             (
                 Self::Directional {
@@ -764,8 +789,8 @@ impl LightState {
                     irradiance: e1,
                 },
             ) => Self::Directional {
-                direction: d0.lerp(d1, s).try_normalize().unwrap_or(d0),
-                irradiance: e0.lerp(e1, s),
+                direction: d0.lerp(d1, s32).try_normalize().unwrap_or(d0),
+                irradiance: e0.lerp(e1, s32),
             },
             (
                 Self::Point {
@@ -777,8 +802,8 @@ impl LightState {
                     intensity: i1,
                 },
             ) => Self::Point {
-                position: p0.lerp(p1, s),
-                intensity: i0.lerp(i1, s),
+                position: p0.lerp(p1, s32),
+                intensity: i0.lerp(i1, s32),
             },
             (
                 Self::Sphere {
@@ -790,16 +815,22 @@ impl LightState {
                     radiance: l1,
                 },
             ) => Self::Sphere {
-                center: c0.lerp(c1, s),
-                radiance: l0.lerp(l1, s),
+                center: c0.lerp(c1, s32),
+                radiance: l0.lerp(l1, s32),
             },
+            // The unwrapped angle: 350 to 370 turns by 20 degrees.
+            (Self::Environment { rotation_deg: r0 }, Self::Environment { rotation_deg: r1 }) => {
+                Self::Environment {
+                    rotation_deg: r0 + (r1 - r0) * s,
+                }
+            }
             _ => self,
         }
     }
 }
 
 impl Light {
-    /// The light's animatable values; `None` for environment lights.
+    /// The light's animatable values (always `Some`: every type animates something).
     pub fn state(&self) -> Option<LightState> {
         match self {
             Self::Directional {
@@ -810,7 +841,9 @@ impl Light {
                 direction: *direction,
                 irradiance: *irradiance,
             }),
-            Self::Environment { .. } => None,
+            Self::Environment { rotation_deg, .. } => Some(LightState::Environment {
+                rotation_deg: f64::from(*rotation_deg),
+            }),
             Self::Point {
                 position,
                 intensity,
@@ -871,6 +904,12 @@ impl Light {
             ) => {
                 *center = c;
                 *radiance = l;
+            }
+            (
+                Self::Environment { rotation_deg, .. },
+                LightState::Environment { rotation_deg: r },
+            ) => {
+                *rotation_deg = reduce_degrees(r) as f32;
             }
             _ => {}
         }

@@ -19,7 +19,7 @@ pub mod volumes;
 use anyhow::Result;
 
 use nimbus_gpu::{compute_barrier, vk, Context, GpuObjects, Profiler, SpecValue};
-use nimbus_scene::{CameraFrame, GridMedium, GridSource, Scene};
+use nimbus_scene::{GridMedium, GridSource, Scene};
 
 use self::resources::{Inputs, Resources};
 use self::schedule::{schedule, ScheduleSettings, Stage};
@@ -309,6 +309,9 @@ pub struct RestirPass {
     static_sections: [nimbus_scene::bricks::Indirection; 3],
     scene_lights_radius: f32,
     env_map_luminance: Option<f32>,
+    /// The environment map's luminance for the history confidence of a turning map (only
+    /// when the lights are animated and the environment has a map).
+    env_change: Option<history::EnvLuminance>,
     /// The emitting shapes' total power (their LIGHT_AREA record's selection weight).
     area_power: f64,
     base_uniforms: BaselineUniformsGpu,
@@ -508,6 +511,16 @@ impl RestirPass {
             static_sections,
             scene_lights_radius: grid_gpu.light_radius,
             env_map_luminance: grid_gpu.env_map_luminance,
+            env_change: grid_gpu
+                .env_map
+                .as_ref()
+                .filter(|_| scene.lights_animated())
+                .map(|m| {
+                    history::EnvLuminance::from_texels(m.size[0], m.size[1], |i| {
+                        let t = m.texels[i];
+                        nimbus_scene::luminance([t[0], t[1], t[2]])
+                    })
+                }),
             area_power: grid_gpu.emitters.total_power,
             base_uniforms,
             loaded: (0, 0),
@@ -530,6 +543,7 @@ impl RestirPass {
                     radiance,
                     scale,
                     file: None,
+                    ..
                 } => Some(*radiance * *scale),
                 _ => None,
             })
@@ -663,8 +677,8 @@ impl Pass for RestirPass {
         ]
     }
 
-    fn frame_uniforms(&self, scene: &Scene, camera: &CameraFrame) -> FrameUniforms {
-        self.constants.uniforms(scene, camera)
+    fn frame_uniforms(&self, scene: &Scene, frame: u32) -> FrameUniforms {
+        self.constants.uniforms(scene, frame)
     }
 
     /// Uploads what changes per frame: the lights of this frame and the previous one,
@@ -677,9 +691,10 @@ impl Pass for RestirPass {
         prev_frame: u32,
     ) -> Result<()> {
         self.upload_lights(ctx, scene, scene_frame, prev_frame)?;
-        // The previous frame's camera (the first frame's own camera on frame 0).
+        // The previous frame's camera and environment map turn (the first frame's own
+        // on frame 0).
         let camera = scene.camera.frame_at(prev_frame);
-        let prev = self.constants.uniforms(scene, &camera);
+        let prev = self.constants.uniforms(scene, prev_frame);
         if self.prev_uploaded.map(|u| bytemuck::bytes_of(&u).to_vec())
             != Some(bytemuck::bytes_of(&prev).to_vec())
         {
@@ -709,6 +724,7 @@ impl Pass for RestirPass {
                 &scene.lights_at(scene_frame),
                 (self.grid.bounds_min + self.grid.bounds_max) * 0.5,
                 self.env_irradiance(scene),
+                self.env_change.as_ref(),
             )
         } else {
             1.0

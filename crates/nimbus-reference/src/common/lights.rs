@@ -3,7 +3,7 @@
 
 use anyhow::{bail, Context};
 use glam::{DVec3, Vec3};
-use nimbus_scene::{EnvMap, EnvSampler, Gobo, Light, Scene};
+use nimbus_scene::{EnvMap, EnvRotation, EnvSampler, Gobo, Light, Scene};
 
 use super::geometry::{normalized, GoboF64};
 
@@ -31,21 +31,51 @@ impl Sun {
 }
 
 /// An environment light: constant radiance, or an EXR map (times `radiance · scale`)
-/// with its sampler.
+/// with its sampler, turned about +Y by `rotation` (the light's `rotation_deg`).
 pub(crate) enum Environment {
     Constant(DVec3),
-    Map { map: EnvMap, sampler: EnvSampler },
+    Map {
+        map: EnvMap,
+        sampler: EnvSampler,
+        rotation: EnvRotation,
+    },
 }
 
 impl Environment {
+    /// The map light `map` turned by `rotation_deg`, with its sampler.
+    pub(crate) fn map(map: EnvMap, rotation_deg: f32) -> Self {
+        let sampler = EnvSampler::new(&map);
+        Self::Map {
+            map,
+            sampler,
+            rotation: EnvRotation::from_degrees(f64::from(rotation_deg)),
+        }
+    }
+
     /// The radiance arriving from direction `d` (towards the environment): the map's
-    /// nearest texel (`EnvMap::lookup`, the scene format's mapping).
+    /// nearest texel (`EnvMap::lookup`, the scene format's mapping) of d turned back
+    /// into the map.
     pub(crate) fn radiance(&self, d: DVec3) -> DVec3 {
         match self {
             Self::Constant(l) => *l,
-            Self::Map { map, .. } => {
-                let [r, g, b] = map.lookup(d);
+            Self::Map { map, rotation, .. } => {
+                let [r, g, b] = map.lookup(rotation.world_to_map(d));
                 DVec3::new(f64::from(r), f64::from(g), f64::from(b))
+            }
+        }
+    }
+
+    /// A direction drawn from the map's importance sampler, turned into the world, and
+    /// its solid-angle pdf (a turn keeps solid angle); `None` for a constant
+    /// environment.
+    pub(crate) fn sample_map(&self, u: [f64; 2]) -> Option<(DVec3, f64)> {
+        match self {
+            Self::Constant(_) => None,
+            Self::Map {
+                sampler, rotation, ..
+            } => {
+                let (d, pdf) = sampler.sample(u);
+                Some((rotation.map_to_world(d), pdf))
             }
         }
     }
@@ -71,6 +101,7 @@ pub(crate) fn suns_and_environment(
     let mut suns = Vec::new();
     let mut constant = DVec3::ZERO;
     let mut map = None;
+    let mut rotation = 0.0;
     let mut environments = 0;
     for (i, light) in scene.lights.iter().enumerate() {
         match light {
@@ -83,6 +114,7 @@ pub(crate) fn suns_and_environment(
                 radiance,
                 file,
                 scale,
+                rotation_deg,
             } => {
                 environments += 1;
                 match file {
@@ -91,6 +123,7 @@ pub(crate) fn suns_and_environment(
                         let loaded = EnvMap::load_exr(f, *radiance * *scale)
                             .with_context(|| format!("{source}: light {}", i + 1))?;
                         map = Some(loaded);
+                        rotation = *rotation_deg;
                     }
                 }
             }
@@ -107,10 +140,7 @@ pub(crate) fn suns_and_environment(
             "{source}: an environment map cannot be combined with another environment light \
              in the {what}"
         ),
-        Some(map) => {
-            let sampler = EnvSampler::new(&map);
-            Environment::Map { map, sampler }
-        }
+        Some(map) => Environment::map(map, rotation),
         None => Environment::Constant(constant),
     };
     Ok((suns, environment))
@@ -134,6 +164,7 @@ pub(crate) fn suns_and_sky(scene: &Scene, what: &str) -> anyhow::Result<(Vec<Sun
                 radiance,
                 file: None,
                 scale,
+                ..
             } => environment += radiance.as_dvec3() * scale.as_dvec3(),
             Light::Environment { file: Some(f), .. } => bail!(
                 "{source}: light {i}: environment maps ({}) are not supported by the {what} \

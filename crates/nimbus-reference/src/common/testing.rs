@@ -102,6 +102,7 @@ pub(crate) fn constant_env(radiance: Vec3) -> Light {
         radiance,
         file: None,
         scale: Vec3::ONE,
+        rotation_deg: 0.0,
     }
 }
 
@@ -130,4 +131,48 @@ pub(crate) fn assert_close(actual: f64, expected: f64, rel: f64) {
         "actual {actual:e}, expected {expected:e}, relative error {:e} > {rel:e}",
         err / expected.abs()
     );
+}
+
+/// Writes an 8 × 4 equirectangular map to the temp dir, and beside it the same map with
+/// its columns shifted a quarter turn (column x of the second is column x + 2 of the
+/// first: shifted(u) = map(u + 1/4), what the first shows turned by `rotation_deg` =
+/// 90). The map is dim (0.1) but for a bright patch (radiance 10, 5, 2) in columns 2
+/// and 3 of the upper two rows: azimuths from −X to −Z above the horizon.
+pub(crate) fn write_turned_maps(name: &str) -> (std::path::PathBuf, std::path::PathBuf) {
+    let dir = std::env::temp_dir().join(format!("nimbus-reference-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let texel = |x: usize, y: usize| {
+        if y < 2 && (2..4).contains(&x) {
+            (10.0f32, 5.0f32, 2.0f32)
+        } else {
+            (0.1, 0.1, 0.1)
+        }
+    };
+    let map = dir.join(format!("{name}.exr"));
+    let shifted = dir.join(format!("{name}-shifted.exr"));
+    exr::prelude::write_rgb_file(&map, 8, 4, texel).unwrap();
+    exr::prelude::write_rgb_file(&shifted, 8, 4, |x, y| texel((x + 2) % 8, y)).unwrap();
+    (map, shifted)
+}
+
+/// An environment light of the map at `file` turned by `rotation_deg`.
+pub(crate) fn map_env(file: std::path::PathBuf, rotation_deg: f32) -> Light {
+    Light::Environment {
+        radiance: Vec3::ONE,
+        file: Some(file),
+        scale: Vec3::ONE,
+        rotation_deg,
+    }
+}
+
+/// A 4 × 3 m Lambertian wall of albedo 0.8 in the plane z = 0, facing +Z, its lower
+/// edge at y = −1.
+pub(crate) fn wall_facing_z() -> Shape {
+    Shape::Quad {
+        corner: Vec3::new(-2.0, -1.0, 0.0),
+        edge_u: Vec3::new(4.0, 0.0, 0.0),
+        edge_v: Vec3::new(0.0, 3.0, 0.0),
+        albedo: Vec3::splat(0.8),
+        emission: Vec3::ZERO,
+    }
 }

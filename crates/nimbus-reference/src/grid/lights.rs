@@ -4,7 +4,7 @@ use std::f64::consts::PI;
 
 use anyhow::{bail, Context};
 use glam::DVec3;
-use nimbus_scene::{EnvMap, EnvSampler, Light, Scene};
+use nimbus_scene::{EnvMap, Light, Scene};
 
 use super::area::AreaLights;
 use crate::common::geometry::hit_sphere;
@@ -101,9 +101,9 @@ impl LightF64 {
             LightF64::Environment(env) => {
                 let (l, pdf) = match env {
                     Environment::Constant(_) => (sample_sphere(rng), 1.0 / (4.0 * PI)),
-                    Environment::Map { sampler, .. } => {
-                        sampler.sample([rng.uniform(), rng.uniform()])
-                    }
+                    Environment::Map { .. } => env
+                        .sample_map([rng.uniform(), rng.uniform()])
+                        .unwrap_or((DVec3::Y, 0.0)),
                 };
                 if pdf <= 0.0 {
                     return None;
@@ -168,16 +168,20 @@ pub(super) fn build_lights(
                 radiance,
                 file: None,
                 scale,
+                ..
             } => LightF64::Environment(Environment::Constant(
                 radiance.as_dvec3() * scale.as_dvec3(),
             )),
-            Light::Environment { file: Some(f), .. } => {
+            Light::Environment {
+                file: Some(f),
+                rotation_deg,
+                ..
+            } => {
                 let Some(k) = maps.iter().position(|(j, _)| *j == i) else {
                     bail!("{source}: light {}: {} not loaded", i + 1, f.display());
                 };
                 let (_, map) = maps.swap_remove(k);
-                let sampler = EnvSampler::new(&map);
-                LightF64::Environment(Environment::Map { map, sampler })
+                LightF64::Environment(Environment::map(map, *rotation_deg))
             }
         });
     }
@@ -194,6 +198,7 @@ pub(super) fn load_env_maps(scene: &Scene) -> anyhow::Result<Vec<(usize, EnvMap)
             radiance,
             file: Some(file),
             scale,
+            ..
         } = light
         {
             let map = EnvMap::load_exr(file, *radiance * *scale)

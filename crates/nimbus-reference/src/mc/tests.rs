@@ -347,6 +347,7 @@ fn unsupported_scenes_and_options_are_errors() {
         radiance: Vec3::ONE,
         file: Some(PathBuf::from("no-such-sky.exr")),
         scale: Vec3::ONE,
+        rotation_deg: 0.0,
     };
     for (light, words) in [
         (point, "point lights"),
@@ -614,6 +615,7 @@ fn a_map_lights_a_floor_from_above_only() {
         radiance: Vec3::ONE,
         file: Some(path),
         scale: Vec3::splat(2.0),
+        rotation_deg: 0.0,
     };
     let s = box_scene(Vec::new(), vec![floor], vec![map]);
     let opts = McOptions {
@@ -632,4 +634,52 @@ fn a_map_lights_a_floor_from_above_only() {
         assert_eq!(below[c], 0.0);
         crate::common::testing::assert_close(sky[c], upper[c], 1e-12);
     }
+}
+
+/// A map turned by `rotation_deg` = 90 is the map with its columns shifted a quarter
+/// turn, exactly: the analog escapes draw the same directions in both scenes and look
+/// up the same texel (a wall facing +Z sees the bright patch only when it is turned
+/// towards +Z, so the wrong sign, −90, is far off).
+#[test]
+fn a_map_turned_a_quarter_is_the_map_shifted_a_quarter() {
+    use crate::common::testing::{map_env, wall_facing_z, write_turned_maps};
+    let (map, shifted) = write_turned_maps("mc-turn");
+    let opts = McOptions {
+        max_bounces: 1,
+        paths: 4_000,
+        seed: 8,
+    };
+    let render = |light: Light| {
+        let s = box_scene(Vec::new(), vec![wall_facing_z()], vec![light]);
+        let wall = radiance_mc(
+            &s,
+            DVec3::new(0.4, 0.5, 3.0),
+            DVec3::new(-0.1, 0.0, -1.0),
+            &opts,
+        )
+        .unwrap()
+        .mean;
+        // A camera ray that escapes upwards past the wall into the turned patch.
+        let sky = radiance_mc(
+            &s,
+            DVec3::new(0.0, 0.5, 3.0),
+            DVec3::new(-1.0, 0.6, 0.3),
+            &opts,
+        )
+        .unwrap()
+        .mean;
+        (wall, sky)
+    };
+    let (turned_wall, turned_sky) = render(map_env(map.clone(), 90.0));
+    let (shifted_wall, shifted_sky) = render(map_env(shifted, 0.0));
+    let (wrong_wall, _) = render(map_env(map, -90.0));
+    for c in 0..3 {
+        crate::common::testing::assert_close(turned_wall[c], shifted_wall[c], 1e-9);
+        assert_eq!(turned_sky[c], shifted_sky[c]);
+    }
+    assert_eq!(turned_sky, [10.0, 5.0, 2.0]);
+    assert!(
+        turned_wall[0] > 3.0 * wrong_wall[0],
+        "{turned_wall:?} vs {wrong_wall:?}"
+    );
 }

@@ -19,10 +19,16 @@ pub(super) const LIGHT_TYPES: &[(&str, &[&str])] = &[
             "keyframe",
         ],
     ),
-    // `keyframe` is listed so that it gets a clear "cannot be animated" error.
     (
         "environment",
-        &["type", "radiance", "file", "scale", "keyframe"],
+        &[
+            "type",
+            "radiance",
+            "file",
+            "scale",
+            "rotation_deg",
+            "keyframe",
+        ],
     ),
     ("point", &["type", "position", "intensity", "keyframe"]),
     (
@@ -31,11 +37,13 @@ pub(super) const LIGHT_TYPES: &[(&str, &[&str])] = &[
     ),
 ];
 /// What a `[[light.keyframe]]` may set, per light type: `frame`, then the animated
-/// vector (a direction or a position), then the animated colour.
-pub(super) const LIGHT_KEYFRAME_KEYS: &[(&str, [&str; 3])] = &[
-    ("directional", ["frame", "direction", "irradiance"]),
-    ("point", ["frame", "position", "intensity"]),
-    ("sphere", ["frame", "center", "radiance"]),
+/// vector (a direction or a position) and the animated colour, or an environment's
+/// animated angle.
+pub(super) const LIGHT_KEYFRAME_KEYS: &[(&str, &[&str])] = &[
+    ("directional", &["frame", "direction", "irradiance"]),
+    ("environment", &["frame", "rotation_deg"]),
+    ("point", &["frame", "position", "intensity"]),
+    ("sphere", &["frame", "center", "radiance"]),
 ];
 /// Consecutive light keyframes whose directions have a dot product below this are
 /// rejected: their normalized lerp is ill-conditioned (undefined when exactly opposite).
@@ -53,6 +61,7 @@ pub(super) fn parse_light(
     // With keyframes, the static animatable fields default to the first keyframe's.
     let first_vector = keys.first().and_then(|k| k.vector);
     let first_colour = keys.first().and_then(|k| k.colour);
+    let first_angle = keys.first().and_then(|k| k.angle);
     let light = match kind {
         "directional" => {
             let direction = f.direction("direction", first_vector.map(|v| v.as_dvec3()))?;
@@ -97,10 +106,14 @@ pub(super) fn parse_light(
                     ),
                 ));
             }
+            // Any finite angle, reduced to within one turn exactly (as a box's).
+            let rotation_deg =
+                reduce_degrees(f.angle_deg("rotation_deg", first_angle.or(Some(0.0)))?);
             Light::Environment {
                 radiance,
                 file,
                 scale,
+                rotation_deg: rotation_deg as f32,
             }
         }
         "point" => Light::Point {
@@ -125,10 +138,12 @@ struct LightKeyInput {
     vector: Option<Vec3>,
     /// `irradiance` / `intensity` / `radiance`.
     colour: Option<Vec3>,
+    /// An environment's `rotation_deg`, as written (not reduced).
+    angle: Option<f64>,
 }
 
 /// The `[[light.keyframe]]` entries of the light `f` (of type `kind`), sorted by frame,
-/// frames unique. Environment lights and directional lights with a gobo take none.
+/// frames unique. Directional lights with a gobo take none.
 fn parse_light_keyframes(f: &Fields, kind: &str) -> Result<Vec<LightKeyInput>> {
     let tables = f.tables("keyframe")?;
     if tables.is_empty() {
@@ -139,7 +154,7 @@ fn parse_light_keyframes(f: &Fields, kind: &str) -> Result<Vec<LightKeyInput>> {
             "keyframe",
             format!(
                 "[[light.keyframe]] #1: {what} cannot be animated; keyframes are for \
-                 directional lights without a `gobo`, point lights and sphere lights"
+                 directional lights without a `gobo`, environment, point and sphere lights"
             ),
         )
     };
@@ -149,27 +164,37 @@ fn parse_light_keyframes(f: &Fields, kind: &str) -> Result<Vec<LightKeyInput>> {
     if f.has("gobo") {
         return Err(not_animatable("a directional light with a `gobo`"));
     }
-    let [_, vector_key, colour_key] = *allowed;
     let mut keys = Vec::with_capacity(tables.len());
     for (i, table) in tables.into_iter().enumerate() {
         let name = format!("{} > [[light.keyframe]] #{}", f.name, i + 1);
         let k = Fields::new(f.source, name.clone(), table, allowed)?;
         let frame = k.u32_in("frame", None, 0..=u32::MAX)?;
-        let vector = match (k.has(vector_key), kind) {
-            (false, _) => None,
-            (true, "directional") => Some(k.direction(vector_key, None)?.as_vec3()),
-            (true, _) => Some(k.vec3(vector_key, None)?),
-        };
-        let colour = match k.has(colour_key) {
-            true => Some(k.color(colour_key, None, radiometric)?),
-            false => None,
-        };
-        keys.push(LightKeyInput {
+        let mut key = LightKeyInput {
             name,
             frame,
-            vector,
-            colour,
-        });
+            vector: None,
+            colour: None,
+            angle: None,
+        };
+        match *allowed {
+            [_, "rotation_deg"] => {
+                if k.has("rotation_deg") {
+                    key.angle = Some(k.angle_deg("rotation_deg", None)?);
+                }
+            }
+            [_, vector_key, colour_key] => {
+                key.vector = match (k.has(vector_key), kind) {
+                    (false, _) => None,
+                    (true, "directional") => Some(k.direction(vector_key, None)?.as_vec3()),
+                    (true, _) => Some(k.vec3(vector_key, None)?),
+                };
+                if k.has(colour_key) {
+                    key.colour = Some(k.color(colour_key, None, radiometric)?);
+                }
+            }
+            _ => return Err(not_animatable(&format!("a light of type \"{kind}\""))),
+        }
+        keys.push(key);
     }
     keys.sort_by_key(|k| k.frame);
     for pair in keys.windows(2) {
@@ -191,7 +216,7 @@ fn resolve_light_keyframes(
     keys: &[LightKeyInput],
 ) -> Result<Vec<LightKeyframe>> {
     let Some(base) = light.state() else {
-        return Ok(Vec::new()); // Environment lights: keyframes were rejected.
+        return Ok(Vec::new());
     };
     let keyframes: Vec<LightKeyframe> = keys
         .iter()
@@ -214,6 +239,9 @@ fn resolve_light_keyframes(
                 LightState::Sphere { center, radiance } => LightState::Sphere {
                     center: k.vector.unwrap_or(center),
                     radiance: k.colour.unwrap_or(radiance),
+                },
+                LightState::Environment { rotation_deg } => LightState::Environment {
+                    rotation_deg: k.angle.unwrap_or(rotation_deg),
                 },
             };
             LightKeyframe {

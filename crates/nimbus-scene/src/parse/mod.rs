@@ -134,8 +134,13 @@ pub fn scene_tables() -> Vec<TableFields> {
         tables.push(table(&format!("[[light]] type = \"{kind}\""), fields));
     }
     for (kind, fields) in lights::LIGHT_KEYFRAME_KEYS {
+        let article = if kind.starts_with(['a', 'e', 'i', 'o', 'u']) {
+            "an"
+        } else {
+            "a"
+        };
         tables.push(table(
-            &format!("[[light.keyframe]] of a \"{kind}\" light"),
+            &format!("[[light.keyframe]] of {article} \"{kind}\" light"),
             fields,
         ));
     }

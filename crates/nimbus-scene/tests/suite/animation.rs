@@ -100,7 +100,7 @@ fn keyframed_lights_interpolate_by_frame_and_clamp_outside() {
         assert_eq!(irradiance, Vec3::new(4.0, 6.0, 8.0), "frame {frame}");
     }
 
-    // The environment light is never animated.
+    // An environment light without keyframes is not animated.
     assert_eq!(scene.lights_at(7)[1], scene.lights[1]);
 
     // Fields a keyframe leaves out hold the light's static value at that keyframe.
@@ -240,7 +240,7 @@ fn bad_light_keyframes_name_the_file_table_and_field() {
     ));
     assert_close(directional(&scene.lights_at(5)[0]).0, Vec3::Y);
 
-    // Keyframes on an environment light.
+    // An environment light's keyframes animate its rotation only.
     let error = parse_err(&format!(
         "[[light]]\ntype = \"environment\"\nradiance = 1\n{}",
         key(0, "radiance = 2\n")
@@ -249,10 +249,10 @@ fn bad_light_keyframes_name_the_file_table_and_field() {
         &error,
         &[
             SCENE,
-            "[[light]] #1 (type = \"environment\")",
-            "field `keyframe`",
-            "[[light.keyframe]] #1",
-            "cannot be animated",
+            "[[light]] #1 (type = \"environment\") > [[light.keyframe]] #1",
+            "field `radiance`",
+            "unknown field",
+            "frame, rotation_deg",
         ],
     );
 
@@ -483,4 +483,146 @@ density = {{ {frame_file} }}
         file: PathBuf::from("/nonexistent/nimbus/grid.vol"),
     };
     assert!(format!("{:#}", gone.dims().unwrap_err()).contains("grid.vol"));
+}
+
+/// The rotation of environment light `i` of `lights`.
+fn env_rotation(lights: &[Light], i: usize) -> f32 {
+    match &lights[i] {
+        Light::Environment { rotation_deg, .. } => *rotation_deg,
+        other => panic!("expected an environment light, got {other:?}"),
+    }
+}
+
+/// `rotation_deg` on an environment light: default 0, any finite angle reduced to one
+/// turn exactly (as a box's), NaN and infinities refused naming the file and field.
+#[test]
+fn environment_rotation_is_parsed_and_reduced_to_one_turn() {
+    let env = |extra: &str| format!("[[light]]\ntype = \"environment\"\nradiance = 1\n{extra}");
+    assert_eq!(env_rotation(&parse_ok(&env("")).lights, 0), 0.0);
+    assert_eq!(
+        env_rotation(&parse_ok(&env("rotation_deg = 90\n")).lights, 0),
+        90.0
+    );
+    // Within one turn: kept bit for bit, the sign too.
+    for a in [-360.0f64, -12.5, 0.1, 359.75, 360.0] {
+        let scene = parse_ok(&env(&format!("rotation_deg = {a:?}\n")));
+        let r = env_rotation(&scene.lights, 0);
+        assert_eq!(r, a as f32, "{a}");
+        assert_eq!(r.is_sign_negative(), a.is_sign_negative(), "{a}");
+    }
+    // Past one turn: f64 `%`, exactly.
+    for (a, want) in [
+        (725.0, 5.0),
+        (-450.0, -90.0),
+        (1e30, 1e30 % 360.0),
+        (3.4e38, 3.4e38 % 360.0),
+    ] {
+        let scene = parse_ok(&env(&format!("rotation_deg = {a:e}\n")));
+        assert_eq!(env_rotation(&scene.lights, 0), want as f32, "{a}");
+    }
+    for bad in ["nan", "inf", "-inf"] {
+        let error = parse_err(&env(&format!("rotation_deg = {bad}\n")));
+        assert_contains(
+            &error,
+            &[
+                SCENE,
+                "[[light]] #1 (type = \"environment\")",
+                "field `rotation_deg`",
+                "finite",
+            ],
+        );
+    }
+    let error = parse_err(&env("rotation_deg = \"90\"\n"));
+    assert_contains(&error, &[SCENE, "field `rotation_deg`", "a number"]);
+    // On a key too.
+    let error = parse_err(&env(
+        "[[light.keyframe]]\nframe = 0\nrotation_deg = 0\n[[light.keyframe]]\nframe = 4\nrotation_deg = nan\n",
+    ));
+    assert_contains(
+        &error,
+        &[
+            SCENE,
+            "[[light]] #1 (type = \"environment\") > [[light.keyframe]] #2",
+            "field `rotation_deg`",
+            "finite",
+        ],
+    );
+}
+
+/// `[[light.keyframe]]` on an environment light: its rotation, linear by frame in the
+/// unwrapped angle (350 to 370 turns by 20°, not back by 340°), clamped outside the
+/// keyed range, the static value where a key leaves it out, frames unique.
+#[test]
+fn environment_keyframes_interpolate_the_unwrapped_angle() {
+    let scene = parse_ok(
+        r#"
+[[light]]
+type = "environment"
+radiance = 0.5
+[[light.keyframe]]
+frame = 12
+rotation_deg = 370
+[[light.keyframe]]
+frame = 2
+rotation_deg = 350
+"#,
+    );
+    assert!(scene.lights_animated());
+    assert!(scene.is_animated());
+    // The static value defaults to the first keyframe's (by frame).
+    assert_eq!(env_rotation(&scene.lights, 0), 350.0);
+    let at = |frame| env_rotation(&scene.lights_at(frame), 0);
+    for frame in [0, 1, 2] {
+        assert_eq!(at(frame), 350.0, "frame {frame}");
+    }
+    // Two degrees a frame through 360 (reduced past it).
+    assert_eq!(at(3), 352.0);
+    assert_eq!(at(7), 360.0);
+    assert_eq!(at(8), 2.0);
+    assert_eq!(at(11), 8.0);
+    for frame in [12, 13, u32::MAX] {
+        assert_eq!(at(frame), 10.0, "frame {frame}");
+    }
+    // Many turns: 10 turns over 100 frames is 36 degrees a frame.
+    let scene = parse_ok(
+        "[[light]]\ntype = \"environment\"\nradiance = 1\nrotation_deg = 0\n\
+         [[light.keyframe]]\nframe = 0\n[[light.keyframe]]\nframe = 100\nrotation_deg = -3600\n",
+    );
+    // The first key leaves the angle out: the static 0 holds there.
+    assert_eq!(env_rotation(&scene.lights_at(0), 0), 0.0);
+    assert_eq!(env_rotation(&scene.lights_at(1), 0), -36.0);
+    assert_eq!(env_rotation(&scene.lights_at(15), 0), -180.0);
+    assert_eq!(env_rotation(&scene.lights_at(100), 0), 0.0);
+    // Huge keyed angles stay finite and within a turn at every frame.
+    let scene = parse_ok(
+        "[[light]]\ntype = \"environment\"\nradiance = 1\n\
+         [[light.keyframe]]\nframe = 0\nrotation_deg = -3.4e38\n\
+         [[light.keyframe]]\nframe = 9\nrotation_deg = 3.4e38\n",
+    );
+    for frame in 0..12 {
+        let r = env_rotation(&scene.lights_at(frame), 0);
+        assert!(r.is_finite() && r.abs() <= 360.0, "frame {frame}: {r}");
+    }
+    // Duplicate frames name both keyframes.
+    let error = parse_err(
+        "[[light]]\ntype = \"environment\"\nradiance = 1\n\
+         [[light.keyframe]]\nframe = 3\nrotation_deg = 1\n\
+         [[light.keyframe]]\nframe = 3\nrotation_deg = 2\n",
+    );
+    assert_contains(
+        &error,
+        &[
+            SCENE,
+            "[[light.keyframe]] #1",
+            "[[light.keyframe]] #2",
+            "field `frame`",
+            "unique",
+        ],
+    );
+    // A negative frame.
+    let error = parse_err(
+        "[[light]]\ntype = \"environment\"\nradiance = 1\n\
+         [[light.keyframe]]\nframe = -1\nrotation_deg = 1\n",
+    );
+    assert_contains(&error, &[SCENE, "[[light.keyframe]] #1", "field `frame`"]);
 }

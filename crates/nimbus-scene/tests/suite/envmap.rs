@@ -7,7 +7,9 @@ use std::path::{Path, PathBuf};
 
 use exr::prelude::{f16, Encoding, Image, SpecificChannels, Vec2, WritableImage};
 use glam::{DVec3, Vec3};
-use nimbus_scene::{direction_to_uv, uv_to_direction, EnvMap, EnvSampler};
+use nimbus_scene::{
+    direction_to_uv, environment_rotation, uv_to_direction, EnvMap, EnvRotation, EnvSampler, Light,
+};
 
 /// splitmix64, for reproducible uniforms in [0, 1).
 struct Rng(u64);
@@ -604,4 +606,125 @@ fn gpu_tables_layout() {
     let sin_theta = (PI * (y as f64 + 0.5) / h as f64).sin();
     let want = s.pdf(d) * 2.0 * PI * PI * sin_theta;
     assert!((pdf_uv - want).abs() < 1e-4 * want, "{pdf_uv} vs {want}");
+}
+
+/// The rotation's convention (docs/scene-format.md): positive turns +X towards −Z about
+/// +Y, and u = frac(0.5 + atan2(d.x, −d.z)/(2π) + θ/360°) of world direction d; exact
+/// at multiples of 90°, and the identity leaves every direction bit for bit.
+#[test]
+fn rotation_convention_and_exact_quarter_turns() {
+    let r = |deg: f64| EnvRotation::from_degrees(deg);
+    for (deg, cos, sin) in [
+        (0.0, 1.0, 0.0),
+        (-0.0, 1.0, 0.0),
+        (90.0, 0.0, 1.0),
+        (180.0, -1.0, 0.0),
+        (270.0, 0.0, -1.0),
+        (-90.0, 0.0, -1.0),
+        (360.0, 1.0, 0.0),
+        (450.0, 0.0, 1.0),
+        (-720.0, 1.0, 0.0),
+    ] {
+        let got = r(deg);
+        assert_eq!((got.cos, got.sin), (cos, sin), "{deg}");
+        // No −0: 0° and 180° are (±1, +0) exactly.
+        assert!(got.sin.is_sign_positive() || got.sin < 0.0, "{deg}");
+    }
+    assert!(r(0.0).is_identity() && r(360.0).is_identity() && !r(1e-9).is_identity());
+    assert!(r(f64::NAN).is_identity());
+    for deg in [1.0, 33.3, 89.999, 135.0, 200.5, 300.0, 359.9, -47.0] {
+        let got = r(deg);
+        let (s, c) = deg.to_radians().sin_cos();
+        assert!(
+            (got.cos - c).abs() < 1e-15 && (got.sin - s).abs() < 1e-15,
+            "{deg}"
+        );
+    }
+    // +X turns towards −Z: the map's +X (u = 0.75) is seen at world −Z.
+    let quarter = r(90.0);
+    assert_eq!(quarter.map_to_world(DVec3::X), DVec3::NEG_Z);
+    assert_eq!(quarter.world_to_map(DVec3::NEG_Z), DVec3::X);
+    assert_eq!(quarter.map_to_world(DVec3::Y), DVec3::Y);
+    // u of world d is the unrotated u plus θ/360°, wrapped.
+    let mut rng = Rng(9);
+    for deg in [90.0, -30.0, 123.4, 400.0] {
+        let rot = r(deg);
+        for _ in 0..200 {
+            let d = rng.unit_vector();
+            let (u, v) = direction_to_uv(rot.world_to_map(d));
+            let (u0, v0) = direction_to_uv(d);
+            let want = (u0 + deg / 360.0).rem_euclid(1.0);
+            let du = (u - want).abs();
+            assert!(du.min(1.0 - du) < 1e-9, "{deg}: u {u} vs {want}");
+            assert!((v - v0).abs() < 1e-12);
+            let back = rot.map_to_world(rot.world_to_map(d));
+            assert!((back - d).length() < 1e-12);
+        }
+    }
+    // The identity is bit-exact, signed zeros too.
+    let d = DVec3::new(-0.0, 1.0, -0.0);
+    let same = EnvRotation::IDENTITY.world_to_map(d);
+    assert!(same.x.is_sign_negative() && same.z.is_sign_negative());
+}
+
+/// A map turned by 90° looks up what the map with its columns shifted a quarter turn
+/// shows unturned, and its sampler's pdf of the turned direction is the shifted map's.
+#[test]
+fn a_quarter_turn_is_the_map_shifted_a_quarter() {
+    let map = sun_sky_map();
+    let (w, h) = (map.width as usize, map.height as usize);
+    // shifted(u) = map(u + 1/4): column x of the shifted map is column x + W/4.
+    let shifted = EnvMap {
+        width: map.width,
+        height: map.height,
+        texels: (0..w * h)
+            .map(|i| {
+                let (x, y) = (i % w, i / w);
+                map.texels[y * w + (x + w / 4) % w]
+            })
+            .collect(),
+    };
+    let rot = EnvRotation::from_degrees(90.0);
+    let (sampler, shifted_sampler) = (EnvSampler::new(&map), EnvSampler::new(&shifted));
+    let mut rng = Rng(4);
+    let mut checked = 0;
+    for _ in 0..20_000 {
+        let d = rng.unit_vector();
+        // Away from texel edges, where f64 rounding may pick either side.
+        let (u, v) = direction_to_uv(d);
+        let (fx, fy) = ((u * w as f64).fract(), (v * h as f64).fract());
+        if fx.min(1.0 - fx) < 1e-6 || fy.min(1.0 - fy) < 1e-6 {
+            continue;
+        }
+        checked += 1;
+        assert_eq!(map.lookup(rot.world_to_map(d)), shifted.lookup(d), "{d}");
+        let (p, q) = (sampler.pdf(rot.world_to_map(d)), shifted_sampler.pdf(d));
+        assert!((p - q).abs() <= 1e-9 * q.max(1e-300), "{d}: pdf {p} vs {q}");
+        // The wrong sign would look elsewhere: the sun texel shows that.
+    }
+    assert!(checked > 19_000);
+    let wrong = EnvRotation::from_degrees(-90.0);
+    let sun = uv_to_direction((40.5 - 16.0) / w as f64, 9.5 / h as f64);
+    assert_eq!(shifted.lookup(sun), [9000.0, 8000.0, 6500.0]);
+    assert_eq!(map.lookup(rot.world_to_map(sun)), [9000.0, 8000.0, 6500.0]);
+    assert_ne!(
+        map.lookup(wrong.world_to_map(sun)),
+        [9000.0, 8000.0, 6500.0]
+    );
+}
+
+/// The scene's map rotation: the environment light with a `file`; identity for a
+/// constant environment or none.
+#[test]
+fn environment_rotation_comes_from_the_map_light() {
+    let env = |file: Option<&str>, deg: f32| Light::Environment {
+        radiance: Vec3::ONE,
+        file: file.map(PathBuf::from),
+        scale: Vec3::ONE,
+        rotation_deg: deg,
+    };
+    assert!(environment_rotation(&[]).is_identity());
+    assert!(environment_rotation(&[env(None, 90.0)]).is_identity());
+    let r = environment_rotation(&[env(None, 10.0), env(Some("sky.exr"), 90.0)]);
+    assert_eq!((r.cos, r.sin), (0.0, 1.0));
 }

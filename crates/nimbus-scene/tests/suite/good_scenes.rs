@@ -293,6 +293,7 @@ sigma_star_floor = 0.125
             radiance: Vec3::new(0.1, 0.2, 0.3),
             file: Some(dir.0.join("sky.EXR")),
             scale: Vec3::splat(2.0),
+            rotation_deg: 0.0,
         }
     );
     assert_eq!(
@@ -469,7 +470,8 @@ radiance = 0.25
         Light::Environment {
             radiance: Vec3::splat(0.25),
             file: None,
-            scale: Vec3::ONE
+            scale: Vec3::ONE,
+            rotation_deg: 0.0,
         }
     );
 }
@@ -488,7 +490,8 @@ fn environment_file_alone_has_unit_radiance() {
         Light::Environment {
             radiance: Vec3::ONE,
             file: Some(dir.0.join("env/sky.exr")),
-            scale: Vec3::ONE
+            scale: Vec3::ONE,
+            rotation_deg: 0.0,
         }
     );
 }

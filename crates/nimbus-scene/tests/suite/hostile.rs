@@ -150,7 +150,7 @@ fn templates() -> Vec<Template> {
         ),
         t(
             "[[light]] type = \"environment\"",
-            "[[light]]\ntype = \"environment\"\nfile = \"sky.exr\"\n",
+            "[[light]]\ntype = \"environment\"\nfile = \"sky.exr\"\nrotation_deg = -30\n",
             light0(),
             Some("[[light]] #1"),
         ),
@@ -172,6 +172,16 @@ fn templates() -> Vec<Template> {
                 "{RENDER}[[light]]\ntype = \"directional\"\ndirection = [0.2, -1, 0]\nirradiance = 2\n\
                  [[light.keyframe]]\nframe = 0\ndirection = [0, -1, 0]\nirradiance = 1\n\
                  [[light.keyframe]]\nframe = 2\ndirection = [0.5, -1, 0]\n"
+            ),
+            key0(),
+            Some("[[light.keyframe]]"),
+        ),
+        t(
+            "[[light.keyframe]] of an \"environment\" light",
+            &format!(
+                "{RENDER}[[light]]\ntype = \"environment\"\nfile = \"sky.exr\"\nrotation_deg = 10\n\
+                 [[light.keyframe]]\nframe = 0\nrotation_deg = 350\n\
+                 [[light.keyframe]]\nframe = 2\n"
             ),
             key0(),
             Some("[[light.keyframe]]"),
@@ -562,8 +572,14 @@ fn insane(scene: &Scene) -> Option<String> {
                     ..
                 } => direction.is_normalized() && irradiance.is_finite(),
                 Light::Environment {
-                    radiance, scale, ..
-                } => (*radiance * *scale).is_finite(),
+                    radiance,
+                    scale,
+                    rotation_deg,
+                    ..
+                } => {
+                    // Within one turn, as a box's rotation (see below).
+                    (*radiance * *scale).is_finite() && rotation_deg.abs() <= 360.0
+                }
                 Light::Point {
                     position,
                     intensity,
