@@ -5,7 +5,15 @@
 //! cargo run --release --example make_plume            # into assets/volumes/
 //! cargo run --release --example make_plume -- OUT_DIR
 //! cargo run --release --example make_plume -- target/plume 256   # at 256³, with a scene
+//! cargo run --release --example make_plume -- target/plume 64 96  # 96 frames: a benchmark
 //! ```
+//!
+//! With a third argument F (2 ..= 1024, default 4), F density frames are written, and at
+//! a resolution other than 32 also `plume-motion-N.toml`: issue 26's animated-plume motion
+//! benchmark (the paper's Fig. 4, bottom) at 320x240 under a still camera, sun and sky,
+//! the density swapped every frame and the velocity guiding ReSTIR's reprojection. Its
+//! `nimbus study --per-frame` window starts after ReSTIR's warm-up (80 frames at Q = 20),
+//! so give F >= 96. Every frame stays resident in the baseline (about F · N³ · 4 bytes).
 //!
 //! With a resolution N other than 32, the same plume is written at N³ with turbulent
 //! detail the 32³ grid cannot hold (the density times 0.45 + 0.9 · fractal noise of
@@ -143,6 +151,14 @@ fn main() -> Result<()> {
     if !(8..=1024).contains(&n) {
         bail!("N = {n}: expected 8 ..= 1024 voxels per axis");
     }
+    let frame_count: usize = match args.next() {
+        Some(text) => text
+            .parse()
+            .ok()
+            .filter(|f| (2..=1024).contains(f))
+            .with_context(|| format!("F = {text:?}: expected 2 ..= 1024 frames"))?,
+        None => FRAMES,
+    };
     std::fs::create_dir_all(&out_dir)?;
     // File names: the committed ones at 32³, else with the resolution.
     let name = |stem: &str| {
@@ -170,7 +186,7 @@ fn main() -> Result<()> {
         vec![d as f32]
     });
     let mut frames = Vec::new();
-    for frame in 0..FRAMES {
+    for frame in 0..frame_count {
         if frame > 0 {
             density = advect(&density, &velocity);
         }
@@ -188,8 +204,47 @@ fn main() -> Result<()> {
     nimbus_scene::write_vol(&path, &velocity, BOUNDS_MIN, BOUNDS_MAX)?;
     println!("wrote {} ({n}x{n}x{n}, 3 channels)", path.display());
     if n != N_ASSETS {
-        write_scene(&out_dir, n, &frames, &path)?;
+        write_scene(&out_dir, n, &frames[..FRAMES.min(frames.len())], &path)?;
+        if frames.len() > FRAMES {
+            write_motion_scene(&out_dir, n, &frames, &path)?;
+        }
     }
+    Ok(())
+}
+
+/// `plume-motion-N.toml`: every density frame in turn under a still camera, sun and sky.
+fn write_motion_scene(out_dir: &Path, n: u32, frames: &[PathBuf], velocity: &Path) -> Result<()> {
+    let abs = |p: &Path| -> Result<String> {
+        Ok(p.canonicalize()
+            .with_context(|| format!("resolving {}", p.display()))?
+            .display()
+            .to_string())
+    };
+    let mut text = format!(
+        "# Motion benchmark (issue 26): the animated plume at {n}^3, {count} density frames\n\
+         # advected by its velocity, under a still camera, sun and sky (the paper's Fig. 4,\n\
+         # bottom). Written by examples/make_plume.rs.\n\n\
+         [render]\nwidth = 320\nheight = 240\nframes = {count}\nseed = 3\n\n\
+         [camera]\nposition = [0.0, 0.15, 2.0]\nlook_at = [0.0, 0.0, 0.0]\nhorizontal_fov_deg = 50\n\n\
+         [[light]]\ntype = \"directional\"\ndirection = [0.5, -0.6, -0.6]\nirradiance = [5.0, 4.7, 4.2]\n\n\
+         [[light]]\ntype = \"environment\"\nradiance = [0.25, 0.35, 0.55]\n\n\
+         [[medium]]\ntype = \"grid\"\nbounds_min = [-0.5, -0.5, -0.5]\nbounds_max = [0.5, 0.5, 0.5]\n\
+         density = {{ file = \"{}\" }}\nvelocity = {{ file = \"{}\" }}\n\
+         density_scale = 20.0\nalbedo = 0.9\ng = 0.3\n",
+        abs(&frames[0])?,
+        abs(velocity)?,
+        count = frames.len(),
+    );
+    for (f, path) in frames.iter().enumerate().skip(1) {
+        text += &format!(
+            "\n[[medium.frame]]\nframe = {f}\ndensity = {{ file = \"{}\" }}\n",
+            abs(path)?
+        );
+    }
+    text += "\n[integrator]\nmax_bounces = 3\n";
+    let path = out_dir.join(format!("plume-motion-{n}.toml"));
+    std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
+    println!("wrote {}", path.display());
     Ok(())
 }
 

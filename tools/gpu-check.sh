@@ -174,11 +174,15 @@ done
 # Issue 26's motion benchmarks (assets/scenes/bench/motion, tools/make_motion_bench.py):
 # the same per-frame metric, each measured frame against a reference of that scene frame
 # (the window after ReSTIR's warm-up), ReSTIR with and without spatial reuse (its default
-# runs it on frames whose camera moved) and with the optical-depth shift.
+# runs it on frames whose camera moved) and with the optical-depth shift; the rotating
+# HDR sky (sky-g06) is the paper's Fig. 4 (top).
 case $mode in
     quick) motion=(sun-g0); motion_k=1 ;;
-    *) motion=(camera-g0 sun-g0 camera-g08); motion_k=3 ;;
+    *) motion=(camera-g0 sun-g0 sky-g06 camera-g08); motion_k=3 ;;
 esac
+if [[ " ${motion[*]} " == *" sky-g06 "* && ! -f target/bench/sky-sun.exr ]]; then
+    nimbus make-sky target/bench/sky-sun.exr
+fi
 for scene in "${motion[@]}"; do
     step "study motion $scene k$motion_k" nimbus study "assets/scenes/bench/motion/$scene.toml" \
         "${bench_size[@]}" --reference-frames "${ref[1]}" --reference-spp 16 "${cache[@]}" \

@@ -12,6 +12,10 @@ scene format interpolates linearly in between, and holds the last key after fram
   sweeps across the image (about 2 px per frame at 320 px).
 - sun-g0 / sun-g08: the sun climbs from 20 to 55 degrees while it turns 90 degrees in
   azimuth (0.8 degrees per frame), under the constant sky.
+- sky-g06: the HDR daylight sky of bench/sky-sun.toml (its small sun carries most of the
+  light; `nimbus make-sky target/bench/sky-sun.exr` writes it) turns 90 degrees about the
+  vertical over 128 frames (0.7 degrees per frame): the paper's rotating environment map
+  (Fig. 4, top).
 
 `nimbus study --per-frame` measures each frame against a reference of that frame (the
 window after the longest warm-up, e.g. 80 frames for ReSTIR's default Q = 20); see
@@ -93,6 +97,21 @@ def sun_scene(static, g_text):
     return out + medium_and_integrator(static)
 
 
+def sky_scene(static, g_text):
+    out = header(
+        f"the HDR sky turns about the vertical ({g_text}).",
+        [
+            "90 degrees over 128 frames (0.7 degrees per frame); the sky's small sun carries",
+            "most of the light. Write the map first: nimbus make-sky target/bench/sky-sun.exr",
+        ],
+    )
+    out += "[camera]\nposition = [0.0, 0.3, 2.6]\nlook_at = [0.0, 0.0, 0.0]\nhorizontal_fov_deg = 55\n\n"
+    out += '[[light]]\ntype = "environment"\nfile = "../../../../target/bench/sky-sun.exr"\n\n'
+    for f in range(0, FRAMES + 1, STEP):
+        out += f"[[light.keyframe]]\nframe = {f}\nrotation_deg = {90.0 * f / FRAMES:.6f}\n\n"
+    return out + medium_and_integrator(static)
+
+
 def main():
     out = pathlib.Path(sys.argv[1]) if len(sys.argv) > 1 else OUT
     out.mkdir(parents=True, exist_ok=True)
@@ -101,6 +120,7 @@ def main():
         "camera-g08.toml": camera_scene("cloud-g08.toml", "g = 0.8"),
         "sun-g0.toml": sun_scene("cloud-g0.toml", "g = 0"),
         "sun-g08.toml": sun_scene("cloud-g08.toml", "g = 0.8"),
+        "sky-g06.toml": sky_scene("sky-sun.toml", "g = 0.6"),
     }
     for name, text in scenes.items():
         (out / name).write_text(text)

@@ -65,6 +65,7 @@ fn benchmark_scenes_load_and_plan_for_both_grid_integrators() {
 #[test]
 fn motion_benchmarks_are_the_generators_output_and_plan() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    ensure_sky(root);
     let dir = root.join("assets/scenes/bench/motion");
     let fresh = crate::common::cli::scratch("bench", "motion");
     let out = std::process::Command::new("python3")
@@ -87,6 +88,7 @@ fn motion_benchmarks_are_the_generators_output_and_plan() {
         [
             "camera-g0.toml",
             "camera-g08.toml",
+            "sky-g06.toml",
             "sun-g0.toml",
             "sun-g08.toml"
         ]

@@ -89,4 +89,27 @@ fn the_plume_generator_writes_an_animated_plume_at_any_size() {
             .any(|p| (p[0] - sky[0]).abs() > 0.05),
         "the plume is seen"
     );
+
+    // More frames: the motion benchmark scene, one density frame per scene frame.
+    let dir = scratch("generators", "plume-motion");
+    run("make_plume", &[dir.to_str().unwrap(), "16", "6"]);
+    assert!(dir.join("plume-16-f5.vol").is_file());
+    let path = dir.join("plume-motion-16.toml");
+    let scene = nimbus_scene::load(&path).unwrap_or_else(|e| panic!("{e:#}"));
+    assert!(scene.is_animated());
+    assert_eq!(scene.render.frames, 6);
+    match &scene.media[0] {
+        nimbus_scene::Medium::Grid(g) => {
+            assert_eq!(g.frames.len(), 5);
+            assert!(g.velocity.is_some());
+        }
+        other => panic!("{other:?}"),
+    }
+    render_small(&path);
+    let out = Command::new(example("make_plume"))
+        .args([dir.to_str().unwrap(), "16", "1"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("F = \"1\""));
 }
