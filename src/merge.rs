@@ -22,7 +22,7 @@ use anyhow::{bail, ensure, Context as _, Result};
 use nimbus_scene::Scene;
 
 use crate::hashing::{fnv1a64, FNV_OFFSET};
-use crate::output::layers::{read_layers, write_layers, Layers};
+use crate::output::layers::{read_layers, write_layers, ExrView, Layers};
 use crate::renderer::{film, RenderResult};
 
 /// What a render records in its EXR header (as `nimbus/<key>` text attributes).
@@ -199,8 +199,8 @@ impl RenderInfo {
     }
 }
 
-/// The layers of a render's result, with its metadata.
-pub fn layers_of(result: &RenderResult, info: &RenderInfo) -> Layers {
+/// The layers of a render's result, with its metadata and its camera's view.
+pub fn layers_of(result: &RenderResult, info: &RenderInfo, view: Option<ExrView>) -> Layers {
     Layers {
         color: result.image.clone(),
         alpha: result.alpha.clone(),
@@ -208,6 +208,7 @@ pub fn layers_of(result: &RenderResult, info: &RenderInfo) -> Layers {
         alpha_std_error: result.alpha_std_error.clone(),
         aovs: Vec::new(),
         attributes: info.attributes(),
+        view,
     }
 }
 
@@ -220,9 +221,10 @@ pub fn write_render(
     info: &RenderInfo,
     display: &crate::output::Display,
     transparent: bool,
+    view: Option<ExrView>,
 ) -> Result<()> {
     if crate::output::image_extension(path)? == "exr" {
-        write_layers(path, &layers_of(result, info))
+        write_layers(path, &layers_of(result, info, view))
     } else {
         let alpha = transparent.then_some(result.alpha.as_slice());
         crate::output::write_png_with_metadata(
@@ -397,6 +399,8 @@ fn merge(parts: &[Part]) -> Result<(Layers, RenderInfo)> {
         first.color.height,
     ));
     out.alpha = vec![0.0; n];
+    // The parts render one scene and camera (check_compatible): the first's view.
+    out.view = first.view.clone();
     // Mean: Σ w x; variance of the mean: Σ w² s².
     let mut var = vec![[0.0f64; 4]; n];
     let mut mean = vec![[0.0f64; 4]; n];

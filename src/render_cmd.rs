@@ -380,6 +380,7 @@ pub(super) fn render(args: RenderArgs) -> Result<ExitCode> {
             &info,
             &display,
             scene.render.transparent_background,
+            Some(view_of(&scene, result)),
         )
         .with_context(|| format!("writing frame {frame}"))?;
         eprintln!("{}", summary(&path, &scene, result));
@@ -423,6 +424,7 @@ pub(super) fn render(args: RenderArgs) -> Result<ExitCode> {
                 &info,
                 &display,
                 scene.render.transparent_background,
+                Some(view_of(&scene, &result)),
             )?;
             eprintln!("{}, {memory}", summary(out, &scene, &result));
         }
@@ -457,4 +459,17 @@ pub(super) fn render(args: RenderArgs) -> Result<ExitCode> {
         return Ok(ExitCode::from(EXIT_INTERRUPTED));
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// The camera of `result`'s image for its EXR header: the camera of its scene frame (of
+/// frame 0 for the mean of an animation's frames, which has no one camera; a still
+/// camera's for a static scene).
+fn view_of(scene: &nimbus_scene::Scene, result: &RenderResult) -> nimbus::output::layers::ExrView {
+    let frame = result.scene_frame.unwrap_or(0);
+    nimbus::output::layers::ExrView::of(
+        &scene.camera.frame_at(frame),
+        scene.render.width,
+        scene.render.height,
+        result.scene_frame,
+    )
 }

@@ -9,7 +9,10 @@
 //! - optional AOVs as `<name>.<channel>` (e.g. `depth.Z`);
 //!
 //! and the render's metadata as text attributes named `nimbus/<key>` in the header
-//! (see [`crate::merge::RenderInfo`] for the keys). Channels named with a dot are the
+//! (see [`crate::merge::RenderInfo`] for the keys). The header also carries the standard
+//! attributes compositors read ([`ExrView`]): `chromaticities` (Rec. 709 primaries, D65:
+//! the renderer's linear RGB), and for a render of a camera `worldToCamera`, `worldToNDC`,
+//! `screenWindowCenter` / `screenWindowWidth` and, for one frame of an animation, `frame`. Channels named with a dot are the
 //! layers of OpenEXR's naming convention, which Nuke, Blender, DJV and `exrheader`
 //! show as separate layers of one image.
 
@@ -25,6 +28,76 @@ pub const ATTRIBUTE_PREFIX: &str = "nimbus/";
 
 /// The layer of per-pixel standard errors.
 pub const STDERR_LAYER: &str = "stderr";
+
+/// Rec. 709 / sRGB primaries and the D65 white point (CIE 1931 xy): the renderer's
+/// linear RGB.
+pub const REC709_D65: [[f32; 2]; 4] = [[0.64, 0.33], [0.30, 0.60], [0.15, 0.06], [0.3127, 0.3290]];
+
+/// The camera of a render as OpenEXR's standard attributes describe it (the convention of
+/// RenderMan, Arnold and Nuke): matrices act on row vectors (p' = p · M, Imath's `M44f`,
+/// stored row by row); camera space is left-handed, x right, y up, z forward (along the
+/// view); screen space is the plane z = 1 of camera space, (x/z, y/z); NDC maps the image
+/// to [0, 1]², (0, 0) at its top-left corner, after the division by w.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ExrView {
+    pub world_to_camera: [f32; 16],
+    pub world_to_ndc: [f32; 16],
+    /// The image's width in screen space (2 tan(horizontal fov / 2)), centred on (0, 0).
+    pub screen_window_width: f32,
+    /// The scene frame of one frame of an animation.
+    pub frame: Option<u32>,
+}
+
+impl ExrView {
+    /// The view of `camera` on a `width` × `height` image.
+    pub fn of(
+        camera: &nimbus_scene::CameraFrame,
+        width: u32,
+        height: u32,
+        frame: Option<u32>,
+    ) -> Self {
+        let axes = [camera.right, camera.up, camera.forward];
+        let mut w2c = [0.0f32; 16];
+        for (j, axis) in axes.iter().enumerate() {
+            for i in 0..3 {
+                w2c[4 * i + j] = axis[i];
+            }
+            w2c[12 + j] = -axis.dot(camera.position);
+        }
+        w2c[15] = 1.0;
+        let sw = 2.0 * camera.tan_half_fov_x;
+        let sh = sw * height as f32 / width.max(1) as f32;
+        // Camera to NDC: X = x / sw + z / 2, Y = -y / sh + z / 2, Z = w = z.
+        let mut c2n = [0.0f32; 16];
+        c2n[0] = 1.0 / sw;
+        c2n[8] = 0.5;
+        c2n[5] = -1.0 / sh;
+        c2n[9] = 0.5;
+        c2n[10] = 1.0;
+        c2n[11] = 1.0;
+        let mut w2n = [0.0f32; 16];
+        for r in 0..4 {
+            for c in 0..4 {
+                w2n[4 * r + c] = (0..4).map(|k| w2c[4 * r + k] * c2n[4 * k + c]).sum();
+            }
+        }
+        Self {
+            world_to_camera: w2c,
+            world_to_ndc: w2n,
+            screen_window_width: sw,
+            frame,
+        }
+    }
+
+    /// `p` · M for a row-major 4×4 `m`, divided by w.
+    pub fn transform(m: &[f32; 16], p: glam::Vec3) -> glam::Vec3 {
+        let v = [p.x, p.y, p.z, 1.0];
+        let out: Vec<f32> = (0..4)
+            .map(|c| (0..4).map(|k| v[k] * m[4 * k + c]).sum())
+            .collect();
+        glam::Vec3::new(out[0], out[1], out[2]) / out[3]
+    }
+}
 
 /// An extra image beside the beauty: `channels` are (channel name, one value per pixel).
 #[derive(Clone, Debug, PartialEq)]
@@ -47,6 +120,8 @@ pub struct Layers {
     pub aovs: Vec<Aov>,
     /// Metadata: header attribute `nimbus/<key>` = value.
     pub attributes: BTreeMap<String, String>,
+    /// The camera, as the standard attributes (none for an image of no camera).
+    pub view: Option<ExrView>,
 }
 
 impl Layers {
@@ -60,6 +135,7 @@ impl Layers {
             alpha_std_error: vec![0.0; n],
             aovs: Vec::new(),
             attributes: BTreeMap::new(),
+            view: None,
         }
     }
 
@@ -113,6 +189,8 @@ fn text(value: &str) -> exr::prelude::Text {
 
 /// Writes `layers` to `path` (which must end in `.exr`) atomically.
 pub fn write_layers(path: &Path, layers: &Layers) -> Result<()> {
+    use exr::math::Vec2;
+    use exr::meta::attribute::Chromaticities;
     use exr::prelude::{
         AnyChannel, AnyChannels, AttributeValue, Encoding, FlatSamples, Image, Layer,
         LayerAttributes, WritableImage,
@@ -159,14 +237,34 @@ pub fn write_layers(path: &Path, layers: &Layers) -> Result<()> {
             AttributeValue::Text(text(value)),
         );
     }
+    if let Some(view) = &layers.view {
+        attributes.world_to_camera = Some(view.world_to_camera);
+        attributes.world_to_normalized_device = Some(view.world_to_ndc);
+        attributes.screen_window_center = Vec2(0.0, 0.0);
+        attributes.screen_window_width = view.screen_window_width;
+        if let Some(frame) = view.frame {
+            attributes.other.insert(
+                text("frame"),
+                AttributeValue::I32(i32::try_from(frame).unwrap_or(i32::MAX)),
+            );
+        }
+    }
     let layer = Layer::new(
         size,
         attributes,
         Encoding::SMALL_LOSSLESS,
         AnyChannels::sort(channels.into()),
     );
+    let mut image = Image::from_layer(layer);
+    let xy = |i: usize| Vec2(REC709_D65[i][0], REC709_D65[i][1]);
+    image.attributes.chromaticities = Some(Chromaticities {
+        red: xy(0),
+        green: xy(1),
+        blue: xy(2),
+        white: xy(3),
+    });
     write_atomically(path, |tmp| {
-        Image::from_layer(layer)
+        image
             .write()
             .to_file(tmp)
             .with_context(|| format!("write EXR {}", path.display()))
@@ -251,6 +349,19 @@ pub fn read_layers(path: &Path) -> Result<Layers> {
             );
         }
     }
+    let a = &layer.attributes;
+    let view = match (a.world_to_camera, a.world_to_normalized_device) {
+        (Some(world_to_camera), Some(world_to_ndc)) => Some(ExrView {
+            world_to_camera,
+            world_to_ndc,
+            screen_window_width: a.screen_window_width,
+            frame: match a.other.get(&text("frame")) {
+                Some(AttributeValue::I32(f)) => u32::try_from(*f).ok(),
+                _ => None,
+            },
+        }),
+        _ => None,
+    };
     Ok(Layers {
         color: image_of(&rgb),
         alpha,
@@ -258,12 +369,47 @@ pub fn read_layers(path: &Path) -> Result<Layers> {
         alpha_std_error,
         aovs,
         attributes,
+        view,
     })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The view's matrices put the point looked at in the image's centre, the edges of the
+    /// field of view on the image's edges (NDC x = 1 on the right, y = 0 at the top), and
+    /// depth along the view axis in camera z.
+    #[test]
+    fn the_view_projects_as_the_camera_does() {
+        let scene = nimbus_scene::parse_str(
+            "[render]\nwidth = 200\nheight = 100\n[camera]\nposition = [1, 2, 3]\n\
+             look_at = [1, 2, -1]\nhorizontal_fov_deg = 90\n",
+            Path::new("view.toml"),
+        )
+        .unwrap();
+        let camera = scene.camera.frame_at(0);
+        let view = ExrView::of(&camera, 200, 100, Some(7));
+        let near = |a: glam::Vec3, b: glam::Vec3| (a - b).abs().max_element() < 1e-5;
+        let c = ExrView::transform(&view.world_to_camera, glam::Vec3::new(1.0, 2.0, -1.0));
+        assert!(near(c, glam::Vec3::new(0.0, 0.0, 4.0)), "{c}");
+        let ndc = |p: glam::Vec3| ExrView::transform(&view.world_to_ndc, p);
+        assert!(near(
+            ndc(glam::Vec3::new(1.0, 2.0, -1.0)),
+            glam::Vec3::new(0.5, 0.5, 1.0)
+        ));
+        // 90° horizontally: at depth 4 the right edge is 4 m to the side; the image is half
+        // as tall, so its top edge is 2 m up.
+        assert!(near(
+            ndc(glam::Vec3::new(5.0, 2.0, -1.0)),
+            glam::Vec3::new(1.0, 0.5, 1.0)
+        ));
+        assert!(near(
+            ndc(glam::Vec3::new(1.0, 4.0, -1.0)),
+            glam::Vec3::new(0.5, 0.0, 1.0)
+        ));
+        assert!((view.screen_window_width - 2.0).abs() < 1e-6);
+    }
 
     #[test]
     fn layers_and_metadata_round_trip() {
@@ -273,6 +419,14 @@ mod tests {
         let mut color = ImageRgb::new(3, 2);
         color.set(2, 1, [1.0, 2.0, 3.0]);
         let mut layers = Layers::opaque(color);
+        let camera = nimbus_scene::parse_str(
+            "[camera]\nposition = [0, 0, 3]\nlook_at = [0, 0, 0]\n",
+            Path::new("c.toml"),
+        )
+        .unwrap()
+        .camera
+        .frame_at(0);
+        layers.view = Some(ExrView::of(&camera, 3, 2, Some(12)));
         layers.alpha[5] = 0.25;
         layers.std_error.set(2, 1, [0.1, 0.2, 0.3]);
         layers.alpha_std_error[5] = 0.01;

@@ -24,6 +24,7 @@ mod docs;
 mod emitters;
 mod env_rotation;
 mod envmap_gpu;
+mod exr_header;
 mod generators;
 mod grid_gobos;
 mod grid_sparse;
