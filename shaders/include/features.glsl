@@ -63,6 +63,9 @@
 // ReSTIR's spatial reuse moves x_1 between pixels by its optical depth through the
 // conservative grid instead of its distance (restir/combine.glsl).
 #define SC_ID_SPATIAL_TAU_SHIFT 26
+// ReSTIR: a medium vertex's emission joins its split-NEE light candidate instead of being
+// a candidate of its own (restir/path.glsl, "Folded emission").
+#define SC_ID_FOLD_EMISSION 27
 
 // ---------------------------------------------------------------------------------------
 // Values of SC_ESTIMATOR: the box-medium estimators of Velinov & Mitchell.

@@ -53,8 +53,11 @@ void add_candidate(uint at, inout Reservoir r, inout uint rng, float w, float p_
 // or with split NEE (path.glsl) one environment direction drawn from u2 plus every delta
 // light, all in one loop over light terms as path_value evaluates them. Fhat and beta are
 // the path's target and weight so far (times sigma_s in a medium).
+// `emitted` is the vertex's sigma_a Le, which folded emission (SC_FOLD_EMISSION) adds as
+// one more term weighted by q (0 elsewhere).
 void add_nee_candidate(uint at, inout Reservoir r, inout uint rng, vec3 x, SurfacePoint surface, vec3 w,
-                       VertexMedium vm, float u_light, vec2 u2, vec3 Fhat, vec3 beta, uint kp, uint jitter_bits) {
+                       VertexMedium vm, float u_light, vec2 u2, vec3 Fhat, vec3 beta, uint kp, uint jitter_bits,
+                       vec3 emitted) {
     LightSample ls;
     uint dir_code;
     if (SC_NEE_SPLIT) {
@@ -103,6 +106,14 @@ void add_nee_candidate(uint at, inout Reservoir r, inout uint rng, vec3 x, Surfa
         float T_nee = nee_transmittance(x, wi, dist) * boxes_transmittance(x, wi, dist);
         Fs += s * L * T_nee;
         bs += s * L_over_pdf * T_nee;
+    }
+    if (SC_FOLD_EMISSION) {
+        // Folded emission: g = ... + q(omega) sigma_a Le, whose integral over omega is the
+        // vertex's emission. q is the light sample's density: split NEE's environment
+        // sample, or, where the environment is the only light, the one light's sample
+        // (the plan folds nowhere else); q > 0 wherever the sampler draws.
+        Fs += ls.pdf * emitted;
+        bs += emitted;
     }
     add_candidate(at, r, rng, luminance(beta * bs), luminance(Fhat * Fs), kp, jitter_bits | (ls.index << 8u),
                   ls.point, dir_code);
@@ -231,7 +242,7 @@ void restir_main() {
                 float u_light = rng_next(rng);
                 vec2 u2 = vec2(rng_next(rng), rng_next(rng));
                 add_nee_candidate(at, r, rng, x, surface, w, vertex_medium_none(), u_light, u2, Fhat, beta, i,
-                                  jitter_bits);
+                                  jitter_bits, vec3(0.0));
                 if (i == SC_MAX_BOUNCES) {
                     break;
                 }
@@ -275,17 +286,22 @@ void restir_main() {
             Fhat *= exp(-tau);
             beta /= sigma_star_total;
 
+            vec3 emitted = vec3(0.0);
             if (SC_HAS_EMISSION && sigma_t_grid > 0.0) {
-                // Emission candidate: the grid's sigma_a Le at x_i (eq. 25, emission case).
-                vec3 emitted = (vec3(1.0) - albedo) * sigma_t_grid * grid_emission(x);
-                add_candidate(at, r, rng, luminance(beta * emitted), luminance(Fhat * emitted), i,
-                              jitter_bits | INFO_EMISSION, vec3(0.0), 0u);
+                // The grid's sigma_a Le at x_i (eq. 25, emission case): a candidate of its
+                // own, or folded into the NEE candidate below.
+                emitted = (vec3(1.0) - albedo) * sigma_t_grid * grid_emission(x);
+                if (!SC_FOLD_EMISSION) {
+                    add_candidate(at, r, rng, luminance(beta * emitted), luminance(Fhat * emitted), i,
+                                  jitter_bits | INFO_EMISSION, vec3(0.0), 0u);
+                }
             }
 
             // Scattering candidate by next-event estimation.
             float u_light = rng_next(rng);
             vec2 u2 = vec2(rng_next(rng), rng_next(rng));
-            add_nee_candidate(at, r, rng, x, surface_none(x, w), w, vm, u_light, u2, Fhat, beta, i, jitter_bits);
+            add_nee_candidate(at, r, rng, x, surface_none(x, w), w, vm, u_light, u2, Fhat, beta, i, jitter_bits,
+                              emitted);
             if (i == SC_MAX_BOUNCES) {
                 break;
             }

@@ -554,6 +554,16 @@ bool path_x1(uint at, Reservoir r, CameraRay cam, out vec3 x1) {
 // other lights are the environment alone, whose sampler never fails (q > 0 wherever it
 // draws), and the reservoir's light vertex is the environment direction (LIGHT_ENV).
 
+// Folded emission (SC_FOLD_EMISSION, with split NEE, or where the environment is the only
+// light: its one-light NEE is the same sampler). Emission paths are candidates
+// of their own in the paper; a pixel's one selected path is then either lit or glowing,
+// and emission seen after 0, 1 or 2 bounces has other hues than the light scattered
+// there, so under the scalar target the hue of a pixel flips with its selection. Folded,
+// the split-NEE value of a medium vertex adds its emission weighted by q:
+//   g(v, omega) = f_env(v, omega) + q(omega) (sum_d f_d(v) + sigma_a Le(v)),
+// whose integral over omega is all the vertex's NEE plus its emission (q integrates to 1
+// and never vanishes where it draws), so the emission paths need no candidates.
+
 // The density q the environment sample is drawn with (solid angle), the map turned by
 // env_rot (the turn keeps the density's values, at turned directions).
 float env_sample_pdf(vec3 wi, vec2 env_rot) {
@@ -641,6 +651,8 @@ vec3 path_value(uint at, Reservoir r, CameraRay cam, CameraRay src, uint mode, i
     float geometry = 1.0;
     // The surface the last vertex lies on (shape NO_INDEX: a medium vertex).
     SurfacePoint surface = surface_none(x, w);
+    // sigma_a Le of the last vertex under folded emission (0 otherwise).
+    vec3 last_emitted = vec3(0.0);
     for (uint i = 1u; i <= kp; ++i) {
         float z = res_z(at, i);
         if (i == 1u && z >= 0.0) {
@@ -717,9 +729,13 @@ vec3 path_value(uint at, Reservoir r, CameraRay cam, CameraRay src, uint mode, i
             // a box does not emit).
             return f * (vec3(1.0) - albedo) * sigma_t * grid_emission(x) * geometry;
         }
+        // Folded emission: the last vertex's sigma_a Le joins its light terms.
+        if (SC_FOLD_EMISSION && i == kp && sigma_t > 0.0) {
+            last_emitted = (vec3(1.0) - albedo) * sigma_t * grid_emission(x);
+        }
         // Scattering at x_i by the media there (sigma_s rho, applied with the next
         // direction).
-        if (!any(greaterThan(f * (vm.sigma_s_grid + vm.sigma_s_box), vec3(0.0)))) {
+        if (!any(greaterThan(f * (vm.sigma_s_grid + vm.sigma_s_box + last_emitted), vec3(0.0)))) {
             return vec3(0.0);
         }
     }
@@ -742,6 +758,11 @@ vec3 path_value(uint at, Reservoir r, CameraRay cam, CameraRay src, uint mode, i
         float T = mode == MODE_FINAL ? final_transmittance(x, wi, dist, rng) : reuse_transmittance(set, x, wi, dist);
         light += s * T * boxes_transmittance(x, wi, dist);
     }
+    // Folded emission, weighted by q as the delta lights are: its integral over the
+    // environment sample is sigma_a Le (without split NEE the environment is the only
+    // light, drawn with probability 1: q is its density).
+    float q_fold = SC_NEE_SPLIT ? q : env_sample_pdf(stored_dir, env_rot);
+    light += q_fold * last_emitted;
     return f * light * geometry;
 }
 

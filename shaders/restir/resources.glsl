@@ -34,6 +34,8 @@ layout(constant_id = SC_ID_HAS_VELOCITY) const bool SC_HAS_VELOCITY = false;
 layout(constant_id = SC_ID_MIS_PAIRWISE) const bool SC_MIS_PAIRWISE = false;
 // Spatial reuse shifts x_1 by its optical depth tau_1 (restir/combine.glsl).
 layout(constant_id = SC_ID_SPATIAL_TAU_SHIFT) const bool SC_SPATIAL_TAU_SHIFT = false;
+// A medium vertex's emission is part of its split-NEE candidate (restir/path.glsl).
+layout(constant_id = SC_ID_FOLD_EMISSION) const bool SC_FOLD_EMISSION = false;
 layout(constant_id = SC_ID_NEE_SPLIT) const bool SC_NEE_SPLIT = false;
 layout(constant_id = SC_ID_DIRECT_EACH_WALK) const bool SC_DIRECT_EACH_WALK = false;
 // Opaque shapes beside the grid: paths may have surface vertices (restir/path.glsl).

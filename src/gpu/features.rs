@@ -52,6 +52,7 @@ pub const SC_ID_HAS_BLACKBODY: u32 = 24;
 /// Grid passes: the medium's albedo is a grid.
 pub const SC_ID_HAS_ALBEDO_GRID: u32 = 25;
 pub const SC_ID_SPATIAL_TAU_SHIFT: u32 = 26;
+pub const SC_ID_FOLD_EMISSION: u32 = 27;
 
 // ---------------------------------------------------------------------------------------
 // Values of `SC_ESTIMATOR` in `shaders/box/crepuscular.comp`.
@@ -107,7 +108,7 @@ pub const GRID_EXACT_SPAN_STEPS: u32 = 64;
 pub const GRID_MAX_STEPS: u32 = 1_048_576;
 
 /// Every constant above with its GLSL name.
-pub const ALL: [(&str, u32); 52] = [
+pub const ALL: [(&str, u32); 53] = [
     ("SC_ID_HAS_SHAPES", SC_ID_HAS_SHAPES),
     ("SC_ID_HAS_GOBOS", SC_ID_HAS_GOBOS),
     ("SC_ID_HAS_ENV", SC_ID_HAS_ENV),
@@ -135,6 +136,7 @@ pub const ALL: [(&str, u32); 52] = [
     ("SC_ID_HAS_BLACKBODY", SC_ID_HAS_BLACKBODY),
     ("SC_ID_HAS_ALBEDO_GRID", SC_ID_HAS_ALBEDO_GRID),
     ("SC_ID_SPATIAL_TAU_SHIFT", SC_ID_SPATIAL_TAU_SHIFT),
+    ("SC_ID_FOLD_EMISSION", SC_ID_FOLD_EMISSION),
     ("GRID_EXACT_SPAN_STEPS", GRID_EXACT_SPAN_STEPS),
     ("COUNTER_COUNT", COUNTER_COUNT),
     ("COUNTER_SLOTS", COUNTER_SLOTS),

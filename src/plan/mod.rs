@@ -180,6 +180,9 @@ pub struct RestirPlan {
     /// (`spatial_shift = "optical_depth"`; the grid alone carries the majorant: with box
     /// or convex media the distance shift is kept).
     pub spatial_tau_shift: bool,
+    /// Emission folded into the split-NEE candidates (`emission = "folded"`, with split
+    /// NEE and an emitting grid only).
+    pub fold_emission: bool,
     /// Spatial reuse only where the reservoir's M after temporal reuse is below this
     /// many times M (0: everywhere).
     pub spatial_max_history: f32,

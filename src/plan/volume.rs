@@ -274,7 +274,7 @@ fn restir_plan(
 ) -> (Integrator, Vec<Decision>) {
     let s = &scene.integrator.restir;
     let k = scene.integrator.max_bounces;
-    let plan = RestirPlan {
+    let mut plan = RestirPlan {
         max_bounces: k,
         has_emission: grid.emission.is_some() || grid.temperature.is_some(),
         has_blackbody: grid.temperature.is_some(),
@@ -310,6 +310,8 @@ fn restir_plan(
         // `boxes`: the media beside the grid (box and convex).
         spatial_tau_shift: s.spatial_shift == nimbus_scene::SpatialShift::OpticalDepth
             && boxes == 0,
+        // Set below, once split NEE is known.
+        fold_emission: false,
         history_before_spatial: s.temporal_history == nimbus_scene::HistoryMode::Temporal,
         sigma_star_floor: s.sigma_star_floor,
         direct_each_walk: s.direct == nimbus_scene::DirectMode::EachWalk,
@@ -328,6 +330,11 @@ fn restir_plan(
         has_area_lights: scene.shapes.iter().any(|s| s.emits()),
         has_gobos: gobo_count(scene) > 0,
     };
+    // Folded emission needs the environment's sampler at every vertex (q > 0 wherever it
+    // draws): split NEE, or the environment as the only light; and emission.
+    let env_only = matches!(scene.lights.as_slice(), [Light::Environment { .. }])
+        && !scene.shapes.iter().any(|s| s.emits());
+    plan.fold_emission = s.fold_emission && (plan.nee_split || env_only) && plan.has_emission;
     let frames = scene.render.frames;
     let spatial = plan.spatial_neighbors > 0 && plan.spatial_rounds > 0;
     let on = |name: &'static str, enabled: bool, reason: String| Decision {
@@ -460,6 +467,21 @@ fn restir_plan(
                 "one light per vertex, chosen by power (split needs directional or point lights \
                  and an environment alone besides)"
                     .into()
+            },
+        ),
+        on(
+            "  SC_FOLD_EMISSION",
+            plan.fold_emission,
+            if plan.fold_emission {
+                "each medium vertex's emission joins its split-NEE candidate (weighted by the \
+                 environment sample's density)"
+                    .into()
+            } else if s.fold_emission {
+                "emission = \"folded\" needs an emitting grid, and split NEE or an \
+                 environment as the only light: emission paths are candidates of their own"
+                    .into()
+            } else {
+                "emission paths are candidates of their own (emission = \"separate\")".into()
             },
         ),
         on(

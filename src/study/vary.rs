@@ -118,6 +118,13 @@ pub(super) fn apply(scene: &mut Scene, key: &str, value: &str) -> Result<Option<
         "spatial_rounds" => {
             scene.integrator.restir.spatial_rounds = parse_range(key, value, 0, 16)?;
         }
+        "emission" => {
+            scene.integrator.restir.fold_emission = match value {
+                "separate" => false,
+                "folded" => true,
+                _ => bail!("{key}: unknown choice {value:?}; valid: separate, folded"),
+            };
+        }
         "spatial_max_history" => {
             scene.integrator.restir.spatial_max_history = match value.parse::<f32>() {
                 Ok(r) if (0.0..=1025.0).contains(&r) => r,
@@ -476,6 +483,7 @@ mod tests {
             ("mis", "pairwise"),
             ("spatial_shift", "optical_depth"),
             ("spatial_when", "always"),
+            ("emission", "folded"),
             ("spatial_max_history", "8"),
             ("temporal_history", "temporal"),
             ("sigma_star_floor", "0.25"),
@@ -500,6 +508,7 @@ mod tests {
         );
         assert_eq!((r.spatial_radius_px, r.spatial_rounds), (Some(2.5), 2));
         assert_eq!(r.spatial_when, nimbus_scene::SpatialWhen::Always);
+        assert!(r.fold_emission);
         assert_eq!(r.reuse, nimbus_scene::ReuseMode::Vertex);
         assert_eq!(
             (r.mip_candidates, r.mip_indirect, r.mip_reuse),

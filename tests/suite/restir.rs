@@ -416,6 +416,11 @@ const LEVERS: Case = Case {
     restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 2\nspatial_neighbors = 4\nspatial_when = \"always\"\nspatial_radius_px = 10\n\
              mis = \"pairwise\"\nspatial_shift = \"optical_depth\"\ntemporal_history = \"temporal\"\nsigma_star_floor = 0.25",
 };
+const FOLDED: Case = Case {
+    label: "temporal + spatial, emission folded into the split-NEE candidates",
+    restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 1\nspatial_neighbors = 3\nspatial_when = \"always\"\n\
+             spatial_radius_px = 10\nemission = \"folded\"",
+};
 const TAU_SHIFT: Case = Case {
     label: "temporal + spatial, x_1 shifted by its optical depth",
     restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 1\nspatial_neighbors = 3\nspatial_when = \"always\"\nspatial_radius_px = 10\n\
@@ -536,8 +541,21 @@ fn emission_matches_the_baseline() {
                            emission_scale = [2.0, 1.0, 0.5]",
             ..Cloud::default()
         },
-        &[BOTH],
+        &[BOTH, FOLDED],
         "emission K=2",
+    );
+    // Under a sky alone (one-light NEE, the environment drawn at every vertex).
+    check_cases(
+        Cloud {
+            bounces: 2,
+            lights: "[[light]]\ntype = \"environment\"\nradiance = [0.25, 0.35, 0.55]\n",
+            medium_extra:
+                "emission = { procedural = \"cloud\", dims = [12, 8, 12], noise_seed = 5 }\n\
+                           emission_scale = [2.0, 1.0, 0.5]",
+            ..Cloud::default()
+        },
+        &[FOLDED],
+        "emission under a sky alone K=2",
     );
 }
 

@@ -619,6 +619,9 @@ pub struct RestirSettings {
     pub final_ratio_tracking: bool,
     /// Spatial reuse's MIS weights (`mis`).
     pub mis: MisMode,
+    /// Emission of medium vertices: its own candidates, or folded into each vertex's
+    /// split-NEE candidate (`emission = "folded"`).
+    pub fold_emission: bool,
     /// How spatial reuse moves x_1 between pixels (`spatial_shift`).
     pub spatial_shift: SpatialShift,
     /// Spatial reuse only on pixels whose reservoir after temporal reuse holds an M below
@@ -660,6 +663,7 @@ impl Default for RestirSettings {
             final_ratio_tracking: false,
             mis: MisMode::Talbot,
             spatial_shift: SpatialShift::Distance,
+            fold_emission: false,
             spatial_max_history: 0.0,
             temporal_history: HistoryMode::Temporal,
             sigma_star_floor: 0.0,

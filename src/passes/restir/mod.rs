@@ -53,7 +53,7 @@ pub fn specialization(
     plan: &RestirPlan,
     exact_spans: bool,
     two_level: bool,
-) -> [(u32, SpecValue); 22] {
+) -> [(u32, SpecValue); 23] {
     [
         (SC_ID_TWO_LEVEL_BRICKS, SpecValue::Bool(two_level)),
         (
@@ -84,6 +84,7 @@ pub fn specialization(
             SC_ID_SPATIAL_TAU_SHIFT,
             SpecValue::Bool(plan.spatial_tau_shift),
         ),
+        (SC_ID_FOLD_EMISSION, SpecValue::Bool(plan.fold_emission)),
         (SC_ID_NEE_SPLIT, SpecValue::Bool(plan.nee_split)),
         (
             SC_ID_DIRECT_EACH_WALK,

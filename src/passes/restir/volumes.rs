@@ -520,6 +520,7 @@ mod tests {
             mip_reuse: Some(level),
             pairwise_mis: false,
             spatial_tau_shift: false,
+            fold_emission: false,
             spatial_max_history: 0.0,
             nee_split: false,
             direct_each_walk: true,

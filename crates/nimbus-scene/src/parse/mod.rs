@@ -100,6 +100,7 @@ pub const RESTIR_KEYS: &[&str] = &[
     "final_transmittance",
     "mis",
     "spatial_shift",
+    "emission",
     "spatial_max_history",
     "temporal_history",
     "sigma_star_floor",
@@ -584,6 +585,11 @@ fn parse_restir(source: &Source, table: &toml::Table) -> Result<RestirSettings> 
             "mis",
             Some(d.mis),
             &[("talbot", MisMode::Talbot), ("pairwise", MisMode::Pairwise)],
+        )?,
+        fold_emission: f.choice(
+            "emission",
+            Some(d.fold_emission),
+            &[("separate", false), ("folded", true)],
         )?,
         spatial_max_history: f.f32_in(
             "spatial_max_history",
