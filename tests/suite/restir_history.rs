@@ -36,6 +36,24 @@ fn frame_image(
     r.image
 }
 
+/// Checks that ReSTIR's frame 6 of `s` (after frames 0-5 of history), averaged over 12
+/// seeds, has the image mean `expected` (the baseline's converged mean of that frame's
+/// static scene) within 4 standard errors of the seeds' mean plus 0.5 %.
+fn assert_frame6_mean(ctx: &nimbus_gpu::Context, s: &Scene, expected: f64, label: &str) {
+    let means: Vec<f64> = (1..=12)
+        .map(|seed| mean(&frame_image(ctx, s, 6, 6, seed)))
+        .collect();
+    let n = means.len() as f64;
+    let m = means.iter().sum::<f64>() / n;
+    let var = means.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0);
+    let se = (var / n).sqrt();
+    println!("{label}: frame 6 mean {m} +- {se} (12 seeds), baseline {expected}");
+    assert!(
+        (m - expected).abs() <= 4.0 * se + 0.005 * expected,
+        "{label}: ReSTIR's frame 6 mean {m} +- {se} (12 seeds) against the baseline's {expected}"
+    );
+}
+
 /// The mean of all channels of all pixels.
 fn mean(image: &ImageRgb) -> f64 {
     image
@@ -189,27 +207,17 @@ fn a_moving_camera_keeps_each_frames_mean() {
             .expect("render")
             .image,
     );
-    // Temporal reuse alone (the defaults), and with spatial reuse by the optical-depth
-    // shift on the pixels whose history is short (the camera's motion drops it).
+    // The defaults (temporal reuse, and spatial reuse on the frames whose camera moved),
+    // and spatial reuse by the optical-depth shift on the pixels whose history is short
+    // (the camera's motion drops it).
     let spatial = "[integrator.restir]\nspatial_neighbors = 3\nspatial_radius_px = 4\nspatial_when = \"always\"\n\
                    spatial_shift = \"optical_depth\"\nspatial_max_history = 8\n";
     for (label, extra) in [
-        ("temporal", ""),
+        ("defaults", ""),
         ("temporal + short-history spatial", spatial),
     ] {
         let s = scene(&format!("{animated}{extra}"), "dolly.toml");
-        let means: Vec<f64> = (1..=12)
-            .map(|seed| mean(&frame_image(&ctx, &s, 6, 6, seed)))
-            .collect();
-        let n = means.len() as f64;
-        let m = means.iter().sum::<f64>() / n;
-        let var = means.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0);
-        let se = (var / n).sqrt();
-        println!("{label}: frame 6 mean {m} +- {se} (12 seeds), baseline {expected}");
-        assert!(
-            (m - expected).abs() <= 4.0 * se + 0.005 * expected,
-            "{label}: ReSTIR's frame 6 mean {m} +- {se} (12 seeds) against the baseline's {expected}"
-        );
+        assert_frame6_mean(&ctx, &s, expected, label);
     }
     assert_no_validation_errors(&ctx);
 }
@@ -268,17 +276,6 @@ fn camera_sun_and_density_changing_together_keep_each_frames_mean() {
         restir.restir().is_some_and(|p| p.spatial_neighbors > 0),
         "the defaults reuse spatially under a moving camera"
     );
-    let means: Vec<f64> = (1..=12)
-        .map(|seed| mean(&frame_image(&ctx, &s, 6, 6, seed)))
-        .collect();
-    let n = means.len() as f64;
-    let m = means.iter().sum::<f64>() / n;
-    let var = means.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0);
-    let se = (var / n).sqrt();
-    println!("frame 6 mean {m} +- {se} (12 seeds), baseline {expected}");
-    assert!(
-        (m - expected).abs() <= 4.0 * se + 0.005 * expected,
-        "ReSTIR's frame 6 mean {m} +- {se} (12 seeds) against the baseline's {expected}"
-    );
+    assert_frame6_mean(&ctx, &s, expected, "camera, sun and density");
     assert_no_validation_errors(&ctx);
 }
