@@ -34,7 +34,7 @@
 //! d_{f+1}(x) = d_f(x − v(x)) at every voxel centre x, with the trilinear lookup of
 //! `VoxelGrid::sample_trilinear` (clamped at the faces) and the f32 values exactly as
 //! written, so a reader can recompute each frame from the previous file
-//! (`crates/nimbus-scene/tests/assets.rs` does).
+//! (`crates/nimbus-scene/tests/suite/assets.rs` does).
 
 use std::path::{Path, PathBuf};
 

@@ -14,7 +14,6 @@ pub mod passes;
 pub mod plan;
 pub mod profile;
 pub mod renderer;
-pub mod study;
 
 use std::path::{Path, PathBuf};
 

@@ -5,7 +5,7 @@ use std::process::ExitCode;
 
 use anyhow::{bail, ensure, Context as _, Result};
 use clap::{Args, Parser, Subcommand};
-use nimbus::{load_scene, output, plan, profile, renderer, study};
+use nimbus::{load_scene, output, plan, profile, renderer};
 
 mod render_cmd;
 
@@ -38,7 +38,11 @@ enum Command {
     Devices,
     /// Measure error against a converged reference versus GPU milliseconds over a
     /// grid of settings; writes study.csv, study.md and study.png.
-    Study(StudyArgs),
+    ///
+    /// Runs the `nimbus-study` binary, built beside this one (`nimbus study --help`
+    /// lists its options).
+    #[command(disable_help_flag = true)]
+    Study(ForwardArgs),
     /// The cost of a sample: render the benchmark cases with work counters and
     /// timestamps, and compare them with a stored baseline (docs/performance.md).
     Bench(BenchArgs),
@@ -46,6 +50,13 @@ enum Command {
     /// very bright sun), e.g. `nimbus make-sky target/bench/sky-sun.exr` for
     /// assets/scenes/bench/sky-sun.toml.
     MakeSky(MakeSkyArgs),
+}
+
+/// The arguments of a subcommand another binary implements, passed on as they are.
+#[derive(Args)]
+struct ForwardArgs {
+    #[arg(trailing_var_arg = true, allow_hyphen_values = true, num_args = 0..)]
+    args: Vec<std::ffi::OsString>,
 }
 
 #[derive(Args)]
@@ -322,73 +333,6 @@ struct ProfileArgs {
     overrides: Overrides,
 }
 
-#[derive(Args)]
-struct StudyArgs {
-    /// Scene file (TOML).
-    scene: PathBuf,
-    /// KEY=V1,V2,... (repeatable; the configurations are the cartesian product). Keys:
-    /// box_estimator, spp, box_samples, frames, seed, max_bounces, volume, and the
-    /// [integrator.restir] fields candidates, temporal, temporal_limit,
-    /// spatial_neighbors, spatial_radius_px, spatial_when, spatial_rounds, spatial_shift,
-    /// spatial_max_history, emission, reuse, mis, temporal_history, sigma_star_floor, nee, direct, mip_candidates, mip_indirect, mip_reuse (a level or
-    /// auto), final_transmittance. Each max_bounces gets its own reference; configurations that render the same
-    /// image are measured and listed once. ReSTIR renders one path per pixel per frame,
-    /// so spp varies the other integrators only (its spp > 1 configurations are left out
-    /// and listed).
-    #[arg(long, value_name = "KEY=V1,V2,...")]
-    vary: Vec<String>,
-    /// Frames per configuration (unless frames is varied).
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
-    frames: u32,
-    /// Frames of the reference render.
-    #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
-    reference_frames: u32,
-    /// Samples per pixel per frame of the reference render.
-    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..=65536))]
-    reference_spp: u32,
-    /// Box estimator of the reference (default: the scene's own).
-    #[arg(long, value_name = "NAME")]
-    reference_estimator: Option<String>,
-    /// Samples along each camera ray of the reference.
-    #[arg(long, default_value_t = 64, value_parser = clap::value_parser!(u32).range(1..=65536))]
-    reference_box_samples: u32,
-    /// KEY=VALUE of the series the others are compared with at equal GPU time
-    /// (default box_estimator=rm when box_estimator is varied).
-    #[arg(long, value_name = "KEY=VALUE")]
-    baseline: Option<String>,
-    /// Reference cache (default $XDG_CACHE_HOME/nimbus/references or
-    /// ~/.cache/nimbus/references).
-    #[arg(long)]
-    cache_dir: Option<PathBuf>,
-    /// Output directory (default study-<scene stem>).
-    #[arg(long)]
-    out_dir: Option<PathBuf>,
-    /// Image width for the reference and every configuration (default: the scene's).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16384))]
-    width: Option<u32>,
-    /// Image height for the reference and every configuration (default: the scene's).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16384))]
-    height: Option<u32>,
-    /// Frames rendered before each configuration's measured frames, not measured. Each
-    /// configuration warms up for at least 1 frame (shader compilation) and, for
-    /// Volumetric ReSTIR with temporal reuse, at least 4·temporal_limit frames; this
-    /// raises both.
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(0..=100_000))]
-    warmup: u32,
-    /// Renders of every configuration, each with its own seed derived from the scene's;
-    /// rows report the mean error over the seeds and its spread (min and max RMSE).
-    /// --vary seed needs --seeds 1.
-    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=i64::from(study::MAX_SEEDS)))]
-    seeds: u32,
-    /// Report the mean of each measured frame's own error, at the GPU time of one frame
-    /// (steady-state single-frame error, as the Volumetric ReSTIR paper measures), instead
-    /// of the error of the mean over the frames. An animated scene needs it: every
-    /// configuration then measures the same --frames scene frames after the longest
-    /// warm-up, each against a reference of that scene frame.
-    #[arg(long)]
-    per_frame: bool,
-}
-
 /// The exit status of a render that was interrupted (SIGINT or SIGTERM) and wrote the
 /// frames it had: 128 + SIGINT, as shells report Ctrl-C.
 const EXIT_INTERRUPTED: u8 = 130;
@@ -418,7 +362,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
         Command::Merge(args) => merge_cmd(args).map(ok),
         Command::Profile(args) => profile_cmd(args).map(ok),
         Command::Devices => devices().map(ok),
-        Command::Study(args) => study_cmd(args).map(ok),
+        Command::Study(args) => forward_to_study(args),
         Command::Bench(args) => bench_cmd(args),
         Command::MakeSky(args) => make_sky_cmd(args).map(ok),
     }
@@ -448,30 +392,6 @@ fn merge_cmd(args: MergeArgs) -> Result<()> {
             .map_or_else(|| "unknown".to_string(), |e| format!("{e:.4}"))
     );
     Ok(())
-}
-
-fn study_cmd(args: StudyArgs) -> Result<()> {
-    let study = study::Study::new(&study::StudyOptions {
-        scene: args.scene,
-        vary: args.vary,
-        frames: args.frames,
-        reference_frames: args.reference_frames,
-        reference_spp: args.reference_spp,
-        reference_estimator: args.reference_estimator,
-        reference_box_samples: args.reference_box_samples,
-        baseline: args.baseline,
-        cache_dir: args.cache_dir,
-        out_dir: args.out_dir,
-        width: args.width,
-        height: args.height,
-        warmup: args.warmup,
-        seeds: args.seeds,
-        per_frame: args.per_frame,
-    })?;
-    let ctx = Context::new(&ContextDesc::from_env())?;
-    eprintln!("device: {}", ctx.info().name);
-    study.run(&ctx)?;
-    report_validation(&ctx)
 }
 
 /// `--frame-range A..B`: frames A to B, both included, A ≤ B.
@@ -710,5 +630,45 @@ fn report_validation(ctx: &Context) -> Result<()> {
             errors.len(),
             errors.join("\n")
         )
+    }
+}
+
+/// `nimbus study ARGS`: run `nimbus-study ARGS` in this process's place. The study
+/// harness is its own crate (crates/nimbus-study), so the renderer does not depend on
+/// its plotting stack. The binary is looked up in `NIMBUS_STUDY` (a path), then beside
+/// this executable (where `cargo build` puts it), then on `PATH`.
+fn forward_to_study(args: ForwardArgs) -> Result<ExitCode> {
+    let name = format!("nimbus-study{}", std::env::consts::EXE_SUFFIX);
+    let beside = std::env::current_exe()
+        .ok()
+        .and_then(|exe| exe.parent().map(|dir| dir.join(&name)))
+        .filter(|path| path.is_file());
+    let program = match std::env::var_os("NIMBUS_STUDY") {
+        Some(path) => PathBuf::from(path),
+        None => beside.unwrap_or_else(|| PathBuf::from(&name)),
+    };
+    let mut command = std::process::Command::new(&program);
+    command.args(&args.args);
+    let not_found = |e: std::io::Error| {
+        anyhow::anyhow!(
+            "`nimbus study` runs {} ({e}); it is built beside `nimbus` by `cargo build` at the \
+             repository root, or alone by `cargo build --release -p nimbus-study` (NIMBUS_STUDY \
+             may name it)",
+            program.display()
+        )
+    };
+    #[cfg(unix)]
+    {
+        use std::os::unix::process::CommandExt as _;
+        // exec returns only when it failed; the study then is this process (signals, exit
+        // status and standard streams are its own).
+        Err(not_found(command.exec()))
+    }
+    #[cfg(not(unix))]
+    {
+        let status = command.status().map_err(not_found)?;
+        Ok(ExitCode::from(
+            u8::try_from(status.code().unwrap_or(1)).unwrap_or(1),
+        ))
     }
 }

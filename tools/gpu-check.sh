@@ -43,6 +43,7 @@ root="$(cd "$(dirname "$0")/.." && pwd)"
 cd "$root"
 
 if [[ -z "${NIMBUS_BIN:-}" ]]; then
+    # Both binaries: `nimbus study` runs target/release/nimbus-study (crates/nimbus-study).
     cargo build --release --quiet
     NIMBUS_BIN="$root/target/release/nimbus"
 fi

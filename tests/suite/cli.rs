@@ -540,3 +540,41 @@ fn a_closed_stdout_ends_the_command_without_a_panic() {
     let stderr = text(&out.stderr);
     assert!(!stderr.contains("panicked"), "{stderr}");
 }
+
+/// `nimbus study ARGS` is `nimbus-study ARGS` in its place: every argument (help flags
+/// included) reaches it unchanged, its exit status is the command's, and a missing
+/// binary is named with how to build it.
+#[cfg(unix)]
+#[test]
+fn study_runs_the_study_binary_with_the_arguments_as_given() {
+    use std::os::unix::fs::PermissionsExt as _;
+    let dir = scratch("study-forward");
+    let stub = dir.join("fake-study");
+    std::fs::write(&stub, "#!/bin/sh\nprintf '%s|' \"$@\"\nexit 7\n").unwrap();
+    std::fs::set_permissions(&stub, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let run = |program: &std::path::Path| {
+        Command::new(env!("CARGO_BIN_EXE_nimbus"))
+            .args([
+                "study",
+                "scene.toml",
+                "--vary",
+                "spp=1,2",
+                "-h",
+                "--",
+                "a b",
+            ])
+            .env("NIMBUS_STUDY", program)
+            .output()
+            .unwrap()
+    };
+    let out = run(&stub);
+    assert_eq!(out.status.code(), Some(7), "{}", text(&out.stderr));
+    assert_eq!(text(&out.stdout), "scene.toml|--vary|spp=1,2|-h|--|a b|");
+    let missing = run(&dir.join("none"));
+    assert!(!missing.status.success());
+    let stderr = text(&missing.stderr);
+    assert!(
+        stderr.contains("none") && stderr.contains("cargo build --release -p nimbus-study"),
+        "{stderr}"
+    );
+}

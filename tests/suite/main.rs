@@ -47,5 +47,4 @@ mod restir_golden;
 mod restir_history;
 mod sampling_gpu;
 mod slurm;
-mod study;
 mod vdb_render;

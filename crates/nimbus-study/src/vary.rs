@@ -46,7 +46,7 @@ const VOLUME_INTEGRATORS: [(&str, VolumeIntegrator); 2] = [
 ];
 
 /// Sets `key` = `value` on `scene`. Returns the `box_samples` override for
-/// [`plan::build`](crate::plan::build) when the key is `box_samples` (the scene's field
+/// [`plan::build`](nimbus::plan::build) when the key is `box_samples` (the scene's field
 /// is set as well).
 ///
 /// Errors name the key and list what it accepts; the message is meant to be prefixed
@@ -399,7 +399,7 @@ mod tests {
     use super::*;
 
     fn scene() -> Scene {
-        nimbus_scene::parse_str(crate::DEFAULT_SCENE, Path::new("window.toml")).unwrap()
+        nimbus_scene::parse_str(nimbus::DEFAULT_SCENE, Path::new("window.toml")).unwrap()
     }
 
     #[test]

@@ -2,7 +2,7 @@
 //! series, decade ticks, and a legend.
 //!
 //! Drawn with `plotters` into an RGB buffer and saved with `image`. Text uses the
-//! DejaVu Sans subset in `assets/fonts/` through plotters' `ab_glyph` feature, so no
+//! DejaVu Sans subset in `crates/nimbus-study/assets/` through plotters' `ab_glyph` feature, so no
 //! system font library is needed.
 
 use std::path::Path;
@@ -13,7 +13,7 @@ use plotters::style::FontStyle;
 
 /// The font family name the plot registers its font under.
 const FONT: &str = "nimbus-sans";
-const FONT_BYTES: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans-subset.ttf");
+const FONT_BYTES: &[u8] = include_bytes!("../assets/DejaVuSans-subset.ttf");
 
 const SIZE: (u32, u32) = (1100, 720);
 
@@ -117,8 +117,9 @@ pub fn ticks(a: i32, b: i32) -> Vec<f64> {
 /// Writes the plot of `series` to `path` (PNG). `knobs` are the varied knob keys, named
 /// in the x-axis caption; each point is labelled with its knob values.
 pub fn write_png(path: &Path, title: &str, knobs: &[&str], series: &[Series]) -> Result<()> {
-    plotters::style::register_font(FONT, FontStyle::Normal, FONT_BYTES)
-        .map_err(|_| anyhow!("the plot font assets/fonts/DejaVuSans-subset.ttf is invalid"))?;
+    plotters::style::register_font(FONT, FontStyle::Normal, FONT_BYTES).map_err(|_| {
+        anyhow!("the plot font crates/nimbus-study/assets/DejaVuSans-subset.ttf is invalid")
+    })?;
     let mut buffer = vec![255u8; (SIZE.0 * SIZE.1 * 3) as usize];
     draw(&mut buffer, title, knobs, series).map_err(|e| anyhow!("drawing the plot: {e}"))?;
     image::save_buffer_with_format(

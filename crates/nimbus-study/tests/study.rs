@@ -1,9 +1,12 @@
-//! `nimbus study` end to end: the real binary on a tiny box scene with validation layers
+//! `nimbus study` (`nimbus-study`) end to end: the real binary on a tiny box scene with validation layers
 //! on (NIMBUS_VALIDATION=1), its files, the reference cache, and clear errors.
+
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use std::path::Path;
 
-use crate::common::cli::{nimbus, text};
+use std::path::PathBuf;
+use std::process::{Command, Output};
 
 /// A 16x16 unoccluded box under one directional light, rendered by ray marching.
 const TINY_BOX: &str = r#"
@@ -38,8 +41,28 @@ box_estimator = "rm"
 box_samples = 8
 "#;
 
-fn scratch(name: &str) -> std::path::PathBuf {
-    crate::common::cli::scratch("study", name)
+/// Run `nimbus-study ARGS` with validation layers on (any validation error fails it).
+fn study(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_nimbus-study"))
+        .args(args)
+        .env("NIMBUS_VALIDATION", "1")
+        .output()
+        .expect("run nimbus-study")
+}
+
+/// Lossy UTF-8 of a command's output.
+fn text(bytes: &[u8]) -> String {
+    String::from_utf8_lossy(bytes).into_owned()
+}
+
+/// A fresh, empty directory `<target tmp>/study/<name>` for one test's files.
+fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join("study")
+        .join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("scratch dir");
+    dir
 }
 
 /// The CSV as (header, rows).
@@ -72,7 +95,6 @@ fn study_measures_error_against_time_and_caches_the_reference() {
     std::fs::write(&scene, TINY_BOX).unwrap();
     let (cache, out) = (dir.join("cache"), dir.join("out"));
     let args = [
-        "study",
         scene.to_str().unwrap(),
         "--vary",
         "spp=1,4",
@@ -84,7 +106,7 @@ fn study_measures_error_against_time_and_caches_the_reference() {
         out.to_str().unwrap(),
     ];
 
-    let first = nimbus(&args);
+    let first = study(&args);
     let stderr = text(&first.stderr);
     assert!(first.status.success(), "{stderr}");
     assert!(stderr.contains("rendering reference"), "{stderr}");
@@ -126,7 +148,7 @@ fn study_measures_error_against_time_and_caches_the_reference() {
     assert!(cached
         .iter()
         .any(|n| n.starts_with("tiny-") && n.ends_with(".exr")));
-    let second = nimbus(&args);
+    let second = study(&args);
     let stderr = text(&second.stderr);
     assert!(second.status.success(), "{stderr}");
     assert!(stderr.contains("using cached reference"), "{stderr}");
@@ -141,7 +163,7 @@ fn study_measures_error_against_time_and_caches_the_reference() {
     // Other reference settings are another cache entry.
     let mut other = args.to_vec();
     other.extend(["--reference-spp", "4"]);
-    let third = nimbus(&other);
+    let third = study(&other);
     assert!(third.status.success(), "{}", text(&third.stderr));
     assert!(text(&third.stderr).contains("rendering reference"));
 }
@@ -164,15 +186,14 @@ fn an_animated_study_measures_each_frame_against_its_own_reference() {
     std::fs::write(&scene, animated).unwrap();
     let (cache, out) = (dir.join("cache"), dir.join("out"));
     let s = scene.to_str().unwrap();
-    let refused = nimbus(&["study", s, "--vary", "spp=1,4"]);
+    let refused = study(&[s, "--vary", "spp=1,4"]);
     assert!(!refused.status.success());
     assert!(
         text(&refused.stderr).contains("--per-frame"),
         "{}",
         text(&refused.stderr)
     );
-    let run = nimbus(&[
-        "study",
+    let run = study(&[
         s,
         "--per-frame",
         "--frames",
@@ -271,12 +292,12 @@ fn study_errors_name_the_flag() {
     ];
     for (extra, needles) in cases {
         // A scratch cache unless the case is about the cache; never the user's.
-        let mut args = vec!["study", s];
+        let mut args = vec![s];
         if !extra.contains(&"--cache-dir") {
             args.extend(["--cache-dir", cache]);
         }
         args.extend(&extra);
-        let out = nimbus(&args);
+        let out = study(&args);
         let stderr = text(&out.stderr);
         assert!(!out.status.success(), "{extra:?} should fail");
         assert!(!stderr.contains("panicked"), "{extra:?}: {stderr}");
@@ -293,8 +314,7 @@ fn study_errors_name_the_flag() {
     }
 
     let missing = dir.join("missing.toml");
-    let out = nimbus(&[
-        "study",
+    let out = study(&[
         missing.to_str().unwrap(),
         "--vary",
         "spp=1",
@@ -307,4 +327,18 @@ fn study_errors_name_the_flag() {
         "{}",
         text(&out.stderr)
     );
+}
+
+#[test]
+fn help_lists_every_vary_key() {
+    let help = study(&["--help"]);
+    assert!(help.status.success(), "{}", text(&help.stderr));
+    let help = text(&help.stdout);
+    assert!(help.contains("Usage: nimbus study"), "{help}");
+    for key in nimbus_study::vary_keys() {
+        assert!(
+            help.contains(key),
+            "nimbus study --help does not list the --vary key {key}"
+        );
+    }
 }

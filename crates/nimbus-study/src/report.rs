@@ -454,8 +454,8 @@ pub(super) fn equal_time_text(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::study::vary::{self, parse_vary};
-    use crate::study::{grid_options, remove_scratch, test_row, test_row_seeds, StudyOptions};
+    use crate::vary::{self, parse_vary};
+    use crate::{grid_options, remove_scratch, test_row, test_row_seeds, StudyOptions};
 
     #[test]
     fn csv_quotes_only_when_needed() {
@@ -697,7 +697,7 @@ mod tests {
         };
         let study = Study::new(&opts).unwrap();
         let reference = |device: &str, cached: bool| Reference {
-            image: crate::output::ImageRgb::new(8, 6),
+            image: nimbus::output::ImageRgb::new(8, 6),
             noise: ReferenceNoise {
                 rms_std_error: 0.0,
                 mean_rel_std_error: 0.0,

@@ -18,7 +18,7 @@ use super::report::{
 };
 use super::vary::{format_pairs, group_series, series_key, series_label, Assignment, KNOB_KEYS};
 use super::{plot, scene_stem, Configuration, Row, Study};
-use crate::renderer::{self, FrameSelection, RenderOptions, RenderResult};
+use nimbus::renderer::{self, FrameSelection, RenderOptions, RenderResult};
 
 impl Study {
     /// Renders (or loads) the references, measures every distinct configuration with
@@ -427,8 +427,8 @@ fn warn_non_finite(result: &RenderResult, what: &str) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::study::vary::assignment;
-    use crate::study::{test_row, test_row_seeds};
+    use crate::vary::assignment;
+    use crate::{test_row, test_row_seeds};
 
     #[test]
     fn rows_become_series_sorted_by_time_with_their_knobs() {
@@ -502,7 +502,7 @@ mod tests {
                 ("temporal_limit", "20")
             ])]
         );
-        let c = crate::study::metrics::equal_time(&("volume".into(), "baseline".into()), &all);
+        let c = crate::metrics::equal_time(&("volume".into(), "baseline".into()), &all);
         let pairs: Vec<(&str, &str)> = c
             .iter()
             .map(|c| (c.series.as_str(), c.baseline.as_str()))

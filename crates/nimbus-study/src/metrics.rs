@@ -9,7 +9,7 @@ use nimbus_gpu::ScopeResult;
 
 use super::plot;
 use super::vary::Assignment;
-use crate::output::ImageRgb;
+use nimbus::output::ImageRgb;
 /// ε in the relative MSE (a − r)² / (r² + ε), as in the golden-image tests.
 pub(super) const REL_MSE_EPSILON: f64 = 1e-2;
 /// y(x) on the polyline through `points` (x ascending, all coordinates > 0), linear in
@@ -377,7 +377,7 @@ pub(super) fn frame_gpu_ms(frames: &[Vec<ScopeResult>]) -> Result<(f64, f64)> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::study::vary::{assignment, series_label};
+    use crate::vary::{assignment, series_label};
 
     #[test]
     fn loglog_interpolation_is_exact_on_power_laws() {

@@ -11,10 +11,10 @@ use anyhow::{anyhow, ensure, Context as _, Result};
 use nimbus_scene::{Scene, VolumeIntegrator};
 
 use super::metrics::ReferenceNoise;
-use crate::hashing::{fnv1a64, FNV_OFFSET};
-pub(super) use crate::hashing::{scene_inputs, InputFile};
-use crate::output::{read_exr, write_image, ImageRgb};
-use crate::plan::RenderPlan;
+use nimbus::hashing::{fnv1a64, FNV_OFFSET};
+pub(super) use nimbus::hashing::{scene_inputs, InputFile};
+use nimbus::output::{read_exr, write_image, ImageRgb};
+use nimbus::plan::RenderPlan;
 
 /// `$XDG_CACHE_HOME/nimbus/references`, else `$HOME/.cache/nimbus/references`.
 pub(super) fn default_cache_dir() -> Result<PathBuf> {
@@ -267,7 +267,7 @@ pub(super) fn store_cached(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::hashing::hash_file;
+    use nimbus::hashing::hash_file;
 
     /// A fresh, empty directory for one test.
     fn scratch(name: &str) -> PathBuf {
@@ -282,11 +282,11 @@ mod tests {
     /// held `scene_bytes`.
     fn reference_job(dir: &Path, scene_bytes: &[u8], spp: u32) -> ReferenceJob {
         let mut scene =
-            nimbus_scene::parse_str(crate::DEFAULT_SCENE, Path::new("window.toml")).unwrap();
+            nimbus_scene::parse_str(nimbus::DEFAULT_SCENE, Path::new("window.toml")).unwrap();
         scene.render.width = 3;
         scene.render.height = 2;
         scene.render.spp = spp;
-        let plan = crate::plan::build(&scene, None).unwrap();
+        let plan = nimbus::plan::build(&scene, None).unwrap();
         ReferenceJob::new(scene, plan, scene_bytes, &[], "window", dir, None)
     }
 
@@ -399,7 +399,7 @@ mod tests {
             ]
         );
         // Procedural grids and box scenes read no file.
-        let window = nimbus_scene::parse_str(crate::DEFAULT_SCENE, Path::new("w.toml")).unwrap();
+        let window = nimbus_scene::parse_str(nimbus::DEFAULT_SCENE, Path::new("w.toml")).unwrap();
         assert!(scene_inputs(&window).unwrap().is_empty());
         // A file that went away after loading is an error naming where the scene uses it.
         std::fs::remove_file(dir.join("v.raw")).unwrap();
