@@ -295,100 +295,12 @@ impl Study {
             "--seeds {}: expected 1..={MAX_SEEDS} renders per configuration",
             opts.seeds
         );
-        // Read once, as `nimbus render` does: a regular file of a scene's size (issue 24:
-        // a device named as the scene was read forever), parsed from the bytes hashed.
-        let scene_text = nimbus_scene::read_scene_file(&opts.scene)?;
-        let mut base = nimbus_scene::parse_str(&scene_text, &opts.scene)?;
-        let scene_bytes = scene_text.into_bytes();
-        if let Some(w) = opts.width {
-            base.render.width = w;
-        }
-        if let Some(h) = opts.height {
-            base.render.height = h;
-        }
-        base.render.frames = opts.frames;
-        // An animated scene is measured frame by frame, each frame against its own
-        // reference (a window of scene frames after the warm-up, see `Study::window`).
-        let animated = base.is_animated();
-        ensure!(
-            !animated || opts.per_frame,
-            "{}: the scene is animated ([[camera.keyframe]], [[light.keyframe]] or \
-             [[medium.frame]]): a study of it needs --per-frame, which measures each frame \
-             against a reference of that same scene frame (the error of a mean over \
-             frames would mix different images)",
-            opts.scene.display()
-        );
+        let (base, scene_bytes, animated) = load_base(opts)?;
         let (width, height) = (base.render.width, base.render.height);
 
-        // Parse the --vary lists.
-        let mut varies: Vec<Vary> = Vec::new();
-        for text in &opts.vary {
-            let vary = parse_vary(text).with_context(|| format!("--vary {text}"))?;
-            ensure!(
-                !varies.iter().any(|v| v.key == vary.key),
-                "--vary {text}: {} is already varied by an earlier --vary",
-                vary.key
-            );
-            ensure!(
-                !(animated && vary.key == "frames"),
-                "--vary {text}: the scene is animated, so its frames are the animation's: \
-                 every configuration measures the same --frames scene frames after the \
-                 longest warm-up; vary spp or candidates for more work per frame"
-            );
-            if vary.key == "seed" && opts.seeds > 1 {
-                bail!(
-                    "--vary {text} with --seeds {}: both set the seeds. Use --seeds N alone \
-                     (every configuration renders N seeds derived from the scene's, and the \
-                     tables report their spread), or --vary seed=... with --seeds 1 to pick \
-                     the seeds yourself",
-                    opts.seeds
-                );
-            }
-            varies.push(vary);
-        }
+        let varies = parse_varies(opts, animated)?;
 
-        // The reference settings; the integrand's keys are set per configuration.
-        let mut ref_base = base.clone();
-        ref_base.render.seed = base.render.seed ^ REFERENCE_SEED_MIX;
-        let reference_estimator = opts
-            .reference_estimator
-            .clone()
-            .unwrap_or_else(|| base.integrator.box_estimator.name().to_owned());
-        let ref_pairs = [
-            (
-                "frames",
-                opts.reference_frames.to_string(),
-                "--reference-frames",
-            ),
-            ("spp", opts.reference_spp.to_string(), "--reference-spp"),
-            (
-                "box_estimator",
-                reference_estimator,
-                "--reference-estimator",
-            ),
-            (
-                "box_samples",
-                opts.reference_box_samples.to_string(),
-                "--reference-box-samples",
-            ),
-        ];
-        let mut ref_box_samples = None;
-        for (key, value, flag) in &ref_pairs {
-            if let Some(n) =
-                apply(&mut ref_base, key, value).with_context(|| format!("{flag} {value}"))?
-            {
-                ref_box_samples = Some(n);
-            }
-        }
-        // Grid media: the converged reference is the baseline path tracer's (the unbiased
-        // estimator every Volumetric ReSTIR claim is measured against).
-        if ref_base
-            .media
-            .iter()
-            .any(|m| matches!(m, nimbus_scene::Medium::Grid(_)))
-        {
-            ref_base.integrator.volume = VolumeIntegrator::Baseline;
-        }
+        let (ref_base, ref_box_samples) = reference_base(&base, opts)?;
         let ref_fold = fold_seed(ref_base.render.seed);
         let stem = scene_stem(&opts.scene);
         let cache_dir = match &opts.cache_dir {
@@ -546,6 +458,113 @@ impl Study {
             window,
         })
     }
+}
+
+/// The scene as the study renders it (`--width`, `--height`, `--frames` applied), its
+/// file's bytes (what the reference cache hashes) and whether it is animated.
+fn load_base(opts: &StudyOptions) -> Result<(Scene, Vec<u8>, bool)> {
+    // Read once, as `nimbus render` does: a regular file of a scene's size (issue 24:
+    // a device named as the scene was read forever), parsed from the bytes hashed.
+    let scene_text = nimbus_scene::read_scene_file(&opts.scene)?;
+    let mut base = nimbus_scene::parse_str(&scene_text, &opts.scene)?;
+    let scene_bytes = scene_text.into_bytes();
+    if let Some(w) = opts.width {
+        base.render.width = w;
+    }
+    if let Some(h) = opts.height {
+        base.render.height = h;
+    }
+    base.render.frames = opts.frames;
+    // An animated scene is measured frame by frame, each frame against its own
+    // reference (a window of scene frames after the warm-up, see `Study::window`).
+    let animated = base.is_animated();
+    ensure!(
+        !animated || opts.per_frame,
+        "{}: the scene is animated ([[camera.keyframe]], [[light.keyframe]] or \
+         [[medium.frame]]): a study of it needs --per-frame, which measures each frame \
+         against a reference of that same scene frame (the error of a mean over \
+         frames would mix different images)",
+        opts.scene.display()
+    );
+    Ok((base, scene_bytes, animated))
+}
+
+/// The `--vary` lists, each key varied once.
+fn parse_varies(opts: &StudyOptions, animated: bool) -> Result<Vec<Vary>> {
+    let mut varies: Vec<Vary> = Vec::new();
+    for text in &opts.vary {
+        let vary = parse_vary(text).with_context(|| format!("--vary {text}"))?;
+        ensure!(
+            !varies.iter().any(|v| v.key == vary.key),
+            "--vary {text}: {} is already varied by an earlier --vary",
+            vary.key
+        );
+        ensure!(
+            !(animated && vary.key == "frames"),
+            "--vary {text}: the scene is animated, so its frames are the animation's: \
+             every configuration measures the same --frames scene frames after the \
+             longest warm-up; vary spp or candidates for more work per frame"
+        );
+        if vary.key == "seed" && opts.seeds > 1 {
+            bail!(
+                "--vary {text} with --seeds {}: both set the seeds. Use --seeds N alone \
+                 (every configuration renders N seeds derived from the scene's, and the \
+                 tables report their spread), or --vary seed=... with --seeds 1 to pick \
+                 the seeds yourself",
+                opts.seeds
+            );
+        }
+        varies.push(vary);
+    }
+    Ok(varies)
+}
+
+/// The scene with the reference settings (`--reference-*`; grid media by the baseline)
+/// and the reference's `box_samples` override; the integrand's keys are set per
+/// configuration.
+fn reference_base(base: &Scene, opts: &StudyOptions) -> Result<(Scene, Option<u32>)> {
+    let mut ref_base = base.clone();
+    ref_base.render.seed = base.render.seed ^ REFERENCE_SEED_MIX;
+    let reference_estimator = opts
+        .reference_estimator
+        .clone()
+        .unwrap_or_else(|| base.integrator.box_estimator.name().to_owned());
+    let ref_pairs = [
+        (
+            "frames",
+            opts.reference_frames.to_string(),
+            "--reference-frames",
+        ),
+        ("spp", opts.reference_spp.to_string(), "--reference-spp"),
+        (
+            "box_estimator",
+            reference_estimator,
+            "--reference-estimator",
+        ),
+        (
+            "box_samples",
+            opts.reference_box_samples.to_string(),
+            "--reference-box-samples",
+        ),
+    ];
+    let mut ref_box_samples = None;
+    for (key, value, flag) in &ref_pairs {
+        if let Some(n) =
+            apply(&mut ref_base, key, value).with_context(|| format!("{flag} {value}"))?
+        {
+            ref_box_samples = Some(n);
+        }
+    }
+    // Grid media: the converged reference is the baseline path tracer's (the unbiased
+    // estimator every Volumetric ReSTIR claim is measured against).
+    if ref_base
+        .media
+        .iter()
+        .any(|m| matches!(m, nimbus_scene::Medium::Grid(_)))
+    {
+        ref_base.integrator.volume = VolumeIntegrator::Baseline;
+    }
+    Ok((ref_base, ref_box_samples))
 }
 
 /// `n` seeds for the configurations: `scene_seed`, then the seeds after it (wrapping),
