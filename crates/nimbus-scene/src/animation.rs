@@ -6,8 +6,8 @@
 use glam::Vec3;
 
 use crate::types::{
-    reduce_degrees, Camera, CameraFrame, GridMedium, GridSource, Light, LightKeyframe,
-    LightState, Medium, Scene,
+    reduce_degrees, Camera, CameraFrame, GridMedium, GridSource, Light, LightKeyframe, LightState,
+    Medium, Scene,
 };
 
 impl Scene {

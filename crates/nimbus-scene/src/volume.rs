@@ -390,6 +390,31 @@ fn downsample(g: &VoxelGrid) -> VoxelGrid {
     }
 }
 
+/// The number of f32 values of a raw grid file (`GridSource::Raw`) of `dims` ×
+/// `channels`, after checking the memory guard ([`check_grid_memory`]) and that the
+/// file holds exactly that many little-endian float32s. Errors name `what` and the file.
+pub(crate) fn check_raw_file(
+    file: &Path,
+    dims: [u32; 3],
+    channels: u32,
+    what: &str,
+) -> Result<usize> {
+    let values = check_grid_memory(dims, channels, what)?;
+    let size = file_size(file).map_err(|m| anyhow!("{what}: {m}"))?;
+    let expected = values as u64 * 4;
+    if size != expected {
+        bail!(
+            "{what}: {}: expected {expected} bytes ({} x {} x {} voxels x {channels} \
+             channel(s) x 4 bytes of float32), found {size} bytes",
+            file.display(),
+            dims[0],
+            dims[1],
+            dims[2]
+        );
+    }
+    Ok(values)
+}
+
 /// The number of f32 values a `dims` × `channels` grid holds, or an error (naming
 /// `what`) if a dimension is 0 or it exceeds [`MAX_GRID_VALUES`] (8 GiB of f32). Checked
 /// before anything is allocated or read.
@@ -437,19 +462,7 @@ pub fn load_grid(source: &GridSource, channels: u32, what: &str) -> Result<Voxel
     }
     let grid = match source {
         GridSource::Raw { file, dims } => {
-            let values = check_grid_memory(*dims, channels, what)?;
-            let size = file_size(file).map_err(|m| anyhow!("{what}: {m}"))?;
-            let expected = values as u64 * 4;
-            if size != expected {
-                bail!(
-                    "{what}: {}: expected {expected} bytes ({} x {} x {} voxels x {channels} \
-                     channel(s) x 4 bytes of float32), found {size} bytes",
-                    file.display(),
-                    dims[0],
-                    dims[1],
-                    dims[2]
-                );
-            }
+            let values = check_raw_file(file, *dims, channels, what)?;
             let data =
                 read_values(file, 0, values, VolEncoding::F32).with_context(|| what.to_string())?;
             VoxelGrid {
