@@ -225,7 +225,11 @@ unsafe extern "system" fn debug_callback(
     // pointer owned by the `InstanceBundle`, which outlives the messenger and the instance.
     let (data, sink) = unsafe { (&*data, &*(user_data as *const ValidationSink)) };
     let text = |s: Option<&CStr>| s.map(|s| s.to_string_lossy().into_owned());
+    // SAFETY: `data` is the layer's callback data for this call (checked non-null above),
+    // whose `pMessageIdName` is null or a NUL-terminated string valid for the callback.
     let id = unsafe { text(data.message_id_name_as_c_str()) }.unwrap_or_default();
+    // SAFETY: as above: `pMessage` of the layer's callback data is a NUL-terminated string
+    // valid for the callback.
     let message = unsafe { text(data.message_as_c_str()) }.unwrap_or_default();
     let line = format!("{id}: {message}");
     if severity.contains(vk::DebugUtilsMessageSeverityFlagsEXT::ERROR) {
@@ -258,10 +262,13 @@ impl InstanceBundle {
             list.iter()
                 .any(|e| e.extension_name_as_c_str().is_ok_and(|n| n == name))
         };
+        // SAFETY: `entry` holds a loaded Vulkan loader; the call takes no pointers of ours.
         let loader_extensions = unsafe { entry.enumerate_instance_extension_properties(None) }
             .vk_context(|| "vkEnumerateInstanceExtensionProperties")?;
         let mut layer_extensions = Vec::new();
         if validation {
+            // SAFETY: `entry` holds a loaded Vulkan loader; the call takes no pointers of
+            // ours.
             let layers = unsafe { entry.enumerate_instance_layer_properties() }
                 .vk_context(|| "vkEnumerateInstanceLayerProperties")?;
             let found = layers
@@ -274,6 +281,8 @@ impl InstanceBundle {
                      or turn validation off (unset NIMBUS_VALIDATION)"
                 );
             }
+            // SAFETY: `entry` holds a loaded loader and `VALIDATION_LAYER` is a NUL-
+            // terminated name of a layer found just above.
             layer_extensions =
                 unsafe { entry.enumerate_instance_extension_properties(Some(VALIDATION_LAYER)) }
                     .vk_context(|| {
@@ -338,6 +347,10 @@ impl InstanceBundle {
         if has_validation_features {
             create_info = create_info.push_next(&mut validation_features);
         }
+        // SAFETY: `create_info` and everything it points to (the application info and its
+        // name, the layer and extension name arrays, and the chained messenger and
+        // validation-features structs) are locals that outlive the call; every layer and
+        // extension named was found in the lists above.
         let instance = unsafe { entry.create_instance(&create_info, None) }.vk_context(|| {
             format!(
                 "vkCreateInstance (Vulkan 1.2, validation {})",
@@ -354,6 +367,9 @@ impl InstanceBundle {
             sink,
         };
         if let (true, Some(debug_utils)) = (validation, &bundle.debug_utils) {
+            // SAFETY: `debug_utils` was loaded for this instance, which is alive;
+            // `messenger_info` points at `debug_callback` and at `sink`, which this bundle
+            // owns and keeps until after the messenger is destroyed.
             bundle.messenger =
                 unsafe { debug_utils.create_debug_utils_messenger(&messenger_info, None) }
                     .vk_context(|| "vkCreateDebugUtilsMessengerEXT")?;
@@ -387,6 +403,7 @@ fn c_chars_to_string(chars: &[std::ffi::c_char]) -> String {
 }
 
 fn query_devices(instance: &ash::Instance) -> Result<Vec<(vk::PhysicalDevice, DeviceInfo)>> {
+    // SAFETY: `instance` is a live instance borrowed for the call.
     let physical_devices = unsafe { instance.enumerate_physical_devices() }
         .vk_context(|| "vkEnumeratePhysicalDevices")?;
     Ok(physical_devices
@@ -397,6 +414,7 @@ fn query_devices(instance: &ash::Instance) -> Result<Vec<(vk::PhysicalDevice, De
 }
 
 fn query_device_info(instance: &ash::Instance, pd: vk::PhysicalDevice, index: usize) -> DeviceInfo {
+    // SAFETY: `pd` was enumerated from `instance`, which is alive.
     let props = unsafe { instance.get_physical_device_properties(pd) };
     let api = props.api_version;
     let mut driver = vk::PhysicalDeviceDriverProperties::default();
@@ -410,8 +428,12 @@ fn query_device_info(instance: &ash::Instance, pd: vk::PhysicalDevice, index: us
         if api >= vk::API_VERSION_1_2 {
             props2 = props2.push_next(&mut driver);
         }
+        // SAFETY: `pd` was enumerated from `instance`; the chained output structs are
+        // locals that outlive the call, and each is chained only when the device's API
+        // version defines it (checked above).
         unsafe { instance.get_physical_device_properties2(pd, &mut props2) };
     }
+    // SAFETY: `pd` was enumerated from `instance`, which is alive.
     let families = unsafe { instance.get_physical_device_queue_family_properties(pd) };
     let compute_queue_family = families
         .iter()
@@ -429,6 +451,7 @@ fn query_device_info(instance: &ash::Instance, pd: vk::PhysicalDevice, index: us
         .map(|i| families[i as usize].timestamp_valid_bits)
         .unwrap_or(0);
     let limits = &props.limits;
+    // SAFETY: `pd` was enumerated from `instance`, which is alive.
     let memory = unsafe { instance.get_physical_device_memory_properties(pd) };
     let device_local_bytes = memory.memory_heaps[..memory.memory_heap_count as usize]
         .iter()
@@ -509,6 +532,9 @@ impl Context {
             .queue_family_index(queue_family_index)
             .queue_priorities(&priorities)];
         let device_info = vk::DeviceCreateInfo::default().queue_create_infos(&queue_infos);
+        // SAFETY: `physical_device` was enumerated from this live instance, and
+        // `device_info` and the queue infos and priorities it points to outlive the call;
+        // the queue family has COMPUTE and one queue is asked for.
         let device = unsafe {
             instance
                 .instance
@@ -534,6 +560,8 @@ impl Context {
                 });
             }
         };
+        // SAFETY: the device was created with one queue of `queue_family_index`, so queue 0
+        // of that family exists.
         let queue = unsafe { device.get_device_queue(queue_family_index, 0) };
         let debug_utils = instance
             .debug_utils
@@ -630,6 +658,8 @@ impl Context {
             .object_handle(handle)
             .object_name(&name);
         // Naming is diagnostics only: a failure must not fail the caller.
+        // SAFETY: `handle` is a live object of this device (every caller names an object it
+        // just created or owns) and `info` and `name` outlive the call.
         let _ = unsafe { debug_utils.set_debug_utils_object_name(&info) };
     }
 
@@ -643,12 +673,16 @@ impl Context {
             return;
         };
         let info = vk::DebugUtilsLabelEXT::default().label_name(&label);
+        // SAFETY: the caller's `cmd` is a recording command buffer of this device; `info`
+        // and `label` outlive the call.
         unsafe { debug_utils.cmd_begin_debug_utils_label(cmd, &info) };
     }
 
     /// Closes the label region opened by [`Context::cmd_begin_label`].
     pub fn cmd_end_label(&self, cmd: vk::CommandBuffer) {
         if let Some(debug_utils) = &self.debug_utils {
+            // SAFETY: the caller's `cmd` is a recording command buffer of this device with
+            // a label region opened by `cmd_begin_label`.
             unsafe { debug_utils.cmd_end_debug_utils_label(cmd) };
         }
     }
@@ -656,6 +690,8 @@ impl Context {
     /// Waits until the device is idle.
     pub fn wait_idle(&self) -> Result<()> {
         let _queue = self.lock_queue();
+        // SAFETY: the queue mutex is held above, as vkDeviceWaitIdle needs every queue of
+        // the device externally synchronized.
         unsafe { self.device.device_wait_idle() }
             .vk_context(|| format!("vkDeviceWaitIdle on '{}'", self.info.name))
     }
