@@ -11,6 +11,7 @@ use anyhow::Result;
 use glam::IVec3;
 
 use super::{point_index, shr, BrickGrid, BRICK_EDGE, BRICK_POINTS};
+use crate::volume::conservative_average;
 
 /// How [`BrickGrid::reduce_with`] combines a point's children.
 #[derive(Clone, Copy, PartialEq, Eq)]
@@ -176,16 +177,7 @@ impl BrickGrid {
                         }
                     }
                 }
-                let avg = if count == 0 {
-                    0.0
-                } else {
-                    sum / f64::from(count)
-                };
-                let mut v = avg as f32;
-                if avg > 0.0 && v <= 0.0 {
-                    v = f32::from_bits(1);
-                }
-                v
+                conservative_average(sum, count)
             };
         })
     }
