@@ -2,7 +2,8 @@
 //!
 //! Everything here is already checked: directions are normalized, colours expanded to
 //! RGB, paths resolved against the scene file's directory, ranges validated. Code that
-//! holds a [`Scene`] never re-validates.
+//! holds a [`Scene`] never re-validates. What a scene is at one frame of an animation
+//! (keyframes interpolated, density frames chosen) is evaluated in `animation.rs`.
 
 use std::path::PathBuf;
 
