@@ -137,12 +137,15 @@ impl Context {
             .size(desc.size)
             .usage(desc.usage)
             .sharing_mode(vk::SharingMode::EXCLUSIVE);
+        // SAFETY: `info` is a valid create info (size > 0 checked above, exclusive sharing)
+        // for this context's device, which outlives the buffer.
         let raw = unsafe { device.create_buffer(&info, None) }.vk_context(|| {
             format!(
                 "vkCreateBuffer for '{name}' ({} bytes, {:?})",
                 desc.size, desc.usage
             )
         })?;
+        // SAFETY: `raw` was just created on this device and is not yet destroyed.
         let requirements = unsafe { device.get_buffer_memory_requirements(raw) };
         let allocation = self.allocator().allocate(&AllocationCreateDesc {
             name,
@@ -154,6 +157,8 @@ impl Context {
         let allocation = match allocation {
             Ok(a) => a,
             Err(e) => {
+                // SAFETY: `raw` was created above, has no memory bound and was never handed
+                // out, so nothing uses it.
                 unsafe { device.destroy_buffer(raw, None) };
                 return Err(e).with_context(|| {
                     format!(
@@ -163,10 +168,14 @@ impl Context {
                 });
             }
         };
+        // SAFETY: `raw` was created above and has no memory yet; `allocation` was made for
+        // its own requirements, so its memory and offset satisfy them.
         let bound =
             unsafe { device.bind_buffer_memory(raw, allocation.memory(), allocation.offset()) };
         if let Err(e) = bound {
             self.free_allocation(allocation, name);
+            // SAFETY: binding failed, so `raw` has no memory and was never handed out; its
+            // allocation was freed just above.
             unsafe { device.destroy_buffer(raw, None) };
             return Err(e).vk_context(|| format!("vkBindBufferMemory for '{name}'"));
         }
@@ -185,6 +194,9 @@ impl Context {
         if let Some(allocation) = buffer.allocation.take() {
             self.free_allocation(allocation, &buffer.name);
         }
+        // SAFETY: the buffer is owned (moved in) and so no longer reachable by the caller,
+        // who by this function's contract waited for the GPU to be done with it; its memory
+        // was freed above.
         unsafe { self.device().destroy_buffer(buffer.raw, None) };
         buffer.raw = vk::Buffer::null();
     }

@@ -52,6 +52,9 @@ pub fn memory_barrier(
     let barrier = vk::MemoryBarrier::default()
         .src_access_mask(src_access)
         .dst_access_mask(dst_access);
+    // SAFETY: the caller passes a command buffer of `ctx`'s device in the recording state
+    // (the contract of every `cmd` in this crate); a global memory barrier names no
+    // resource, and `barrier` outlives the call.
     unsafe {
         ctx.device().cmd_pipeline_barrier(
             cmd,
@@ -91,6 +94,8 @@ impl Context {
         let info = vk::CommandPoolCreateInfo::default()
             .flags(vk::CommandPoolCreateFlags::TRANSIENT)
             .queue_family_index(self.queue_family_index());
+        // SAFETY: `info` names this device's compute queue family; the pool is destroyed
+        // only in `Context::drop`, after the device is idle.
         let pool = unsafe { self.device().create_command_pool(&info, None) }
             .vk_context(|| "vkCreateCommandPool for the one-shot pool")?;
         self.set_name(pool, "nimbus one-shot pool");
@@ -133,6 +138,8 @@ impl Context {
             .command_pool(pool)
             .level(vk::CommandBufferLevel::PRIMARY)
             .command_buffer_count(1);
+        // SAFETY: `pool` came from `acquire_command_pool`, so it belongs to this device
+        // and, being out of the shared list until released, is used by this thread alone.
         let cmd = unsafe { device.allocate_command_buffers(&alloc_info) }
             .vk_context(|| format!("vkAllocateCommandBuffers for one-shot '{name}'"))
             .and_then(|v| {
@@ -142,14 +149,19 @@ impl Context {
             })
             .map_err(reusable)?;
         self.set_name(cmd, name);
+        // SAFETY: `cmd` was allocated from `pool` above, and `free` runs only while `cmd`
+        // is not pending: before submission, or after its fence was waited on.
         let free = || unsafe { device.free_command_buffers(pool, &[cmd]) };
 
         let recorded = (|| {
             let begin = vk::CommandBufferBeginInfo::default()
                 .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
+            // SAFETY: `cmd` was just allocated from `pool`, which no other thread uses, so
+            // it is in the initial state.
             unsafe { device.begin_command_buffer(cmd, &begin) }
                 .vk_context(|| format!("vkBeginCommandBuffer for one-shot '{name}'"))?;
             let value = record(cmd).with_context(|| format!("recording one-shot '{name}'"))?;
+            // SAFETY: `cmd` was begun above and `record` only records commands into it.
             unsafe { device.end_command_buffer(cmd) }
                 .vk_context(|| format!("vkEndCommandBuffer for one-shot '{name}'"))?;
             Ok(value)
@@ -162,6 +174,9 @@ impl Context {
             }
         };
 
+        // SAFETY: a default create info; the fence is destroyed below on every path but a
+        // timeout or a device loss, where it is leaked with the pool rather than destroyed
+        // under the GPU.
         let fence = match unsafe { device.create_fence(&vk::FenceCreateInfo::default(), None) } {
             Ok(f) => f,
             Err(e) => {
@@ -177,9 +192,13 @@ impl Context {
         let submit = vk::SubmitInfo::default().command_buffers(&cmds);
         let submitted = {
             let queue = self.lock_queue();
+            // SAFETY: the queue mutex is held (vkQueueSubmit needs the queue externally
+            // synchronized), `cmd` has ended recording, and `fence` is new and unsignalled.
             unsafe { device.queue_submit(*queue, &[submit], fence) }
         };
         if let Err(e) = submitted {
+            // SAFETY: the submission failed, so no queue operation refers to the fence or
+            // to `cmd`.
             unsafe { device.destroy_fence(fence, None) };
             free();
             return Err(reusable(vk_error(
@@ -187,6 +206,7 @@ impl Context {
                 format!("vkQueueSubmit for one-shot '{name}'"),
             )));
         }
+        // SAFETY: `fence` is alive (created above) and was submitted with `cmd`.
         match unsafe { device.wait_for_fences(&[fence], true, ONE_SHOT_TIMEOUT_NS) } {
             Ok(()) => {}
             Err(vk::Result::TIMEOUT) => {
@@ -205,6 +225,8 @@ impl Context {
                 ));
             }
         }
+        // SAFETY: the wait above succeeded, so the submission is complete and nothing
+        // refers to the fence.
         unsafe { device.destroy_fence(fence, None) };
         free();
         Ok(value)
@@ -245,6 +267,9 @@ impl Context {
                 dst_offset: offset,
                 size: len,
             };
+            // SAFETY: `cmd` is the staged one-shot's buffer, recording; the staging buffer
+            // holds `len` bytes, `offset + len <= dst.size` was checked above, and `dst`
+            // has TRANSFER_DST usage.
             unsafe {
                 self.device()
                     .cmd_copy_buffer(cmd, staging, dst.raw, &[region])
@@ -299,6 +324,9 @@ impl Context {
                 dst_offset: 0,
                 size,
             };
+            // SAFETY: `cmd` is the staged one-shot's buffer, recording; `offset + size <=
+            // src.size` was checked above, the staging buffer holds `size` bytes, and `src`
+            // has TRANSFER_SRC usage.
             unsafe {
                 self.device()
                     .cmd_copy_buffer(cmd, src.raw, staging, &[region])
@@ -323,6 +351,8 @@ impl Context {
                 vk::PipelineStageFlags::TRANSFER,
                 vk::AccessFlags::TRANSFER_WRITE,
             );
+            // SAFETY: `cmd` is this one-shot's buffer, recording; `dst` is alive for the
+            // call and has TRANSFER_DST usage (checked above).
             unsafe {
                 self.device()
                     .cmd_fill_buffer(cmd, dst.raw, 0, vk::WHOLE_SIZE, value)
@@ -347,43 +377,19 @@ impl Context {
         data: &[u8],
         copy: impl FnOnce(vk::CommandBuffer, vk::Buffer),
     ) -> Result<()> {
-        let mut staging = self.create_buffer(
-            &BufferDesc::host_to_gpu(data.len() as u64, vk::BufferUsageFlags::empty()),
-            &format!("staging upload for '{dst_name}'"),
-        )?;
-        let copied = match staging.mapped_slice_mut() {
-            Some(slice) => {
-                slice.copy_from_slice(data);
-                Ok(())
-            }
-            None => Err(anyhow::anyhow!(
-                "staging buffer for '{dst_name}' is not mapped"
-            )),
-        };
-        let result = copied.and_then(|()| {
-            self.submit_one_shot(&format!("upload '{dst_name}'"), |cmd| {
-                memory_barrier(
-                    self,
-                    cmd,
-                    STAGES_BEFORE,
-                    WRITES_BEFORE,
-                    vk::PipelineStageFlags::TRANSFER,
-                    vk::AccessFlags::TRANSFER_WRITE,
-                );
-                copy(cmd, staging.raw);
-                memory_barrier(
-                    self,
-                    cmd,
-                    vk::PipelineStageFlags::TRANSFER,
-                    vk::AccessFlags::TRANSFER_WRITE,
-                    vk::PipelineStageFlags::COMPUTE_SHADER,
-                    SHADER_ACCESS,
-                );
-                Ok(())
-            })
-        });
-        self.destroy_buffer(staging);
-        result
+        self.staged(
+            Staged::Upload,
+            dst_name,
+            data.len() as u64,
+            |staging| {
+                staging
+                    .mapped_slice_mut()
+                    .map(|slice| slice.copy_from_slice(data))
+                    .with_context(|| format!("staging buffer for '{dst_name}' is not mapped"))
+            },
+            copy,
+            |_| Ok(()),
+        )
     }
 
     fn image_byte_size(image: &Image) -> Result<u64> {
@@ -397,36 +403,8 @@ impl Context {
 
     /// Writes tightly packed texels covering the whole image; the image stays `GENERAL`.
     pub fn upload_image(&self, dst: &Image, data: &[u8]) -> Result<()> {
-        let size = Self::image_byte_size(dst)?;
-        if data.len() as u64 != size {
-            bail!(
-                "upload to image '{}' ({}x{}x{} {:?}) needs {size} bytes, got {}",
-                dst.name,
-                dst.desc.extent.width,
-                dst.desc.extent.height,
-                dst.desc.extent.depth,
-                dst.desc.format,
-                data.len()
-            );
-        }
-        if !dst.desc.usage.contains(vk::ImageUsageFlags::TRANSFER_DST) {
-            bail!(
-                "image '{}' lacks TRANSFER_DST usage; cannot upload into it",
-                dst.name
-            );
-        }
-        self.upload_staged(&dst.name, data, |cmd, staging| {
-            let region = whole_image_copy(dst);
-            unsafe {
-                self.device().cmd_copy_buffer_to_image(
-                    cmd,
-                    staging,
-                    dst.raw,
-                    vk::ImageLayout::GENERAL,
-                    &[region],
-                )
-            };
-        })
+        let e = dst.desc.extent;
+        self.upload_image_region(dst, [0; 3], [e.width, e.height, e.depth], data)
     }
 
     /// Writes tightly packed texels (x fastest, then y, then z) into the box of `extent`
@@ -478,6 +456,10 @@ impl Context {
                 height: extent[1],
                 depth: extent[2],
             };
+            // SAFETY: `cmd` is the staged one-shot's buffer, recording; the region lies
+            // inside `dst` and the staging buffer holds exactly its texels (both checked
+            // above); `dst` is in `GENERAL`, the layout every image keeps after
+            // `create_image`, and has TRANSFER_DST usage.
             unsafe {
                 self.device().cmd_copy_buffer_to_image(
                     cmd,
@@ -501,6 +483,9 @@ impl Context {
         }
         self.readback_staged(&src.name, size, |cmd, staging| {
             let region = whole_image_copy(src);
+            // SAFETY: `cmd` is the staged one-shot's buffer, recording; the region is the
+            // whole image and the staging buffer holds its `byte_size`; `src` is in
+            // `GENERAL` (kept since `create_image`) and has TRANSFER_SRC usage.
             unsafe {
                 self.device().cmd_copy_image_to_buffer(
                     cmd,
@@ -521,40 +506,87 @@ impl Context {
         size: u64,
         copy: impl FnOnce(vk::CommandBuffer, vk::Buffer),
     ) -> Result<Vec<u8>> {
-        let staging = self.create_buffer(
-            &BufferDesc::gpu_to_host(size, vk::BufferUsageFlags::empty()),
-            &format!("staging readback for '{src_name}'"),
-        )?;
-        let result = self
-            .submit_one_shot(&format!("readback '{src_name}'"), |cmd| {
-                memory_barrier(
-                    self,
-                    cmd,
-                    STAGES_BEFORE,
-                    WRITES_BEFORE,
-                    vk::PipelineStageFlags::TRANSFER,
-                    vk::AccessFlags::TRANSFER_READ,
-                );
-                copy(cmd, staging.raw);
-                memory_barrier(
-                    self,
-                    cmd,
-                    vk::PipelineStageFlags::TRANSFER,
-                    vk::AccessFlags::TRANSFER_WRITE,
-                    vk::PipelineStageFlags::HOST,
-                    vk::AccessFlags::HOST_READ,
-                );
-                Ok(())
-            })
-            .and_then(|()| {
+        self.staged(
+            Staged::Readback,
+            src_name,
+            size,
+            |_| Ok(()),
+            copy,
+            |staging| {
                 staging
                     .mapped_slice()
                     .map(<[u8]>::to_vec)
                     .with_context(|| format!("staging buffer for '{src_name}' is not mapped"))
-            });
+            },
+        )
+    }
+
+    /// The skeleton of a staged transfer: a mapped staging buffer of `size` bytes,
+    /// `fill`ed on the host, a one-shot that records `copy` between `direction`'s barriers
+    /// (module docs) and waits for it, then `finish` reads the staging buffer. The staging
+    /// buffer is destroyed on every path.
+    fn staged<R>(
+        &self,
+        direction: Staged,
+        name: &str,
+        size: u64,
+        fill: impl FnOnce(&mut Buffer) -> Result<()>,
+        copy: impl FnOnce(vk::CommandBuffer, vk::Buffer),
+        finish: impl FnOnce(&Buffer) -> Result<R>,
+    ) -> Result<R> {
+        let (desc, what, transfer_access, after_stage, after_access) = match direction {
+            Staged::Upload => (
+                BufferDesc::host_to_gpu(size, vk::BufferUsageFlags::empty()),
+                "upload",
+                vk::AccessFlags::TRANSFER_WRITE,
+                vk::PipelineStageFlags::COMPUTE_SHADER,
+                SHADER_ACCESS,
+            ),
+            Staged::Readback => (
+                BufferDesc::gpu_to_host(size, vk::BufferUsageFlags::empty()),
+                "readback",
+                vk::AccessFlags::TRANSFER_READ,
+                vk::PipelineStageFlags::HOST,
+                vk::AccessFlags::HOST_READ,
+            ),
+        };
+        let mut staging = self.create_buffer(&desc, &format!("staging {what} for '{name}'"))?;
+        let result = fill(&mut staging)
+            .and_then(|()| {
+                self.submit_one_shot(&format!("{what} '{name}'"), |cmd| {
+                    memory_barrier(
+                        self,
+                        cmd,
+                        STAGES_BEFORE,
+                        WRITES_BEFORE,
+                        vk::PipelineStageFlags::TRANSFER,
+                        transfer_access,
+                    );
+                    copy(cmd, staging.raw);
+                    memory_barrier(
+                        self,
+                        cmd,
+                        vk::PipelineStageFlags::TRANSFER,
+                        vk::AccessFlags::TRANSFER_WRITE,
+                        after_stage,
+                        after_access,
+                    );
+                    Ok(())
+                })
+            })
+            .and_then(|()| finish(&staging));
         self.destroy_buffer(staging);
         result
     }
+}
+
+/// Which way a staged transfer goes (see [`Context::staged`]).
+#[derive(Clone, Copy)]
+enum Staged {
+    /// Host -> staging -> the resource, then read or written by compute shaders.
+    Upload,
+    /// The resource -> staging -> host.
+    Readback,
 }
 
 fn whole_image_copy(image: &Image) -> vk::BufferImageCopy {

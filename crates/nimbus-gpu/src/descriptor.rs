@@ -104,6 +104,9 @@ impl Context {
         let pool_info = vk::DescriptorPoolCreateInfo::default()
             .max_sets(1)
             .pool_sizes(&pool_sizes);
+        // SAFETY: `pool_info` (one set, one descriptor per binding of the pipeline's
+        // layout) and `pool_sizes` outlive the call; the pool is this set's alone and is
+        // destroyed with it.
         let pool = unsafe { device.create_descriptor_pool(&pool_info, None) }
             .vk_context(|| format!("vkCreateDescriptorPool for '{name}'"))?;
         self.set_name(pool, &format!("{name} (pool)"));
@@ -112,13 +115,17 @@ impl Context {
         let alloc_info = vk::DescriptorSetAllocateInfo::default()
             .descriptor_pool(pool)
             .set_layouts(&layouts);
+        // SAFETY: `pool` was created above for exactly one set of this layout, and
+        // `pipeline.set_layout` is alive while `pipeline` is borrowed.
         let raw = match unsafe { device.allocate_descriptor_sets(&alloc_info) } {
             Ok(sets) if !sets.is_empty() => sets[0],
             Ok(_) => {
+                // SAFETY: `pool` was created above and holds no set anyone has seen.
                 unsafe { device.destroy_descriptor_pool(pool, None) };
                 bail!("vkAllocateDescriptorSets for '{name}' returned no set");
             }
             Err(e) => {
+                // SAFETY: `pool` was created above and holds no set anyone has seen.
                 unsafe { device.destroy_descriptor_pool(pool, None) };
                 return Err(vk_error(
                     e,
@@ -170,6 +177,10 @@ impl Context {
                 }
             })
             .collect();
+        // SAFETY: `raw` is the set allocated above, not yet bound in any command buffer;
+        // `check_writes` matched every write to a binding and type of its layout, and the
+        // buffers and images they name are borrowed (alive) for the call; `infos` outlives
+        // `vk_writes`.
         unsafe { device.update_descriptor_sets(&vk_writes, &[]) };
         Ok(DescriptorSet {
             raw,
@@ -181,6 +192,9 @@ impl Context {
 
     /// Destroys the set's pool (and with it the set). The GPU must be done with it.
     pub fn destroy_descriptor_set(&self, set: DescriptorSet) {
+        // SAFETY: the set is owned (moved in) and its pool is its own; by this function's
+        // contract the GPU is done with it, so destroying the pool (and the set with it)
+        // frees nothing in use.
         unsafe { self.device().destroy_descriptor_pool(set.pool, None) };
     }
 

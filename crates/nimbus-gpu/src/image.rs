@@ -196,6 +196,8 @@ impl Context {
         let device = self.device();
 
         // Check format and size support first: a clear error beats a validation message.
+        // SAFETY: the physical device is this context's, enumerated from its live instance;
+        // the query takes no pointers of ours.
         let limits = unsafe {
             self.instance().get_physical_device_image_format_properties(
                 self.physical_device(),
@@ -238,12 +240,16 @@ impl Context {
             .usage(desc.usage)
             .sharing_mode(vk::SharingMode::EXCLUSIVE)
             .initial_layout(vk::ImageLayout::UNDEFINED);
+        // SAFETY: `info` is a valid create info for this device (2D or 3D with a non-empty
+        // extent within the format's maximum and a format and usage the device supports,
+        // all checked above); the device outlives the image.
         let raw = unsafe { device.create_image(&info, None) }.vk_context(|| {
             format!(
                 "vkCreateImage for '{name}' ({width}x{height}x{depth} {:?})",
                 desc.format
             )
         })?;
+        // SAFETY: `raw` was just created on this device and is not yet destroyed.
         let requirements = unsafe { device.get_image_memory_requirements(raw) };
         let allocation = self.allocator().allocate(&AllocationCreateDesc {
             name,
@@ -255,6 +261,8 @@ impl Context {
         let allocation = match allocation {
             Ok(a) => a,
             Err(e) => {
+                // SAFETY: `raw` was created above, has no memory bound and was never handed
+                // out, so nothing uses it.
                 unsafe { device.destroy_image(raw, None) };
                 return Err(e).with_context(|| {
                     format!(
@@ -264,10 +272,14 @@ impl Context {
                 });
             }
         };
+        // SAFETY: `raw` was created above and has no memory yet; `allocation` was made for
+        // its own requirements, so its memory and offset satisfy them.
         let bound =
             unsafe { device.bind_image_memory(raw, allocation.memory(), allocation.offset()) };
         if let Err(e) = bound {
             self.free_allocation(allocation, name);
+            // SAFETY: binding failed, so `raw` has no memory and was never handed out; its
+            // allocation was freed just above.
             unsafe { device.destroy_image(raw, None) };
             return Err(e).vk_context(|| format!("vkBindImageMemory for '{name}'"));
         }
@@ -285,6 +297,8 @@ impl Context {
             .view_type(view_type)
             .format(desc.format)
             .subresource_range(COLOR_RANGE);
+        // SAFETY: `raw` is bound to its memory above, and the view's format, type and
+        // single colour subresource match how it was created.
         match unsafe { device.create_image_view(&view_info, None) } {
             Ok(view) => image.view = view,
             Err(e) => {
@@ -310,6 +324,9 @@ impl Context {
                 .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
                 .image(raw)
                 .subresource_range(COLOR_RANGE);
+            // SAFETY: `cmd` is this one-shot's buffer, recording; `raw` is alive, not yet
+            // used by anything, and the barrier covers its one subresource, moving it out
+            // of UNDEFINED.
             unsafe {
                 device.cmd_pipeline_barrier(
                     cmd,
@@ -333,6 +350,9 @@ impl Context {
     /// Destroys the view and the image and frees its memory. The GPU must be done with it.
     pub fn destroy_image(&self, mut image: Image) {
         let device = self.device();
+        // SAFETY: the image is owned (moved in) and by this function's contract the GPU is
+        // done with it; the view (null when `create_image` failed before making one, and
+        // then skipped) goes before the image it views, and the memory is freed after both.
         unsafe {
             if image.view != vk::ImageView::null() {
                 device.destroy_image_view(image.view, None);
@@ -358,6 +378,8 @@ impl Context {
             .min_lod(0.0)
             .max_lod(0.0)
             .unnormalized_coordinates(false);
+        // SAFETY: `info` is a valid create info (no anisotropy, no compare, LOD range [0,
+        // 0]) and outlives the call.
         let sampler = unsafe { self.device().create_sampler(&info, None) }
             .vk_context(|| format!("vkCreateSampler for '{name}'"))?;
         self.set_name(sampler, name);
@@ -365,6 +387,9 @@ impl Context {
     }
 
     pub fn destroy_sampler(&self, sampler: vk::Sampler) {
+        // SAFETY: the caller gives back a sampler it made with `create_sampler` on this
+        // context, once no descriptor set the GPU still uses refers to it (the contract of
+        // every destroy function here).
         unsafe { self.device().destroy_sampler(sampler, None) };
     }
 }

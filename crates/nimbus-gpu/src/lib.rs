@@ -42,6 +42,7 @@ pub mod buffer;
 pub mod command;
 pub mod context;
 pub mod descriptor;
+pub mod device;
 pub mod error;
 pub mod image;
 pub mod objects;

@@ -135,6 +135,10 @@ impl ComputePipeline {
         ctx.dispatches
             .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         let device = ctx.device();
+        // SAFETY: the caller's `cmd` is recording (this crate's contract for every `cmd`);
+        // the pipeline and the set are borrowed, hence alive, and were checked above to
+        // match: the set was made for this layout, the push constants are exactly the
+        // layout's range, and the group counts are within the device's limits.
         unsafe {
             device.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, self.raw);
             device.cmd_bind_descriptor_sets(
@@ -220,6 +224,8 @@ impl Context {
             })
             .collect();
         let set_layout_info = vk::DescriptorSetLayoutCreateInfo::default().bindings(&set_bindings);
+        // SAFETY: `set_layout_info` and the `set_bindings` it points to outlive the call;
+        // bindings are unique (checked above).
         let set_layout = unsafe { device.create_descriptor_set_layout(&set_layout_info, None) }
             .vk_context(|| format!("vkCreateDescriptorSetLayout for '{name}'"))?;
         self.set_name(set_layout, &format!("{name} (set layout)"));
@@ -238,20 +244,29 @@ impl Context {
         let layout_info = vk::PipelineLayoutCreateInfo::default()
             .set_layouts(&set_layouts)
             .push_constant_ranges(push_ranges);
+        // SAFETY: `set_layout` was created above; `layout_info` and the push-constant range
+        // it points to (a multiple of 4, within the device limit, checked above) outlive
+        // the call.
         let layout = match unsafe { device.create_pipeline_layout(&layout_info, None) } {
             Ok(l) => l,
             Err(e) => {
+                // SAFETY: `set_layout` was created above and nothing refers to it yet (the
+                // pipeline layout failed).
                 unsafe { device.destroy_descriptor_set_layout(set_layout, None) };
                 return Err(vk_error(e, format!("vkCreatePipelineLayout for '{name}'")));
             }
         };
         self.set_name(layout, &format!("{name} (layout)"));
+        // SAFETY: `destroy_layouts` runs only on the error paths below, where no pipeline
+        // made with the two layouts exists; both were created above and never handed out.
         let destroy_layouts = || unsafe {
             device.destroy_pipeline_layout(layout, None);
             device.destroy_descriptor_set_layout(set_layout, None);
         };
 
         let module_info = vk::ShaderModuleCreateInfo::default().code(desc.spirv);
+        // SAFETY: `desc.spirv` is SPIR-V words that begin with the magic number and that
+        // `crate::spirv::check` has parsed (both above).
         let module = match unsafe { device.create_shader_module(&module_info, None) } {
             Ok(m) => m,
             Err(e) => {
@@ -287,13 +302,20 @@ impl Context {
         let info = vk::ComputePipelineCreateInfo::default()
             .stage(stage)
             .layout(layout);
+        // SAFETY: `module` and `layout` are alive, `entry` and `spec_info` (each entry 4
+        // bytes at its own offset inside `spec_data`) outlive the call, and the module's
+        // specialization IDs and bindings were checked against the description.
         let created =
             unsafe { device.create_compute_pipelines(vk::PipelineCache::null(), &[info], None) };
+        // SAFETY: pipeline creation has returned, and a shader module may be destroyed once
+        // the pipelines made from it exist; it is not used again.
         unsafe { device.destroy_shader_module(module, None) };
         let raw = match created {
             Ok(pipelines) => pipelines.first().copied(),
             Err((pipelines, e)) => {
                 for p in pipelines.into_iter().filter(|p| *p != vk::Pipeline::null()) {
+                    // SAFETY: `p` was created by the failed call above and never handed
+                    // out.
                     unsafe { device.destroy_pipeline(p, None) };
                 }
                 destroy_layouts();
@@ -342,6 +364,10 @@ impl Context {
     /// Destroys a pipeline and its layouts. No command buffer may still use it.
     pub(crate) fn destroy_built(&self, built: Built) {
         let device = self.device();
+        // SAFETY: `built` is owned and out of the cache, and by the callers' contract
+        // (`destroy_compute_pipeline`, or `Context::drop` after waiting idle) no command
+        // buffer still uses it; the pipeline is destroyed before the layouts it was made
+        // with.
         unsafe {
             device.destroy_pipeline(built.raw, None);
             device.destroy_pipeline_layout(built.layout, None);

@@ -7,7 +7,7 @@
 //! for a large shader such as ReSTIR's spatial pass. The context therefore keeps each
 //! pipeline (with its layouts) under a key of everything that defines it (the SPIR-V,
 //! entry point, bindings, push-constant size and specialization data) and hands it out
-//! again, counting its users. [`Context::destroy_compute_pipeline`] gives a user back;
+//! again, counting its users. [`crate::Context::destroy_compute_pipeline`] gives a user back;
 //! a pipeline without users stays until [`IDLE_PIPELINES`] younger idle ones exist, then
 //! it is destroyed, so memory stays bounded however many distinct pipelines a process
 //! builds. The context destroys whatever is left when it is dropped.

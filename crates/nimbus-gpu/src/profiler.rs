@@ -101,6 +101,8 @@ impl Profiler {
         let pool_info = vk::QueryPoolCreateInfo::default()
             .query_type(vk::QueryType::TIMESTAMP)
             .query_count(capacity);
+        // SAFETY: `pool_info` asks for `capacity` (> 0, checked above) timestamp queries
+        // and outlives the call; the pool is destroyed by `Profiler::destroy`.
         let pool =
             unsafe { ctx.device().create_query_pool(&pool_info, None) }.vk_context(|| {
                 format!("vkCreateQueryPool for profiler '{name}' ({capacity} queries)")
@@ -127,6 +129,9 @@ impl Profiler {
 
     /// Starts a frame: resets the query pool in `cmd` and forgets the previous frame.
     pub fn begin_frame(&mut self, cmd: vk::CommandBuffer) {
+        // SAFETY: `self.pool` is alive until `destroy` consumes the profiler, and the range
+        // `0..capacity` is the whole pool; the caller's `cmd` is recording, outside any
+        // render pass (this crate records compute only).
         unsafe {
             self.device
                 .cmd_reset_query_pool(cmd, self.pool, 0, self.capacity)
@@ -161,6 +166,9 @@ impl Profiler {
         }
         let begin_query = self.next_query;
         self.next_query += 2;
+        // SAFETY: `begin_query + 1 < capacity` was checked above, and the pool was reset in
+        // this frame's `begin_frame` (`frame_open` checked); `self.pool` is alive and the
+        // caller's `cmd` is recording.
         unsafe {
             ctx.device().cmd_write_timestamp(
                 cmd,
@@ -186,6 +194,9 @@ impl Profiler {
             bail!("profiler '{}': end_scope without an open scope", self.name);
         };
         ctx.cmd_end_label(cmd);
+        // SAFETY: `end_query` was reserved inside the pool by `begin_scope` (which checked
+        // the capacity), and the pool was reset in this frame; `self.pool` is alive and the
+        // caller's `cmd` is recording.
         unsafe {
             ctx.device().cmd_write_timestamp(
                 cmd,
@@ -217,6 +228,9 @@ impl Profiler {
         }
         let mut ticks = vec![0u64; self.next_query as usize];
         // Read without WAIT: unsubmitted scopes must be an error, not a hang.
+        // SAFETY: `ticks` holds `next_query` u64 slots for queries `0..next_query` of the
+        // live pool, read as TYPE_64 without WAIT, so a query not yet written gives
+        // NOT_READY instead of a hang.
         let read = unsafe {
             ctx.device().get_query_pool_results(
                 self.pool,
@@ -279,6 +293,8 @@ impl Profiler {
 
     /// Destroys the query pool. The GPU must be done with it.
     pub fn destroy(self, ctx: &Context) {
+        // SAFETY: the profiler is consumed, so the pool is no longer reachable, and by this
+        // function's contract the GPU is done with every command buffer that wrote it.
         unsafe { ctx.device().destroy_query_pool(self.pool, None) };
     }
 }

@@ -148,6 +148,7 @@
 //! [`Shape::Mesh`] shares (`Arc`); errors name the scene file, the shape, the field
 //! and the mesh file.
 
+mod animation;
 pub mod blackbody;
 pub mod bricks;
 pub mod cie1931;

@@ -100,13 +100,11 @@ impl VoxelGrid {
             hi[axis] = (base + 1).min(n - 1);
             t[axis] = c - f64::from(base);
         }
-        let v = |i: u32, j: u32, k: u32| f64::from(self.get_channel(i, j, k, c));
-        let lerp = |a: f64, b: f64, t: f64| a + (b - a) * t;
-        let x00 = lerp(v(lo[0], lo[1], lo[2]), v(hi[0], lo[1], lo[2]), t[0]);
-        let x10 = lerp(v(lo[0], hi[1], lo[2]), v(hi[0], hi[1], lo[2]), t[0]);
-        let x01 = lerp(v(lo[0], lo[1], hi[2]), v(hi[0], lo[1], hi[2]), t[0]);
-        let x11 = lerp(v(lo[0], hi[1], hi[2]), v(hi[0], hi[1], hi[2]), t[0]);
-        lerp(lerp(x00, x10, t[1]), lerp(x01, x11, t[1]), t[2])
+        let ends = [lo, hi];
+        trilinear(
+            |[x, y, z]| f64::from(self.get_channel(ends[x][0], ends[y][1], ends[z][2], c)),
+            t,
+        )
     }
 
     /// The mip pyramid: level 0 is a copy of this grid; each next level has
@@ -241,17 +239,7 @@ impl VoxelGrid {
                             }
                         }
                     }
-                    let avg = if count == 0 {
-                        0.0
-                    } else {
-                        sum / f64::from(count)
-                    };
-                    // Rounding to f32 must not turn a tiny positive average into 0.
-                    let mut value = avg as f32;
-                    if avg > 0.0 && value <= 0.0 {
-                        value = f32::from_bits(1);
-                    }
-                    data.push(value);
+                    data.push(conservative_average(sum, count));
                 }
             }
         }
@@ -390,6 +378,62 @@ fn downsample(g: &VoxelGrid) -> VoxelGrid {
     }
 }
 
+/// Trilinear blend of the 8 corner values `corner([x, y, z])` (each index 0 for the low
+/// end of its axis, 1 for the high end) at fractions `t`: along x, then y, then z. The
+/// one blend of [`VoxelGrid::sample_trilinear_channel`] and
+/// [`crate::BrickGrid::trilinear_channel`], so the two agree bit for bit.
+pub(crate) fn trilinear(corner: impl Fn([usize; 3]) -> f64, t: [f64; 3]) -> f64 {
+    let lerp = |a: f64, b: f64, t: f64| a + (b - a) * t;
+    let x00 = lerp(corner([0, 0, 0]), corner([1, 0, 0]), t[0]);
+    let x10 = lerp(corner([0, 1, 0]), corner([1, 1, 0]), t[0]);
+    let x01 = lerp(corner([0, 0, 1]), corner([1, 0, 1]), t[0]);
+    let x11 = lerp(corner([0, 1, 1]), corner([1, 1, 1]), t[0]);
+    lerp(lerp(x00, x10, t[1]), lerp(x01, x11, t[1]), t[2])
+}
+
+/// The value the conservative piecewise-constant grid gives a zero point: the average
+/// `sum / count` of its neighbours (0 without any), rounded to f32 but never from a
+/// positive average down to 0 (the smallest positive f32 instead). Shared by the dense
+/// and the brick grid.
+pub(crate) fn conservative_average(sum: f64, count: u32) -> f32 {
+    let avg = if count == 0 {
+        0.0
+    } else {
+        sum / f64::from(count)
+    };
+    let value = avg as f32;
+    if avg > 0.0 && value <= 0.0 {
+        f32::from_bits(1)
+    } else {
+        value
+    }
+}
+
+/// The number of f32 values of a raw grid file (`GridSource::Raw`) of `dims` ×
+/// `channels`, after checking the memory guard ([`check_grid_memory`]) and that the
+/// file holds exactly that many little-endian float32s. Errors name `what` and the file.
+pub(crate) fn check_raw_file(
+    file: &Path,
+    dims: [u32; 3],
+    channels: u32,
+    what: &str,
+) -> Result<usize> {
+    let values = check_grid_memory(dims, channels, what)?;
+    let size = file_size(file).map_err(|m| anyhow!("{what}: {m}"))?;
+    let expected = values as u64 * 4;
+    if size != expected {
+        bail!(
+            "{what}: {}: expected {expected} bytes ({} x {} x {} voxels x {channels} \
+             channel(s) x 4 bytes of float32), found {size} bytes",
+            file.display(),
+            dims[0],
+            dims[1],
+            dims[2]
+        );
+    }
+    Ok(values)
+}
+
 /// The number of f32 values a `dims` × `channels` grid holds, or an error (naming
 /// `what`) if a dimension is 0 or it exceeds [`MAX_GRID_VALUES`] (8 GiB of f32). Checked
 /// before anything is allocated or read.
@@ -437,19 +481,7 @@ pub fn load_grid(source: &GridSource, channels: u32, what: &str) -> Result<Voxel
     }
     let grid = match source {
         GridSource::Raw { file, dims } => {
-            let values = check_grid_memory(*dims, channels, what)?;
-            let size = file_size(file).map_err(|m| anyhow!("{what}: {m}"))?;
-            let expected = values as u64 * 4;
-            if size != expected {
-                bail!(
-                    "{what}: {}: expected {expected} bytes ({} x {} x {} voxels x {channels} \
-                     channel(s) x 4 bytes of float32), found {size} bytes",
-                    file.display(),
-                    dims[0],
-                    dims[1],
-                    dims[2]
-                );
-            }
+            let values = check_raw_file(file, *dims, channels, what)?;
             let data =
                 read_values(file, 0, values, VolEncoding::F32).with_context(|| what.to_string())?;
             VoxelGrid {

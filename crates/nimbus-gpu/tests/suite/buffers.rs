@@ -78,6 +78,9 @@ fn mapped_buffers_round_trip_without_staging() {
             dst_offset: 0,
             size: data.len() as u64,
         };
+        // SAFETY: `cmd` is this one-shot's buffer, recording; both buffers are alive for
+        // the test and `data.len()` bytes fit in each (both were made that size), and
+        // `upload` / `readback` have TRANSFER_SRC / TRANSFER_DST usage.
         unsafe {
             ctx.device()
                 .cmd_copy_buffer(cmd, upload.raw, readback.raw, &[region])

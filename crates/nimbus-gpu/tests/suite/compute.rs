@@ -176,6 +176,9 @@ fn synchronization_validation_catches_a_missing_barrier() {
     let push: [u32; 2] = [0, 64];
     // A transfer write followed by a shader write with no barrier between them.
     ctx.submit_one_shot("hazard", |cmd| {
+        // SAFETY: `cmd` is this one-shot's buffer, recording, and `out` is alive with
+        // TRANSFER_DST usage; the missing barrier after the fill is the hazard this test
+        // wants the synchronization layer to report, not undefined behaviour on the host.
         unsafe {
             ctx.device()
                 .cmd_fill_buffer(cmd, out.raw, 0, vk::WHOLE_SIZE, 0)

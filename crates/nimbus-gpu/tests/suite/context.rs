@@ -55,7 +55,10 @@ fn validation_messages_are_collected() {
     let info = vk::BufferCreateInfo::default()
         .size(0)
         .usage(vk::BufferUsageFlags::STORAGE_BUFFER);
+    // SAFETY: a size-0 buffer is deliberately invalid usage, made with the validation layer
+    // on so that the layer reports it; `info` outlives the call.
     if let Ok(buffer) = unsafe { ctx.device().create_buffer(&info, None) } {
+        // SAFETY: `buffer` was created just above, never bound or used.
         unsafe { ctx.device().destroy_buffer(buffer, None) };
     }
     let errors = ctx.take_validation_errors();

@@ -5,11 +5,13 @@
 //! neighbourhoods, same f64 summation order).
 
 use std::collections::HashSet;
+use std::ops::RangeInclusive;
 
 use anyhow::Result;
 use glam::IVec3;
 
 use super::{point_index, shr, BrickGrid, BRICK_EDGE, BRICK_POINTS};
+use crate::volume::conservative_average;
 
 /// How [`BrickGrid::reduce_with`] combines a point's children.
 #[derive(Clone, Copy, PartialEq, Eq)]
@@ -19,25 +21,40 @@ enum Reduce {
     Max,
 }
 
-/// Bricks of `grid` and their 26 neighbours inside its indirection, each once, sorted
-/// by (z, y, x).
-fn dilated(grid: &BrickGrid) -> Vec<IVec3> {
-    let mut set = HashSet::new();
+/// `bricks` each once, sorted by (z, y, x).
+fn sorted_unique(bricks: impl IntoIterator<Item = IVec3>) -> Vec<IVec3> {
+    let mut out: Vec<IVec3> = bricks
+        .into_iter()
+        .collect::<HashSet<_>>()
+        .into_iter()
+        .collect();
+    out.sort_unstable_by_key(|b| (b.z, b.y, b.x));
+    out
+}
+
+/// The bricks `b + (x, y, z)`, each offset in `reach`, of every brick `b` of `grid`
+/// that lie inside its indirection, each once, sorted by (z, y, x).
+fn around(grid: &BrickGrid, reach: RangeInclusive<i32>) -> Vec<IVec3> {
+    let mut near = Vec::new();
     for b in &grid.bricks {
-        for z in -1..=1 {
-            for y in -1..=1 {
-                for x in -1..=1 {
+        for z in reach.clone() {
+            for y in reach.clone() {
+                for x in reach.clone() {
                     let n = *b + IVec3::new(x, y, z);
                     if grid.contains_brick(n) {
-                        set.insert(n);
+                        near.push(n);
                     }
                 }
             }
         }
     }
-    let mut out: Vec<IVec3> = set.into_iter().collect();
-    out.sort_unstable_by_key(|b| (b.z, b.y, b.x));
-    out
+    sorted_unique(near)
+}
+
+/// Bricks of `grid` and their 26 neighbours inside its indirection, each once, sorted
+/// by (z, y, x).
+fn dilated(grid: &BrickGrid) -> Vec<IVec3> {
+    around(grid, -1..=1)
 }
 
 /// The 10³ lattice points `8b − 1 ..= 8b + 8` around brick `b` (channel 0, 0 where no
@@ -48,7 +65,7 @@ fn neighbourhood(grid: &BrickGrid, b: IVec3, values: &mut [f32; 1000], inside: &
         for y in 0..10 {
             for x in 0..10 {
                 let l = base + IVec3::new(x, y, z);
-                let n = (x + 10 * (y + 10 * z)) as usize;
+                let n = hood_index(IVec3::new(x, y, z));
                 inside[n] = grid.in_range(l);
                 values[n] = if inside[n] { grid.get(l) } else { 0.0 };
             }
@@ -56,75 +73,113 @@ fn neighbourhood(grid: &BrickGrid, b: IVec3, values: &mut [f32; 1000], inside: &
     }
 }
 
+/// Index into a [`neighbourhood`] of the point `h` (each 0..10) from its corner.
+fn hood_index(h: IVec3) -> usize {
+    (h.x + 10 * (h.y + 10 * h.z)) as usize
+}
+
+/// The [`neighbourhood`] of one brick at a time, gathered again when the brick changes.
+struct Hood {
+    brick: Option<IVec3>,
+    values: [f32; 1000],
+    inside: [bool; 1000],
+}
+
+impl Hood {
+    fn new() -> Self {
+        Self {
+            brick: None,
+            values: [0.0; 1000],
+            inside: [false; 1000],
+        }
+    }
+
+    fn of(&mut self, grid: &BrickGrid, b: IVec3) -> &Self {
+        if self.brick != Some(b) {
+            neighbourhood(grid, b, &mut self.values, &mut self.inside);
+            self.brick = Some(b);
+        }
+        self
+    }
+}
+
+/// The loop every derived level shares: for each brick `b` of `bricks` (sorted by (z,
+/// y, x)) and each lattice point `l` of `b` inside `out`'s range, `point(b, l, dst)`
+/// writes `l`'s `out.channels` values into `dst` (zero until then). Bricks that come out
+/// all zero are not stored.
+fn derive(
+    mut out: BrickGrid,
+    bricks: Vec<IVec3>,
+    mut point: impl FnMut(IVec3, IVec3, &mut [f32]),
+) -> Result<BrickGrid> {
+    let ch = out.channels as usize;
+    let mut values = vec![0f32; BRICK_POINTS * ch];
+    for b in bricks {
+        let (lo, hi) = out.brick_range(b);
+        values.fill(0.0);
+        let mut any = false;
+        for k in lo.z..=hi.z {
+            for j in lo.y..=hi.y {
+                for i in lo.x..=hi.x {
+                    let l = IVec3::new(i, j, k);
+                    let at = point_index(l - b * BRICK_EDGE) * ch;
+                    let dst = &mut values[at..at + ch];
+                    point(b, l, dst);
+                    any |= dst.iter().any(|v| *v != 0.0);
+                }
+            }
+        }
+        if any {
+            out.push_brick(b, &values)?;
+        }
+    }
+    Ok(out)
+}
+
 impl BrickGrid {
+    /// An empty grid of `channels` over this grid's lattice range and box.
+    fn same_lattice(&self, channels: u32) -> Result<BrickGrid> {
+        BrickGrid::empty(
+            self.origin,
+            self.lattice_min,
+            self.lattice_max,
+            self.index_min,
+            self.index_max,
+            channels,
+        )
+    }
+
     /// The conservative piecewise-constant grid of Volumetric ReSTIR sec. 4.1 (see
     /// [`crate::VoxelGrid::conservative_piecewise_constant`]): each lattice point keeps
     /// its own value (channel 0), a zero takes the average of its 26 neighbours inside the
     /// lattice range (zeros included), rounded up to the smallest positive f32 rather
     /// than to 0. Bricks that come out all zero are not stored.
     pub fn conservative(&self) -> Result<BrickGrid> {
-        let mut out = BrickGrid::empty(
-            self.origin,
-            self.lattice_min,
-            self.lattice_max,
-            self.index_min,
-            self.index_max,
-            1,
-        )?;
-        let mut hood = [0f32; 1000];
-        let mut inside = [false; 1000];
-        let mut values = vec![0f32; BRICK_POINTS];
-        for b in dilated(self) {
-            neighbourhood(self, b, &mut hood, &mut inside);
-            let (lo, hi) = self.brick_range(b);
-            values.iter_mut().for_each(|v| *v = 0.0);
-            let mut any = false;
-            for k in lo.z..=hi.z {
-                for j in lo.y..=hi.y {
-                    for i in lo.x..=hi.x {
-                        let local = IVec3::new(i, j, k) - b * BRICK_EDGE;
-                        let at = |d: IVec3| {
-                            let h = local + 1 + d;
-                            (h.x + 10 * (h.y + 10 * h.z)) as usize
-                        };
-                        let own = hood[at(IVec3::ZERO)];
-                        let value = if own != 0.0 {
-                            own
-                        } else {
-                            let mut sum = 0f64;
-                            let mut count = 0u32;
-                            for dz in -1..=1 {
-                                for dy in -1..=1 {
-                                    for dx in -1..=1 {
-                                        let d = IVec3::new(dx, dy, dz);
-                                        if d != IVec3::ZERO && inside[at(d)] {
-                                            sum += f64::from(hood[at(d)]);
-                                            count += 1;
-                                        }
-                                    }
-                                }
+        let mut hood = Hood::new();
+        derive(self.same_lattice(1)?, dilated(self), |b, l, dst| {
+            let hood = hood.of(self, b);
+            let local = l - b * BRICK_EDGE;
+            let at = |d: IVec3| hood_index(local + 1 + d);
+            let own = hood.values[at(IVec3::ZERO)];
+            dst[0] = if own != 0.0 {
+                own
+            } else {
+                let mut sum = 0f64;
+                let mut count = 0u32;
+                for dz in -1..=1 {
+                    for dy in -1..=1 {
+                        for dx in -1..=1 {
+                            let d = IVec3::new(dx, dy, dz);
+                            if d != IVec3::ZERO && hood.inside[at(d)] {
+                                sum += f64::from(hood.values[at(d)]);
+                                count += 1;
                             }
-                            let avg = if count == 0 {
-                                0.0
-                            } else {
-                                sum / f64::from(count)
-                            };
-                            let mut v = avg as f32;
-                            if avg > 0.0 && v <= 0.0 {
-                                v = f32::from_bits(1);
-                            }
-                            v
-                        };
-                        values[point_index(local)] = value;
-                        any |= value != 0.0;
+                        }
                     }
                 }
-            }
-            if any {
-                out.push_brick(b, &values)?;
-            }
-        }
-        Ok(out)
+                conservative_average(sum, count)
+            };
+        })
     }
 
     /// One mip level down (see [`crate::VoxelGrid::mip_chain`]): lattice range halved
@@ -151,90 +206,32 @@ impl BrickGrid {
     /// range (channel 0; see [`crate::VoxelGrid::neighbourhood_max`]). Bricks that come
     /// out all zero are not stored.
     pub fn neighbourhood_max(&self) -> Result<BrickGrid> {
-        let mut out = BrickGrid::empty(
-            self.origin,
-            self.lattice_min,
-            self.lattice_max,
-            self.index_min,
-            self.index_max,
-            1,
-        )?;
-        let mut hood = [0f32; 1000];
-        let mut inside = [false; 1000];
-        let mut values = vec![0f32; BRICK_POINTS];
-        for b in dilated(self) {
-            neighbourhood(self, b, &mut hood, &mut inside);
-            let (lo, hi) = self.brick_range(b);
-            values.iter_mut().for_each(|v| *v = 0.0);
-            let mut any = false;
-            for k in lo.z..=hi.z {
-                for j in lo.y..=hi.y {
-                    for i in lo.x..=hi.x {
-                        let local = IVec3::new(i, j, k) - b * BRICK_EDGE;
-                        let mut m = 0f32;
-                        for dz in 0..3 {
-                            for dy in 0..3 {
-                                for dx in 0..3 {
-                                    let h = local + IVec3::new(dx, dy, dz);
-                                    let n = (h.x + 10 * (h.y + 10 * h.z)) as usize;
-                                    if inside[n] {
-                                        m = m.max(hood[n]);
-                                    }
-                                }
-                            }
+        let mut hood = Hood::new();
+        derive(self.same_lattice(1)?, dilated(self), |b, l, dst| {
+            let hood = hood.of(self, b);
+            let local = l - b * BRICK_EDGE;
+            let mut m = 0f32;
+            for dz in 0..3 {
+                for dy in 0..3 {
+                    for dx in 0..3 {
+                        let n = hood_index(local + IVec3::new(dx, dy, dz));
+                        if hood.inside[n] {
+                            m = m.max(hood.values[n]);
                         }
-                        values[point_index(local)] = m;
-                        any |= m != 0.0;
                     }
                 }
             }
-            if any {
-                out.push_brick(b, &values)?;
-            }
-        }
-        Ok(out)
+            dst[0] = m;
+        })
     }
 
     /// Per lattice point (channel 0) `max(self, factor · other)`, `other` a grid of the
     /// same lattice (0 where it stores no brick).
     pub fn max_with_scaled(&self, other: &BrickGrid, factor: f32) -> Result<BrickGrid> {
-        let mut out = BrickGrid::empty(
-            self.origin,
-            self.lattice_min,
-            self.lattice_max,
-            self.index_min,
-            self.index_max,
-            1,
-        )?;
-        let mut all: Vec<IVec3> = self
-            .bricks
-            .iter()
-            .chain(&other.bricks)
-            .copied()
-            .collect::<HashSet<_>>()
-            .into_iter()
-            .collect();
-        all.sort_unstable_by_key(|b| (b.z, b.y, b.x));
-        let mut values = vec![0f32; BRICK_POINTS];
-        for b in all {
-            let (lo, hi) = self.brick_range(b);
-            values.iter_mut().for_each(|v| *v = 0.0);
-            let mut any = false;
-            for k in lo.z..=hi.z {
-                for j in lo.y..=hi.y {
-                    for i in lo.x..=hi.x {
-                        let l = IVec3::new(i, j, k);
-                        let v = self.get(l).max(factor * other.get(l));
-                        values[point_index(l - b * BRICK_EDGE)] = v;
-                        any |= v != 0.0;
-                    }
-                }
-            }
-            if any {
-                out.push_brick(b, &values)?;
-            }
-        }
-        Ok(out)
+        let all = sorted_unique(self.bricks.iter().chain(&other.bricks).copied());
+        derive(self.same_lattice(1)?, all, |_, l, dst| {
+            dst[0] = self.get(l).max(factor * other.get(l));
+        })
     }
 
     /// [`BrickGrid::mip`] `level` times (a copy of this grid at level 0).
@@ -253,7 +250,7 @@ impl BrickGrid {
     fn reduce_with(&self, mode: Reduce) -> Result<BrickGrid> {
         let minimum = mode != Reduce::Mean;
         let ch = if minimum { 1 } else { self.channels as usize };
-        let mut out = BrickGrid::empty(
+        let out = BrickGrid::empty(
             self.origin,
             shr(self.lattice_min, 1),
             shr(self.lattice_max, 1),
@@ -261,68 +258,44 @@ impl BrickGrid {
             self.index_max * 0.5,
             ch as u32,
         )?;
-        let mut parents: Vec<IVec3> = self
-            .bricks
-            .iter()
-            .map(|b| shr(*b, 1))
-            .collect::<HashSet<_>>()
-            .into_iter()
-            .collect();
-        parents.sort_unstable_by_key(|b| (b.z, b.y, b.x));
-        let mut values = vec![0f32; BRICK_POINTS * ch];
+        let parents = sorted_unique(self.bricks.iter().map(|b| shr(*b, 1)));
         let mut sum = vec![0f64; ch];
-        for p in parents {
-            let (lo, hi) = out.brick_range(p);
-            values.iter_mut().for_each(|v| *v = 0.0);
-            let mut any = false;
-            for k in lo.z..=hi.z {
-                for j in lo.y..=hi.y {
-                    for i in lo.x..=hi.x {
-                        let parent = IVec3::new(i, j, k);
-                        let first = parent * 2;
-                        let c_lo = first.max(self.lattice_min);
-                        let c_hi = (first + 1).min(self.lattice_max);
-                        sum.iter_mut().for_each(|s| *s = 0.0);
-                        let mut count = 0u32;
-                        let mut m = if mode == Reduce::Max {
-                            f32::NEG_INFINITY
+        derive(out, parents, |_, parent, dst| {
+            let first = parent * 2;
+            let c_lo = first.max(self.lattice_min);
+            let c_hi = (first + 1).min(self.lattice_max);
+            sum.iter_mut().for_each(|s| *s = 0.0);
+            let mut count = 0u32;
+            let mut m = if mode == Reduce::Max {
+                f32::NEG_INFINITY
+            } else {
+                f32::INFINITY
+            };
+            for kk in c_lo.z..=c_hi.z {
+                for jj in c_lo.y..=c_hi.y {
+                    for ii in c_lo.x..=c_hi.x {
+                        let l = IVec3::new(ii, jj, kk);
+                        if mode == Reduce::Max {
+                            m = m.max(self.get(l));
+                        } else if minimum {
+                            m = m.min(self.get(l));
                         } else {
-                            f32::INFINITY
-                        };
-                        for kk in c_lo.z..=c_hi.z {
-                            for jj in c_lo.y..=c_hi.y {
-                                for ii in c_lo.x..=c_hi.x {
-                                    let l = IVec3::new(ii, jj, kk);
-                                    if mode == Reduce::Max {
-                                        m = m.max(self.get(l));
-                                    } else if minimum {
-                                        m = m.min(self.get(l));
-                                    } else {
-                                        for (c, s) in sum.iter_mut().enumerate() {
-                                            *s += f64::from(self.get_channel(l, c as u32));
-                                        }
-                                    }
-                                    count += 1;
-                                }
+                            for (c, s) in sum.iter_mut().enumerate() {
+                                *s += f64::from(self.get_channel(l, c as u32));
                             }
                         }
-                        let dst = point_index(parent - p * BRICK_EDGE) * ch;
-                        if minimum {
-                            values[dst] = if count == 0 { 0.0 } else { m };
-                        } else if count > 0 {
-                            for c in 0..ch {
-                                values[dst + c] = (sum[c] / f64::from(count)) as f32;
-                            }
-                        }
-                        any |= values[dst..dst + ch].iter().any(|v| *v != 0.0);
+                        count += 1;
                     }
                 }
             }
-            if any {
-                out.push_brick(p, &values)?;
+            if minimum {
+                dst[0] = if count == 0 { 0.0 } else { m };
+            } else if count > 0 {
+                for (d, s) in dst.iter_mut().zip(&sum) {
+                    *d = (s / f64::from(count)) as f32;
+                }
             }
-        }
-        Ok(out)
+        })
     }
 
     /// The super-voxels of the baseline (Volumetric ReSTIR sec. 6; see
@@ -333,11 +306,10 @@ impl BrickGrid {
     /// with a positive max are returned, sorted by (z, y, x): elsewhere the density is 0.
     pub fn super_voxels(&self) -> Vec<(IVec3, [f32; 3])> {
         let mut out = Vec::new();
-        let mut hood = [0f32; 1000];
-        let mut inside = [false; 1000];
+        let mut hood = Hood::new();
         for b in dilated(self) {
             let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-            neighbourhood(self, b, &mut hood, &mut inside);
+            let hood = hood.of(self, b);
             // Per axis: the lattice range reaching the block, and each point's weight
             // integral over the block divided by its length.
             let mut ranges: [(i32, Vec<f64>); 3] = Default::default();
@@ -370,7 +342,7 @@ impl BrickGrid {
                             ranges[1].0 + dy as i32,
                             ranges[2].0 + dz as i32,
                         ) - base;
-                        let v = hood[(l.x + 10 * (l.y + 10 * l.z)) as usize];
+                        let v = hood.values[hood_index(l)];
                         lo = lo.min(v);
                         hi = hi.max(v);
                         mean += f64::from(v) * fx * fy * fz;
@@ -388,21 +360,7 @@ impl BrickGrid {
     /// `8b`, every channel) holds a non-zero value, sorted by (z, y, x): the bricks an
     /// atlas needs so that every dual cell with a non-zero corner reads a slot.
     pub fn slot_bricks(&self) -> Vec<IVec3> {
-        let mut candidates = HashSet::new();
-        for b in &self.bricks {
-            for z in -1..=0 {
-                for y in -1..=0 {
-                    for x in -1..=0 {
-                        let n = *b + IVec3::new(x, y, z);
-                        if self.contains_brick(n) {
-                            candidates.insert(n);
-                        }
-                    }
-                }
-            }
-        }
-        let mut out: Vec<IVec3> = candidates.into_iter().collect();
-        out.sort_unstable_by_key(|b| (b.z, b.y, b.x));
+        let mut out = around(self, -1..=0);
         let mut texels = Vec::new();
         out.retain(|b| {
             texels.clear();

@@ -5,13 +5,13 @@
 use std::fs::File;
 use std::io::{BufReader, Read, Seek, SeekFrom};
 
-use anyhow::{anyhow, bail, Context, Result};
+use anyhow::{bail, Context, Result};
 
 use super::{BrickGrid, BrickTopology};
-use crate::files::{file_size, read_vol_header, VolEncoding, VOL_HEADER_BYTES};
+use crate::files::{read_vol_header, VolEncoding, VOL_HEADER_BYTES};
 use crate::types::GridSource;
 use crate::vdb::{read_vdb_grid, read_vdb_topology, VdbGridKind};
-use crate::volume::check_grid_memory;
+use crate::volume::{check_grid_memory, check_raw_file};
 
 /// A dense grid file: raw float32, or a `.vol` file's values after its header.
 struct DenseFile {
@@ -78,19 +78,7 @@ fn dense_file(source: &GridSource, channels: u32, what: &str) -> Result<Option<D
     Ok(match source {
         GridSource::Raw { file, dims } => {
             let channels = channels.max(1);
-            let values = check_grid_memory(*dims, channels, what)?;
-            let size = file_size(file).map_err(|m| anyhow!("{what}: {m}"))?;
-            let expected = values as u64 * 4;
-            if size != expected {
-                bail!(
-                    "{what}: {}: expected {expected} bytes ({} x {} x {} voxels x {channels} \
-                     channel(s) x 4 bytes of float32), found {size} bytes",
-                    file.display(),
-                    dims[0],
-                    dims[1],
-                    dims[2]
-                );
-            }
+            check_raw_file(file, *dims, channels, what)?;
             Some(DenseFile {
                 path: file.clone(),
                 dims: *dims,

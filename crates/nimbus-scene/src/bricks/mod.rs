@@ -231,13 +231,14 @@ impl BrickGrid {
             hi[axis] = (base + 1).min(b);
             t[axis] = c - f64::from(base);
         }
-        let v = |i: i32, j: i32, k: i32| f64::from(self.get_channel(IVec3::new(i, j, k), c));
-        let lerp = |a: f64, b: f64, t: f64| a + (b - a) * t;
-        let x00 = lerp(v(lo[0], lo[1], lo[2]), v(hi[0], lo[1], lo[2]), t[0]);
-        let x10 = lerp(v(lo[0], hi[1], lo[2]), v(hi[0], hi[1], lo[2]), t[0]);
-        let x01 = lerp(v(lo[0], lo[1], hi[2]), v(hi[0], lo[1], hi[2]), t[0]);
-        let x11 = lerp(v(lo[0], hi[1], hi[2]), v(hi[0], hi[1], hi[2]), t[0]);
-        lerp(lerp(x00, x10, t[1]), lerp(x01, x11, t[1]), t[2])
+        let ends = [lo, hi];
+        crate::volume::trilinear(
+            |[x, y, z]| {
+                let l = IVec3::new(ends[x][0], ends[y][1], ends[z][2]);
+                f64::from(self.get_channel(l, c))
+            },
+            t,
+        )
     }
 
     /// The largest value of channel 0 and the primed lattice point holding it (0 and
