@@ -54,25 +54,28 @@ macro_rules! gpu_consts {
 }
 
 macro_rules! gpu_records {
-    (@push $v:ident;) => {};
-    (@push $v:ident;
+    (@list [$($out:expr),*]) => {
+        pub fn records() -> Vec<Record> {
+            vec![$($out),*]
+        }
+    };
+    (@list [$($out:expr),*]
         $(#[doc = $doc:literal])*
         extern struct $rust:path as $glsl:ident [$($rule:ident),*] {
             $($(#[doc = $fdoc:literal])* $field:ident : $ty:ty),* $(,)?
         }
         $($rest:tt)*
     ) => {
-        $v.push(Record {
+        gpu_records!(@list [$($out,)* Record {
             rust: stringify!($rust),
             glsl: stringify!($glsl),
             external: true,
             rules: &[$(stringify!($rule)),*],
             docs: &[$($doc),*],
             fields: vec![$(Field { name: stringify!($field), ty: stringify!($ty), docs: &[$($fdoc),*] }),*],
-        });
-        gpu_records!(@push $v; $($rest)*);
+        }] $($rest)*);
     };
-    (@push $v:ident;
+    (@list [$($out:expr),*]
         $(#[doc = $doc:literal])*
         #[derive($($derive:path),*)]
         struct $rust:ident as $glsl:ident [$($rule:ident),*] {
@@ -80,22 +83,17 @@ macro_rules! gpu_records {
         }
         $($rest:tt)*
     ) => {
-        $v.push(Record {
+        gpu_records!(@list [$($out,)* Record {
             rust: stringify!($rust),
             glsl: stringify!($glsl),
             external: false,
             rules: &[$(stringify!($rule)),*],
             docs: &[$($doc),*],
             fields: vec![$(Field { name: stringify!($field), ty: stringify!($ty), docs: &[$($fdoc),*] }),*],
-        });
-        gpu_records!(@push $v; $($rest)*);
+        }] $($rest)*);
     };
     ($($all:tt)*) => {
-        pub fn records() -> Vec<Record> {
-            let mut v = Vec::new();
-            gpu_records!(@push v; $($all)*);
-            v
-        }
+        gpu_records!(@list [] $($all)*);
     };
 }
 

@@ -178,12 +178,15 @@ fn every_record_in_the_spirv_has_the_contracts_layout() {
     }
 }
 
+/// A member of a [`RecordLayout`]: name, offset, size.
+type Member = (&'static str, u32, u32);
+
 /// The check fails when the contract and the compiled shaders differ: a record whose
 /// expected layout is changed on purpose (a member moved, one renamed, one dropped, the
 /// size changed) is reported, exactly.
 #[test]
 fn a_record_out_of_step_with_the_spirv_is_reported() {
-    let mutated = |glsl: &str, edit: &dyn Fn(&mut Vec<(&'static str, u32, u32)>, &mut u32)| {
+    let mutated = |glsl: &str, edit: &dyn Fn(&mut Vec<Member>, &mut u32)| {
         let mut layouts = RECORD_LAYOUTS.to_vec();
         let layout = layouts.iter_mut().find(|l| l.glsl == glsl).unwrap();
         let mut members = layout.members.to_vec();
