@@ -1,6 +1,6 @@
 // Volumetric ReSTIR (Lin, Wyman and Yuksel 2021): what the four passes bind. The
-// specialization constants, the settings and push-constant records (mirrored by
-// RestirUniformsGpu and RestirPush in src/gpu/records.rs), the descriptors of set 0
+// specialization constants, the settings and push-constant records (RestirUniforms and
+// RestirPush, declared in src/gpu/contract/records.rs), the descriptors of set 0
 // (the film's and the grid medium's through film.glsl and grid_resources.glsl, the rest
 // here), and where a pixel's reservoir lives. The passes include path.glsl or
 // combine.glsl, which include this file.
@@ -43,56 +43,7 @@ layout(constant_id = SC_ID_HAS_SHAPES) const bool SC_HAS_SHAPES = false;
 // Homogeneous box media beside the grid (restir/path.glsl).
 layout(constant_id = SC_ID_HAS_MEDIA) const bool SC_HAS_MEDIA = false;
 
-// A derived level of the density (a piecewise-constant level or a ray-march mip) as a
-// sparse grid: its lattice (level voxels, `factor` density voxels per edge, lattice point j
-// at p = (j + 0.5) factor of the density's p-space), its indirection section and atlas
-// slots. Mirrored by GridLevelGpu. 64 bytes.
-struct GridLevel {
-    ivec3 lattice_min;    // lattice clamp range (inclusive)
-    uint bricks_offset;   // first indirection entry in grid_bricks[]
-    ivec3 lattice_max;
-    uint factor;          // density voxels per level voxel edge (2^level)
-    uvec3 brick_dims;     // bricks per axis of the indirection section
-    uint slots_x;         // atlas slots per axis (x, y)
-    uint slots_y;
-    uint _pad0;
-    uint _pad1;
-    uint _pad2;
-};
-
-// Settings of the ReSTIR passes (std430 storage buffer, see film.glsl for why not a
-// uniform buffer). Mirrored by RestirUniformsGpu. 320 bytes.
-struct RestirUniforms {
-    GridLevel pc_primary;       // piecewise-constant level for camera rays (u_pc)
-    GridLevel pc_indirect;      // ... for scattered rays (u_pc)
-    GridLevel march_reuse;      // ray-march mip of reuse targets (u_march_reuse)
-    GridLevel march_nee;        // ray-march mip of NEE of initial candidates (u_march_nee)
-    uint march_reuse_prev_offset;  // the previous frame's reuse mip: its indirection section
-    uint density_prev_offset;   // the previous frame's density: its indirection section
-    uint candidates_per_dispatch; // candidates one initial dispatch draws (its aux: the first)
-    uint history_static;      // 1: the previous frame's camera, lights and density are this frame's
-    uint candidates;          // M: random walks per pixel
-    uint temporal_limit;      // Q: cap of the temporal M, in multiples of M
-    uint spatial_neighbors;   // neighbours of a spatial round
-    uint reservoir_stride;    // uints per reservoir
-    float spatial_radius;     // pixels
-    float march_reuse_step;   // reuse march step (m)
-    float march_nee_step;     // NEE march step (m)
-    float history_confidence; // the lights' confidence in the previous frame (temporal.comp)
-    uvec3 velocity_dims;      // dims of the velocity grid (1 x 1 x 1 without one)
-    float spatial_max_m;      // spatial reuse only where the reservoir's M is below (0: everywhere)
-    vec4 velocity_uvw_x;      // rows of the world -> velocity texture coordinate affine map
-    vec4 velocity_uvw_y;
-    vec4 velocity_uvw_z;
-};
-
-// Push constants of every ReSTIR dispatch. 16 bytes.
-struct RestirPush {
-    uint frame;  // frame index within the render (0 = first)
-    uint src;    // reservoir slot read
-    uint dst;    // reservoir slot written
-    uint aux;    // initial: first candidate; temporal: previous slot; spatial: the round
-};
+// GridLevel, RestirUniforms and RestirPush come with the records (scene.glsl).
 
 #include "film.glsl"
 

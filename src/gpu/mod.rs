@@ -1,13 +1,20 @@
 //! The GPU side of the scene: what passes upload and how the shaders see it.
 //!
-//! - [`records`]: every `#[repr(C)]` mirror of a GLSL struct (records, uniforms, push
-//!   constants), checked against the GLSL by `tests/suite/layout.rs`;
-//! - [`bindings`]: descriptor binding numbers, mirrored from `bindings.glsl`;
+//! - [`contract`]: how the records, binding numbers and specialization-constant IDs are
+//!   declared once, for the crate and (through `build.rs`) for the shaders;
+//! - [`records`]: every `#[repr(C)]` record shared with the shaders (records, uniforms,
+//!   push constants);
+//! - [`bindings`]: descriptor binding numbers;
+//! - [`features`]: specialization-constant IDs and the limits the shaders hard-code;
 //! - [`scene`]: turning a [`nimbus_scene::Scene`] into those records (box media, shapes,
 //!   lights with their selection CDF, grids with their super-voxels, environment maps);
 //! - [`meshes`]: the BVH node and triangle buffers of the scene's meshes;
 //! - [`emitters`]: the emitting shapes' primitives with their power CDF (area lights).
 //! - [`counters`]: the deterministic work counters passes report (`nimbus profile --counters`).
+
+// First: its table macros are used by the modules below.
+#[macro_use]
+pub mod contract;
 
 pub mod bindings;
 pub mod counters;

@@ -51,6 +51,43 @@ pub fn specialization(
     ]
 }
 
+/// The descriptor layout of `pathtrace.comp`.
+fn layout() -> Vec<BindingDesc> {
+    let mut layout = Vec::from(Targets::layout());
+    layout.extend([
+        BindingDesc::storage_buffer(bindings::SHAPES),
+        BindingDesc::storage_buffer(bindings::LIGHTS),
+        BindingDesc::storage_buffer(bindings::GOBO_PLANES),
+        BindingDesc::storage_buffer(bindings::BASELINE_UNIFORMS),
+        BindingDesc::sampled_image(bindings::GRID_DENSITY),
+        BindingDesc::storage_buffer(bindings::SUPER_VOXELS),
+        BindingDesc::sampled_image(bindings::GRID_EMISSION),
+        BindingDesc::sampled_image(bindings::GRID_TEMPERATURE),
+        BindingDesc::storage_buffer(bindings::BLACKBODY),
+        BindingDesc::sampled_image(bindings::GRID_ALBEDO),
+        BindingDesc::storage_buffer(bindings::BOX_MEDIA),
+        BindingDesc::storage_buffer(bindings::MEDIUM_PLANES),
+        BindingDesc::storage_buffer(bindings::ENV_TEXELS),
+        BindingDesc::storage_buffer(bindings::ENV_CDF),
+        BindingDesc::storage_buffer(bindings::GRID_BRICKS),
+        BindingDesc::storage_buffer(bindings::BVH_NODES),
+        BindingDesc::storage_buffer(bindings::MESH_TRIANGLES),
+        BindingDesc::storage_buffer(bindings::EMITTERS),
+    ]);
+    layout
+}
+
+/// The pipeline of `plan` as the pass creates it (without a device; see
+/// [`super::PipelineContract`]).
+pub fn pipeline_contract(plan: &BaselinePlan) -> super::PipelineContract {
+    super::PipelineContract::of::<PassPush>(
+        "baseline path tracer",
+        shaders::BASELINE_PATHTRACE,
+        layout(),
+        &specialization(plan, false, false),
+    )
+}
+
 /// The baseline pass: one image pass, and what it needs to follow animated lights.
 pub struct BaselinePass {
     image: ImagePass,
@@ -91,27 +128,7 @@ pub fn create(
         },
     };
     let (objects, (pipeline, set, lights_buffer, uniforms_buffer)) = GpuObjects::build(ctx, |o| {
-        let mut layout = Vec::from(Targets::layout());
-        layout.extend([
-            BindingDesc::storage_buffer(bindings::SHAPES),
-            BindingDesc::storage_buffer(bindings::LIGHTS),
-            BindingDesc::storage_buffer(bindings::GOBO_PLANES),
-            BindingDesc::storage_buffer(bindings::BASELINE_UNIFORMS),
-            BindingDesc::sampled_image(bindings::GRID_DENSITY),
-            BindingDesc::storage_buffer(bindings::SUPER_VOXELS),
-            BindingDesc::sampled_image(bindings::GRID_EMISSION),
-            BindingDesc::sampled_image(bindings::GRID_TEMPERATURE),
-            BindingDesc::storage_buffer(bindings::BLACKBODY),
-            BindingDesc::sampled_image(bindings::GRID_ALBEDO),
-            BindingDesc::storage_buffer(bindings::BOX_MEDIA),
-            BindingDesc::storage_buffer(bindings::MEDIUM_PLANES),
-            BindingDesc::storage_buffer(bindings::ENV_TEXELS),
-            BindingDesc::storage_buffer(bindings::ENV_CDF),
-            BindingDesc::storage_buffer(bindings::GRID_BRICKS),
-            BindingDesc::storage_buffer(bindings::BVH_NODES),
-            BindingDesc::storage_buffer(bindings::MESH_TRIANGLES),
-            BindingDesc::storage_buffer(bindings::EMITTERS),
-        ]);
+        let layout = layout();
         let pipeline = compute_pipeline::<PassPush>(
             ctx,
             o,

@@ -46,6 +46,67 @@ pub fn specialization(plan: &CrepuscularPlan) -> [(u32, SpecValue); 11] {
     ]
 }
 
+/// The storage buffers of `crepuscular.comp` beside the film's, in the order `create`
+/// uploads them.
+const CREPUSCULAR_BUFFERS: [u32; 11] = [
+    bindings::BOX_MEDIA,
+    bindings::MEDIUM_PLANES,
+    bindings::SHAPES,
+    bindings::BVH_NODES,
+    bindings::MESH_TRIANGLES,
+    bindings::LIGHTS,
+    bindings::GOBO_PLANES,
+    bindings::MOMENT_MAP,
+    bindings::MOMENT_FRAMES,
+    bindings::ENV_TEXELS,
+    bindings::ENV_CDF,
+];
+
+/// The storage buffers of `moments.comp` beside the film's, in the order `create` gives
+/// them.
+const MOMENT_BUFFERS: [u32; 5] = [
+    bindings::SHAPES,
+    bindings::BVH_NODES,
+    bindings::MESH_TRIANGLES,
+    bindings::MOMENT_MAP,
+    bindings::MOMENT_FRAMES,
+];
+
+/// The specialization constants of `moments.comp` for a plan.
+fn moment_specialization(plan: &CrepuscularPlan) -> [(u32, SpecValue); 2] {
+    [
+        (SC_ID_HAS_SHAPES, SpecValue::Bool(plan.features.has_shapes)),
+        (SC_ID_HAS_MESHES, SpecValue::Bool(plan.features.has_meshes)),
+    ]
+}
+
+/// The layout of a pipeline made by `storage_pipeline` with `buffers`.
+fn storage_layout(buffers: &[u32]) -> Vec<BindingDesc> {
+    let mut layout = Vec::from(Targets::layout());
+    layout.extend(buffers.iter().map(|&b| BindingDesc::storage_buffer(b)));
+    layout
+}
+
+/// The pass's pipelines for `plan` as it creates them (without a device; see
+/// [`super::PipelineContract`]): the moment-map stage's too where the plan runs it.
+pub fn pipeline_contracts(plan: &CrepuscularPlan) -> Vec<super::PipelineContract> {
+    let mut contracts = vec![super::PipelineContract::of::<PassPush>(
+        "crepuscular",
+        shaders::BOX_CREPUSCULAR,
+        storage_layout(&CREPUSCULAR_BUFFERS),
+        &specialization(plan),
+    )];
+    if needs_moment_maps(plan) {
+        contracts.push(super::PipelineContract::of::<MomentPush>(
+            "moment maps",
+            shaders::BOX_MOMENTS,
+            storage_layout(&MOMENT_BUFFERS),
+            &moment_specialization(plan),
+        ));
+    }
+    contracts
+}
+
 /// Whether the plan runs the moment-map stage: ME in a scene whose shapes can shadow
 /// the media (without shapes every visibility ratio is 1 and no map is needed).
 pub fn needs_moment_maps(plan: &CrepuscularPlan) -> bool {
@@ -175,8 +236,7 @@ fn storage_pipeline<P>(
     specialization: &[(u32, SpecValue)],
     (name, counter_slot): (&str, u32),
 ) -> Result<(Handle<ComputePipeline>, Handle<DescriptorSet>)> {
-    let mut layout = Vec::from(Targets::layout());
-    layout.extend(buffers.iter().map(|&(b, _)| BindingDesc::storage_buffer(b)));
+    let layout = storage_layout(&buffers.iter().map(|&(b, _)| b).collect::<Vec<_>>());
     let pipeline = compute_pipeline::<P>(
         ctx,
         o,
@@ -282,23 +342,27 @@ pub fn create(
         )?);
         let moment_frames = upload_records(ctx, o, &non_empty(&frames), "moment frames")?;
         let (env_texels, env_tables) = upload_env_map(ctx, o, env_map.as_ref())?;
+        let buffers = [
+            media,
+            planes,
+            shapes,
+            bvh_nodes,
+            mesh_triangles,
+            lights,
+            gobo_planes,
+            moment_map,
+            moment_frames,
+            env_texels,
+            env_tables,
+        ];
         let (pipeline, set) = storage_pipeline::<PassPush>(
             ctx,
             o,
             targets,
-            &[
-                (bindings::BOX_MEDIA, media),
-                (bindings::MEDIUM_PLANES, planes),
-                (bindings::SHAPES, shapes),
-                (bindings::BVH_NODES, bvh_nodes),
-                (bindings::MESH_TRIANGLES, mesh_triangles),
-                (bindings::LIGHTS, lights),
-                (bindings::GOBO_PLANES, gobo_planes),
-                (bindings::MOMENT_MAP, moment_map),
-                (bindings::MOMENT_FRAMES, moment_frames),
-                (bindings::ENV_TEXELS, env_texels),
-                (bindings::ENV_CDF, env_tables),
-            ],
+            &CREPUSCULAR_BUFFERS
+                .into_iter()
+                .zip(buffers)
+                .collect::<Vec<_>>(),
             shaders::BOX_CREPUSCULAR,
             &specialization(plan),
             ("crepuscular", 0),
@@ -308,18 +372,12 @@ pub fn create(
                 ctx,
                 o,
                 targets,
-                &[
-                    (bindings::SHAPES, shapes),
-                    (bindings::BVH_NODES, bvh_nodes),
-                    (bindings::MESH_TRIANGLES, mesh_triangles),
-                    (bindings::MOMENT_MAP, moment_map),
-                    (bindings::MOMENT_FRAMES, moment_frames),
-                ],
+                &MOMENT_BUFFERS
+                    .into_iter()
+                    .zip([shapes, bvh_nodes, mesh_triangles, moment_map, moment_frames])
+                    .collect::<Vec<_>>(),
                 shaders::BOX_MOMENTS,
-                &[
-                    (SC_ID_HAS_SHAPES, SpecValue::Bool(plan.features.has_shapes)),
-                    (SC_ID_HAS_MESHES, SpecValue::Bool(plan.features.has_meshes)),
-                ],
+                &moment_specialization(plan),
                 ("moment maps", 1),
             )?)
         } else {

@@ -12,19 +12,21 @@
 //!
 //! 1. **Shader**: `shaders/<pass>/<name>.comp` (shared code in `shaders/include/`). New
 //!    specialization-constant IDs, estimator IDs or limits go into
-//!    `shaders/include/features.glsl` and their Rust twins into [`crate::gpu::features`];
-//!    new bindings into `shaders/include/bindings.glsl` and [`crate::gpu::bindings`]; a new
-//!    uniform or record struct into [`crate::gpu::records`] with named scalar members
-//!    (`tests/suite/layout.rs` checks all of these against the GLSL). When the pipeline
-//!    is created, `nimbus_gpu::spirv` reads the compiled module and refuses it if the
-//!    pass leaves a specialization constant the shader declares unset (it would take
-//!    the shader's default silently), lacks a binding the shader uses or gives it another
-//!    kind, or gives a push-constant range shorter than the shader's block.
+//!    `src/gpu/contract/features.rs`, new bindings into `src/gpu/contract/bindings.rs`, a
+//!    new uniform or record struct into `src/gpu/contract/records.rs` (with named scalar
+//!    members): each is written once, and `build.rs` generates the GLSL the shaders
+//!    include from it (see [`crate::gpu::contract`]). When the pipeline is created,
+//!    `nimbus_gpu::spirv` reads the compiled module and refuses it if the pass leaves a
+//!    specialization constant the shader declares unset (it would take the shader's
+//!    default silently), lacks a binding the shader uses or gives it another kind, or
+//!    gives a push-constant range shorter than the shader's block; the pass's
+//!    `pipeline_contracts` (see [`pipeline_contracts`]) lets `tests/suite/contract.rs`
+//!    check the same without a device.
 //! 2. **Plan**: a settings struct and a variant of [`Integrator`] in `src/plan/`, with its
 //!    decision rows (what runs, which features are on, and why); `--explain` prints them.
 //! 3. **Pass**: `src/passes/<pass>.rs`, a struct implementing [`Pass`]: `new` creates its
 //!    pipelines and resources inside [`GpuObjects::build`], `record` dispatches.
-//! 4. **Dispatch**: one arm in [`create`] below.
+//! 4. **Dispatch**: one arm in [`create`] below, and one in [`pipeline_contracts`].
 //!
 //! Then a test: a golden image or a comparison with a CPU oracle in `tests/`.
 //! `build.rs` compiles every `.comp` it finds, and `crate::shaders` names its SPIR-V by
@@ -423,12 +425,7 @@ pub fn compute_pipeline<P>(
     name: &str,
 ) -> Result<Handle<ComputePipeline>> {
     let spirv = spirv_words(spirv)?;
-    let mut specialization = specialization.to_vec();
-    specialization.push((
-        crate::gpu::features::SC_ID_ALPHA,
-        SpecValue::Bool(film.alpha),
-    ));
-    specialization.extend(crate::gpu::counters::specialization(film.counter_slot));
+    let specialization = pipeline_specialization(specialization, film);
     let pipeline = ctx.create_compute_pipeline(
         &ComputePipelineDesc {
             spirv: &spirv,
@@ -440,6 +437,66 @@ pub fn compute_pipeline<P>(
         name,
     )?;
     Ok(objects.add(pipeline))
+}
+
+/// Every specialization constant of a pipeline: the pass's own and the film's
+/// (`SC_ALPHA` and the counters').
+pub fn pipeline_specialization(
+    specialization: &[(u32, SpecValue)],
+    film: FilmSpec,
+) -> Vec<(u32, SpecValue)> {
+    let mut all = specialization.to_vec();
+    all.push((
+        crate::gpu::features::SC_ID_ALPHA,
+        SpecValue::Bool(film.alpha),
+    ));
+    all.extend(crate::gpu::counters::specialization(film.counter_slot));
+    all
+}
+
+/// What one pipeline of a pass gives its shader, known without a device: the module,
+/// the descriptor layout, every specialization constant and the push-constant size, from
+/// the same functions the pass creates the pipeline with. `tests/suite/contract.rs`
+/// checks each against its SPIR-V.
+pub struct PipelineContract {
+    pub name: String,
+    pub spirv: &'static [u8],
+    pub bindings: Vec<BindingDesc>,
+    pub specialization: Vec<(u32, SpecValue)>,
+    pub push_constant_size: u32,
+}
+
+impl PipelineContract {
+    /// The contract of an image-space pipeline made by [`compute_pipeline`] with push
+    /// constants of type `P` (film: no counters, no alpha; the same constants are set).
+    pub fn of<P>(
+        name: &str,
+        spirv: &'static [u8],
+        bindings: Vec<BindingDesc>,
+        specialization: &[(u32, SpecValue)],
+    ) -> PipelineContract {
+        let film = FilmSpec {
+            counter_slot: None,
+            alpha: false,
+        };
+        PipelineContract {
+            name: name.to_owned(),
+            spirv,
+            bindings,
+            specialization: pipeline_specialization(specialization, film),
+            push_constant_size: std::mem::size_of::<P>() as u32,
+        }
+    }
+}
+
+/// The pipelines the pass of `plan` creates, as [`PipelineContract`]s (scene-dependent
+/// constants, like exact spans or two-level bricks, off).
+pub fn pipeline_contracts(plan: &RenderPlan) -> Vec<PipelineContract> {
+    match &plan.integrator {
+        Integrator::Crepuscular(p) => crepuscular::pipeline_contracts(p),
+        Integrator::Baseline(p) => vec![baseline::pipeline_contract(p)],
+        Integrator::Restir(p) => restir::resources::pipeline_contracts(p),
+    }
 }
 
 /// A GPU-only storage buffer holding `records`, owned by `objects`.

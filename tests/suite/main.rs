@@ -19,6 +19,7 @@ mod box_me;
 mod budget;
 mod cli;
 mod cli_hostile;
+mod contract;
 mod counters;
 mod docs;
 mod emitters;

@@ -113,6 +113,23 @@ fn spirv_of(stage: Stage) -> &'static [u8] {
     }
 }
 
+/// The four stages' pipelines as the pass creates them (without a device; see
+/// [`crate::passes::PipelineContract`]).
+pub fn pipeline_contracts(plan: &crate::plan::RestirPlan) -> Vec<crate::passes::PipelineContract> {
+    let specialization = super::specialization(plan, false, false);
+    Stage::ALL
+        .into_iter()
+        .map(|stage| {
+            crate::passes::PipelineContract::of::<RestirPush>(
+                &format!("restir {}", stage.name()),
+                spirv_of(stage),
+                layout(),
+                &specialization,
+            )
+        })
+        .collect()
+}
+
 /// A 3D image for an atlas of `slots` per axis in `format`.
 fn atlas(
     ctx: &Context,
