@@ -14,7 +14,6 @@ use super::{
     atlas_image, compute_pipeline, upload_env_map, upload_params, upload_records, FrameConstants,
     ImagePass, Pass, Targets,
 };
-use crate::budget::Footprint;
 use crate::gpu::features::*;
 use crate::gpu::scene::{medium_records, MediumRecords};
 use crate::gpu::sparse::TexelFormat;
@@ -348,13 +347,4 @@ fn sample_cost(plan: &BaselinePlan, grid: &GpuGrid, scene: &Scene) -> u32 {
         blocks + GRID_EXACT_SPAN_STEPS + 3 * grid.lights.len() as u32 + mesh_rays + emitter_search;
     let segments = 2 * (plan.max_bounces + 1);
     segment.saturating_mul(segments)
-}
-
-/// What the baseline pass allocates (see [`crate::budget`]).
-pub fn footprint(scene: &Scene, f: &mut Footprint) -> Result<()> {
-    f.add_meshes(scene);
-    f.add_emitters(scene);
-    f.add_env_map(scene)?;
-    f.add_grid(scene)?;
-    Ok(())
 }

@@ -44,7 +44,6 @@ use nimbus_gpu::{
 };
 use nimbus_scene::{BrickGrid, GridMedium, Medium, Scene};
 
-use crate::budget::Footprint;
 use crate::gpu::sparse::{SparseLayout, TexelFormat};
 use crate::gpu::{
     bindings, frame_uniforms, FrameUniforms, GpuEnvMap, GpuGrid, PassPush, RecordCounts,
@@ -121,7 +120,7 @@ pub fn create(
 ) -> Result<Box<dyn Pass>> {
     Ok(match &plan.integrator {
         Integrator::Crepuscular(p) => Box::new(crepuscular::create(ctx, p, scene, targets)?),
-        Integrator::Baseline(p) if baseline_frames::has_density_frames(scene) => {
+        Integrator::Baseline(p) if crate::plan::has_density_frames(scene) => {
             Box::new(baseline_frames::create(ctx, p, scene, targets)?)
         }
         Integrator::Baseline(p) => Box::new(baseline::create(
@@ -139,19 +138,6 @@ pub fn create(
             targets,
         )?),
     })
-}
-
-/// Adds what the pass of `plan` will allocate to `footprint`, from the scene and file
-/// headers only (checked before anything is allocated, see [`crate::budget`]).
-pub fn footprint(scene: &Scene, plan: &RenderPlan, footprint: &mut Footprint) -> Result<()> {
-    match &plan.integrator {
-        Integrator::Crepuscular(p) => crepuscular::footprint(scene, p, footprint),
-        Integrator::Baseline(_) if baseline_frames::has_density_frames(scene) => {
-            baseline_frames::footprint(scene, footprint)
-        }
-        Integrator::Baseline(_) => baseline::footprint(scene, footprint),
-        Integrator::Restir(p) => restir::footprint(scene, p, footprint),
-    }
 }
 
 /// Buffers shared with the renderer: written by the pass, read back by the renderer.

@@ -11,15 +11,20 @@
 //! reason. `nimbus render --explain` prints that table.
 
 mod boxes;
+mod footprint;
+mod levels;
 mod volume;
 
 use std::fmt::Write as _;
 
 use anyhow::Result;
-use nimbus_scene::{BoxEstimator, Medium, Scene};
+use nimbus_scene::{BoxEstimator, GridMedium, Medium, Scene};
 
 use crate::gpu::features;
 
+pub use levels::{
+    LevelChoice, Levels, MAX_AUTO_LEVEL, MAX_LEVEL_EXCESS_TAU, MAX_MARCH_ERROR, MIN_AUTO_INDIRECT,
+};
 pub use volume::{MAX_BASELINE_LIGHTS, MAX_RESTIR_BOUNCES, MAX_SPATIAL_NEIGHBORS};
 
 /// Most box media the crepuscular pass takes (`MAX_MEDIA` in features.glsl).
@@ -209,6 +214,103 @@ pub struct RestirPlan {
     pub has_area_lights: bool,
     /// Some directional light has a gobo (SC_HAS_GOBOS).
     pub has_gobos: bool,
+}
+
+impl CrepuscularPlan {
+    /// Whether the plan runs the moment-map stage: ME in a scene whose shapes can shadow
+    /// the media (without shapes every visibility ratio is 1 and no map is needed).
+    pub fn needs_moment_maps(&self) -> bool {
+        self.estimator == BoxEstimator::Me && self.features.has_shapes && self.features.has_media
+    }
+}
+
+/// Mip levels of a moment map of `size` texels per side (a power of two).
+pub fn moment_levels(size: u32) -> u32 {
+    size.max(1).ilog2() + 1
+}
+
+/// Texels of one light's moment map and its mip chain.
+pub fn moment_texels_per_light(size: u64) -> u64 {
+    (0..moment_levels(size as u32))
+        .map(|k| (size >> k) * (size >> k))
+        .sum()
+}
+
+impl RestirPlan {
+    /// Whether spatial reuse runs.
+    pub fn spatial(&self) -> bool {
+        self.spatial_neighbors > 0 && self.spatial_rounds > 0
+    }
+
+    /// The reservoir slots the plan's schedule uses ([`reservoir_slots`]).
+    pub fn reservoir_slots(&self) -> u32 {
+        reservoir_slots(
+            self.spatial_neighbors,
+            self.spatial_rounds,
+            self.history_before_spatial,
+        )
+    }
+}
+
+/// The reservoir slots ReSTIR's schedule needs: 2 (initial and temporal in one, the
+/// previous frame's history in the other, spatial rounds alternating between them), or 3
+/// when the history is taken before spatial reuse and that slot must survive two or more
+/// spatial rounds (`passes::restir::schedule`).
+pub fn reservoir_slots(
+    spatial_neighbors: u32,
+    spatial_rounds: u32,
+    history_before_spatial: bool,
+) -> u32 {
+    let spatial = spatial_neighbors > 0 && spatial_rounds > 0;
+    if spatial && history_before_spatial && spatial_rounds >= 2 {
+        3
+    } else {
+        2
+    }
+}
+
+/// Frames per batch of the error estimate for `plan`: ReSTIR's temporal reuse carries
+/// each reservoir's history into the next frames, with weight capped at Q times the
+/// frame's own (Q = `temporal_limit`), so a frame's influence decays roughly like
+/// (Q/(Q+1))^k after k frames; batches of 4·(Q + 1) frames hold most of it (about 2%
+/// leaks into the next batch at Q = 4). Every other integrator draws fresh random
+/// numbers each frame: 1.
+pub fn error_batch(plan: &RenderPlan) -> u32 {
+    match plan.restir() {
+        Some(p) if p.temporal => 4 * (p.temporal_limit + 1),
+        _ => 1,
+    }
+}
+
+/// The grid medium of `scene` with density frames and its index among the media.
+pub fn animated_grid(scene: &Scene) -> Option<(usize, &GridMedium)> {
+    scene.media.iter().enumerate().find_map(|(i, m)| match m {
+        Medium::Grid(g) if !g.frames.is_empty() => Some((i, g)),
+        _ => None,
+    })
+}
+
+/// Whether `scene`'s grid medium has density frames.
+pub fn has_density_frames(scene: &Scene) -> bool {
+    animated_grid(scene).is_some()
+}
+
+/// The static scene of density grid `index` (0: the base `density`, i: the i-th
+/// `[[medium.frame]]`'s): the grid's density replaced, its frames dropped.
+pub fn scene_of_grid(scene: &Scene, index: usize) -> Scene {
+    let mut s = scene.clone();
+    if let Some((m, grid)) = animated_grid(scene) {
+        let density = grid
+            .density_sources()
+            .nth(index)
+            .cloned()
+            .unwrap_or_else(|| grid.density.clone());
+        if let Medium::Grid(g) = &mut s.media[m] {
+            g.density = density;
+            g.frames.clear();
+        }
+    }
+    s
 }
 
 /// One line of `--explain`: a pass or feature, in or out, and the reason.

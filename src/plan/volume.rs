@@ -354,7 +354,7 @@ fn restir_plan(
                 plan.mip_candidates,
                 mip_text(plan.mip_indirect),
                 crate::gpu::reservoir_bytes(k),
-                crate::passes::restir::reservoir_slots(&plan)
+                plan.reservoir_slots()
             ),
         ),
         on(

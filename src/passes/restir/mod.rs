@@ -7,7 +7,7 @@
 //!   brick, from every density grid of the animation, and their atlas layouts;
 //! - [`resources`]: the GPU objects, by name.
 //!
-//! Reservoirs live in one storage buffer of two or three slots (`reservoir_slots`) of `pixels × stride` u32 each
+//! Reservoirs live in one storage buffer of two or three slots ([`RestirPlan::reservoir_slots`]) of `pixels × stride` u32 each
 //! (`stride = 8 + 2K`: a 32-byte header and 8 bytes per path vertex, see
 //! `shaders/include/reservoir.glsl`).
 
@@ -19,25 +19,19 @@ pub mod volumes;
 use anyhow::Result;
 
 use nimbus_gpu::{compute_barrier, vk, Context, GpuObjects, Profiler, SpecValue};
-use nimbus_scene::{GridMedium, GridSource, Scene};
+use nimbus_scene::{GridMedium, Scene};
 
 use self::resources::{Inputs, Resources};
 use self::schedule::{schedule, ScheduleSettings, Stage};
 use self::volumes::{grid_level, march_step, DerivedVolume, Volumes};
 use super::{image_groups, scene_grid, FrameConstants, Pass, Targets};
-use crate::budget::{brick_bytes, grid_bytes, Binding, Footprint};
 use crate::gpu::features::*;
-use crate::gpu::sparse::{atlas_bytes, atlas_dims, atlas_slots, layer_bytes, slot_bound};
 use crate::gpu::sparse::{upload_atlas, Indirection, TexelFormat};
 use crate::gpu::{
     non_empty, shape_records, BaselineUniformsGpu, FrameUniforms, GpuGrid, LightGpu, LightSet,
     MeshBuffers, RecordCounts, RestirPush, RestirUniformsGpu,
 };
 use crate::plan::RestirPlan;
-use glam::IVec3;
-use nimbus_scene::bricks::shr;
-use nimbus_scene::BrickTopology;
-use std::collections::HashSet;
 
 pub use crate::gpu::reservoir_bytes;
 
@@ -106,12 +100,6 @@ pub struct CandidateCost {
     pub boxes: u32,
     /// Primitives in the emitter table (an area-light sample binary-searches it).
     pub emitters: u32,
-}
-
-/// The reservoir slots `plan`'s schedule uses (2, or 3 when the history is taken before
-/// two or more spatial rounds; [`schedule::slots`]).
-pub fn reservoir_slots(plan: &RestirPlan) -> u32 {
-    schedule::slots(&schedule_settings(plan, 1))
 }
 
 fn schedule_settings(plan: &RestirPlan, candidates_per_dispatch: u32) -> ScheduleSettings {
@@ -343,7 +331,7 @@ impl RestirPass {
         let r = &scene.render;
         let pixels = u64::from(r.width) * u64::from(r.height);
         let stride_bytes = reservoir_bytes(plan.max_bounces);
-        let reservoir_total = u64::from(reservoir_slots(plan)) * pixels * stride_bytes;
+        let reservoir_total = u64::from(plan.reservoir_slots()) * pixels * stride_bytes;
         let (velocity, velocity_note) = if plan.has_velocity {
             match velocity_texels(grid, &grid_label, grid.density.dims()?)? {
                 Some((dims, texels, note)) => (Some((dims, texels)), note),
@@ -812,7 +800,7 @@ impl Pass for RestirPass {
                 l.reuse,
                 list.join(" / "),
                 errors.len().saturating_sub(1),
-                volumes::MAX_MARCH_ERROR
+                crate::plan::MAX_MARCH_ERROR
             ));
         }
         let (candidates, indirect, reuse) = self.plan_levels;
@@ -834,7 +822,7 @@ impl Pass for RestirPass {
             asked.0,
             asked.1,
             asked.2,
-            volumes::MAX_LEVEL_EXCESS_TAU
+            crate::plan::MAX_LEVEL_EXCESS_TAU
         ));
         notes
     }
@@ -842,161 +830,6 @@ impl Pass for RestirPass {
     fn destroy(self: Box<Self>, ctx: &Context) {
         self.objects.destroy(ctx);
     }
-}
-
-/// The bricks of mip `level` of a grid of topology `t` (each brick's parent at that
-/// level), after growing `t` by its 26 neighbours when `dilate` (the conservative grid's
-/// zeros next to density become positive).
-fn level_topology(t: &BrickTopology, level: u32, dilate: bool) -> BrickTopology {
-    let dims = IVec3::from_array(t.brick_dims().map(|d| d as i32));
-    let mut set = HashSet::new();
-    for b in &t.bricks {
-        let range = if dilate { -1..=1 } else { 0..=0 };
-        for z in range.clone() {
-            for y in range.clone() {
-                for x in range.clone() {
-                    let n = *b + IVec3::new(x, y, z);
-                    if n.cmpge(IVec3::ZERO).all() && n.cmplt(dims).all() {
-                        set.insert(shr(n, level));
-                    }
-                }
-            }
-        }
-    }
-    BrickTopology {
-        lattice_min: shr(t.lattice_min, level),
-        lattice_max: shr(t.lattice_max, level),
-        bricks: set.into_iter().collect(),
-        ..t.clone()
-    }
-}
-
-/// What the ReSTIR passes allocate (see [`crate::budget`]): the grid's atlases (density,
-/// piecewise-constant levels, ray-march mips, and the previous frame's where density
-/// frames change), sized for the largest frame at the plan's mip levels (`auto` ones at
-/// the finest they can be; a level refined by content, see
-/// [`volumes::MAX_LEVEL_EXCESS_TAU`], is finer and larger), the indirection sections,
-/// reservoirs and velocity.
-pub fn footprint(scene: &Scene, p: &RestirPlan, f: &mut Footprint) -> Result<()> {
-    f.add_meshes(scene);
-    f.add_emitters(scene);
-    f.add_env_map(scene)?;
-    let Some(gf) = f.add_grid(scene)? else {
-        return Ok(());
-    };
-    let (g, table) = (gf.medium, gf.table.clone());
-    let file = scene.source.display();
-    let r = &scene.render;
-    let pixels = u64::from(r.width) * u64::from(r.height);
-    let reservoirs = u64::from(reservoir_slots(p)) * pixels * reservoir_bytes(p.max_bounces);
-    f.add(
-        format!("{file}: [render] `width` x `height` with [integrator] `max_bounces` = {} (ReSTIR reservoirs)", p.max_bounces),
-        Binding::Storage,
-        reservoirs,
-    );
-    let mut frames = vec![gf.density.clone()];
-    let mut frame_slots = vec![gf.density_slots];
-    for (i, frame) in g.frames.iter().enumerate() {
-        let what = format!(
-            "{table} > [[medium.frame]] #{} (frame {})",
-            i + 1,
-            frame.frame
-        );
-        let topo = BrickTopology::of(&frame.density, 1, &what)?;
-        frame_slots.push(crate::budget::density_slot_bound(&frame.density, &topo));
-        frames.push(topo);
-    }
-    let animated = frames.len() > 1;
-    let brick = 512 * 4;
-    let mut density_slots = gf.density_slots;
-    let (mut pc, mut reuse, mut nee) = (0u64, 0u64, 0u64);
-    let (mut kept, mut building) = (0u64, 0u64);
-    let mut cells = 0u64;
-    // A level chosen from the content when the grid loads: counted at the finest it can
-    // be.
-    let mip_indirect = p.mip_indirect.unwrap_or(volumes::MIN_AUTO_INDIRECT);
-    let mip_reuse = p.mip_reuse.unwrap_or(0);
-    for (n, t) in frames.iter().enumerate() {
-        let primary = level_topology(t, p.mip_candidates, true);
-        let indirect = level_topology(t, mip_indirect, true);
-        let march_reuse = level_topology(t, mip_reuse, false);
-        let march_nee = level_topology(t, mip_indirect, false);
-        let slots = frame_slots[n];
-        if n > 0 {
-            density_slots = density_slots.max(slots);
-        }
-        let pc_n = (primary.bricks.len() + indirect.bricks.len()) as u64;
-        pc = pc.max(pc_n);
-        reuse = reuse.max(slot_bound(&march_reuse, false));
-        nee = nee.max(slot_bound(&march_nee, false));
-        let level_cells =
-            primary.cells() + indirect.cells() + march_reuse.cells() + march_nee.cells();
-        if n == 0 {
-            cells = level_cells;
-        }
-        // Kept for the whole render: the grid, its records and every level (f32 values,
-        // coordinates, indirection and layout indirection). The base density's bricks
-        // are those `add_grid` counted (the pass moves them into its levels, no copy).
-        kept += if n == 0 { 0 } else { brick_bytes(t) }
-            + slots * (12 + 16)
-            + (pc_n + (march_reuse.bricks.len() + march_nee.bricks.len()) as u64) * (brick + 12)
-            + 2 * (t.cells() + level_cells) * 4;
-        // While a frame is derived: its conservative copy (the bricks and neighbours).
-        let conservative = level_topology(t, 0, true);
-        building = building
-            .max(conservative.bricks.len() as u64 * (brick + 12) + conservative.cells() * 4);
-    }
-    let r32 = TexelFormat::R32;
-    // The march mips as f32 (what a density beyond f16's range needs), or f16 where every
-    // density is the procedural cloud, whose values lie in [0, 1].
-    let procedural = |s: &GridSource| matches!(s, GridSource::ProceduralCloud { .. });
-    let march = if procedural(&g.density) && g.frames.iter().all(|fr| procedural(&fr.density)) {
-        TexelFormat::R16
-    } else {
-        TexelFormat::R32
-    };
-    let mut atlas = |name: &str, slots: u64, format: TexelFormat| -> Result<()> {
-        f.add(
-            format!("{table} ({name}, atlas of {slots} bricks)"),
-            Binding::Image3d(atlas_dims(atlas_slots(slots)?)),
-            atlas_bytes(slots, format)?,
-        );
-        Ok(())
-    };
-    atlas("piecewise-constant levels", pc, r32)?;
-    atlas("ray-march mip, reuse", reuse, march)?;
-    atlas("ray-march mip, NEE", nee, march)?;
-    if animated {
-        atlas("previous density", density_slots, r32)?;
-        atlas("ray-march mip, reuse, previous", reuse, march)?;
-        // The base density's atlas (counted by `add_grid`) grows to the largest frame's.
-        let base = gf.density_slots;
-        if density_slots > base {
-            f.add(
-                format!("{table} (density atlas for the largest frame)"),
-                Binding::Image3d(atlas_dims(atlas_slots(density_slots)?)),
-                atlas_bytes(density_slots, r32)? - atlas_bytes(base, r32)?,
-            );
-        }
-        cells += gf.density.cells() + level_topology(&gf.density, mip_reuse, false).cells();
-    }
-    f.add(
-        format!("{table} (brick indirection of the derived levels)"),
-        Binding::Storage,
-        cells * 4,
-    );
-    if let Some(v) = &g.velocity {
-        // Dense over the medium's box (an OpenVDB velocity over its dense window).
-        let vd = v.dims()?;
-        f.add(
-            format!("{table} field `velocity`"),
-            Binding::Image3d(vd),
-            grid_bytes(vd, 8),
-        );
-        f.host_peak += grid_bytes(vd, 12 + 8);
-    }
-    f.host_peak += kept + building + cells * 4 + 2 * layer_bytes(pc.max(reuse).max(nee), r32)?;
-    Ok(())
 }
 
 #[cfg(test)]
