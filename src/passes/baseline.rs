@@ -7,12 +7,11 @@ use nimbus_gpu::{
     vk, BindingDesc, Buffer, Context, DescriptorWrite, GpuObjects, Handle, Profiler, SamplerDesc,
     SpecValue,
 };
-use nimbus_scene::blackbody::BlackbodyTable;
 use nimbus_scene::Scene;
 
 use super::{
     atlas_image, compute_pipeline, upload_env_map, upload_params, upload_records, FrameConstants,
-    ImagePass, Pass, Targets,
+    ImagePass, Pass, StaticGrids, Targets,
 };
 use crate::gpu::features::*;
 use crate::gpu::scene::{medium_records, MediumRecords};
@@ -144,29 +143,12 @@ pub fn create(
             TexelFormat::R32,
             "grid density",
         )?;
-        // Without emission the (compiled-out) emission binding sees the density.
-        let emission = match &grid.emission {
-            Some((e, layout, format)) => {
-                atlas_image(ctx, o, layout, e, 1.0, *format, "grid emission")?
-            }
-            None => density,
-        };
-        // Without a temperature grid the (compiled-out) temperature binding sees the
-        // density and the blackbody table is the super-voxels.
-        let (temperature, blackbody) = match &grid.temperature {
-            Some((t, layout)) => (
-                atlas_image(ctx, o, layout, t, 1.0, TexelFormat::R32, "grid temperature")?,
-                upload_records(ctx, o, &BlackbodyTable::get().entries, "blackbody table")?,
-            ),
-            None => (density, super_voxels),
-        };
-        // Without an albedo grid the (compiled-out) albedo binding sees the density.
-        let albedo = match &grid.albedo_grid {
-            Some((a, layout, format)) => {
-                atlas_image(ctx, o, layout, a, 1.0, *format, "grid albedo")?
-            }
-            None => density,
-        };
+        let StaticGrids {
+            emission,
+            temperature,
+            blackbody,
+            albedo,
+        } = StaticGrids::upload(ctx, o, &grid, density, super_voxels)?;
         let sampler = ctx.create_sampler(&SamplerDesc::nearest(), "grid density")?;
         o.add(sampler);
 

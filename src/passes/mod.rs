@@ -480,6 +480,59 @@ pub fn image_3d(
     Ok(image)
 }
 
+/// The images of a grid's static grids (uploaded once): the emission, the temperature
+/// with its blackbody table, the albedo. A grid the medium lacks is compiled out, and its
+/// binding sees the density (the blackbody table: the super-voxels) instead.
+pub struct StaticGrids {
+    pub emission: Handle<Image>,
+    pub temperature: Handle<Image>,
+    pub blackbody: Handle<Buffer>,
+    pub albedo: Handle<Image>,
+}
+
+impl StaticGrids {
+    /// Uploads `grid`'s static grids into `o`; `density` and `super_voxels` are the
+    /// grid's density atlas and super-voxel buffer, bound where a grid is missing.
+    pub fn upload(
+        ctx: &Context,
+        o: &mut GpuObjects,
+        grid: &GpuGrid,
+        density: Handle<Image>,
+        super_voxels: Handle<Buffer>,
+    ) -> Result<StaticGrids> {
+        let emission = match &grid.emission {
+            Some((e, layout, format)) => {
+                atlas_image(ctx, o, layout, e, 1.0, *format, "grid emission")?
+            }
+            None => density,
+        };
+        let (temperature, blackbody) = match &grid.temperature {
+            Some((t, layout)) => (
+                atlas_image(ctx, o, layout, t, 1.0, TexelFormat::R32, "grid temperature")?,
+                upload_records(
+                    ctx,
+                    o,
+                    &nimbus_scene::blackbody::BlackbodyTable::get().entries,
+                    "blackbody table",
+                )?,
+            ),
+            None => (density, super_voxels),
+        };
+        let albedo = match &grid.albedo_grid {
+            Some((a, layout, format)) => {
+                atlas_image(ctx, o, layout, a, 1.0, *format, "grid albedo")?
+            }
+            None => density,
+        };
+        Ok(StaticGrids {
+            emission,
+            temperature,
+            blackbody,
+            albedo,
+        })
+    }
+}
+
 /// A 3D atlas of `layout`'s slots holding `grid`'s texels times `scale` in `format`,
 /// uploaded one layer of slots at a time, owned by `objects`.
 pub fn atlas_image(

@@ -2,11 +2,10 @@
 //! the conservative piecewise-constant levels of candidate generation and the ray-march
 //! mips of the target functions.
 
-use anyhow::Result;
+use anyhow::{bail, Result};
 use nimbus_scene::bricks::{march_errors, MARCH_ERROR_SEGMENTS};
-use nimbus_scene::BrickGrid;
-
-use super::RestirPlan;
+use nimbus_scene::precision::PositionScale;
+use nimbus_scene::{BrickGrid, GridMedium, Scene};
 
 /// The mip levels the passes use for a grid: the conservative piecewise-constant levels
 /// of candidate generation (camera and scattered rays) and the ray-march mips of the
@@ -16,6 +15,15 @@ pub struct Levels {
     pub candidates: u32,
     pub indirect: u32,
     pub reuse: u32,
+}
+
+/// The levels a scene asks for (`[integrator.restir] mip_candidates`, `mip_indirect`,
+/// `mip_reuse`; `None`: `"auto"`, chosen from the content).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct AskedLevels {
+    pub candidates: u32,
+    pub indirect: Option<u32>,
+    pub reuse: Option<u32>,
 }
 
 /// The largest optical depth a coarse level may put across one of its blocks beyond what
@@ -55,19 +63,19 @@ pub struct LevelChoice {
 }
 
 impl Levels {
-    /// The plan's levels (`auto` ones: the coarsest of mips 0..=[`MAX_AUTO_LEVEL`] whose
+    /// The `asked` levels (`auto` ones: the coarsest of mips 0..=[`MAX_AUTO_LEVEL`] whose
     /// marched optical depth stays within [`MAX_MARCH_ERROR`] on the first grid, `voxel`
     /// its world voxel size), each lowered to the coarsest level at or below it whose
     /// blocks stay within [`MAX_LEVEL_EXCESS_TAU`] in every grid of the animation.
     pub fn choose(
-        plan: &RestirPlan,
+        asked: AskedLevels,
         grids: &[&BrickGrid],
         scale: f32,
         voxel: [f64; 3],
     ) -> Result<LevelChoice> {
         let voxel_diagonal =
             (voxel[0] * voxel[0] + voxel[1] * voxel[1] + voxel[2] * voxel[2]).sqrt() as f32;
-        let auto = plan.mip_indirect.is_none() || plan.mip_reuse.is_none();
+        let auto = asked.indirect.is_none() || asked.reuse.is_none();
         let (auto_level, march_errors) = match (auto, grids.first()) {
             (true, Some(g)) => {
                 let errors = march_errors(
@@ -87,24 +95,119 @@ impl Levels {
             }
             _ => (0, None),
         };
-        let indirect = plan
-            .mip_indirect
-            .unwrap_or(auto_level.max(MIN_AUTO_INDIRECT));
-        let reuse = plan.mip_reuse.unwrap_or(auto_level);
-        let requested = plan.mip_candidates.max(indirect).max(reuse);
+        let indirect = asked.indirect.unwrap_or(auto_level.max(MIN_AUTO_INDIRECT));
+        let reuse = asked.reuse.unwrap_or(auto_level);
+        let requested = asked.candidates.max(indirect).max(reuse);
         let mut allowed = requested;
         for g in grids {
             allowed = allowed.min(allowed_level(g, scale, voxel_diagonal, requested)?);
         }
         Ok(LevelChoice {
             levels: Levels {
-                candidates: plan.mip_candidates.min(allowed),
+                candidates: asked.candidates.min(allowed),
                 indirect: indirect.min(allowed),
                 reuse: reuse.min(allowed),
             },
             march_errors,
         })
     }
+}
+
+impl LevelChoice {
+    /// The levels ReSTIR uses for the grid medium `grid` (`[[medium]]` #`index` of
+    /// `scene`): every density grid of its animation loaded into bricks (checked as the
+    /// passes check them) and the `asked` levels [`Levels::choose`]n on them.
+    pub fn of(
+        scene: &Scene,
+        index: usize,
+        grid: &GridMedium,
+        asked: AskedLevels,
+    ) -> Result<LevelChoice> {
+        let label = format!("{}: [[medium]] #{}", scene.source.display(), index + 1);
+        let what = format!("{label} > density");
+        let scale = scene.position_scale();
+        let density = BrickGrid::load(&grid.density, 1, &what)?;
+        grid.check_density_bricks(&density, &scale, &what)?;
+        let frames = load_frames(grid, &density, &scale, &label)?;
+        let dims = (density.lattice_max + 1)
+            .to_array()
+            .map(|d| d.max(1) as u32);
+        let voxel = grid.voxel_size(dims);
+        let grids: Vec<&BrickGrid> = std::iter::once(&density).chain(&frames).collect();
+        Levels::choose(asked, &grids, grid.density_scale, voxel)
+    }
+
+    /// What `--explain` says of how the levels were chosen: the measured errors that
+    /// chose the `auto` ones, and the levels refined below what was `asked`.
+    pub fn reasons(&self, asked: AskedLevels) -> Vec<String> {
+        let l = self.levels;
+        let mut reasons = Vec::new();
+        if let Some(errors) = &self.march_errors {
+            let list: Vec<String> = errors.iter().map(|e| format!("{e:.3}")).collect();
+            reasons.push(format!(
+                "ReSTIR chose mip {} (scattered segments) and {} (reuse targets) from the \
+                 volume's content: marched optical depth errors {} at mips 0..{} \
+                 (transmittance-weighted RMS), the coarsest within {}",
+                l.indirect,
+                l.reuse,
+                list.join(" / "),
+                errors.len().saturating_sub(1),
+                MAX_MARCH_ERROR
+            ));
+        }
+        let asked = (
+            asked.candidates,
+            asked.indirect.unwrap_or(l.indirect),
+            asked.reuse.unwrap_or(l.reuse),
+        );
+        if (l.candidates, l.indirect, l.reuse) != asked {
+            reasons.push(format!(
+                "ReSTIR used mip levels {}/{}/{} (candidates/indirect/reuse) instead of {}/{}/{}: \
+                 coarser levels would spread the grid's sharpest density steps over more than \
+                 {} optical depths and stop sampling paths that contribute",
+                l.candidates, l.indirect, l.reuse, asked.0, asked.1, asked.2, MAX_LEVEL_EXCESS_TAU
+            ));
+        }
+        reasons
+    }
+}
+
+/// The densities of `grid`'s `[[medium.frame]]`s loaded into bricks, each checked and
+/// checked to share the lattice of `first`, the base density. `label` names the medium.
+pub fn load_frames(
+    grid: &GridMedium,
+    first: &BrickGrid,
+    scale: &PositionScale,
+    label: &str,
+) -> Result<Vec<BrickGrid>> {
+    let mut frames = Vec::with_capacity(grid.frames.len());
+    for (i, frame) in grid.frames.iter().enumerate() {
+        let what = format!(
+            "{label} > [[medium.frame]] #{} (frame {})",
+            i + 1,
+            frame.frame
+        );
+        let density = BrickGrid::load(&frame.density, 1, &what)?;
+        grid.check_density_bricks(&density, scale, &what)?;
+        if (
+            density.origin + density.lattice_min,
+            density.origin + density.lattice_max,
+        ) != (
+            first.origin + first.lattice_min,
+            first.origin + first.lattice_max,
+        ) {
+            bail!(
+                "{what}: field `density`: its lattice {} ..= {} differs from the medium's \
+                 density {} ..= {}; every frame must have the same resolution and extent",
+                density.origin + density.lattice_min,
+                density.origin + density.lattice_max,
+                first.origin + first.lattice_min,
+                first.origin + first.lattice_max
+            );
+        }
+        frames.push(density);
+    }
+    Ok(frames)
 }
 
 /// Whether a level's lattice is a single point (the 1×1×1 level of a dense grid).
@@ -142,43 +245,12 @@ mod tests {
     use super::*;
     use nimbus_scene::VoxelGrid;
 
-    fn plan(level: u32) -> RestirPlan {
-        RestirPlan {
-            max_bounces: 1,
-            has_emission: false,
-            has_blackbody: false,
-            has_albedo_grid: false,
-            has_env: false,
-            has_env_map: false,
-            pixel_jitter: true,
-            has_velocity: false,
-            animated_density: false,
-            candidates: 4,
-            temporal: true,
-            temporal_limit: 4,
-            spatial_neighbors: 3,
-            spatial_radius_px: 10.0,
-            spatial_camera_moves: false,
-            spatial_rounds: 1,
-            vertex_reuse: false,
-            final_ratio_tracking: false,
-            mip_candidates: level,
-            mip_indirect: Some(level),
-            mip_reuse: Some(level),
-            pairwise_mis: false,
-            spatial_tau_shift: false,
-            fold_emission: false,
-            spatial_max_history: 0.0,
-            nee_split: false,
-            direct_each_walk: true,
-            history_before_spatial: false,
-            sigma_star_floor: 0.0,
-            has_shapes: false,
-            has_meshes: false,
-            has_boxes: false,
-            has_convex: false,
-            has_area_lights: false,
-            has_gobos: false,
+    /// Every level fixed at `level`.
+    fn asked(level: u32) -> AskedLevels {
+        AskedLevels {
+            candidates: level,
+            indirect: Some(level),
+            reuse: Some(level),
         }
     }
 
@@ -193,7 +265,7 @@ mod tests {
         let bricks = |g: &VoxelGrid| BrickGrid::from_dense(g).unwrap();
         // Voxels whose diagonal is 0.1.
         let voxel = [0.1 / 3f64.sqrt(); 3];
-        let smooth = Levels::choose(&plan(2), &[&bricks(&grid)], 1.0, voxel).unwrap();
+        let smooth = Levels::choose(asked(2), &[&bricks(&grid)], 1.0, voxel).unwrap();
         assert_eq!(smooth.march_errors, None);
         assert_eq!(
             smooth.levels,
@@ -204,7 +276,7 @@ mod tests {
             }
         );
         grid.data[(8 + n * (8 + n * 8)) as usize] = 1e6;
-        let hot = Levels::choose(&plan(2), &[&bricks(&grid)], 1.0, voxel).unwrap();
+        let hot = Levels::choose(asked(2), &[&bricks(&grid)], 1.0, voxel).unwrap();
         assert_eq!(
             hot.levels,
             Levels {
@@ -240,14 +312,16 @@ mod tests {
                 })
                 .collect(),
         };
-        let mut auto = plan(1);
-        auto.mip_indirect = None;
-        auto.mip_reuse = None;
+        let auto = AskedLevels {
+            indirect: None,
+            reuse: None,
+            ..asked(1)
+        };
         // Optical depth about 0.1-0.3 per voxel in the noise, half that in the ramp (whose
         // coarsest mips still lose a little at the clamped border).
         let (scale, voxel) = (8.0, [0.03; 3]);
         let smooth = Levels::choose(
-            &auto,
+            auto,
             &[&BrickGrid::from_dense(&ramp).unwrap()],
             scale / 2.0,
             voxel,
@@ -261,7 +335,7 @@ mod tests {
             (MAX_AUTO_LEVEL, MAX_AUTO_LEVEL)
         );
         let rough = Levels::choose(
-            &auto,
+            auto,
             &[&BrickGrid::from_dense(&noise).unwrap()],
             scale,
             voxel,
@@ -274,10 +348,12 @@ mod tests {
             (MIN_AUTO_INDIRECT, 0)
         );
         // A fixed level is kept, the other chosen.
-        let mut half = auto.clone();
-        half.mip_reuse = Some(2);
+        let half = AskedLevels {
+            reuse: Some(2),
+            ..auto
+        };
         let mixed = Levels::choose(
-            &half,
+            half,
             &[&BrickGrid::from_dense(&noise).unwrap()],
             scale,
             voxel,

@@ -23,7 +23,8 @@ use nimbus_scene::{BoxEstimator, GridMedium, Medium, Scene};
 use crate::gpu::features;
 
 pub use levels::{
-    LevelChoice, Levels, MAX_AUTO_LEVEL, MAX_LEVEL_EXCESS_TAU, MAX_MARCH_ERROR, MIN_AUTO_INDIRECT,
+    load_frames, AskedLevels, LevelChoice, Levels, MAX_AUTO_LEVEL, MAX_LEVEL_EXCESS_TAU,
+    MAX_MARCH_ERROR, MIN_AUTO_INDIRECT,
 };
 pub use volume::{MAX_BASELINE_LIGHTS, MAX_RESTIR_BOUNCES, MAX_SPATIAL_NEIGHBORS};
 
@@ -174,11 +175,12 @@ pub struct RestirPlan {
     pub vertex_reuse: bool,
     /// Final shading by ratio tracking instead of the closed-form transmittance.
     pub final_ratio_tracking: bool,
-    pub mip_candidates: u32,
-    /// `None`: chosen from the volume's content when the pass loads it
-    /// (`passes::restir::volumes::Levels::choose`).
-    pub mip_indirect: Option<u32>,
-    pub mip_reuse: Option<u32>,
+    /// The mip levels the scene asks for (`auto` ones: `None`); the footprint bounds
+    /// what they can become.
+    pub asked_levels: AskedLevels,
+    /// The mip levels the passes use, chosen from the grids' content when the plan is
+    /// built ([`LevelChoice::of`]).
+    pub levels: LevelChoice,
     /// Pairwise MIS in spatial reuse instead of Talbot's.
     pub pairwise_mis: bool,
     /// Spatial reuse moves x_1 by its optical depth through the conservative grid
@@ -240,6 +242,12 @@ impl RestirPlan {
     /// Whether spatial reuse runs.
     pub fn spatial(&self) -> bool {
         self.spatial_neighbors > 0 && self.spatial_rounds > 0
+    }
+
+    /// What the plan decided from the grid's content that the user should know (the
+    /// levels chosen or refined), one sentence each.
+    pub fn notes(&self) -> Vec<String> {
+        self.levels.reasons(self.asked_levels)
     }
 
     /// The reservoir slots the plan's schedule uses ([`reservoir_slots`]).
@@ -448,6 +456,12 @@ impl RenderPlan {
         }
     }
 
+    /// What the plan decided from the scene's content that a render reports, one
+    /// sentence each (ReSTIR's mip levels).
+    pub fn notes(&self) -> Vec<String> {
+        self.restir().map_or_else(Vec::new, RestirPlan::notes)
+    }
+
     /// The text of `nimbus render --explain`.
     pub fn explain(&self, scene: &Scene) -> String {
         let r = &scene.render;
@@ -465,6 +479,9 @@ impl RenderPlan {
         for d in &self.decisions {
             let mark = if d.enabled { "[on ]" } else { "[off]" };
             let _ = writeln!(out, "  {mark} {:<48} {}", d.name, d.reason);
+        }
+        for note in self.notes() {
+            let _ = writeln!(out, "  note: {note}");
         }
         if let Some(note) = self.stills_note(scene) {
             let _ = writeln!(out, "  note: {note}");

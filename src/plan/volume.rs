@@ -4,7 +4,9 @@
 use anyhow::{bail, Result};
 use nimbus_scene::{Light, Medium, Scene};
 
-use super::{BaselinePlan, Decision, Integrator, RestirPlan, MAX_BOX_MEDIA};
+use super::{
+    AskedLevels, BaselinePlan, Decision, Integrator, LevelChoice, RestirPlan, MAX_BOX_MEDIA,
+};
 
 /// Most scattering events per path ReSTIR stores (reservoirs hold K vertices).
 pub const MAX_RESTIR_BOUNCES: u32 = crate::gpu::features::MAX_RESTIR_BOUNCES;
@@ -105,7 +107,7 @@ pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
         .iter()
         .any(|l| matches!(l, Light::Environment { .. }));
     if restir {
-        return Ok(restir_plan(
+        return restir_plan(
             scene,
             index,
             grid,
@@ -113,7 +115,7 @@ pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
             env_map.is_some(),
             lights,
             boxes,
-        ));
+        );
     }
     let baseline = BaselinePlan {
         max_bounces: integrator.max_bounces,
@@ -271,8 +273,13 @@ fn restir_plan(
     has_env_map: bool,
     lights: usize,
     boxes: usize,
-) -> (Integrator, Vec<Decision>) {
+) -> Result<(Integrator, Vec<Decision>)> {
     let s = &scene.integrator.restir;
+    let asked_levels = AskedLevels {
+        candidates: s.mip_candidates,
+        indirect: s.mip_indirect,
+        reuse: s.mip_reuse,
+    };
     let k = scene.integrator.max_bounces;
     let mut plan = RestirPlan {
         max_bounces: k,
@@ -302,9 +309,8 @@ fn restir_plan(
         spatial_rounds: s.spatial_rounds,
         vertex_reuse: s.reuse == nimbus_scene::ReuseMode::Vertex,
         final_ratio_tracking: s.final_ratio_tracking,
-        mip_candidates: s.mip_candidates,
-        mip_indirect: s.mip_indirect,
-        mip_reuse: s.mip_reuse,
+        asked_levels,
+        levels: LevelChoice::of(scene, index, grid, asked_levels)?,
         pairwise_mis: s.mis == nimbus_scene::MisMode::Pairwise,
         spatial_max_history: s.spatial_max_history,
         // `boxes`: the media beside the grid (box and convex).
@@ -351,8 +357,8 @@ fn restir_plan(
                  K = {k}, {lights} analytic light(s); {} bytes of reservoir per pixel and slot, {} slots",
                 index + 1,
                 plan.candidates,
-                plan.mip_candidates,
-                mip_text(plan.mip_indirect),
+                mip_text(Some(plan.asked_levels.candidates), plan.levels.levels.candidates),
+                mip_text(plan.asked_levels.indirect, plan.levels.levels.indirect),
                 crate::gpu::reservoir_bytes(k),
                 plan.reservoir_slots()
             ),
@@ -411,7 +417,7 @@ fn restir_plan(
                     } else {
                         "distance"
                     },
-                    mip_text(plan.mip_reuse),
+                    mip_text(plan.asked_levels.reuse, plan.levels.levels.reuse),
                     if plan.vertex_reuse {
                         "vertex"
                     } else {
@@ -551,16 +557,17 @@ fn restir_plan(
             "sub-pixel jitter hashed from (pixel, frame)".into(),
         ),
     ];
-    (Integrator::Restir(plan), decisions)
+    Ok((Integrator::Restir(plan), decisions))
 }
 
-/// A mip level of the plan for --explain: its number, or how `auto` chooses it.
-fn mip_text(level: Option<u32>) -> String {
-    match level {
-        Some(l) => l.to_string(),
-        None => "auto (the coarsest whose marched transmittance stays within 5 % of the \
-                 volume's, measured when it loads)"
-            .into(),
+/// A mip level of the plan for --explain: the level `used`, and whether it was chosen
+/// from the content (`asked` is `None`: `auto`) or refined below the level `asked` (the
+/// plan's notes say why).
+fn mip_text(asked: Option<u32>, used: u32) -> String {
+    match asked {
+        None => format!("{used} (auto)"),
+        Some(l) if l == used => used.to_string(),
+        Some(l) => format!("{used} (refined from {l})"),
     }
 }
 

@@ -170,7 +170,8 @@ pub struct RenderResult {
     pub frame_images: Vec<ImageRgb>,
     /// Bytes of every GPU buffer and image the render created.
     pub device_bytes: u64,
-    /// What the passes decided from the scene's content (see `Pass::notes`).
+    /// What the pass and the plan decided from the scene's content (`Pass::notes`,
+    /// `RenderPlan::notes`).
     pub notes: Vec<String>,
     /// The work counters of the image's frames, when [`RenderOptions::counters`] asked
     /// for them.
@@ -250,7 +251,9 @@ pub fn render_each(
         let targets = handles.targets(&objects);
         let mut pass = passes::create(ctx, scene, plan, &targets)?;
         let device_bytes = objects.bytes() + pass.device_bytes();
-        let notes = pass.notes();
+        // The pass's notes, then the plan's (what it chose from the grid's content).
+        let mut notes = pass.notes();
+        notes.extend(plan.notes());
         let mut run = Run {
             ctx,
             scene,

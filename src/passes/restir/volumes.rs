@@ -12,7 +12,7 @@ use nimbus_scene::{BrickGrid, GridMedium};
 
 use crate::gpu::sparse::{atlas_slots, SparseLayout, TexelFormat};
 use crate::gpu::GridLevelGpu;
-use crate::plan::{LevelChoice, Levels, RestirPlan};
+use crate::plan::{Levels, RestirPlan};
 
 /// The texel format of the ray-march mips: half floats where every density of the
 /// animation fits f16 (the paper's choice, half the bandwidth), f32 otherwise. An f16
@@ -221,8 +221,6 @@ pub struct Volumes {
     by_index: HashMap<usize, DerivedVolume>,
     pub format: TexelFormat,
     pub levels: Levels,
-    /// The optical-depth errors of mips 0..=MAX_AUTO_LEVEL that chose the `auto` levels.
-    pub march_errors: Option<Vec<f64>>,
     pub sizes: AtlasSizes,
     /// The largest sigma_t of every frame.
     pub sigma_t_max: f32,
@@ -242,31 +240,7 @@ impl Volumes {
     ) -> Result<Volumes> {
         let s = grid.density_scale;
         let mut loaded = vec![base];
-        for (i, frame) in grid.frames.iter().enumerate() {
-            let what = format!(
-                "{label} > [[medium.frame]] #{} (frame {})",
-                i + 1,
-                frame.frame
-            );
-            let density = BrickGrid::load(&frame.density, 1, &what)?;
-            grid.check_density_bricks(&density, scale, &what)?;
-            let first = &loaded[0].0;
-            if (
-                density.origin + density.lattice_min,
-                density.origin + density.lattice_max,
-            ) != (
-                first.origin + first.lattice_min,
-                first.origin + first.lattice_max,
-            ) {
-                bail!(
-                    "{what}: field `density`: its lattice {} ..= {} differs from the medium's \
-                     density {} ..= {}; every frame must have the same resolution and extent",
-                    density.origin + density.lattice_min,
-                    density.origin + density.lattice_max,
-                    first.origin + first.lattice_min,
-                    first.origin + first.lattice_max
-                );
-            }
+        for density in crate::plan::load_frames(grid, &loaded[0].0, scale, label)? {
             let (bricks, records): (Vec<_>, Vec<_>) = density
                 .super_voxels()
                 .into_iter()
@@ -283,15 +257,7 @@ impl Volumes {
             .iter()
             .flat_map(|(_, _, r)| r.iter().map(|v| v[1]))
             .fold(0.0f32, f32::max);
-        let dims = (loaded[0].0.lattice_max + 1)
-            .to_array()
-            .map(|d| d.max(1) as u32);
-        let voxel = grid.voxel_size(dims);
-        let grids: Vec<&BrickGrid> = loaded.iter().map(|(g, _, _)| g).collect();
-        let LevelChoice {
-            levels,
-            march_errors,
-        } = Levels::choose(plan, &grids, s, voxel)?;
+        let levels = plan.levels.levels;
         let derived: Vec<DerivedGrids> = loaded
             .into_iter()
             .map(|(g, b, r)| DerivedGrids::build(g, b, r, &levels, plan.sigma_star_floor))
@@ -306,7 +272,6 @@ impl Volumes {
             by_index,
             format,
             levels,
-            march_errors,
             sizes,
             sigma_t_max,
         })
