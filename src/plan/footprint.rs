@@ -184,10 +184,10 @@ fn restir(scene: &Scene, p: &RestirPlan, f: &mut Footprint) -> Result<()> {
     let mut cells = 0u64;
     // A level chosen from the content (`auto`): counted at the finest it can be, from
     // the file headers alone.
-    let mip_indirect = p.asked_levels.indirect.unwrap_or(MIN_AUTO_INDIRECT);
-    let mip_reuse = p.asked_levels.reuse.unwrap_or(0);
+    let mip_indirect = p.asked_levels().indirect.unwrap_or(MIN_AUTO_INDIRECT);
+    let mip_reuse = p.asked_levels().reuse.unwrap_or(0);
     for (n, t) in frames.iter().enumerate() {
-        let primary = level_topology(t, p.asked_levels.candidates, true);
+        let primary = level_topology(t, p.asked_levels().candidates, true);
         let indirect = level_topology(t, mip_indirect, true);
         let march_reuse = level_topology(t, mip_reuse, false);
         let march_nee = level_topology(t, mip_indirect, false);

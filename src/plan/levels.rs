@@ -26,6 +26,17 @@ pub struct AskedLevels {
     pub reuse: Option<u32>,
 }
 
+impl AskedLevels {
+    /// The levels `settings` ask for.
+    pub fn of(settings: &nimbus_scene::RestirSettings) -> AskedLevels {
+        AskedLevels {
+            candidates: settings.mip_candidates,
+            indirect: settings.mip_indirect,
+            reuse: settings.mip_reuse,
+        }
+    }
+}
+
 /// The largest optical depth a coarse level may put across one of its blocks beyond what
 /// the block's thinnest voxel allows (`(mean − min) · σ scale · block diagonal`). A block
 /// that averages a hot voxel with clear neighbours claims opacity where light really

@@ -18,7 +18,7 @@ mod volume;
 use std::fmt::Write as _;
 
 use anyhow::Result;
-use nimbus_scene::{BoxEstimator, GridMedium, Medium, Scene};
+use nimbus_scene::{BoxEstimator, GridMedium, Medium, RestirSettings, Scene};
 
 use crate::gpu::features;
 
@@ -144,6 +144,15 @@ pub struct BaselinePlan {
 /// Settings of the Volumetric ReSTIR passes (initial, temporal, spatial, shade).
 #[derive(Clone, Debug, PartialEq)]
 pub struct RestirPlan {
+    /// The scene's `[integrator.restir]` settings as far as the passes read them (without
+    /// spatial reuse its spatial settings are the defaults: one plan whatever they say).
+    /// A setting the passes take as it is (M = `candidates`, `final_ratio_tracking`,
+    /// `sigma_star_floor`, the mip levels asked for) is read from here, so a new one is
+    /// added to the scene format alone; the fields below are what the plan derives from
+    /// the settings and the scene (`temporal`, `temporal_limit`, `spatial_rounds` and
+    /// `spatial_max_history` are the settings' own values, kept as fields for the study
+    /// harness, which reads and resets them).
+    pub settings: RestirSettings,
     /// K: scattering events per path, 1..=MAX_RESTIR_BOUNCES.
     pub max_bounces: u32,
     /// The grid emits (an emission grid, a temperature grid or both).
@@ -159,8 +168,6 @@ pub struct RestirPlan {
     pub has_velocity: bool,
     /// The density changes over the frames ([[medium.frame]]).
     pub animated_density: bool,
-    /// M: random walks per pixel per frame.
-    pub candidates: u32,
     /// Temporal reuse runs (from the second frame on).
     pub temporal: bool,
     /// Q: the previous frame's M is clamped to Q·M.
@@ -173,11 +180,6 @@ pub struct RestirPlan {
     pub spatial_rounds: u32,
     /// Vertex reuse instead of direction reuse.
     pub vertex_reuse: bool,
-    /// Final shading by ratio tracking instead of the closed-form transmittance.
-    pub final_ratio_tracking: bool,
-    /// The mip levels the scene asks for (`auto` ones: `None`); the footprint bounds
-    /// what they can become.
-    pub asked_levels: AskedLevels,
     /// The mip levels the passes use, chosen from the grids' content when the plan is
     /// built ([`LevelChoice::of`]).
     pub levels: LevelChoice,
@@ -195,8 +197,6 @@ pub struct RestirPlan {
     pub spatial_max_history: f32,
     /// The temporal stage's output (not the spatial one) is the next frame's history.
     pub history_before_spatial: bool,
-    /// σ* ≥ this fraction of the local maximum density.
-    pub sigma_star_floor: f32,
     /// Split next-event estimation (SC_NEE_SPLIT): every delta light plus one
     /// environment sample at each vertex.
     pub nee_split: bool,
@@ -247,7 +247,13 @@ impl RestirPlan {
     /// What the plan decided from the grid's content that the user should know (the
     /// levels chosen or refined), one sentence each.
     pub fn notes(&self) -> Vec<String> {
-        self.levels.reasons(self.asked_levels)
+        self.levels.reasons(self.asked_levels())
+    }
+
+    /// The mip levels the scene asks for (`auto` ones: `None`); the footprint bounds what
+    /// they can become.
+    pub fn asked_levels(&self) -> AskedLevels {
+        AskedLevels::of(&self.settings)
     }
 
     /// The reservoir slots the plan's schedule uses ([`reservoir_slots`]).

@@ -275,11 +275,7 @@ fn restir_plan(
     boxes: usize,
 ) -> Result<(Integrator, Vec<Decision>)> {
     let s = &scene.integrator.restir;
-    let asked_levels = AskedLevels {
-        candidates: s.mip_candidates,
-        indirect: s.mip_indirect,
-        reuse: s.mip_reuse,
-    };
+    let asked_levels = AskedLevels::of(s);
     let k = scene.integrator.max_bounces;
     let mut plan = RestirPlan {
         max_bounces: k,
@@ -291,7 +287,8 @@ fn restir_plan(
         pixel_jitter: scene.render.pixel_jitter,
         has_velocity: grid.velocity.is_some(),
         animated_density: !grid.frames.is_empty(),
-        candidates: s.candidates,
+        // Set below, once spatial reuse is known.
+        settings: s.clone(),
         temporal: s.temporal,
         temporal_limit: s.temporal_limit,
         // spatial_when = "camera_moves" under a camera that never moves: no spatial pass.
@@ -308,8 +305,6 @@ fn restir_plan(
         spatial_camera_moves: s.spatial_when == nimbus_scene::SpatialWhen::CameraMoves,
         spatial_rounds: s.spatial_rounds,
         vertex_reuse: s.reuse == nimbus_scene::ReuseMode::Vertex,
-        final_ratio_tracking: s.final_ratio_tracking,
-        asked_levels,
         levels: LevelChoice::of(scene, index, grid, asked_levels)?,
         pairwise_mis: s.mis == nimbus_scene::MisMode::Pairwise,
         spatial_max_history: s.spatial_max_history,
@@ -319,7 +314,6 @@ fn restir_plan(
         // Set below, once split NEE is known.
         fold_emission: false,
         history_before_spatial: s.temporal_history == nimbus_scene::HistoryMode::Temporal,
-        sigma_star_floor: s.sigma_star_floor,
         direct_each_walk: s.direct == nimbus_scene::DirectMode::EachWalk,
         nee_split: match s.nee {
             nimbus_scene::NeeMode::One => false,
@@ -342,7 +336,10 @@ fn restir_plan(
         && !scene.shapes.iter().any(|s| s.emits());
     plan.fold_emission = s.fold_emission && (plan.nee_split || env_only) && plan.has_emission;
     let frames = scene.render.frames;
-    let spatial = plan.spatial_neighbors > 0 && plan.spatial_rounds > 0;
+    let spatial = plan.spatial();
+    if !spatial {
+        plan.settings = without_spatial(s);
+    }
     let on = |name: &'static str, enabled: bool, reason: String| Decision {
         name,
         enabled,
@@ -356,9 +353,9 @@ fn restir_plan(
                 "grid medium #{}: M = {} random walks per pixel, regular tracking on mip {} (camera) / {} (scattered), \
                  K = {k}, {lights} analytic light(s); {} bytes of reservoir per pixel and slot, {} slots",
                 index + 1,
-                plan.candidates,
-                mip_text(Some(plan.asked_levels.candidates), plan.levels.levels.candidates),
-                mip_text(plan.asked_levels.indirect, plan.levels.levels.indirect),
+                s.candidates,
+                mip_text(Some(asked_levels.candidates), plan.levels.levels.candidates),
+                mip_text(asked_levels.indirect, plan.levels.levels.indirect),
                 crate::gpu::reservoir_bytes(k),
                 plan.reservoir_slots()
             ),
@@ -404,7 +401,7 @@ fn restir_plan(
                     if plan.spatial_max_history > 0.0 {
                         format!(
                             " where the history holds M < {} x {}",
-                            plan.spatial_max_history, plan.candidates
+                            plan.spatial_max_history, s.candidates
                         )
                     } else {
                         String::new()
@@ -417,7 +414,7 @@ fn restir_plan(
                     } else {
                         "distance"
                     },
-                    mip_text(plan.asked_levels.reuse, plan.levels.levels.reuse),
+                    mip_text(asked_levels.reuse, plan.levels.levels.reuse),
                     if plan.vertex_reuse {
                         "vertex"
                     } else {
@@ -438,7 +435,7 @@ fn restir_plan(
         on(
             "pass restir shade",
             true,
-            if plan.final_ratio_tracking {
+            if s.final_ratio_tracking {
                 "F with ratio-tracking transmittance (global majorant)".into()
             } else {
                 "F with closed-form transmittance through the trilinear grid".into()
@@ -558,6 +555,21 @@ fn restir_plan(
         ),
     ];
     Ok((Integrator::Restir(plan), decisions))
+}
+
+/// `settings` as far as the passes read them without spatial reuse: its spatial
+/// settings are the defaults.
+fn without_spatial(settings: &nimbus_scene::RestirSettings) -> nimbus_scene::RestirSettings {
+    let d = nimbus_scene::RestirSettings::default();
+    nimbus_scene::RestirSettings {
+        spatial_neighbors: 0,
+        spatial_rounds: 0,
+        spatial_radius_px: d.spatial_radius_px,
+        spatial_when: d.spatial_when,
+        spatial_shift: d.spatial_shift,
+        spatial_max_history: d.spatial_max_history,
+        ..settings.clone()
+    }
 }
 
 /// A mip level of the plan for --explain: the level `used`, and whether it was chosen

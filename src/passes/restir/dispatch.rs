@@ -21,7 +21,7 @@ pub fn specialization(
         (SC_ID_TWO_LEVEL_BRICKS, SpecValue::Bool(two_level)),
         (
             SC_ID_EXACT_SPANS,
-            SpecValue::Bool(plan.final_ratio_tracking && exact_spans),
+            SpecValue::Bool(plan.settings.final_ratio_tracking && exact_spans),
         ),
         (SC_ID_HAS_AREA_LIGHTS, SpecValue::Bool(plan.has_area_lights)),
         (SC_ID_HAS_GOBOS, SpecValue::Bool(plan.has_gobos)),
@@ -39,7 +39,7 @@ pub fn specialization(
         (SC_ID_REUSE_VERTEX, SpecValue::Bool(plan.vertex_reuse)),
         (
             SC_ID_FINAL_RATIO_TRACKING,
-            SpecValue::Bool(plan.final_ratio_tracking),
+            SpecValue::Bool(plan.settings.final_ratio_tracking),
         ),
         (SC_ID_HAS_VELOCITY, SpecValue::Bool(plan.has_velocity)),
         (SC_ID_MIS_PAIRWISE, SpecValue::Bool(plan.pairwise_mis)),
@@ -76,7 +76,7 @@ pub fn schedule_settings(plan: &RestirPlan, candidates_per_dispatch: u32) -> Sch
         temporal: plan.temporal,
         spatial_neighbors: plan.spatial_neighbors,
         spatial_rounds: plan.spatial_rounds,
-        candidates: plan.candidates,
+        candidates: plan.settings.candidates,
         candidates_per_dispatch,
         history_before_spatial: plan.history_before_spatial,
     }
@@ -92,7 +92,7 @@ pub fn candidates_per_dispatch(
     cost: &CandidateCost,
 ) -> u32 {
     let Some(budget) = budget else {
-        return plan.candidates;
+        return plan.settings.candidates;
     };
     // A segment's nearest-shape ray and its NEE shadow ray cross the meshes.
     let segment = |blocks: u32| {
@@ -111,7 +111,9 @@ pub fn candidates_per_dispatch(
     let per_candidate =
         segment(cost.pc_blocks[0]) + direct + (k - 1) * segment(cost.pc_blocks[1]) + k;
     let fit = (u64::from(budget / 2) / per_candidate.max(1)).max(1);
-    u32::try_from(fit).unwrap_or(u32::MAX).min(plan.candidates)
+    u32::try_from(fit)
+        .unwrap_or(u32::MAX)
+        .min(plan.settings.candidates)
 }
 
 #[cfg(test)]
@@ -130,7 +132,7 @@ mod tests {
         let scene = crate::load_scene(Some(std::path::Path::new(path)), &[]).unwrap();
         let plan = crate::plan::build(&scene, None).unwrap();
         let mut p = plan.restir().unwrap().clone();
-        p.candidates = 4096;
+        p.settings.candidates = 4096;
         p.max_bounces = 3;
         let cost = CandidateCost {
             pc_blocks: [2000, 100],

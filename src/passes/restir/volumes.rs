@@ -260,7 +260,7 @@ impl Volumes {
         let levels = plan.levels.levels;
         let derived: Vec<DerivedGrids> = loaded
             .into_iter()
-            .map(|(g, b, r)| DerivedGrids::build(g, b, r, &levels, plan.sigma_star_floor))
+            .map(|(g, b, r)| DerivedGrids::build(g, b, r, &levels, plan.settings.sigma_star_floor))
             .collect::<Result<_>>()?;
         let sizes = AtlasSizes::of(&derived)?;
         let by_index = derived
