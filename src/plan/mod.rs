@@ -9,10 +9,18 @@
 //! and one decision table, [`RenderPlan::decisions`]: a row for every pass the renderer
 //! has (from [`PASSES`]) and every feature of the chosen one, on or off with the
 //! reason. `nimbus render --explain` prints that table.
+//!
+//! The plan decides everything a pass reads, so that `--explain` shows the real
+//! decisions and the data flows one way (scene → plan → passes → renderer → output):
+//! ReSTIR's mip levels ([`levels`]: chosen from the grids' content when the plan is
+//! built), its reservoir slots ([`RestirPlan::reservoir_slots`]), the error batches
+//! ([`error_batch`]), and the render's memory footprint ([`footprint`]:
+//! `crate::budget::Footprint::of`, from the plan and the files' headers alone), which the
+//! renderer checks before it allocates anything.
 
 mod boxes;
-mod footprint;
-mod levels;
+pub mod footprint;
+pub mod levels;
 mod volume;
 
 use std::fmt::Write as _;

@@ -350,7 +350,7 @@ fn restir_plan(
             "pass restir initial",
             true,
             format!(
-                "grid medium #{}: M = {} random walks per pixel, regular tracking on mip {} (camera) / {} (scattered), \
+                "grid medium #{}: M = {} random walks per pixel, regular tracking on mip {} for camera rays and {} for scattered ones, \
                  K = {k}, {lights} analytic light(s); {} bytes of reservoir per pixel and slot, {} slots",
                 index + 1,
                 s.candidates,
