@@ -1,8 +1,11 @@
 //! What a render will allocate, known before anything is: every GPU buffer and image
 //! with its size and the scene field it comes from, and the host memory at its peak.
 //!
-//! [`Footprint::of`] reads only what the scene file and the headers of the files it
-//! names say (grid dims, environment-map sizes), never the data. [`Footprint::check`]
+//! A leaf: [`Footprint`] and its parts know nothing of the plan, the passes or the
+//! renderer. The plan computes a render's footprint (`Footprint::of`, in
+//! `crate::plan::footprint`) from what the scene file and the headers of the files it
+//! names say (grid dims, environment-map sizes), never the data; the renderer alone
+//! calls [`Footprint::check`], which
 //! compares it with the device's limits (`maxStorageBufferRange`, image dimensions,
 //! `maxMemoryAllocationSize`, the device-local heap) and with the host memory budget,
 //! and refuses a render that does not fit, naming the file and field, before any
@@ -18,8 +21,6 @@ use nimbus_scene::{BrickTopology, GridMedium, GridSource, Light, Medium, Scene};
 use crate::gpu::sparse::{
     atlas_bytes, atlas_dims, atlas_slots, layer_bytes, slot_bound, TexelFormat,
 };
-use crate::gpu::FrameUniforms;
-use crate::plan::RenderPlan;
 
 /// How a GPU allocation is bound, which decides the limits it must meet.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -86,6 +87,16 @@ pub fn brick_bytes(topo: &BrickTopology) -> u64 {
     topo.bricks.len() as u64 * 512 * 4 * u64::from(topo.channels.max(1))
 }
 
+/// Bytes of the film's partial-sum buffer: two vec4 per pixel where a frame's samples
+/// may be shared among dispatches (a device with a loop budget), one element elsewhere.
+pub fn film_partial_bytes(shared_frames: bool, pixels: u64) -> u64 {
+    if shared_frames {
+        pixels * 32
+    } else {
+        32
+    }
+}
+
 /// Bytes of a `dims` grid of `bytes_per_voxel`.
 pub fn grid_bytes(dims: [u32; 3], bytes_per_voxel: u64) -> u64 {
     dims.iter().map(|&d| u64::from(d)).product::<u64>() * bytes_per_voxel
@@ -132,40 +143,6 @@ impl Footprint {
             binding,
             bytes,
         });
-    }
-
-    /// The footprint of rendering `scene` with `plan`.
-    pub fn of(scene: &Scene, plan: &RenderPlan) -> Result<Footprint> {
-        let file = scene.source.display().to_string();
-        let mut f = Footprint::default();
-        let r = &scene.render;
-        let pixels = u64::from(r.width) * u64::from(r.height);
-        let render = format!("{file}: [render] fields `width` x `height`");
-        f.add(&render, Binding::Storage, pixels * 16);
-        f.add(&render, Binding::Storage, pixels * 16);
-        // The film's partial sums: per pixel on lavapipe, where a frame's samples may be
-        // shared among dispatches (counted everywhere: an upper bound).
-        f.add(
-            &render,
-            Binding::Storage,
-            crate::renderer::film_partial_bytes(true, pixels),
-        );
-        f.add(
-            "frame uniforms",
-            Binding::Storage,
-            std::mem::size_of::<FrameUniforms>() as u64,
-        );
-        // Per-pixel readback of both sums, the mean and standard error computed from
-        // them (src/renderer/film.rs), ReSTIR's batch sums, and the two output images.
-        let batches = if crate::renderer::error_batch(plan) > 1 {
-            2 * pixels * 16
-        } else {
-            0
-        };
-        f.host_peak += 2 * pixels * 16 + 2 * pixels * 16 + batches + pixels * 12 * 2;
-
-        crate::passes::footprint(scene, plan, &mut f)?;
-        Ok(f)
     }
 
     /// The environment map's texels and sampling tables, if the scene has a map.

@@ -7,14 +7,12 @@ use nimbus_gpu::{
     vk, BindingDesc, Buffer, Context, DescriptorWrite, GpuObjects, Handle, Profiler, SamplerDesc,
     SpecValue,
 };
-use nimbus_scene::blackbody::BlackbodyTable;
 use nimbus_scene::Scene;
 
 use super::{
     atlas_image, compute_pipeline, upload_env_map, upload_params, upload_records, FrameConstants,
-    ImagePass, Pass, Targets,
+    ImagePass, Pass, StaticGrids, Targets,
 };
-use crate::budget::Footprint;
 use crate::gpu::features::*;
 use crate::gpu::scene::{medium_records, MediumRecords};
 use crate::gpu::sparse::TexelFormat;
@@ -162,29 +160,12 @@ pub fn create(
             TexelFormat::R32,
             "grid density",
         )?;
-        // Without emission the (compiled-out) emission binding sees the density.
-        let emission = match &grid.emission {
-            Some((e, layout, format)) => {
-                atlas_image(ctx, o, layout, e, 1.0, *format, "grid emission")?
-            }
-            None => density,
-        };
-        // Without a temperature grid the (compiled-out) temperature binding sees the
-        // density and the blackbody table is the super-voxels.
-        let (temperature, blackbody) = match &grid.temperature {
-            Some((t, layout)) => (
-                atlas_image(ctx, o, layout, t, 1.0, TexelFormat::R32, "grid temperature")?,
-                upload_records(ctx, o, &BlackbodyTable::get().entries, "blackbody table")?,
-            ),
-            None => (density, super_voxels),
-        };
-        // Without an albedo grid the (compiled-out) albedo binding sees the density.
-        let albedo = match &grid.albedo_grid {
-            Some((a, layout, format)) => {
-                atlas_image(ctx, o, layout, a, 1.0, *format, "grid albedo")?
-            }
-            None => density,
-        };
+        let StaticGrids {
+            emission,
+            temperature,
+            blackbody,
+            albedo,
+        } = StaticGrids::upload(ctx, o, &grid, density, super_voxels)?;
         let sampler = ctx.create_sampler(&SamplerDesc::nearest(), "grid density")?;
         o.add(sampler);
 
@@ -365,13 +346,4 @@ fn sample_cost(plan: &BaselinePlan, grid: &GpuGrid, scene: &Scene) -> u32 {
         blocks + GRID_EXACT_SPAN_STEPS + 3 * grid.lights.len() as u32 + mesh_rays + emitter_search;
     let segments = 2 * (plan.max_bounces + 1);
     segment.saturating_mul(segments)
-}
-
-/// What the baseline pass allocates (see [`crate::budget`]).
-pub fn footprint(scene: &Scene, f: &mut Footprint) -> Result<()> {
-    f.add_meshes(scene);
-    f.add_emitters(scene);
-    f.add_env_map(scene)?;
-    f.add_grid(scene)?;
-    Ok(())
 }

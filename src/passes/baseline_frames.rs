@@ -9,44 +9,12 @@
 
 use anyhow::Result;
 use nimbus_gpu::{vk, Context, Profiler};
-use nimbus_scene::{GridMedium, Medium, Scene};
+use nimbus_scene::{GridMedium, Scene};
 
 use super::baseline::{self, BaselinePass};
 use super::{FrameUniforms, Pass, Targets};
-use crate::budget::Footprint;
 use crate::gpu::GpuGrid;
-use crate::plan::BaselinePlan;
-
-/// The grid medium of `scene` and its index among the media.
-fn animated_grid(scene: &Scene) -> Option<(usize, &GridMedium)> {
-    scene.media.iter().enumerate().find_map(|(i, m)| match m {
-        Medium::Grid(g) if !g.frames.is_empty() => Some((i, g)),
-        _ => None,
-    })
-}
-
-/// Whether `scene`'s grid medium has density frames.
-pub fn has_density_frames(scene: &Scene) -> bool {
-    animated_grid(scene).is_some()
-}
-
-/// The static scene of density grid `index` (0: the base `density`, i: the i-th
-/// `[[medium.frame]]`'s): the grid's density replaced, its frames dropped.
-fn scene_of_grid(scene: &Scene, index: usize) -> Scene {
-    let mut s = scene.clone();
-    if let Some((m, grid)) = animated_grid(scene) {
-        let density = grid
-            .density_sources()
-            .nth(index)
-            .cloned()
-            .unwrap_or_else(|| grid.density.clone());
-        if let Medium::Grid(g) = &mut s.media[m] {
-            g.density = density;
-            g.frames.clear();
-        }
-    }
-    s
-}
+use crate::plan::{animated_grid, scene_of_grid, BaselinePlan};
 
 /// One baseline pass per density grid; `active` dispatches.
 pub struct BaselineFrames {
@@ -84,15 +52,6 @@ pub fn create(
         grid: grid.clone(),
         active: 0,
     })
-}
-
-/// What the passes allocate: every density grid's resources (see [`crate::budget`]).
-pub fn footprint(scene: &Scene, f: &mut Footprint) -> Result<()> {
-    let count = animated_grid(scene).map_or(0, |(_, g)| g.frames.len());
-    for index in 0..=count {
-        baseline::footprint(&scene_of_grid(scene, index), f)?;
-    }
-    Ok(())
 }
 
 impl Pass for BaselineFrames {

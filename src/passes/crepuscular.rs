@@ -11,18 +11,17 @@ use nimbus_gpu::{
     compute_barrier, vk, BindingDesc, Buffer, BufferDesc, ComputePipeline, Context, DescriptorSet,
     DescriptorWrite, GpuObjects, Handle, Profiler, SpecValue,
 };
-use nimbus_scene::{BoxEstimator, Scene, Shape};
+use nimbus_scene::{Scene, Shape};
 
 use super::{
     compute_pipeline, upload_env_map, upload_records, FrameConstants, ImagePass, Pass, Targets,
 };
-use crate::budget::{Binding, Footprint};
 use crate::gpu::features::*;
 use crate::gpu::{
     bindings, non_empty, BoxMediumGpu, FrameUniforms, GpuEnvMap, GpuScene, MeshBuffers,
     MomentFrameGpu, MomentPush, PassPush, RecordCounts,
 };
-use crate::plan::{estimator_id, CrepuscularPlan};
+use crate::plan::{estimator_id, moment_levels, moment_texels_per_light, CrepuscularPlan};
 use crate::shaders;
 
 /// The specialization constants of `crepuscular.comp` for a plan.
@@ -96,7 +95,7 @@ pub fn pipeline_contracts(plan: &CrepuscularPlan) -> Vec<super::PipelineContract
         storage_layout(&CREPUSCULAR_BUFFERS),
         &specialization(plan),
     )];
-    if needs_moment_maps(plan) {
+    if plan.needs_moment_maps() {
         contracts.push(super::PipelineContract::of::<MomentPush>(
             "moment maps",
             shaders::BOX_MOMENTS,
@@ -105,24 +104,6 @@ pub fn pipeline_contracts(plan: &CrepuscularPlan) -> Vec<super::PipelineContract
         ));
     }
     contracts
-}
-
-/// Whether the plan runs the moment-map stage: ME in a scene whose shapes can shadow
-/// the media (without shapes every visibility ratio is 1 and no map is needed).
-pub fn needs_moment_maps(plan: &CrepuscularPlan) -> bool {
-    plan.estimator == BoxEstimator::Me && plan.features.has_shapes && plan.features.has_media
-}
-
-/// Mip levels of a moment map of `size` texels per side (a power of two).
-fn moment_levels(size: u32) -> u32 {
-    size.max(1).ilog2() + 1
-}
-
-/// Texels of one light's moment map and its mip chain.
-fn moment_texels_per_light(size: u64) -> u64 {
-    (0..moment_levels(size as u32))
-        .map(|k| (size >> k) * (size >> k))
-        .sum()
 }
 
 /// Corners of box medium `m` (of its bounding box for a convex medium) in world space.
@@ -308,7 +289,7 @@ pub fn create(
             ray_samples: plan.samples_along_ray,
         },
     };
-    let with_moments = needs_moment_maps(plan);
+    let with_moments = plan.needs_moment_maps();
     let frames = if with_moments {
         moment_frames(&records, scene, plan.moment_map_size)
     } else {
@@ -578,40 +559,4 @@ impl Pass for CrepuscularPass {
     fn destroy(self: Box<Self>, ctx: &Context) {
         Box::new(self.image).destroy(ctx);
     }
-}
-
-/// What the crepuscular pass allocates besides the render targets: its scene records
-/// (a few KiB; counted so that every pass reports its footprint), the environment map
-/// and its tables, and, for ME, the moment maps (16 bytes per texel, a mip chain per
-/// directional light).
-pub fn footprint(scene: &Scene, plan: &CrepuscularPlan, f: &mut Footprint) -> Result<()> {
-    f.add_env_map(scene)?;
-    f.add_meshes(scene);
-    let records = GpuScene::build(scene)?;
-    let bytes = std::mem::size_of_val(records.media.as_slice())
-        + std::mem::size_of_val(records.medium_planes.as_slice())
-        + std::mem::size_of_val(records.shapes.as_slice())
-        + std::mem::size_of_val(records.lights.as_slice())
-        + std::mem::size_of_val(records.gobo_planes.as_slice());
-    f.add(
-        format!(
-            "{}: box and convex media, shapes, lights, gobos",
-            scene.source.display()
-        ),
-        Binding::Storage,
-        bytes as u64,
-    );
-    if needs_moment_maps(plan) {
-        let size = u64::from(plan.moment_map_size);
-        f.add(
-            format!(
-                "{}: ME moment maps, {} light(s) x {size}² texels with mips",
-                scene.source.display(),
-                records.lights.len()
-            ),
-            Binding::Storage,
-            moment_texels_per_light(size) * records.lights.len() as u64 * 16,
-        );
-    }
-    Ok(())
 }

@@ -46,7 +46,6 @@ use nimbus_gpu::{
 };
 use nimbus_scene::{BrickGrid, GridMedium, Medium, Scene};
 
-use crate::budget::Footprint;
 use crate::gpu::sparse::{SparseLayout, TexelFormat};
 use crate::gpu::{
     bindings, frame_uniforms, FrameUniforms, GpuEnvMap, GpuGrid, PassPush, RecordCounts,
@@ -123,7 +122,7 @@ pub fn create(
 ) -> Result<Box<dyn Pass>> {
     Ok(match &plan.integrator {
         Integrator::Crepuscular(p) => Box::new(crepuscular::create(ctx, p, scene, targets)?),
-        Integrator::Baseline(p) if baseline_frames::has_density_frames(scene) => {
+        Integrator::Baseline(p) if crate::plan::has_density_frames(scene) => {
             Box::new(baseline_frames::create(ctx, p, scene, targets)?)
         }
         Integrator::Baseline(p) => Box::new(baseline::create(
@@ -141,19 +140,6 @@ pub fn create(
             targets,
         )?),
     })
-}
-
-/// Adds what the pass of `plan` will allocate to `footprint`, from the scene and file
-/// headers only (checked before anything is allocated, see [`crate::budget`]).
-pub fn footprint(scene: &Scene, plan: &RenderPlan, footprint: &mut Footprint) -> Result<()> {
-    match &plan.integrator {
-        Integrator::Crepuscular(p) => crepuscular::footprint(scene, p, footprint),
-        Integrator::Baseline(_) if baseline_frames::has_density_frames(scene) => {
-            baseline_frames::footprint(scene, footprint)
-        }
-        Integrator::Baseline(_) => baseline::footprint(scene, footprint),
-        Integrator::Restir(p) => restir::footprint(scene, p, footprint),
-    }
 }
 
 /// Buffers shared with the renderer: written by the pass, read back by the renderer.
@@ -549,6 +535,59 @@ pub fn image_3d(
     )?);
     ctx.upload_image(&objects[image], bytes)?;
     Ok(image)
+}
+
+/// The images of a grid's static grids (uploaded once): the emission, the temperature
+/// with its blackbody table, the albedo. A grid the medium lacks is compiled out, and its
+/// binding sees the density (the blackbody table: the super-voxels) instead.
+pub struct StaticGrids {
+    pub emission: Handle<Image>,
+    pub temperature: Handle<Image>,
+    pub blackbody: Handle<Buffer>,
+    pub albedo: Handle<Image>,
+}
+
+impl StaticGrids {
+    /// Uploads `grid`'s static grids into `o`; `density` and `super_voxels` are the
+    /// grid's density atlas and super-voxel buffer, bound where a grid is missing.
+    pub fn upload(
+        ctx: &Context,
+        o: &mut GpuObjects,
+        grid: &GpuGrid,
+        density: Handle<Image>,
+        super_voxels: Handle<Buffer>,
+    ) -> Result<StaticGrids> {
+        let emission = match &grid.emission {
+            Some((e, layout, format)) => {
+                atlas_image(ctx, o, layout, e, 1.0, *format, "grid emission")?
+            }
+            None => density,
+        };
+        let (temperature, blackbody) = match &grid.temperature {
+            Some((t, layout)) => (
+                atlas_image(ctx, o, layout, t, 1.0, TexelFormat::R32, "grid temperature")?,
+                upload_records(
+                    ctx,
+                    o,
+                    &nimbus_scene::blackbody::BlackbodyTable::get().entries,
+                    "blackbody table",
+                )?,
+            ),
+            None => (density, super_voxels),
+        };
+        let albedo = match &grid.albedo_grid {
+            Some((a, layout, format)) => {
+                atlas_image(ctx, o, layout, a, 1.0, *format, "grid albedo")?
+            }
+            None => density,
+        };
+        Ok(StaticGrids {
+            emission,
+            temperature,
+            blackbody,
+            albedo,
+        })
+    }
 }
 
 /// A 3D atlas of `layout`'s slots holding `grid`'s texels times `scale` in `format`,

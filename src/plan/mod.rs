@@ -9,17 +9,31 @@
 //! and one decision table, [`RenderPlan::decisions`]: a row for every pass the renderer
 //! has (from [`PASSES`]) and every feature of the chosen one, on or off with the
 //! reason. `nimbus render --explain` prints that table.
+//!
+//! The plan decides everything a pass reads, so that `--explain` shows the real
+//! decisions and the data flows one way (scene → plan → passes → renderer → output):
+//! ReSTIR's mip levels ([`levels`]: chosen from the grids' content when the plan is
+//! built), its reservoir slots ([`RestirPlan::reservoir_slots`]), the error batches
+//! ([`error_batch`]), and the render's memory footprint ([`footprint`]:
+//! `crate::budget::Footprint::of`, from the plan and the files' headers alone), which the
+//! renderer checks before it allocates anything.
 
 mod boxes;
+pub mod footprint;
+pub mod levels;
 mod volume;
 
 use std::fmt::Write as _;
 
 use anyhow::Result;
-use nimbus_scene::{BoxEstimator, Medium, Scene};
+use nimbus_scene::{BoxEstimator, GridMedium, Medium, RestirSettings, Scene};
 
 use crate::gpu::features;
 
+pub use levels::{
+    load_frames, AskedLevels, LevelChoice, Levels, MAX_AUTO_LEVEL, MAX_LEVEL_EXCESS_TAU,
+    MAX_MARCH_ERROR, MIN_AUTO_INDIRECT,
+};
 pub use volume::{MAX_BASELINE_LIGHTS, MAX_RESTIR_BOUNCES, MAX_SPATIAL_NEIGHBORS};
 
 /// Most box media the crepuscular pass takes (`MAX_MEDIA` in features.glsl).
@@ -138,6 +152,15 @@ pub struct BaselinePlan {
 /// Settings of the Volumetric ReSTIR passes (initial, temporal, spatial, shade).
 #[derive(Clone, Debug, PartialEq)]
 pub struct RestirPlan {
+    /// The scene's `[integrator.restir]` settings as far as the passes read them (without
+    /// spatial reuse its spatial settings are the defaults: one plan whatever they say).
+    /// A setting the passes take as it is (M = `candidates`, `final_ratio_tracking`,
+    /// `sigma_star_floor`, the mip levels asked for) is read from here, so a new one is
+    /// added to the scene format alone; the fields below are what the plan derives from
+    /// the settings and the scene (`temporal`, `temporal_limit`, `spatial_rounds` and
+    /// `spatial_max_history` are the settings' own values, kept as fields for the study
+    /// harness, which reads and resets them).
+    pub settings: RestirSettings,
     /// K: scattering events per path, 1..=MAX_RESTIR_BOUNCES.
     pub max_bounces: u32,
     /// The grid emits (an emission grid, a temperature grid or both).
@@ -153,8 +176,6 @@ pub struct RestirPlan {
     pub has_velocity: bool,
     /// The density changes over the frames ([[medium.frame]]).
     pub animated_density: bool,
-    /// M: random walks per pixel per frame.
-    pub candidates: u32,
     /// Temporal reuse runs (from the second frame on).
     pub temporal: bool,
     /// Q: the previous frame's M is clamped to Q·M.
@@ -167,13 +188,9 @@ pub struct RestirPlan {
     pub spatial_rounds: u32,
     /// Vertex reuse instead of direction reuse.
     pub vertex_reuse: bool,
-    /// Final shading by ratio tracking instead of the closed-form transmittance.
-    pub final_ratio_tracking: bool,
-    pub mip_candidates: u32,
-    /// `None`: chosen from the volume's content when the pass loads it
-    /// (`passes::restir::volumes::Levels::choose`).
-    pub mip_indirect: Option<u32>,
-    pub mip_reuse: Option<u32>,
+    /// The mip levels the passes use, chosen from the grids' content when the plan is
+    /// built ([`LevelChoice::of`]).
+    pub levels: LevelChoice,
     /// Pairwise MIS in spatial reuse instead of Talbot's.
     pub pairwise_mis: bool,
     /// Spatial reuse moves x_1 by its optical depth through the conservative grid
@@ -188,8 +205,6 @@ pub struct RestirPlan {
     pub spatial_max_history: f32,
     /// The temporal stage's output (not the spatial one) is the next frame's history.
     pub history_before_spatial: bool,
-    /// σ* ≥ this fraction of the local maximum density.
-    pub sigma_star_floor: f32,
     /// Split next-event estimation (SC_NEE_SPLIT): every delta light plus one
     /// environment sample at each vertex.
     pub nee_split: bool,
@@ -209,6 +224,115 @@ pub struct RestirPlan {
     pub has_area_lights: bool,
     /// Some directional light has a gobo (SC_HAS_GOBOS).
     pub has_gobos: bool,
+}
+
+impl CrepuscularPlan {
+    /// Whether the plan runs the moment-map stage: ME in a scene whose shapes can shadow
+    /// the media (without shapes every visibility ratio is 1 and no map is needed).
+    pub fn needs_moment_maps(&self) -> bool {
+        self.estimator == BoxEstimator::Me && self.features.has_shapes && self.features.has_media
+    }
+}
+
+/// Mip levels of a moment map of `size` texels per side (a power of two).
+pub fn moment_levels(size: u32) -> u32 {
+    size.max(1).ilog2() + 1
+}
+
+/// Texels of one light's moment map and its mip chain.
+pub fn moment_texels_per_light(size: u64) -> u64 {
+    (0..moment_levels(size as u32))
+        .map(|k| (size >> k) * (size >> k))
+        .sum()
+}
+
+impl RestirPlan {
+    /// Whether spatial reuse runs.
+    pub fn spatial(&self) -> bool {
+        self.spatial_neighbors > 0 && self.spatial_rounds > 0
+    }
+
+    /// What the plan decided from the grid's content that the user should know (the
+    /// levels chosen or refined), one sentence each.
+    pub fn notes(&self) -> Vec<String> {
+        self.levels.reasons(self.asked_levels())
+    }
+
+    /// The mip levels the scene asks for (`auto` ones: `None`); the footprint bounds what
+    /// they can become.
+    pub fn asked_levels(&self) -> AskedLevels {
+        AskedLevels::of(&self.settings)
+    }
+
+    /// The reservoir slots the plan's schedule uses ([`reservoir_slots`]).
+    pub fn reservoir_slots(&self) -> u32 {
+        reservoir_slots(
+            self.spatial_neighbors,
+            self.spatial_rounds,
+            self.history_before_spatial,
+        )
+    }
+}
+
+/// The reservoir slots ReSTIR's schedule needs: 2 (initial and temporal in one, the
+/// previous frame's history in the other, spatial rounds alternating between them), or 3
+/// when the history is taken before spatial reuse and that slot must survive two or more
+/// spatial rounds (`passes::restir::schedule`).
+pub fn reservoir_slots(
+    spatial_neighbors: u32,
+    spatial_rounds: u32,
+    history_before_spatial: bool,
+) -> u32 {
+    let spatial = spatial_neighbors > 0 && spatial_rounds > 0;
+    if spatial && history_before_spatial && spatial_rounds >= 2 {
+        3
+    } else {
+        2
+    }
+}
+
+/// Frames per batch of the error estimate for `plan`: ReSTIR's temporal reuse carries
+/// each reservoir's history into the next frames, with weight capped at Q times the
+/// frame's own (Q = `temporal_limit`), so a frame's influence decays roughly like
+/// (Q/(Q+1))^k after k frames; batches of 4·(Q + 1) frames hold most of it (about 2%
+/// leaks into the next batch at Q = 4). Every other integrator draws fresh random
+/// numbers each frame: 1.
+pub fn error_batch(plan: &RenderPlan) -> u32 {
+    match plan.restir() {
+        Some(p) if p.temporal => 4 * (p.temporal_limit + 1),
+        _ => 1,
+    }
+}
+
+/// The grid medium of `scene` with density frames and its index among the media.
+pub fn animated_grid(scene: &Scene) -> Option<(usize, &GridMedium)> {
+    scene.media.iter().enumerate().find_map(|(i, m)| match m {
+        Medium::Grid(g) if !g.frames.is_empty() => Some((i, g)),
+        _ => None,
+    })
+}
+
+/// Whether `scene`'s grid medium has density frames.
+pub fn has_density_frames(scene: &Scene) -> bool {
+    animated_grid(scene).is_some()
+}
+
+/// The static scene of density grid `index` (0: the base `density`, i: the i-th
+/// `[[medium.frame]]`'s): the grid's density replaced, its frames dropped.
+pub fn scene_of_grid(scene: &Scene, index: usize) -> Scene {
+    let mut s = scene.clone();
+    if let Some((m, grid)) = animated_grid(scene) {
+        let density = grid
+            .density_sources()
+            .nth(index)
+            .cloned()
+            .unwrap_or_else(|| grid.density.clone());
+        if let Medium::Grid(g) = &mut s.media[m] {
+            g.density = density;
+            g.frames.clear();
+        }
+    }
+    s
 }
 
 /// One line of `--explain`: a pass or feature, in or out, and the reason.
@@ -346,6 +470,12 @@ impl RenderPlan {
         }
     }
 
+    /// What the plan decided from the scene's content that a render reports, one
+    /// sentence each (ReSTIR's mip levels).
+    pub fn notes(&self) -> Vec<String> {
+        self.restir().map_or_else(Vec::new, RestirPlan::notes)
+    }
+
     /// The text of `nimbus render --explain`.
     pub fn explain(&self, scene: &Scene) -> String {
         let r = &scene.render;
@@ -363,6 +493,9 @@ impl RenderPlan {
         for d in &self.decisions {
             let mark = if d.enabled { "[on ]" } else { "[off]" };
             let _ = writeln!(out, "  {mark} {:<48} {}", d.name, d.reason);
+        }
+        for note in self.notes() {
+            let _ = writeln!(out, "  note: {note}");
         }
         if let Some(note) = self.stills_note(scene) {
             let _ = writeln!(out, "  note: {note}");

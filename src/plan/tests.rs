@@ -80,7 +80,7 @@ fn grid_scenes_name_what_the_baseline_does_not_take() {
     let r = plan.restir().expect("restir plan");
     assert!(plan.baseline().is_none() && !r.has_emission && !r.vertex_reuse);
     assert_eq!(
-        (r.candidates, r.temporal_limit, r.spatial_neighbors),
+        (r.settings.candidates, r.temporal_limit, r.spatial_neighbors),
         (4, 20, 0)
     );
     let e = err(&format!("{}{}", grid(0), grid(1)), "restir");

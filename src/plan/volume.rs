@@ -4,7 +4,9 @@
 use anyhow::{bail, Result};
 use nimbus_scene::{Light, Medium, Scene};
 
-use super::{BaselinePlan, Decision, Integrator, RestirPlan, MAX_BOX_MEDIA};
+use super::{
+    AskedLevels, BaselinePlan, Decision, Integrator, LevelChoice, RestirPlan, MAX_BOX_MEDIA,
+};
 
 /// Most scattering events per path ReSTIR stores (reservoirs hold K vertices).
 pub const MAX_RESTIR_BOUNCES: u32 = crate::gpu::features::MAX_RESTIR_BOUNCES;
@@ -105,7 +107,7 @@ pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
         .iter()
         .any(|l| matches!(l, Light::Environment { .. }));
     if restir {
-        return Ok(restir_plan(
+        return restir_plan(
             scene,
             index,
             grid,
@@ -113,7 +115,7 @@ pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
             env_map.is_some(),
             lights,
             boxes,
-        ));
+        );
     }
     let baseline = BaselinePlan {
         max_bounces: integrator.max_bounces,
@@ -271,8 +273,9 @@ fn restir_plan(
     has_env_map: bool,
     lights: usize,
     boxes: usize,
-) -> (Integrator, Vec<Decision>) {
+) -> Result<(Integrator, Vec<Decision>)> {
     let s = &scene.integrator.restir;
+    let asked_levels = AskedLevels::of(s);
     let k = scene.integrator.max_bounces;
     let mut plan = RestirPlan {
         max_bounces: k,
@@ -284,7 +287,8 @@ fn restir_plan(
         pixel_jitter: scene.render.pixel_jitter,
         has_velocity: grid.velocity.is_some(),
         animated_density: !grid.frames.is_empty(),
-        candidates: s.candidates,
+        // Set below, once spatial reuse is known.
+        settings: s.clone(),
         temporal: s.temporal,
         temporal_limit: s.temporal_limit,
         // spatial_when = "camera_moves" under a camera that never moves: no spatial pass.
@@ -301,10 +305,7 @@ fn restir_plan(
         spatial_camera_moves: s.spatial_when == nimbus_scene::SpatialWhen::CameraMoves,
         spatial_rounds: s.spatial_rounds,
         vertex_reuse: s.reuse == nimbus_scene::ReuseMode::Vertex,
-        final_ratio_tracking: s.final_ratio_tracking,
-        mip_candidates: s.mip_candidates,
-        mip_indirect: s.mip_indirect,
-        mip_reuse: s.mip_reuse,
+        levels: LevelChoice::of(scene, index, grid, asked_levels)?,
         pairwise_mis: s.mis == nimbus_scene::MisMode::Pairwise,
         spatial_max_history: s.spatial_max_history,
         // `boxes`: the media beside the grid (box and convex).
@@ -313,7 +314,6 @@ fn restir_plan(
         // Set below, once split NEE is known.
         fold_emission: false,
         history_before_spatial: s.temporal_history == nimbus_scene::HistoryMode::Temporal,
-        sigma_star_floor: s.sigma_star_floor,
         direct_each_walk: s.direct == nimbus_scene::DirectMode::EachWalk,
         nee_split: match s.nee {
             nimbus_scene::NeeMode::One => false,
@@ -336,7 +336,10 @@ fn restir_plan(
         && !scene.shapes.iter().any(|s| s.emits());
     plan.fold_emission = s.fold_emission && (plan.nee_split || env_only) && plan.has_emission;
     let frames = scene.render.frames;
-    let spatial = plan.spatial_neighbors > 0 && plan.spatial_rounds > 0;
+    let spatial = plan.spatial();
+    if !spatial {
+        plan.settings = without_spatial(s);
+    }
     let on = |name: &'static str, enabled: bool, reason: String| Decision {
         name,
         enabled,
@@ -347,14 +350,14 @@ fn restir_plan(
             "pass restir initial",
             true,
             format!(
-                "grid medium #{}: M = {} random walks per pixel, regular tracking on mip {} (camera) / {} (scattered), \
+                "grid medium #{}: M = {} random walks per pixel, regular tracking on mip {} for camera rays and {} for scattered ones, \
                  K = {k}, {lights} analytic light(s); {} bytes of reservoir per pixel and slot, {} slots",
                 index + 1,
-                plan.candidates,
-                plan.mip_candidates,
-                mip_text(plan.mip_indirect),
+                s.candidates,
+                mip_text(Some(asked_levels.candidates), plan.levels.levels.candidates),
+                mip_text(asked_levels.indirect, plan.levels.levels.indirect),
                 crate::gpu::reservoir_bytes(k),
-                crate::passes::restir::reservoir_slots(&plan)
+                plan.reservoir_slots()
             ),
         ),
         on(
@@ -398,7 +401,7 @@ fn restir_plan(
                     if plan.spatial_max_history > 0.0 {
                         format!(
                             " where the history holds M < {} x {}",
-                            plan.spatial_max_history, plan.candidates
+                            plan.spatial_max_history, s.candidates
                         )
                     } else {
                         String::new()
@@ -411,7 +414,7 @@ fn restir_plan(
                     } else {
                         "distance"
                     },
-                    mip_text(plan.mip_reuse),
+                    mip_text(asked_levels.reuse, plan.levels.levels.reuse),
                     if plan.vertex_reuse {
                         "vertex"
                     } else {
@@ -432,7 +435,7 @@ fn restir_plan(
         on(
             "pass restir shade",
             true,
-            if plan.final_ratio_tracking {
+            if s.final_ratio_tracking {
                 "F with ratio-tracking transmittance (global majorant)".into()
             } else {
                 "F with closed-form transmittance through the trilinear grid".into()
@@ -551,16 +554,32 @@ fn restir_plan(
             "sub-pixel jitter hashed from (pixel, frame)".into(),
         ),
     ];
-    (Integrator::Restir(plan), decisions)
+    Ok((Integrator::Restir(plan), decisions))
 }
 
-/// A mip level of the plan for --explain: its number, or how `auto` chooses it.
-fn mip_text(level: Option<u32>) -> String {
-    match level {
-        Some(l) => l.to_string(),
-        None => "auto (the coarsest whose marched transmittance stays within 5 % of the \
-                 volume's, measured when it loads)"
-            .into(),
+/// `settings` as far as the passes read them without spatial reuse: its spatial
+/// settings are the defaults.
+fn without_spatial(settings: &nimbus_scene::RestirSettings) -> nimbus_scene::RestirSettings {
+    let d = nimbus_scene::RestirSettings::default();
+    nimbus_scene::RestirSettings {
+        spatial_neighbors: 0,
+        spatial_rounds: 0,
+        spatial_radius_px: d.spatial_radius_px,
+        spatial_when: d.spatial_when,
+        spatial_shift: d.spatial_shift,
+        spatial_max_history: d.spatial_max_history,
+        ..settings.clone()
+    }
+}
+
+/// A mip level of the plan for --explain: the level `used`, and whether it was chosen
+/// from the content (`asked` is `None`: `auto`) or refined below the level `asked` (the
+/// plan's notes say why).
+fn mip_text(asked: Option<u32>, used: u32) -> String {
+    match asked {
+        None => format!("{used} (auto)"),
+        Some(l) if l == used => used.to_string(),
+        Some(l) => format!("{used} (refined from {l})"),
     }
 }
 

@@ -24,10 +24,12 @@ use anyhow::{bail, Context as _, Result};
 use nimbus_gpu::{vk, Buffer, BufferDesc, Context, GpuObjects, Handle, Profiler, ScopeResult};
 use nimbus_scene::Scene;
 
+use crate::budget::film_partial_bytes;
 use crate::gpu::counters::{self, WorkCounts};
 use crate::gpu::{bindings, FrameUniforms};
 use crate::output::ImageRgb;
 use crate::passes::{self, Pass, Targets};
+pub use crate::plan::error_batch;
 use crate::plan::RenderPlan;
 use film::{Batches, Totals};
 use progress::{Progress, Status};
@@ -168,7 +170,8 @@ pub struct RenderResult {
     pub frame_images: Vec<ImageRgb>,
     /// Bytes of every GPU buffer and image the render created.
     pub device_bytes: u64,
-    /// What the passes decided from the scene's content (see `Pass::notes`).
+    /// What the pass and the plan decided from the scene's content (`Pass::notes`,
+    /// `RenderPlan::notes`).
     pub notes: Vec<String>,
     /// The work counters of the image's frames, when [`RenderOptions::counters`] asked
     /// for them.
@@ -183,19 +186,6 @@ impl RenderResult {
             .filter_map(|f| f.first())
             .map(|s| s.duration_ms())
             .sum()
-    }
-}
-
-/// Frames per batch of the error estimate for `plan`: ReSTIR's temporal reuse carries
-/// each reservoir's history into the next frames, with weight capped at Q times the
-/// frame's own (Q = `temporal_limit`), so a frame's influence decays roughly like
-/// (Q/(Q+1))^k after k frames; batches of 4·(Q + 1) frames hold most of it (about 2%
-/// leaks into the next batch at Q = 4). Every other integrator draws fresh random
-/// numbers each frame: 1.
-pub fn error_batch(plan: &RenderPlan) -> u32 {
-    match plan.restir() {
-        Some(p) if p.temporal => 4 * (p.temporal_limit + 1),
-        _ => 1,
     }
 }
 
@@ -261,7 +251,9 @@ pub fn render_each(
         let targets = handles.targets(&objects);
         let mut pass = passes::create(ctx, scene, plan, &targets)?;
         let device_bytes = objects.bytes() + pass.device_bytes();
-        let notes = pass.notes();
+        // The pass's notes, then the plan's (what it chose from the grid's content).
+        let mut notes = pass.notes();
+        notes.extend(plan.notes());
         let mut run = Run {
             ctx,
             scene,
@@ -299,16 +291,6 @@ struct TargetHandles {
     film_partial: Handle<Buffer>,
     counters: bool,
     alpha: bool,
-}
-
-/// Bytes of the film's partial-sum buffer: two vec4 per pixel where a frame's samples
-/// may be shared among dispatches (a device with a loop budget), one element elsewhere.
-pub fn film_partial_bytes(shared_frames: bool, pixels: u64) -> u64 {
-    if shared_frames {
-        pixels * 32
-    } else {
-        32
-    }
 }
 
 impl TargetHandles {

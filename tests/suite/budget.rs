@@ -21,8 +21,9 @@ fn asset(name: &str) -> PathBuf {
 /// half of it is really allocated; a third for the procedural cloud, whose bricks are
 /// bounded from its formula per super-voxel without evaluating it (at 256x160x256 the
 /// bound claims 5991 slots, 2.6 times the 2331 the cloud fills), and ReSTIR's levels
-/// chosen from the content (`"auto"`, when the grid loads) are counted at the finest they
-/// can be (measured 2.8x for cloud-restir.toml, 2.5x for cloud-logo.toml). (It counts
+/// chosen from the content (`"auto"`, when the plan is built; the footprint reads file
+/// headers only) are counted at the finest they can be (measured 2.8x for
+/// cloud-restir.toml, 2.5x for cloud-logo.toml). (It counts
 /// ReSTIR's half-float ray-march mips as f32 unless the density is the procedural cloud,
 /// whose values lie in [0, 1], and leaves out records of a few bytes.)
 #[test]

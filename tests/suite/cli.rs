@@ -523,6 +523,43 @@ fn explain_says_which_integrator_renders_stills() {
     assert!(!text(&out.stdout).contains("renders a still"));
 }
 
+/// `--explain` shows the mip levels ReSTIR really uses, decided by the plan: `auto` ones
+/// chosen from the grid's content, with the errors that chose them; fixed ones as asked.
+#[test]
+fn explain_shows_the_mip_levels_restir_uses() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let scene = root.join("assets/scenes/cloud-restir.toml");
+    let scene = scene.to_str().unwrap();
+    let out = nimbus(&["render", scene, "--explain"]);
+    let stdout = text(&out.stdout);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    assert!(
+        stdout
+            .contains("regular tracking on mip 1 for camera rays and 1 (auto) for scattered ones"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains("note: ReSTIR chose mip 1 (scattered segments) and 0 (reuse targets)"),
+        "{stdout}"
+    );
+    let fixed = nimbus(&[
+        "render",
+        scene,
+        "--explain",
+        "--set",
+        "integrator.restir.mip_indirect=2",
+        "--set",
+        "integrator.restir.mip_reuse=1",
+    ]);
+    let stdout = text(&fixed.stdout);
+    assert!(fixed.status.success(), "{}", text(&fixed.stderr));
+    assert!(stdout.contains("2 for scattered ones"), "{stdout}");
+    assert!(
+        !stdout.contains("(auto)") && !stdout.contains("ReSTIR chose mip"),
+        "{stdout}"
+    );
+}
+
 /// A reader that closes our standard output early (`nimbus render --explain | head -1`)
 /// ends the command quietly (SIGPIPE), never with a panic in print!.
 #[test]

@@ -16,7 +16,7 @@ use crate::gpu::{
     RestirPush, RestirUniformsGpu, ShapeGpu,
 };
 use crate::passes::{
-    atlas_image, compute_pipeline, image_3d, upload_env_map, upload_params, upload_records, Targets,
+    compute_pipeline, image_3d, upload_env_map, upload_params, upload_records, StaticGrids, Targets,
 };
 use crate::shaders;
 
@@ -30,7 +30,7 @@ pub struct Resources {
     pub base_uniforms: Handle<Buffer>,
     pub restir_uniforms: Handle<Buffer>,
     pub prev_frame: Handle<Buffer>,
-    /// Every grid's indirection section ([`super::Sections`] says where each starts).
+    /// Every grid's indirection section ([`super::indirection::Sections`] says where each starts).
     pub bricks: Handle<Buffer>,
     /// Super-voxel records of this frame's density slots.
     pub super_voxels: Handle<Buffer>,
@@ -285,34 +285,12 @@ impl Resources {
         } else {
             (density, march_reuse)
         };
-        let emission = match &grid.emission {
-            Some((e, layout, format)) => {
-                atlas_image(ctx, o, layout, e, 1.0, *format, "grid emission")?
-            }
-            // Without emission the (compiled-out) binding sees the density.
-            None => density,
-        };
-        // Without a temperature grid the (compiled-out) temperature binding sees the
-        // density and the blackbody table is the super-voxels.
-        let (temperature, blackbody) = match &grid.temperature {
-            Some((t, layout)) => (
-                atlas_image(ctx, o, layout, t, 1.0, TexelFormat::R32, "grid temperature")?,
-                upload_records(
-                    ctx,
-                    o,
-                    &nimbus_scene::blackbody::BlackbodyTable::get().entries,
-                    "blackbody table",
-                )?,
-            ),
-            None => (density, super_voxels),
-        };
-        // Without an albedo grid the (compiled-out) albedo binding sees the density.
-        let albedo = match &grid.albedo_grid {
-            Some((a, layout, format)) => {
-                atlas_image(ctx, o, layout, a, 1.0, *format, "grid albedo")?
-            }
-            None => density,
-        };
+        let StaticGrids {
+            emission,
+            temperature,
+            blackbody,
+            albedo,
+        } = StaticGrids::upload(ctx, o, grid, density, super_voxels)?;
         let rgba16 = vk::Format::R16G16B16A16_SFLOAT;
         let velocity = match velocity {
             Some((dims, texels)) => image_3d(

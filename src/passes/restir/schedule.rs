@@ -18,12 +18,11 @@ pub const MAX_SLOTS: u32 = 3;
 /// frame's history in the other, spatial rounds alternating between them), or 3 when
 /// the temporal stage's slot must survive two or more spatial rounds.
 pub fn slots(settings: &ScheduleSettings) -> u32 {
-    let spatial = settings.spatial_neighbors > 0 && settings.spatial_rounds > 0;
-    if spatial && settings.history_before_spatial && settings.spatial_rounds >= 2 {
-        3
-    } else {
-        2
-    }
+    crate::plan::reservoir_slots(
+        settings.spatial_neighbors,
+        settings.spatial_rounds,
+        settings.history_before_spatial,
+    )
 }
 
 /// One stage of a frame, in dispatch order.

@@ -7,13 +7,12 @@ use std::collections::HashMap;
 
 use anyhow::{bail, Result};
 use glam::IVec3;
-use nimbus_scene::bricks::{march_errors, MARCH_ERROR_SEGMENTS};
 use nimbus_scene::precision::PositionScale;
 use nimbus_scene::{BrickGrid, GridMedium};
 
 use crate::gpu::sparse::{atlas_slots, SparseLayout, TexelFormat};
 use crate::gpu::GridLevelGpu;
-use crate::plan::RestirPlan;
+use crate::plan::{Levels, RestirPlan};
 
 /// The texel format of the ray-march mips: half floats where every density of the
 /// animation fits f16 (the paper's choice, half the bandwidth), f32 otherwise. An f16
@@ -25,135 +24,6 @@ pub fn march_format(max_density: f32) -> TexelFormat {
     } else {
         TexelFormat::R32
     }
-}
-
-/// The mip levels the passes use for a grid: the conservative piecewise-constant levels
-/// of candidate generation (camera and scattered rays) and the ray-march mips of the
-/// target functions.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Levels {
-    pub candidates: u32,
-    pub indirect: u32,
-    pub reuse: u32,
-}
-
-/// The largest optical depth a coarse level may put across one of its blocks beyond what
-/// the block's thinnest voxel allows (`(mean − min) · σ scale · block diagonal`). A block
-/// that averages a hot voxel with clear neighbours claims opacity where light really
-/// passes: its T~ or T* becomes 0 (or too small to sample) for paths that contribute,
-/// which biases ReSTIR (one 1e6 voxel darkened a cloud by 1.4 % at mip 2). Past this the
-/// level is refined, whatever the scene asks. Below it, T~ is at worst e^8 too small
-/// across a block: RIS stays unbiased (T~ > 0) at a bounded cost in variance. A cloud
-/// with voxel-scale detail stays below it (the study cloud: about 5 at mip 2), so this
-/// guards correctness; which levels pay best is a separate, measured choice.
-pub const MAX_LEVEL_EXCESS_TAU: f64 = 8.0;
-
-/// The largest error in optical depth, RMS over segments weighted by their transmittance
-/// ([`march_errors`]), that a level chosen from the content (`"auto"`) may have: T~
-/// within about 5 % of T. Calibrated on two clouds whose targets were measured with
-/// both levels (tests/suite and docs/restir.md): the 64³ study cloud (noise at voxel
-/// scale) loses 0.043 at mip 0 and 0.245 at mip 1, and per-frame error fell 2-3.6x
-/// with mip 0; the 256x160x256 benchmark cloud loses 0.030 at mip 1 and 0.101 at mip 2,
-/// and its per-frame error was the same at mips 0 and 1 (1 % apart) for 10 % less time.
-pub const MAX_MARCH_ERROR: f64 = 0.05;
-/// The coarsest level `"auto"` considers.
-pub const MAX_AUTO_LEVEL: u32 = 3;
-/// The finest level `"auto"` gives the candidates' scattered segments: their
-/// transmittance only weighs candidates (the reuse targets replace it), so mip 1 serves
-/// where the reuse targets need mip 0 (measured on the 64³ study cloud: mip_indirect 1
-/// with mip_reuse 0 cut per-frame MSE 2-3.6x), and the level-0 conservative grid it would
-/// add costs a full-resolution copy of the density.
-pub const MIN_AUTO_INDIRECT: u32 = 1;
-
-/// The levels the passes use and, when some were chosen from the content, the measured
-/// optical-depth errors of mips 0..=[`MAX_AUTO_LEVEL`] that chose them.
-#[derive(Clone, Debug, PartialEq)]
-pub struct LevelChoice {
-    pub levels: Levels,
-    pub march_errors: Option<Vec<f64>>,
-}
-
-impl Levels {
-    /// The plan's levels (`auto` ones: the coarsest of mips 0..=[`MAX_AUTO_LEVEL`] whose
-    /// marched optical depth stays within [`MAX_MARCH_ERROR`] on the first grid, `voxel`
-    /// its world voxel size), each lowered to the coarsest level at or below it whose
-    /// blocks stay within [`MAX_LEVEL_EXCESS_TAU`] in every grid of the animation.
-    pub fn choose(
-        plan: &RestirPlan,
-        grids: &[&BrickGrid],
-        scale: f32,
-        voxel: [f64; 3],
-    ) -> Result<LevelChoice> {
-        let voxel_diagonal =
-            (voxel[0] * voxel[0] + voxel[1] * voxel[1] + voxel[2] * voxel[2]).sqrt() as f32;
-        let auto = plan.mip_indirect.is_none() || plan.mip_reuse.is_none();
-        let (auto_level, march_errors) = match (auto, grids.first()) {
-            (true, Some(g)) => {
-                let errors = march_errors(
-                    g,
-                    voxel,
-                    f64::from(scale),
-                    MAX_AUTO_LEVEL,
-                    MARCH_ERROR_SEGMENTS,
-                    1,
-                )?;
-                let level = errors
-                    .iter()
-                    .take_while(|&&e| e <= MAX_MARCH_ERROR)
-                    .count()
-                    .saturating_sub(1) as u32;
-                (level, Some(errors))
-            }
-            _ => (0, None),
-        };
-        let indirect = plan
-            .mip_indirect
-            .unwrap_or(auto_level.max(MIN_AUTO_INDIRECT));
-        let reuse = plan.mip_reuse.unwrap_or(auto_level);
-        let requested = plan.mip_candidates.max(indirect).max(reuse);
-        let mut allowed = requested;
-        for g in grids {
-            allowed = allowed.min(allowed_level(g, scale, voxel_diagonal, requested)?);
-        }
-        Ok(LevelChoice {
-            levels: Levels {
-                candidates: plan.mip_candidates.min(allowed),
-                indirect: indirect.min(allowed),
-                reuse: reuse.min(allowed),
-            },
-            march_errors,
-        })
-    }
-}
-
-/// Whether a level's lattice is a single point (the 1×1×1 level of a dense grid).
-fn is_last(g: &BrickGrid) -> bool {
-    g.lattice_min == g.lattice_max
-}
-
-/// The coarsest level ≤ `requested` whose 2^L blocks all keep
-/// (mean − min) · scale · (voxel diagonal · 2^L) ≤ [`MAX_LEVEL_EXCESS_TAU`].
-fn allowed_level(grid: &BrickGrid, scale: f32, voxel_diagonal: f32, requested: u32) -> Result<u32> {
-    if requested == 0 || is_last(grid) {
-        return Ok(requested);
-    }
-    let mut mean = grid.mip()?;
-    let mut min = grid.min_mip()?;
-    for level in 1..=requested {
-        if level > 1 {
-            if is_last(&mean) {
-                return Ok(requested);
-            }
-            mean = mean.mip()?;
-            min = min.min_mip()?;
-        }
-        let diagonal = f64::from(voxel_diagonal) * f64::from(1u32 << level.min(31));
-        let excess = mean.max_excess_over(&min) * f64::from(scale) * diagonal;
-        if excess > MAX_LEVEL_EXCESS_TAU {
-            return Ok(level - 1);
-        }
-    }
-    Ok(requested)
 }
 
 /// The mip `level` of `grid` (a copy at level 0), clamped at its single-point level.
@@ -351,8 +221,6 @@ pub struct Volumes {
     by_index: HashMap<usize, DerivedVolume>,
     pub format: TexelFormat,
     pub levels: Levels,
-    /// The optical-depth errors of mips 0..=MAX_AUTO_LEVEL that chose the `auto` levels.
-    pub march_errors: Option<Vec<f64>>,
     pub sizes: AtlasSizes,
     /// The largest sigma_t of every frame.
     pub sigma_t_max: f32,
@@ -372,31 +240,7 @@ impl Volumes {
     ) -> Result<Volumes> {
         let s = grid.density_scale;
         let mut loaded = vec![base];
-        for (i, frame) in grid.frames.iter().enumerate() {
-            let what = format!(
-                "{label} > [[medium.frame]] #{} (frame {})",
-                i + 1,
-                frame.frame
-            );
-            let density = BrickGrid::load(&frame.density, 1, &what)?;
-            grid.check_density_bricks(&density, scale, &what)?;
-            let first = &loaded[0].0;
-            if (
-                density.origin + density.lattice_min,
-                density.origin + density.lattice_max,
-            ) != (
-                first.origin + first.lattice_min,
-                first.origin + first.lattice_max,
-            ) {
-                bail!(
-                    "{what}: field `density`: its lattice {} ..= {} differs from the medium's \
-                     density {} ..= {}; every frame must have the same resolution and extent",
-                    density.origin + density.lattice_min,
-                    density.origin + density.lattice_max,
-                    first.origin + first.lattice_min,
-                    first.origin + first.lattice_max
-                );
-            }
+        for density in crate::plan::load_frames(grid, &loaded[0].0, scale, label)? {
             let (bricks, records): (Vec<_>, Vec<_>) = density
                 .super_voxels()
                 .into_iter()
@@ -413,18 +257,10 @@ impl Volumes {
             .iter()
             .flat_map(|(_, _, r)| r.iter().map(|v| v[1]))
             .fold(0.0f32, f32::max);
-        let dims = (loaded[0].0.lattice_max + 1)
-            .to_array()
-            .map(|d| d.max(1) as u32);
-        let voxel = grid.voxel_size(dims);
-        let grids: Vec<&BrickGrid> = loaded.iter().map(|(g, _, _)| g).collect();
-        let LevelChoice {
-            levels,
-            march_errors,
-        } = Levels::choose(plan, &grids, s, voxel)?;
+        let levels = plan.levels.levels;
         let derived: Vec<DerivedGrids> = loaded
             .into_iter()
-            .map(|(g, b, r)| DerivedGrids::build(g, b, r, &levels, plan.sigma_star_floor))
+            .map(|(g, b, r)| DerivedGrids::build(g, b, r, &levels, plan.settings.sigma_star_floor))
             .collect::<Result<_>>()?;
         let sizes = AtlasSizes::of(&derived)?;
         let by_index = derived
@@ -436,7 +272,6 @@ impl Volumes {
             by_index,
             format,
             levels,
-            march_errors,
             sizes,
             sigma_t_max,
         })
@@ -487,158 +322,10 @@ pub fn march_step(grid: &GridMedium, density: &BrickGrid, level: u32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use nimbus_scene::VoxelGrid;
 
     #[test]
     fn densities_beyond_f16_use_f32_texels() {
         assert_eq!(march_format(65504.0), TexelFormat::R16);
         assert_eq!(march_format(65505.0), TexelFormat::R32);
-    }
-
-    fn plan(level: u32) -> RestirPlan {
-        RestirPlan {
-            max_bounces: 1,
-            has_emission: false,
-            has_blackbody: false,
-            has_albedo_grid: false,
-            has_env: false,
-            has_env_map: false,
-            pixel_jitter: true,
-            has_velocity: false,
-            animated_density: false,
-            candidates: 4,
-            temporal: true,
-            temporal_limit: 4,
-            spatial_neighbors: 3,
-            spatial_radius_px: 10.0,
-            spatial_camera_moves: false,
-            spatial_rounds: 1,
-            vertex_reuse: false,
-            final_ratio_tracking: false,
-            mip_candidates: level,
-            mip_indirect: Some(level),
-            mip_reuse: Some(level),
-            pairwise_mis: false,
-            spatial_tau_shift: false,
-            fold_emission: false,
-            spatial_max_history: 0.0,
-            nee_split: false,
-            direct_each_walk: true,
-            history_before_spatial: false,
-            sigma_star_floor: 0.0,
-            has_shapes: false,
-            has_meshes: false,
-            has_boxes: false,
-            has_convex: false,
-            has_area_lights: false,
-            has_gobos: false,
-        }
-    }
-
-    #[test]
-    fn a_hot_voxel_refines_the_levels_and_smooth_media_keep_them() {
-        let n = 16u32;
-        let mut grid = VoxelGrid {
-            dims: [n; 3],
-            channels: 1,
-            data: vec![0.5; (n * n * n) as usize],
-        };
-        let bricks = |g: &VoxelGrid| BrickGrid::from_dense(g).unwrap();
-        // Voxels whose diagonal is 0.1.
-        let voxel = [0.1 / 3f64.sqrt(); 3];
-        let smooth = Levels::choose(&plan(2), &[&bricks(&grid)], 1.0, voxel).unwrap();
-        assert_eq!(smooth.march_errors, None);
-        assert_eq!(
-            smooth.levels,
-            Levels {
-                candidates: 2,
-                indirect: 2,
-                reuse: 2
-            }
-        );
-        grid.data[(8 + n * (8 + n * 8)) as usize] = 1e6;
-        let hot = Levels::choose(&plan(2), &[&bricks(&grid)], 1.0, voxel).unwrap();
-        assert_eq!(
-            hot.levels,
-            Levels {
-                candidates: 0,
-                indirect: 0,
-                reuse: 0
-            }
-        );
-    }
-
-    /// `auto` keeps the coarsest level that marches the content's transmittance within
-    /// MAX_MARCH_ERROR: every allowed level for a smooth ramp, mip 0 for noise at voxel
-    /// scale; fixed levels stay as asked.
-    #[test]
-    fn auto_levels_follow_the_content() {
-        let n = 32u32;
-        let cells = (n * n * n) as usize;
-        let ramp = VoxelGrid {
-            dims: [n; 3],
-            channels: 1,
-            data: (0..cells)
-                .map(|i| 0.2 + (i % n as usize) as f32 / n as f32)
-                .collect(),
-        };
-        let mut state = 7u32;
-        let noise = VoxelGrid {
-            dims: [n; 3],
-            channels: 1,
-            data: (0..cells)
-                .map(|_| {
-                    state = state.wrapping_mul(747_796_405).wrapping_add(2_891_336_453);
-                    (state >> 8) as f32 / (1u32 << 24) as f32
-                })
-                .collect(),
-        };
-        let mut auto = plan(1);
-        auto.mip_indirect = None;
-        auto.mip_reuse = None;
-        // Optical depth about 0.1-0.3 per voxel in the noise, half that in the ramp (whose
-        // coarsest mips still lose a little at the clamped border).
-        let (scale, voxel) = (8.0, [0.03; 3]);
-        let smooth = Levels::choose(
-            &auto,
-            &[&BrickGrid::from_dense(&ramp).unwrap()],
-            scale / 2.0,
-            voxel,
-        )
-        .unwrap();
-        let errors = smooth.march_errors.clone().unwrap();
-        assert_eq!(errors.len() as u32, MAX_AUTO_LEVEL + 1);
-        assert!(errors.iter().all(|&e| e <= MAX_MARCH_ERROR), "{errors:?}");
-        assert_eq!(
-            (smooth.levels.indirect, smooth.levels.reuse),
-            (MAX_AUTO_LEVEL, MAX_AUTO_LEVEL)
-        );
-        let rough = Levels::choose(
-            &auto,
-            &[&BrickGrid::from_dense(&noise).unwrap()],
-            scale,
-            voxel,
-        )
-        .unwrap();
-        let errors = rough.march_errors.clone().unwrap();
-        assert!(errors[1] > MAX_MARCH_ERROR, "{errors:?}");
-        assert_eq!(
-            (rough.levels.indirect, rough.levels.reuse),
-            (MIN_AUTO_INDIRECT, 0)
-        );
-        // A fixed level is kept, the other chosen.
-        let mut half = auto.clone();
-        half.mip_reuse = Some(2);
-        let mixed = Levels::choose(
-            &half,
-            &[&BrickGrid::from_dense(&noise).unwrap()],
-            scale,
-            voxel,
-        )
-        .unwrap();
-        assert_eq!(
-            (mixed.levels.indirect, mixed.levels.reuse),
-            (MIN_AUTO_INDIRECT, 2)
-        );
     }
 }

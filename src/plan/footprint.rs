@@ -1,0 +1,270 @@
+//! A render's footprint from its plan and the scene's file headers: [`Footprint::of`]
+//! (the leaf type lives in [`crate::budget`]). The renderer checks it before it
+//! allocates anything; `nimbus render --explain` prints it.
+
+use std::collections::HashSet;
+
+use anyhow::Result;
+use glam::IVec3;
+use nimbus_scene::bricks::shr;
+use nimbus_scene::{BrickTopology, GridSource, Scene};
+
+use super::{
+    has_density_frames, CrepuscularPlan, Integrator, RenderPlan, RestirPlan, MIN_AUTO_INDIRECT,
+};
+use crate::budget::{brick_bytes, density_slot_bound, grid_bytes, Binding, Footprint};
+use crate::gpu::scene::GpuScene;
+use crate::gpu::sparse::TexelFormat;
+use crate::gpu::sparse::{atlas_bytes, atlas_dims, atlas_slots, layer_bytes, slot_bound};
+use crate::gpu::{reservoir_bytes, FrameUniforms};
+
+impl Footprint {
+    /// The footprint of rendering `scene` with `plan`: the render targets and what the
+    /// plan's integrator allocates.
+    pub fn of(scene: &Scene, plan: &RenderPlan) -> Result<Footprint> {
+        let file = scene.source.display().to_string();
+        let mut f = Footprint::default();
+        let r = &scene.render;
+        let pixels = u64::from(r.width) * u64::from(r.height);
+        let render = format!("{file}: [render] fields `width` x `height`");
+        f.add(&render, Binding::Storage, pixels * 16);
+        f.add(&render, Binding::Storage, pixels * 16);
+        // The film's partial sums: per pixel on lavapipe, where a frame's samples may be
+        // shared among dispatches (counted everywhere: an upper bound).
+        f.add(
+            &render,
+            Binding::Storage,
+            crate::budget::film_partial_bytes(true, pixels),
+        );
+        f.add(
+            "frame uniforms",
+            Binding::Storage,
+            std::mem::size_of::<FrameUniforms>() as u64,
+        );
+        // Per-pixel readback of both sums, the mean and standard error computed from
+        // them (src/renderer/film.rs), ReSTIR's batch sums, and the two output images.
+        let batches = if super::error_batch(plan) > 1 {
+            2 * pixels * 16
+        } else {
+            0
+        };
+        f.host_peak += 2 * pixels * 16 + 2 * pixels * 16 + batches + pixels * 12 * 2;
+
+        match &plan.integrator {
+            Integrator::Crepuscular(p) => crepuscular(scene, p, &mut f)?,
+            Integrator::Baseline(_) if has_density_frames(scene) => baseline_frames(scene, &mut f)?,
+            Integrator::Baseline(_) => baseline(scene, &mut f)?,
+            Integrator::Restir(p) => restir(scene, p, &mut f)?,
+        }
+        Ok(f)
+    }
+}
+
+/// What the crepuscular pass allocates besides the render targets: its scene records
+/// (a few KiB; counted so that every pass reports its footprint), the environment map
+/// and its tables, and, for ME, the moment maps (16 bytes per texel, a mip chain per
+/// directional light).
+fn crepuscular(scene: &Scene, plan: &CrepuscularPlan, f: &mut Footprint) -> Result<()> {
+    f.add_env_map(scene)?;
+    f.add_meshes(scene);
+    let records = GpuScene::build(scene)?;
+    let bytes = std::mem::size_of_val(records.media.as_slice())
+        + std::mem::size_of_val(records.medium_planes.as_slice())
+        + std::mem::size_of_val(records.shapes.as_slice())
+        + std::mem::size_of_val(records.lights.as_slice())
+        + std::mem::size_of_val(records.gobo_planes.as_slice());
+    f.add(
+        format!(
+            "{}: box and convex media, shapes, lights, gobos",
+            scene.source.display()
+        ),
+        Binding::Storage,
+        bytes as u64,
+    );
+    if plan.needs_moment_maps() {
+        let size = u64::from(plan.moment_map_size);
+        f.add(
+            format!(
+                "{}: ME moment maps, {} light(s) x {size}² texels with mips",
+                scene.source.display(),
+                records.lights.len()
+            ),
+            Binding::Storage,
+            super::moment_texels_per_light(size) * records.lights.len() as u64 * 16,
+        );
+    }
+    Ok(())
+}
+
+/// What the baseline pass allocates (see [`crate::budget`]).
+fn baseline(scene: &Scene, f: &mut Footprint) -> Result<()> {
+    f.add_meshes(scene);
+    f.add_emitters(scene);
+    f.add_env_map(scene)?;
+    f.add_grid(scene)?;
+    Ok(())
+}
+
+/// What the passes allocate: every density grid's resources (see [`crate::budget`]).
+fn baseline_frames(scene: &Scene, f: &mut Footprint) -> Result<()> {
+    let count = super::animated_grid(scene).map_or(0, |(_, g)| g.frames.len());
+    for index in 0..=count {
+        baseline(&super::scene_of_grid(scene, index), f)?;
+    }
+    Ok(())
+}
+
+/// The bricks of mip `level` of a grid of topology `t` (each brick's parent at that
+/// level), after growing `t` by its 26 neighbours when `dilate` (the conservative grid's
+/// zeros next to density become positive).
+fn level_topology(t: &BrickTopology, level: u32, dilate: bool) -> BrickTopology {
+    let dims = IVec3::from_array(t.brick_dims().map(|d| d as i32));
+    let mut set = HashSet::new();
+    for b in &t.bricks {
+        let range = if dilate { -1..=1 } else { 0..=0 };
+        for z in range.clone() {
+            for y in range.clone() {
+                for x in range.clone() {
+                    let n = *b + IVec3::new(x, y, z);
+                    if n.cmpge(IVec3::ZERO).all() && n.cmplt(dims).all() {
+                        set.insert(shr(n, level));
+                    }
+                }
+            }
+        }
+    }
+    BrickTopology {
+        lattice_min: shr(t.lattice_min, level),
+        lattice_max: shr(t.lattice_max, level),
+        bricks: set.into_iter().collect(),
+        ..t.clone()
+    }
+}
+
+/// What the ReSTIR passes allocate (see [`crate::budget`]): the grid's atlases (density,
+/// piecewise-constant levels, ray-march mips, and the previous frame's where density
+/// frames change), sized for the largest frame at the plan's mip levels (`auto` ones at
+/// the finest they can be; a level refined by content, see
+/// [`super::MAX_LEVEL_EXCESS_TAU`], is finer and larger), the indirection sections,
+/// reservoirs and velocity.
+fn restir(scene: &Scene, p: &RestirPlan, f: &mut Footprint) -> Result<()> {
+    f.add_meshes(scene);
+    f.add_emitters(scene);
+    f.add_env_map(scene)?;
+    let Some(gf) = f.add_grid(scene)? else {
+        return Ok(());
+    };
+    let (g, table) = (gf.medium, gf.table.clone());
+    let file = scene.source.display();
+    let r = &scene.render;
+    let pixels = u64::from(r.width) * u64::from(r.height);
+    let reservoirs = u64::from(p.reservoir_slots()) * pixels * reservoir_bytes(p.max_bounces);
+    f.add(
+        format!("{file}: [render] `width` x `height` with [integrator] `max_bounces` = {} (ReSTIR reservoirs)", p.max_bounces),
+        Binding::Storage,
+        reservoirs,
+    );
+    let mut frames = vec![gf.density.clone()];
+    let mut frame_slots = vec![gf.density_slots];
+    for (i, frame) in g.frames.iter().enumerate() {
+        let what = format!(
+            "{table} > [[medium.frame]] #{} (frame {})",
+            i + 1,
+            frame.frame
+        );
+        let topo = BrickTopology::of(&frame.density, 1, &what)?;
+        frame_slots.push(density_slot_bound(&frame.density, &topo));
+        frames.push(topo);
+    }
+    let animated = frames.len() > 1;
+    let brick = 512 * 4;
+    let mut density_slots = gf.density_slots;
+    let (mut pc, mut reuse, mut nee) = (0u64, 0u64, 0u64);
+    let (mut kept, mut building) = (0u64, 0u64);
+    let mut cells = 0u64;
+    // A level chosen from the content (`auto`): counted at the finest it can be, from
+    // the file headers alone.
+    let mip_indirect = p.asked_levels().indirect.unwrap_or(MIN_AUTO_INDIRECT);
+    let mip_reuse = p.asked_levels().reuse.unwrap_or(0);
+    for (n, t) in frames.iter().enumerate() {
+        let primary = level_topology(t, p.asked_levels().candidates, true);
+        let indirect = level_topology(t, mip_indirect, true);
+        let march_reuse = level_topology(t, mip_reuse, false);
+        let march_nee = level_topology(t, mip_indirect, false);
+        let slots = frame_slots[n];
+        if n > 0 {
+            density_slots = density_slots.max(slots);
+        }
+        let pc_n = (primary.bricks.len() + indirect.bricks.len()) as u64;
+        pc = pc.max(pc_n);
+        reuse = reuse.max(slot_bound(&march_reuse, false));
+        nee = nee.max(slot_bound(&march_nee, false));
+        let level_cells =
+            primary.cells() + indirect.cells() + march_reuse.cells() + march_nee.cells();
+        if n == 0 {
+            cells = level_cells;
+        }
+        // Kept for the whole render: the grid, its records and every level (f32 values,
+        // coordinates, indirection and layout indirection). The base density's bricks
+        // are those `add_grid` counted (the pass moves them into its levels, no copy).
+        kept += if n == 0 { 0 } else { brick_bytes(t) }
+            + slots * (12 + 16)
+            + (pc_n + (march_reuse.bricks.len() + march_nee.bricks.len()) as u64) * (brick + 12)
+            + 2 * (t.cells() + level_cells) * 4;
+        // While a frame is derived: its conservative copy (the bricks and neighbours).
+        let conservative = level_topology(t, 0, true);
+        building = building
+            .max(conservative.bricks.len() as u64 * (brick + 12) + conservative.cells() * 4);
+    }
+    let r32 = TexelFormat::R32;
+    // The march mips as f32 (what a density beyond f16's range needs), or f16 where every
+    // density is the procedural cloud, whose values lie in [0, 1].
+    let procedural = |s: &GridSource| matches!(s, GridSource::ProceduralCloud { .. });
+    let march = if procedural(&g.density) && g.frames.iter().all(|fr| procedural(&fr.density)) {
+        TexelFormat::R16
+    } else {
+        TexelFormat::R32
+    };
+    let mut atlas = |name: &str, slots: u64, format: TexelFormat| -> Result<()> {
+        f.add(
+            format!("{table} ({name}, atlas of {slots} bricks)"),
+            Binding::Image3d(atlas_dims(atlas_slots(slots)?)),
+            atlas_bytes(slots, format)?,
+        );
+        Ok(())
+    };
+    atlas("piecewise-constant levels", pc, r32)?;
+    atlas("ray-march mip, reuse", reuse, march)?;
+    atlas("ray-march mip, NEE", nee, march)?;
+    if animated {
+        atlas("previous density", density_slots, r32)?;
+        atlas("ray-march mip, reuse, previous", reuse, march)?;
+        // The base density's atlas (counted by `add_grid`) grows to the largest frame's.
+        let base = gf.density_slots;
+        if density_slots > base {
+            f.add(
+                format!("{table} (density atlas for the largest frame)"),
+                Binding::Image3d(atlas_dims(atlas_slots(density_slots)?)),
+                atlas_bytes(density_slots, r32)? - atlas_bytes(base, r32)?,
+            );
+        }
+        cells += gf.density.cells() + level_topology(&gf.density, mip_reuse, false).cells();
+    }
+    f.add(
+        format!("{table} (brick indirection of the derived levels)"),
+        Binding::Storage,
+        cells * 4,
+    );
+    if let Some(v) = &g.velocity {
+        // Dense over the medium's box (an OpenVDB velocity over its dense window).
+        let vd = v.dims()?;
+        f.add(
+            format!("{table} field `velocity`"),
+            Binding::Image3d(vd),
+            grid_bytes(vd, 8),
+        );
+        f.host_peak += grid_bytes(vd, 12 + 8);
+    }
+    f.host_peak += kept + building + cells * 4 + 2 * layer_bytes(pc.max(reuse).max(nee), r32)?;
+    Ok(())
+}
