@@ -2,10 +2,15 @@
 //! the conservative piecewise-constant levels of candidate generation and the ray-march
 //! mips of the target functions.
 
+use std::collections::HashMap;
+use std::sync::{Mutex, OnceLock};
+
 use anyhow::{bail, Result};
 use nimbus_scene::bricks::{march_errors, MARCH_ERROR_SEGMENTS};
 use nimbus_scene::precision::PositionScale;
-use nimbus_scene::{BrickGrid, GridMedium, Scene};
+use nimbus_scene::{BrickGrid, BrickTopology, GridMedium, Scene};
+
+use crate::budget::{brick_bytes, host_budget};
 
 /// The mip levels the passes use for a grid: the conservative piecewise-constant levels
 /// of candidate generation (camera and scattered rays) and the ray-march mips of the
@@ -64,6 +69,32 @@ pub const MAX_AUTO_LEVEL: u32 = 3;
 /// with mip_reuse 0 cut per-frame MSE 2-3.6x), and the level-0 conservative grid it would
 /// add costs a full-resolution copy of the density.
 pub const MIN_AUTO_INDIRECT: u32 = 1;
+
+/// The level choices this process made, by a hash of the grid medium, the asked levels
+/// and the position scale.
+static CHOSEN: OnceLock<Mutex<HashMap<u64, LevelChoice>>> = OnceLock::new();
+
+/// Refuses, before any of it is read, a density whose bricks (every frame's, all held at
+/// once while the levels are chosen) exceed the host memory budget: the renderer checks
+/// the whole render's footprint only after the plan is built.
+fn check_host_memory(grid: &GridMedium, what: &str) -> Result<()> {
+    let mut bytes = brick_bytes(&BrickTopology::of(&grid.density, 1, what)?);
+    for (i, frame) in grid.frames.iter().enumerate() {
+        let what = format!("{what} > [[medium.frame]] #{}", i + 1);
+        bytes = bytes.saturating_add(brick_bytes(&BrickTopology::of(&frame.density, 1, &what)?));
+    }
+    let budget = host_budget()?;
+    if bytes > budget {
+        bail!(
+            "{what}: choosing ReSTIR's mip levels holds the density's bricks (every frame's) \
+             in host memory, about {:.1} MiB; the host memory budget is {:.1} MiB (set \
+             NIMBUS_HOST_MEMORY_BUDGET in MiB to change it)",
+            bytes as f64 / 1048576.0,
+            budget as f64 / 1048576.0
+        );
+    }
+    Ok(())
+}
 
 /// The levels the passes use and, when some were chosen from the content, the measured
 /// optical-depth errors of mips 0..=[`MAX_AUTO_LEVEL`] that chose them.
@@ -134,9 +165,18 @@ impl LevelChoice {
         grid: &GridMedium,
         asked: AskedLevels,
     ) -> Result<LevelChoice> {
+        // The same grid, frames and asks choose the same levels: a study plans every
+        // configuration, and each would otherwise load every density frame again.
+        let key = format!("{:?}", (grid, asked, scene.position_scale()));
+        let key = crate::hashing::fnv1a64(crate::hashing::FNV_OFFSET, key.as_bytes());
+        let chosen = CHOSEN.get_or_init(Default::default);
+        if let Some(choice) = chosen.lock().ok().and_then(|c| c.get(&key).cloned()) {
+            return Ok(choice);
+        }
         let label = format!("{}: [[medium]] #{}", scene.source.display(), index + 1);
         let what = format!("{label} > density");
         let scale = scene.position_scale();
+        check_host_memory(grid, &what)?;
         let density = BrickGrid::load(&grid.density, 1, &what)?;
         grid.check_density_bricks(&density, &scale, &what)?;
         let frames = load_frames(grid, &density, &scale, &label)?;
@@ -145,7 +185,11 @@ impl LevelChoice {
             .map(|d| d.max(1) as u32);
         let voxel = grid.voxel_size(dims);
         let grids: Vec<&BrickGrid> = std::iter::once(&density).chain(&frames).collect();
-        Levels::choose(asked, &grids, grid.density_scale, voxel)
+        let choice = Levels::choose(asked, &grids, grid.density_scale, voxel)?;
+        if let Ok(mut c) = chosen.lock() {
+            c.insert(key, choice.clone());
+        }
+        Ok(choice)
     }
 
     /// What `--explain` says of how the levels were chosen: the measured errors that

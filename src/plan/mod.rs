@@ -537,3 +537,56 @@ fn off_reason(scene: &Scene, chosen: IntegratorKind, other: IntegratorKind) -> &
 
 #[cfg(test)]
 mod tests;
+
+/// The scene as far as its integrator reads it (what a study compares to render
+/// configurations that only differ in unread settings once): the settings of the other integrators
+/// are reset to their defaults (the box-medium pass reads neither `volume` nor
+/// `[integrator.restir]`; the grid integrators read neither the box estimator nor
+/// `box_samples`; the baseline reads no ReSTIR knob).
+pub fn effective_scene(scene: &Scene, plan: &RenderPlan) -> Scene {
+    let defaults = nimbus_scene::Integrator::default();
+    let mut s = scene.clone();
+    let i = &mut s.integrator;
+    match &plan.integrator {
+        Integrator::Crepuscular(_) => {
+            i.volume = defaults.volume;
+            i.restir = defaults.restir;
+        }
+        Integrator::Baseline(_) => {
+            i.restir = defaults.restir;
+            i.box_estimator = defaults.box_estimator;
+            i.box_samples = defaults.box_samples;
+        }
+        Integrator::Restir(p) => {
+            i.box_estimator = defaults.box_estimator;
+            i.box_samples = defaults.box_samples;
+            if !spatial_on(p) {
+                // Without spatial reuse its settings are read by nothing.
+                i.restir = volume::without_spatial(&i.restir);
+            }
+        }
+    }
+    s
+}
+
+/// Whether a ReSTIR plan runs spatial reuse.
+pub fn spatial_on(p: &RestirPlan) -> bool {
+    p.spatial_neighbors > 0 && p.spatial_rounds > 0
+}
+
+/// The plan as far as its passes read it: without spatial reuse, ReSTIR's spatial
+/// settings are read by nothing (`mis` is: temporal reuse combines with it too).
+pub fn effective_plan(plan: &RenderPlan) -> RenderPlan {
+    let mut p = plan.clone();
+    if let Integrator::Restir(r) = &mut p.integrator {
+        if !spatial_on(r) {
+            r.spatial_neighbors = 0;
+            r.spatial_rounds = 0;
+            r.spatial_radius_px = 0.0;
+            r.spatial_camera_moves = false;
+            r.spatial_tau_shift = false;
+            r.spatial_max_history = 0.0;
+        }
+    }
+    p
+}

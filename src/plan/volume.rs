@@ -559,7 +559,7 @@ fn restir_plan(
 
 /// `settings` as far as the passes read them without spatial reuse: its spatial
 /// settings are the defaults.
-fn without_spatial(settings: &nimbus_scene::RestirSettings) -> nimbus_scene::RestirSettings {
+pub(super) fn without_spatial(settings: &nimbus_scene::RestirSettings) -> nimbus_scene::RestirSettings {
     let d = nimbus_scene::RestirSettings::default();
     nimbus_scene::RestirSettings {
         spatial_neighbors: 0,

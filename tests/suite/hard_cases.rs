@@ -415,6 +415,22 @@ fn the_host_memory_estimate_bounds_the_real_peak() {
             e.contains("host memory") && e.contains("NIMBUS_HOST_MEMORY_BUDGET"),
             "{e}"
         );
+        if volume == "restir" {
+            // The plan chooses ReSTIR's levels from the density's content: it refuses a
+            // density over the budget before reading it, even where only the plan is
+            // built (--explain) and the renderer's check never runs.
+            let explain = std::process::Command::new(env!("CARGO_BIN_EXE_nimbus"))
+                .args(["render", p, "--set", &set, "--explain"])
+                .env("NIMBUS_HOST_MEMORY_BUDGET", "1")
+                .output()
+                .unwrap();
+            let e = text(&explain.stderr);
+            assert!(!explain.status.success(), "{e}");
+            assert!(
+                e.contains("> density") && e.contains("mip levels") && e.contains("host memory"),
+                "{e}"
+            );
+        }
     }
 }
 

@@ -15,7 +15,7 @@
 //!   Volumetric ReSTIR with temporal reuse (Q = `temporal_limit`: its history needs
 //!   that long to reach steady state), and at least `--warmup`.
 //! - **One row per distinct configuration.** Configurations that the integrator cannot
-//!   tell apart (they differ only in settings it does not read, [`effective_scene`]) are
+//!   tell apart (they differ only in settings it does not read, [`plan::effective_scene`]) are
 //!   rendered once and reported once; study.md lists which renders as which.
 //! - **spp is the baseline's knob.** Volumetric ReSTIR renders one path per pixel per
 //!   frame; where `--vary spp` varies other integrators too, ReSTIR's spp > 1
@@ -181,64 +181,6 @@ fn restir_refuses_only_spp(scene: &Scene, box_samples: Option<u32>) -> bool {
     plan::build(&one, box_samples).is_ok_and(|p| p.restir().is_some())
 }
 
-/// The scene as far as its integrator reads it: the settings of the other integrators
-/// are reset to their defaults (the box-medium pass reads neither `volume` nor
-/// `[integrator.restir]`; the grid integrators read neither the box estimator nor
-/// `box_samples`; the baseline reads no ReSTIR knob).
-fn effective_scene(scene: &Scene, plan: &RenderPlan) -> Scene {
-    let defaults = nimbus_scene::Integrator::default();
-    let mut s = scene.clone();
-    let i = &mut s.integrator;
-    match &plan.integrator {
-        plan::Integrator::Crepuscular(_) => {
-            i.volume = defaults.volume;
-            i.restir = defaults.restir;
-        }
-        plan::Integrator::Baseline(_) => {
-            i.restir = defaults.restir;
-            i.box_estimator = defaults.box_estimator;
-            i.box_samples = defaults.box_samples;
-        }
-        plan::Integrator::Restir(p) => {
-            i.box_estimator = defaults.box_estimator;
-            i.box_samples = defaults.box_samples;
-            if !spatial_on(p) {
-                // Without spatial reuse its settings are read by nothing.
-                let r = &mut i.restir;
-                let d = &defaults.restir;
-                r.spatial_neighbors = 0;
-                r.spatial_rounds = 0;
-                r.spatial_radius_px = d.spatial_radius_px;
-                r.spatial_when = d.spatial_when;
-                r.spatial_shift = d.spatial_shift;
-                r.spatial_max_history = d.spatial_max_history;
-            }
-        }
-    }
-    s
-}
-
-/// Whether a ReSTIR plan runs spatial reuse.
-fn spatial_on(p: &plan::RestirPlan) -> bool {
-    p.spatial_neighbors > 0 && p.spatial_rounds > 0
-}
-
-/// The plan as far as its passes read it: without spatial reuse, ReSTIR's spatial
-/// settings are read by nothing (`mis` is: temporal reuse combines with it too).
-fn effective_plan(plan: &RenderPlan) -> RenderPlan {
-    let mut p = plan.clone();
-    if let plan::Integrator::Restir(r) = &mut p.integrator {
-        if !spatial_on(r) {
-            r.spatial_neighbors = 0;
-            r.spatial_rounds = 0;
-            r.spatial_radius_px = 0.0;
-            r.spatial_camera_moves = false;
-            r.spatial_tau_shift = false;
-            r.spatial_max_history = 0.0;
-        }
-    }
-    p
-}
 
 /// One measured configuration: one row of the tables and one point of the plot.
 #[derive(Clone)]
@@ -381,12 +323,12 @@ impl Study {
                 }
             };
 
-            let effective = effective_scene(&scene, &plan);
-            let effective_p = effective_plan(&plan);
+            let effective = plan::effective_scene(&scene, &plan);
+            let effective_p = plan::effective_plan(&plan);
             let same_as = configurations.iter().position(|c: &Configuration| {
-                effective_plan(&c.plan) == effective_p
+                plan::effective_plan(&c.plan) == effective_p
                     && c.seeds == seeds
-                    && effective_scene(&c.scene, &c.plan) == effective
+                    && plan::effective_scene(&c.scene, &c.plan) == effective
             });
             configurations.push(Configuration {
                 assignment,
