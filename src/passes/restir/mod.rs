@@ -42,7 +42,7 @@ use std::collections::HashSet;
 pub use crate::gpu::reservoir_bytes;
 
 /// The residual majorant's multiple in final ratio tracking
-/// (`FINAL_RATIO_MAJORANT_SCALE` of `shaders/restir/path.glsl`).
+/// (`FINAL_RATIO_MAJORANT_SCALE` of `shaders/restir/transmittance.glsl`).
 pub const FINAL_RATIO_MAJORANT_SCALE: f32 = 4.0;
 
 /// The specialization constants of the ReSTIR shaders for a plan; `exact_spans`: some
