@@ -10,6 +10,8 @@
 #define NIMBUS_GRID_BLOCKS_GLSL
 
 #include "grid.glsl"
+#include "grid_dda.glsl"
+#include "grid_dual.glsl"
 
 // Block DDA: block (I, J, K) of edge f voxels covers p-space [I f, (I+1) f] per axis
 // (`count` blocks per axis), clipped to the grid's box. Super-voxels (f = 8: block b is the
@@ -31,7 +33,7 @@ struct GridSuperDda {
 
 // Crossing of block `c` along one axis (f voxels each, last one ends at n).
 float grid_super_crossing(float p0, float dp, int c, int f, int count, float s_now) {
-    return grid_next_crossing(p0, dp, float(c * f), float((c + 1) * f), c >= 1, c + 1 <= count - 1, s_now);
+    return grid_cell_crossing(p0, dp, c, f, 0, count - 1, s_now);
 }
 
 // Starts a walk over blocks of edge f (count per axis) along [t0, t1] clipped to the
@@ -94,34 +96,7 @@ bool grid_blocks_next(inout GridSuperDda it, out float s0, out float s1, out uin
 // values are all 0): to where the ray leaves the brick's blocks, recomputing each axis's
 // block there.
 void grid_blocks_skip_brick(inout GridSuperDda it) {
-    ivec3 first = (it.cell >> 3) * 8;
-    ivec3 last = min(first + 7, it.count - 1);
-    vec3 s_exit;
-    for (int a = 0; a < 3; ++a) {
-        int c = it.step_dir[a] > 0 ? last[a] : first[a];
-        s_exit[a] = grid_super_crossing(it.p0[a], it.dp[a], c, it.f, it.count[a], it.s);
-    }
-    int e = s_exit.x <= s_exit.y ? (s_exit.x <= s_exit.z ? 0 : 2) : (s_exit.y <= s_exit.z ? 1 : 2);
-    float s = s_exit[e];
-    if (!(s < it.len)) {
-        it.s = it.len;
-        return;
-    }
-    it.s = s;
-    for (int a = 0; a < 3; ++a) {
-        int c;
-        if (a == e) {
-            c = (it.step_dir[a] > 0 ? last[a] : first[a]) + it.step_dir[a];
-        } else {
-            // Still inside the brick along this axis. Domain: f >= 1.
-            c = clamp(int(floor((it.p0[a] + it.dp[a] * s) / float(it.f))), first[a], last[a]);
-        }
-        it.cell[a] = c;
-        it.s_next[a] = grid_super_crossing(it.p0[a], it.dp[a], c, it.f, it.count[a], s);
-    }
-    if (it.cell[e] < 0 || it.cell[e] > it.count[e] - 1) {
-        it.s = it.len;
-    }
+    grid_dda_skip_brick(it.p0, it.dp, it.f, ivec3(0), it.count - 1, it.step_dir, it.len, it.cell, it.s_next, it.s);
 }
 
 // Super-voxel walk (blocks of 8, one per brick) over [t0, t1]; false if empty.
@@ -146,7 +121,7 @@ bool grid_super_next(inout GridSuperDda it, out float s0, out float s1, out vec4
 
 // A super-voxel span on which null-collision tracking would take more than this many
 // tentative collisions on average (residual majorant x length) is tracked exactly
-// instead: its closed-form optical depth, or the inversion of it (grid.glsl). One hot
+// instead: its closed-form optical depth, or the inversion of it (grid_dual.glsl). One hot
 // voxel then costs only the dual cells around it, and no walk runs into GRID_MAX_STEPS.
 // Ordinary clouds stay below it everywhere, so the baseline is the paper's there.
 // (GRID_EXACT_SPAN_STEPS is in features.glsl.) Where no super-voxel can hold such a span

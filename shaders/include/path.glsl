@@ -1,8 +1,5 @@
 // Path bookkeeping shared by the integrators: Russian roulette on the throughput, and
-// the origin of a ray leaving a surface.
-//
-// (restir/path.glsl is a different file: ReSTIR's stored paths. From shaders/restir/ this
-// one is included as "../include/path.glsl".)
+// the origin of a ray leaving a surface. (ReSTIR's stored paths are restir/path_value.glsl.)
 #ifndef NIMBUS_PATH_GLSL
 #define NIMBUS_PATH_GLSL
 

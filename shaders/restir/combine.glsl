@@ -6,7 +6,7 @@
 
 #extension GL_GOOGLE_include_directive : require
 
-#include "path.glsl"
+#include "path_value.glsl"
 
 // The reservoirs taking part in a combination, as small private arrays (the shader's
 // registers; passing structs of rays and headers by value costs far more): where each is

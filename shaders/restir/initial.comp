@@ -5,7 +5,7 @@
 // (NEE, transmittance ray marched on mip_indirect) and, where the medium emits, an
 // emission candidate; a camera ray that leaves the media spawns the "direct" candidate
 // (what it sees). A segment that meets a shape before a collision ends on it: a surface
-// vertex (path.glsl), with its own NEE candidate, continuing by cosine sampling. One
+// vertex (path_surfaces.glsl), with its own NEE candidate, continuing by cosine sampling. One
 // reservoir per pixel by streaming RIS.
 //
 // Per candidate the target p_hat is F with T* on the walked segments and T~ on the NEE
@@ -14,7 +14,7 @@
 // Writes slot u_push.dst.
 
 #extension GL_GOOGLE_include_directive : require
-#include "path.glsl"
+#include "path_value.glsl"
 
 // The walk's vertices so far (z_i, omega_i), copied into the reservoir when one of its
 // candidates is selected.
@@ -50,7 +50,7 @@ void add_candidate(uint at, inout Reservoir r, inout uint rng, float w, float p_
 
 // The scattering candidate of vertex x by next-event estimation (surface `surface`, else a
 // medium vertex reached along w with asymmetry g): one light drawn by power (the paper's),
-// or with split NEE (path.glsl) one environment direction drawn from u2 plus every delta
+// or with split NEE (path_lights.glsl) one environment direction drawn from u2 plus every delta
 // light, all in one loop over light terms as path_value evaluates them. Fhat and beta are
 // the path's target and weight so far (times sigma_s in a medium).
 // `emitted` is the vertex's sigma_a Le, which folded emission (SC_FOLD_EMISSION) adds as

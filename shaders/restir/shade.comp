@@ -5,7 +5,7 @@
 // values are counted and dropped, never written. Reads slot u_push.src.
 
 #extension GL_GOOGLE_include_directive : require
-#include "path.glsl"
+#include "path_value.glsl"
 
 void restir_main();
 

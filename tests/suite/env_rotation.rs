@@ -9,7 +9,7 @@
 //! - **ReSTIR under a turning sky**: the mean of 16 independent renders of a map turning
 //!   5° a frame (each frame's temporal history turned by the previous frame's angle)
 //!   agrees pixel by pixel with the baseline's renders of every frame's static scene,
-//!   with the criteria of tests/suite/restir.rs.
+//!   with the criteria of tests/suite/restir/mod.rs.
 
 use std::path::PathBuf;
 

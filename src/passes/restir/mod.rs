@@ -41,7 +41,7 @@ use crate::plan::RestirPlan;
 pub use crate::gpu::reservoir_bytes;
 
 /// The residual majorant's multiple in final ratio tracking
-/// (`FINAL_RATIO_MAJORANT_SCALE` of `shaders/restir/path.glsl`).
+/// (`FINAL_RATIO_MAJORANT_SCALE` of `shaders/restir/transmittance.glsl`).
 pub const FINAL_RATIO_MAJORANT_SCALE: f32 = 4.0;
 
 /// The four stages, what they read, and the state carried from frame to frame.

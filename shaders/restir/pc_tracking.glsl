@@ -1,0 +1,94 @@
+// Volumetric ReSTIR: regular tracking through the conservative piecewise-constant grid
+// at a mip level (candidate generation, sec. 4.1, eq. 27-28), and its sigma_t* at a point.
+#ifndef NIMBUS_RESTIR_PC_TRACKING_GLSL
+#define NIMBUS_RESTIR_PC_TRACKING_GLSL
+
+#include "resources.glsl"
+#include "counters.glsl"
+
+
+#define LEVEL_PRIMARY 0u
+#define LEVEL_INDIRECT 1u
+
+// Walks [0, t_end) from o along d through level `level` until the optical depth reaches
+// tau_target. Returns the collision distance (FAR if the ray leaves first), sigma_t* there
+// and tau = the optical depth walked (tau_target at a collision, the total otherwise).
+// Blocks are the level's voxels (2^mip density voxels per edge); empty bricks of the level
+// (sigma_t* = 0 throughout) are crossed in one step.
+float pc_track(uint level, vec3 o, vec3 d, float t_end, float tau_target, out float sigma_star, out float tau) {
+    // An if, not ?: — glslang's ?: on two block members stores a value of the
+    // block's struct type into the local one, which the SPIR-V optimiser rejects.
+    GridLevel L;
+    if (level == LEVEL_PRIMARY) {
+        L = u_restir.pc_primary;
+    } else {
+        L = u_restir.pc_indirect;
+    }
+    sigma_star = 0.0;
+    tau = 0.0;
+    GridSuperDda it;
+    if (!grid_blocks_begin(o, d, 0.0, t_end, int(L.factor), L.lattice_max + 1, it)) {
+        return FAR;
+    }
+    float s0;
+    float s1;
+    uint index;
+    int steps = 0;
+    // The brick of the previous cell, its slot and first texel (see march_transmittance).
+    ivec3 brick_at = ivec3(-1);
+    uint slot = NO_BRICK;
+    ivec3 origin = ivec3(0);
+    while (it.s < it.len && steps < GRID_MAX_STEPS) {
+        ++steps;
+        COUNT_STEP();
+        ivec3 cell = it.cell;
+        if ((cell >> 3) != brick_at) {
+            brick_at = cell >> 3;
+            slot = grid_slot(L.bricks_offset, L.brick_dims, brick_at);
+            origin = grid_slot_origin(slot, L.slots_x, L.slots_y);
+        }
+        if (slot == NO_BRICK) {
+            grid_blocks_skip_brick(it);
+            continue;
+        }
+        grid_blocks_next(it, s0, s1, index);
+        float sigma = texelFetch(u_pc, origin + (cell & 7), 0).r;
+        COUNT(CTR_MAJORANT, 1);
+        float dtau = sigma * (s1 - s0);
+        if (sigma > 0.0 && tau + dtau >= tau_target) {
+            sigma_star = sigma;
+            // Domain: sigma > 0; the result lies in [s0, s1].
+            float s = min(s0 + (tau_target - tau) / sigma, s1);
+            tau = tau_target;
+            return it.t_a + s;
+        }
+        tau += dtau;
+    }
+    return FAR;
+}
+
+// sigma_t* of level `level` (the conservative piecewise-constant grid pc_track walks) at
+// x: 0 outside the density's box and in empty bricks.
+float pc_sigma_star_at(uint level, vec3 x) {
+    GridLevel L;
+    if (level == LEVEL_PRIMARY) {
+        L = u_restir.pc_primary;
+    } else {
+        L = u_restir.pc_indirect;
+    }
+    GridSpace s = u_grid.space;
+    vec3 p = space_to_index(s, x);
+    if (!(all(greaterThanEqual(p, s.index_min)) && all(lessThanEqual(p, s.index_max)))) {
+        return 0.0;
+    }
+    // Domain: factor >= 1.
+    float f = max(float(L.factor), 1.0);
+    ivec3 cell = clamp(ivec3(floor(p / f)), ivec3(0), L.lattice_max);
+    uint slot = grid_slot(L.bricks_offset, L.brick_dims, cell >> 3);
+    if (slot == NO_BRICK) {
+        return 0.0;
+    }
+    return texelFetch(u_pc, grid_slot_origin(slot, L.slots_x, L.slots_y) + (cell & 7), 0).r;
+}
+
+#endif
