@@ -1,7 +1,7 @@
 //! Compiles every `shaders/**/*.comp` to SPIR-V with the `shaderc` crate (linked against
 //! Debian's libshaderc through the `links` override in `.cargo/config.toml`).
 //!
-//! First it expands the contract tables of `src/gpu/contract/` (records, binding
+//! First it expands the contract tables of `src/shader_data/contract/` (records, binding
 //! numbers, specialization-constant IDs; `build/contract.rs`) into GLSL headers in
 //! `$OUT_DIR/glsl/` and the records' layout checks in `$OUT_DIR/record_layouts.rs`.
 //!

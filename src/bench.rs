@@ -1,7 +1,7 @@
 //! `nimbus bench`: the cost of a sample, measured and compared with a stored baseline.
 //!
 //! Every case renders one small benchmark scene (embedded in the binary, so the command
-//! needs no repository) with the work counters on ([`crate::gpu::counters`]) and the
+//! needs no repository) with the work counters on ([`crate::shader_data::counters`]) and the
 //! timestamp profiler, and reports per pass the median GPU milliseconds per frame and per
 //! camera sample, every counter per camera sample and the dispatches per frame. The
 //! baseline file (`assets/bench/baseline.json`, written by `nimbus bench --update`) holds
@@ -22,7 +22,7 @@ use nimbus_gpu::{summarize, Context};
 use nimbus_scene::{FieldOverride, Scene};
 use serde::{Deserialize, Serialize};
 
-use crate::gpu::counters::NAMES;
+use crate::shader_data::counters::NAMES;
 use crate::renderer::{self, RenderOptions};
 
 /// A counter per sample may move by this factor (either way) before it counts as a

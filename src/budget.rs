@@ -18,7 +18,7 @@ use nimbus_gpu::DeviceInfo;
 use nimbus_scene::bricks::procedural_cloud_super_voxel_may_be_nonzero;
 use nimbus_scene::{BrickTopology, GridMedium, GridSource, Light, Medium, Scene};
 
-use crate::gpu::sparse::{
+use crate::shader_data::sparse::{
     atlas_bytes, atlas_dims, atlas_slots, layer_bytes, slot_bound, TexelFormat,
 };
 
@@ -162,11 +162,11 @@ impl Footprint {
     }
 
     /// The scene's meshes: one buffer of every mesh's BVH nodes and one of their leaf
-    /// triangles (`crate::gpu::meshes`), known exactly from the BVHs built when the
+    /// triangles (`crate::shader_data::meshes`), known exactly from the BVHs built when the
     /// scene loaded; at least one record each. The host holds both once more while
     /// they are uploaded (the meshes themselves are part of the loaded scene).
     pub fn add_meshes(&mut self, scene: &Scene) {
-        use crate::gpu::meshes::{mesh_counts, BVH_NODE_BYTES, MESH_TRIANGLE_BYTES};
+        use crate::shader_data::meshes::{mesh_counts, BVH_NODE_BYTES, MESH_TRIANGLE_BYTES};
         let (nodes, triangles) = mesh_counts(scene);
         let file = scene.source.display();
         let what = |kind: &str| format!("{file}: [[shape]] type = \"mesh\" ({kind})");
@@ -185,10 +185,10 @@ impl Footprint {
         self.host_peak += node_bytes + triangle_bytes;
     }
 
-    /// The emitter table of the scene's emitting shapes (`crate::gpu::emitters`): one
+    /// The emitter table of the scene's emitting shapes (`crate::shader_data::emitters`): one
     /// record per primitive, at least one; the host holds it once more while uploading.
     pub fn add_emitters(&mut self, scene: &Scene) {
-        use crate::gpu::emitters::{emitter_primitives, EMITTER_BYTES};
+        use crate::shader_data::emitters::{emitter_primitives, EMITTER_BYTES};
         let primitives: u64 = scene
             .shapes
             .iter()

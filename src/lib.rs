@@ -6,7 +6,7 @@
 
 pub mod bench;
 pub mod budget;
-pub mod gpu;
+pub mod shader_data;
 pub mod hashing;
 pub mod merge;
 pub mod output;

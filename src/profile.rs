@@ -19,7 +19,7 @@ pub struct Report {
     pub frames: usize,
     pub passes: Vec<PassStats>,
     /// The work counters, when the render counted them.
-    pub work: Option<crate::gpu::counters::WorkCounts>,
+    pub work: Option<crate::shader_data::counters::WorkCounts>,
 }
 
 impl Report {

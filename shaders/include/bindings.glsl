@@ -1,6 +1,6 @@
 // Descriptor binding numbers shared by every pass (set 0), BINDING_*, and the indices
 // into the stats buffer, STAT_*. They are declared once, with the Rust constants, in
-// src/gpu/contract/bindings.rs; build.rs generates gpu_bindings.glsl from it.
+// src/shader_data/contract/bindings.rs; build.rs generates gpu_bindings.glsl from it.
 #ifndef NIMBUS_BINDINGS_GLSL
 #define NIMBUS_BINDINGS_GLSL
 

@@ -21,7 +21,7 @@ uint g_step_cap_hits = 0u;
 layout(constant_id = SC_ID_COUNTERS) const bool SC_COUNTERS = false;
 layout(constant_id = SC_ID_COUNTER_SLOT) const uint SC_COUNTER_SLOT = 0u;
 
-// The counters (src/gpu/counters.rs names them for reports; keep both in step).
+// The counters (src/shader_data/counters.rs names them for reports; keep both in step).
 // Camera samples: paths started at the camera (ReSTIR: pixels the pass worked on).
 #define CTR_SAMPLES 0
 // Tracking steps outside shadow rays: dual cells, super-voxels, piecewise-constant blocks

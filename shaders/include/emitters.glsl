@@ -1,5 +1,5 @@
 // The emitter table: every primitive of the scene's emitting shapes (area lights) with
-// its power CDF (scene.glsl's Emitter, built by src/gpu/emitters.rs), and how next-event
+// its power CDF (scene.glsl's Emitter, built by src/shader_data/emitters.rs), and how next-event
 // estimation samples it: a primitive by binary search in the CDF (O(log n)), then a
 // point on it (a triangle: uniform in area; a sphere: uniform in the cone it subtends,
 // converted to area measure). Declares SC_HAS_AREA_LIGHTS: without area lights every

@@ -145,7 +145,7 @@ uint grid_slot(uint offset, uvec3 dims, ivec3 b) {
 }
 
 // The first texel of slot `slot` in an atlas of slots_x x slots_y x ... slots of 9^3.
-// slots_x and slots_y are powers of two (src/gpu/sparse.rs, atlas_slots): shifts and masks,
+// slots_x and slots_y are powers of two (src/shader_data/sparse.rs, atlas_slots): shifts and masks,
 // no integer division (slow on GPUs, scalarized per lane on lavapipe).
 ivec3 grid_slot_origin(uint slot, uint slots_x, uint slots_y) {
     int lx = findLSB(slots_x);

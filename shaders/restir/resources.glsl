@@ -1,8 +1,8 @@
 // Volumetric ReSTIR (Lin, Wyman and Yuksel 2021): what the four passes bind. The
 // specialization constants, the settings and push-constant records (RestirUniforms and
-// RestirPush, declared in src/gpu/contract/records.rs), the descriptors of set 0
+// RestirPush, declared in src/shader_data/contract/records.rs), the descriptors of set 0
 // (the film's and the grid medium's through film.glsl and grid_resources.glsl, the rest
-// here), and where a pixel's reservoir lives. The passes include path.glsl or
+// here), and where a pixel's reservoir lives. The passes include path_value.glsl or
 // combine.glsl, which include this file.
 #ifndef NIMBUS_RESTIR_RESOURCES_GLSL
 #define NIMBUS_RESTIR_RESOURCES_GLSL
@@ -34,13 +34,13 @@ layout(constant_id = SC_ID_HAS_VELOCITY) const bool SC_HAS_VELOCITY = false;
 layout(constant_id = SC_ID_MIS_PAIRWISE) const bool SC_MIS_PAIRWISE = false;
 // Spatial reuse shifts x_1 by its optical depth tau_1 (restir/combine.glsl).
 layout(constant_id = SC_ID_SPATIAL_TAU_SHIFT) const bool SC_SPATIAL_TAU_SHIFT = false;
-// A medium vertex's emission is part of its split-NEE candidate (restir/path.glsl).
+// A medium vertex's emission is part of its split-NEE candidate (restir/path_lights.glsl).
 layout(constant_id = SC_ID_FOLD_EMISSION) const bool SC_FOLD_EMISSION = false;
 layout(constant_id = SC_ID_NEE_SPLIT) const bool SC_NEE_SPLIT = false;
 layout(constant_id = SC_ID_DIRECT_EACH_WALK) const bool SC_DIRECT_EACH_WALK = false;
-// Opaque shapes beside the grid: paths may have surface vertices (restir/path.glsl).
+// Opaque shapes beside the grid: paths may have surface vertices (restir/path_surfaces.glsl).
 layout(constant_id = SC_ID_HAS_SHAPES) const bool SC_HAS_SHAPES = false;
-// Homogeneous box media beside the grid (restir/path.glsl).
+// Homogeneous box media beside the grid (restir/vertex_media.glsl).
 layout(constant_id = SC_ID_HAS_MEDIA) const bool SC_HAS_MEDIA = false;
 
 // GridLevel, RestirUniforms and RestirPush come with the records (scene.glsl).

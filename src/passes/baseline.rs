@@ -13,10 +13,10 @@ use super::{
     atlas_image, compute_pipeline, upload_env_map, upload_params, upload_records, FrameConstants,
     ImagePass, Pass, StaticGrids, Targets,
 };
-use crate::gpu::features::*;
-use crate::gpu::scene::{medium_records, MediumRecords};
-use crate::gpu::sparse::TexelFormat;
-use crate::gpu::{
+use crate::shader_data::features::*;
+use crate::shader_data::scene::{medium_records, MediumRecords};
+use crate::shader_data::sparse::TexelFormat;
+use crate::shader_data::{
     bindings, non_empty, shape_records, BaselineUniformsGpu, FrameUniforms, GpuGrid, LightGpu,
     LightSet, MeshBuffers, PassPush, RecordCounts,
 };

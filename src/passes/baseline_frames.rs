@@ -13,7 +13,7 @@ use nimbus_scene::{GridMedium, Scene};
 
 use super::baseline::{self, BaselinePass};
 use super::{FrameUniforms, Pass, Targets};
-use crate::gpu::GpuGrid;
+use crate::shader_data::GpuGrid;
 use crate::plan::{animated_grid, scene_of_grid, BaselinePlan};
 
 /// One baseline pass per density grid; `active` dispatches.

@@ -16,8 +16,8 @@ use nimbus_scene::{Scene, Shape};
 use super::{
     compute_pipeline, upload_env_map, upload_records, FrameConstants, ImagePass, Pass, Targets,
 };
-use crate::gpu::features::*;
-use crate::gpu::{
+use crate::shader_data::features::*;
+use crate::shader_data::{
     bindings, non_empty, BoxMediumGpu, FrameUniforms, GpuEnvMap, GpuScene, MeshBuffers,
     MomentFrameGpu, MomentPush, PassPush, RecordCounts,
 };

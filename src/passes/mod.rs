@@ -12,10 +12,10 @@
 //!
 //! 1. **Shader**: `shaders/<pass>/<name>.comp` (shared code in `shaders/include/`). New
 //!    specialization-constant IDs, estimator IDs or limits go into
-//!    `src/gpu/contract/features.rs`, new bindings into `src/gpu/contract/bindings.rs`, a
-//!    new uniform or record struct into `src/gpu/contract/records.rs` (with named scalar
+//!    `src/shader_data/contract/features.rs`, new bindings into `src/shader_data/contract/bindings.rs`, a
+//!    new uniform or record struct into `src/shader_data/contract/records.rs` (with named scalar
 //!    members): each is written once, and `build.rs` generates the GLSL the shaders
-//!    include from it (see [`crate::gpu::contract`]). When the pipeline is created,
+//!    include from it (see [`crate::shader_data::contract`]). When the pipeline is created,
 //!    `nimbus_gpu::spirv` reads the compiled module and refuses it if the pass leaves a
 //!    specialization constant the shader declares unset (it would take the shader's
 //!    default silently), lacks a binding the shader uses or gives it another kind, or
@@ -46,16 +46,16 @@ use nimbus_gpu::{
 };
 use nimbus_scene::{BrickGrid, GridMedium, Medium, Scene};
 
-use crate::gpu::sparse::{SparseLayout, TexelFormat};
-use crate::gpu::{
+use crate::shader_data::sparse::{SparseLayout, TexelFormat};
+use crate::shader_data::{
     bindings, frame_uniforms, FrameUniforms, GpuEnvMap, GpuGrid, PassPush, RecordCounts,
 };
 use crate::plan::{Integrator, RenderPlan};
 
 /// Workgroup size of every image-space shader (`local_size_x`, `local_size_y`).
 pub const GROUP_SIZE: [u32; 2] = [
-    crate::gpu::features::GROUP_SIZE_X,
-    crate::gpu::features::GROUP_SIZE_Y,
+    crate::shader_data::features::GROUP_SIZE_X,
+    crate::shader_data::features::GROUP_SIZE_Y,
 ];
 
 /// A render pass: created once per render from its plan, then recorded once per frame.
@@ -104,7 +104,7 @@ pub trait Pass {
     }
 
     /// The stages whose work counters the pass reports, by counter slot (slot i counts
-    /// `counter_labels()[i]`; see [`crate::gpu::counters`]).
+    /// `counter_labels()[i]`; see [`crate::shader_data::counters`]).
     fn counter_labels(&self) -> Vec<&'static str> {
         vec![self.label()]
     }
@@ -152,7 +152,7 @@ pub struct Targets<'a> {
     /// 32 bytes on a device with a loop budget, 32 bytes elsewhere).
     pub film_partial: &'a Buffer,
     /// Whether the passes count their work into the stats buffer
-    /// ([`crate::gpu::counters`]): `nimbus profile --counters` and `nimbus bench`.
+    /// ([`crate::shader_data::counters`]): `nimbus profile --counters` and `nimbus bench`.
     pub counters: bool,
     /// Whether anything reads the film's alpha (else the passes leave the camera ray's
     /// transmittance out and every pixel reads as opaque).
@@ -433,10 +433,10 @@ pub fn pipeline_specialization(
 ) -> Vec<(u32, SpecValue)> {
     let mut all = specialization.to_vec();
     all.push((
-        crate::gpu::features::SC_ID_ALPHA,
+        crate::shader_data::features::SC_ID_ALPHA,
         SpecValue::Bool(film.alpha),
     ));
-    all.extend(crate::gpu::counters::specialization(film.counter_slot));
+    all.extend(crate::shader_data::counters::specialization(film.counter_slot));
     all
 }
 

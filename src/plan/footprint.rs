@@ -13,10 +13,10 @@ use super::{
     has_density_frames, CrepuscularPlan, Integrator, RenderPlan, RestirPlan, MIN_AUTO_INDIRECT,
 };
 use crate::budget::{brick_bytes, density_slot_bound, grid_bytes, Binding, Footprint};
-use crate::gpu::scene::GpuScene;
-use crate::gpu::sparse::TexelFormat;
-use crate::gpu::sparse::{atlas_bytes, atlas_dims, atlas_slots, layer_bytes, slot_bound};
-use crate::gpu::{reservoir_bytes, FrameUniforms};
+use crate::shader_data::scene::GpuScene;
+use crate::shader_data::sparse::TexelFormat;
+use crate::shader_data::sparse::{atlas_bytes, atlas_dims, atlas_slots, layer_bytes, slot_bound};
+use crate::shader_data::{reservoir_bytes, FrameUniforms};
 
 impl Footprint {
     /// The footprint of rendering `scene` with `plan`: the render targets and what the

@@ -28,7 +28,7 @@ use std::fmt::Write as _;
 use anyhow::Result;
 use nimbus_scene::{BoxEstimator, GridMedium, Medium, RestirSettings, Scene};
 
-use crate::gpu::features;
+use crate::shader_data::features;
 
 pub use levels::{
     load_frames, AskedLevels, LevelChoice, Levels, MAX_AUTO_LEVEL, MAX_LEVEL_EXCESS_TAU,
@@ -371,7 +371,7 @@ pub fn meshes_decision(scene: &Scene) -> Decision {
             "no mesh shapes: BVH traversal compiled out",
         );
     }
-    let (nodes, triangles) = crate::gpu::meshes::mesh_counts(scene);
+    let (nodes, triangles) = crate::shader_data::meshes::mesh_counts(scene);
     let depth = meshes.iter().map(|m| m.bvh.depth()).max().unwrap_or(0);
     let dropped: u64 = meshes.iter().map(|m| m.dropped_degenerate).sum();
     let build_ms: f64 = meshes.iter().map(|m| m.bvh_build_seconds).sum::<f64>() * 1e3;

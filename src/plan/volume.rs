@@ -9,7 +9,7 @@ use super::{
 };
 
 /// Most scattering events per path ReSTIR stores (reservoirs hold K vertices).
-pub const MAX_RESTIR_BOUNCES: u32 = crate::gpu::features::MAX_RESTIR_BOUNCES;
+pub const MAX_RESTIR_BOUNCES: u32 = crate::shader_data::features::MAX_RESTIR_BOUNCES;
 /// Most spatial neighbours (validated by the scene loader).
 pub use nimbus_scene::MAX_SPATIAL_NEIGHBORS;
 
@@ -19,7 +19,7 @@ pub use nimbus_scene::MAX_SPATIAL_NEIGHBORS;
 pub const MAX_BASELINE_LIGHTS: usize = 16;
 /// Emitting shapes add one `LIGHT_AREA` record to the set, so a set holds at most
 /// `MAX_BASELINE_LIGHTS + 1` records, which must stay below ReSTIR's environment index.
-const _: () = assert!(MAX_BASELINE_LIGHTS < crate::gpu::features::MAX_RESTIR_LIGHTS as usize);
+const _: () = assert!(MAX_BASELINE_LIGHTS < crate::shader_data::features::MAX_RESTIR_LIGHTS as usize);
 
 /// The plan of a scene with a grid medium and its decision rows.
 pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
@@ -232,7 +232,7 @@ fn area_lights_decision(scene: &Scene) -> Decision {
     let primitives: u64 = scene
         .shapes
         .iter()
-        .map(|s| u64::from(crate::gpu::emitters::emitter_primitives(s)))
+        .map(|s| u64::from(crate::shader_data::emitters::emitter_primitives(s)))
         .sum();
     Decision::new(
         "  SC_HAS_AREA_LIGHTS",
@@ -356,7 +356,7 @@ fn restir_plan(
                 s.candidates,
                 mip_text(Some(asked_levels.candidates), plan.levels.levels.candidates),
                 mip_text(asked_levels.indirect, plan.levels.levels.indirect),
-                crate::gpu::reservoir_bytes(k),
+                crate::shader_data::reservoir_bytes(k),
                 plan.reservoir_slots()
             ),
         ),
@@ -559,7 +559,9 @@ fn restir_plan(
 
 /// `settings` as far as the passes read them without spatial reuse: its spatial
 /// settings are the defaults.
-pub(super) fn without_spatial(settings: &nimbus_scene::RestirSettings) -> nimbus_scene::RestirSettings {
+pub(super) fn without_spatial(
+    settings: &nimbus_scene::RestirSettings,
+) -> nimbus_scene::RestirSettings {
     let d = nimbus_scene::RestirSettings::default();
     nimbus_scene::RestirSettings {
         spatial_neighbors: 0,

@@ -25,8 +25,8 @@ use nimbus_gpu::{vk, Buffer, BufferDesc, Context, GpuObjects, Handle, Profiler, 
 use nimbus_scene::Scene;
 
 use crate::budget::film_partial_bytes;
-use crate::gpu::counters::{self, WorkCounts};
-use crate::gpu::{bindings, FrameUniforms};
+use crate::shader_data::counters::{self, WorkCounts};
+use crate::shader_data::{bindings, FrameUniforms};
 use crate::output::ImageRgb;
 use crate::passes::{self, Pass, Targets};
 pub use crate::plan::error_batch;
@@ -119,7 +119,7 @@ pub struct RenderOptions {
     pub stop: StopRule,
     /// Set (by a SIGINT handler) to stop: the current image ends with the frames done.
     pub interrupt: Option<Arc<AtomicBool>>,
-    /// Count every pass's work ([`crate::gpu::counters`]): the pipelines are specialized
+    /// Count every pass's work ([`crate::shader_data::counters`]): the pipelines are specialized
     /// to count, and [`RenderResult::work`] holds the counts of the image's frames.
     pub counters: bool,
     /// Leave the film's alpha out (every pixel opaque): for renders whose alpha nobody

@@ -7,7 +7,7 @@
 
 use std::path::PathBuf;
 
-use nimbus::gpu::features::{SC_ID_HAS_ENV, SC_ID_HAS_ENV_MAP};
+use nimbus::shader_data::features::{SC_ID_HAS_ENV, SC_ID_HAS_ENV_MAP};
 use nimbus::output::ImageRgb;
 use nimbus::plan::{self, Integrator};
 use nimbus_gpu::{Context, SpecValue};

@@ -9,7 +9,7 @@
 
 use std::collections::BTreeSet;
 
-use nimbus::gpu::{bindings, features};
+use nimbus::shader_data::{bindings, features};
 use nimbus::passes::{pipeline_contracts, spirv_words, PipelineContract};
 use nimbus_gpu::{vk, BindingDesc, SpecValue};
 

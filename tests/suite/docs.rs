@@ -174,6 +174,31 @@ fn comment_paths(text: &str) -> Vec<String> {
     paths
 }
 
+/// Shader files named in comments by their include path (`grid.glsl`,
+/// `restir/combine.glsl`): words ending in `.glsl` or `.comp` that do not start with a
+/// repository folder (those are [`comment_paths`]').
+fn shader_names(text: &str) -> Vec<String> {
+    let mut names = Vec::new();
+    for line in text.lines() {
+        let Some((_, comment)) = line.split_once("//") else {
+            continue;
+        };
+        for word in comment.split(|c: char| c.is_whitespace() || "()`,;'\"[]".contains(c)) {
+            let word = word.trim_end_matches(['.', ':']);
+            let shader = word.ends_with(".glsl") || word.ends_with(".comp");
+            let rooted = ["src/", "shaders/", "tests/", "docs/", "crates/", "$"]
+                .iter()
+                .any(|p| word.starts_with(p));
+            let stem = word.rsplit('/').next().unwrap_or("");
+            let named = !stem.starts_with('.') && stem != "x.glsl";
+            if shader && named && !rooted && !word.contains(['*', '{', '}', '<', '$']) {
+                names.push(word.to_string());
+            }
+        }
+    }
+    names
+}
+
 /// Every source file under `dir` with one of `exts`.
 fn sources(dir: &Path, exts: &[&str], out: &mut Vec<std::path::PathBuf>) {
     for entry in std::fs::read_dir(dir).into_iter().flatten().flatten() {
@@ -190,7 +215,7 @@ fn sources(dir: &Path, exts: &[&str], out: &mut Vec<std::path::PathBuf>) {
 }
 
 /// Issue 25: comments named files that had moved (the bindings module before it went
-/// under src/gpu, the layout test before the suite, the scene contract outside the
+/// under src/shader_data, the layout test before the suite, the scene contract outside the
 /// repository). Every path a comment names exists, from the repository's root or from
 /// its crate's.
 #[test]
@@ -204,6 +229,12 @@ fn comments_point_only_to_files_that_exist() {
             sources(&path, &["rs", "glsl", "comp"], &mut files);
         }
     }
+    let mut shader_files = Vec::new();
+    sources(
+        &repo().join("shaders"),
+        &["glsl", "comp"],
+        &mut shader_files,
+    );
     let mut problems = Vec::new();
     for file in files {
         let text = std::fs::read_to_string(&file).unwrap();
@@ -222,6 +253,32 @@ fn comments_point_only_to_files_that_exist() {
                 || crate_root.as_ref().is_some_and(|c| c.join(&path).exists());
             if !exists {
                 problems.push(format!("{name} names `{path}`, which does not exist"));
+            }
+        }
+        // Shader files named as includes name them (`restir/path_value.glsl`,
+        // `grid.glsl`): from shaders/, shaders/include/ or the file's own folder, or a
+        // header build.rs generates.
+        // A bare name (`pathtrace.comp`) is any shader of that name.
+        let own_dir = file.parent().unwrap().to_path_buf();
+        for word in shader_names(&text) {
+            let generated = word.starts_with("gpu_");
+            let exists = if word.contains('/') {
+                [
+                    repo().join("shaders"),
+                    repo().join("shaders/include"),
+                    own_dir.clone(),
+                ]
+                .iter()
+                .any(|d| d.join(&word).exists())
+            } else {
+                shader_files
+                    .iter()
+                    .any(|f| f.file_name() == Some(word.as_ref()))
+            };
+            if !generated && !exists {
+                problems.push(format!(
+                    "{name} names shader `{word}`, which does not exist"
+                ));
             }
         }
     }

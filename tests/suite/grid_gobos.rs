@@ -160,8 +160,8 @@ fn grid_light_records_carry_the_crepuscular_gobo() {
          [[light]]\ntype = \"directional\"\ndirection = [0.4, -1.0, -0.5]\nirradiance = 2\n{PART}\n"
     );
     let s = scene(&text, "gobo-records.toml");
-    let grid = nimbus::gpu::LightSet::build(&s.lights, 1.0, None, 0.0);
-    let boxes = nimbus::gpu::GpuScene::build(&s).expect("box records");
+    let grid = nimbus::shader_data::LightSet::build(&s.lights, 1.0, None, 0.0);
+    let boxes = nimbus::shader_data::GpuScene::build(&s).expect("box records");
     assert_eq!(grid.gobo_planes, boxes.gobo_planes);
     assert_eq!(grid.gobo_planes.len(), 5);
     assert_eq!(grid.lights[0].gobo_plane_count, 0);

@@ -1,5 +1,5 @@
 //! Accepted extremes render right (issue 24), one per class the hostile suites accept
-//! (`crates/nimbus-scene/tests/suite/hostile.rs`, `cli_hostile.rs`) that `hard_cases.rs`
+//! (`crates/nimbus-scene/tests/suite/hostile/mod.rs`, `cli_hostile.rs`) that `hard_cases.rs`
 //! does not already render: a scene at the largest and at a tiny scale, a field of view
 //! of a thousandth of a degree and of nearly 180°, a single pixel and a 4096-pixel row,
 //! rotations of 10³⁰ degrees, directions with components near the f32 limit, irradiance

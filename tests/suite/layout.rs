@@ -1,5 +1,5 @@
 //! The records the passes share with their shaders are declared once
-//! (`src/gpu/contract/records.rs`); `build.rs` writes their GLSL structs and the std430
+//! (`src/shader_data/contract/records.rs`); `build.rs` writes their GLSL structs and the std430
 //! layout it gives them ([`RECORD_LAYOUTS`]), which the crate asserts against its
 //! `#[repr(C)]` structs at compile time. This test closes the loop with the compiler:
 //! every struct of every compiled module (`nimbus::shaders::ALL`) that is a record has,
@@ -8,7 +8,7 @@
 
 use std::collections::{BTreeSet, HashMap};
 
-use nimbus::gpu::contract::{RecordLayout, RECORD_LAYOUTS};
+use nimbus::shader_data::contract::{RecordLayout, RECORD_LAYOUTS};
 
 const OP_NAME: u32 = 5;
 const OP_MEMBER_NAME: u32 = 6;

@@ -32,7 +32,7 @@ use std::sync::Arc;
 
 use bytemuck::{Pod, Zeroable};
 use glam::{DVec3, Vec3};
-use nimbus::gpu::{shape_records, MeshBuffers};
+use nimbus::shader_data::{shape_records, MeshBuffers};
 use nimbus_gpu::BindingDesc;
 use nimbus_scene::{intersect_triangle, MeshShape, Ray, Shape, ToWorld, TriangleMesh};
 
@@ -101,8 +101,8 @@ impl Gpu {
         let layout = [
             BindingDesc::storage_buffer(0),
             BindingDesc::storage_buffer(1),
-            BindingDesc::storage_buffer(nimbus::gpu::bindings::BVH_NODES),
-            BindingDesc::storage_buffer(nimbus::gpu::bindings::MESH_TRIANGLES),
+            BindingDesc::storage_buffer(nimbus::shader_data::bindings::BVH_NODES),
+            BindingDesc::storage_buffer(nimbus::shader_data::bindings::MESH_TRIANGLES),
         ];
         Self {
             kernel: Kernel::new(
@@ -136,11 +136,11 @@ impl Gpu {
                 Arg::Storage(0, bytemuck::cast_slice(&gpu)),
                 Arg::Zeroed(1, queries.len() * 16),
                 Arg::Storage(
-                    nimbus::gpu::bindings::BVH_NODES,
+                    nimbus::shader_data::bindings::BVH_NODES,
                     bytemuck::cast_slice(&self.buffers.nodes),
                 ),
                 Arg::Storage(
-                    nimbus::gpu::bindings::MESH_TRIANGLES,
+                    nimbus::shader_data::bindings::MESH_TRIANGLES,
                     bytemuck::cast_slice(&self.buffers.triangles),
                 ),
             ],

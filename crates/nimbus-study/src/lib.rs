@@ -181,7 +181,6 @@ fn restir_refuses_only_spp(scene: &Scene, box_samples: Option<u32>) -> bool {
     plan::build(&one, box_samples).is_ok_and(|p| p.restir().is_some())
 }
 
-
 /// One measured configuration: one row of the tables and one point of the plot.
 #[derive(Clone)]
 struct Row {

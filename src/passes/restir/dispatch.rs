@@ -5,12 +5,12 @@
 use nimbus_gpu::SpecValue;
 
 use super::schedule::ScheduleSettings;
-use crate::gpu::features::*;
+use crate::shader_data::features::*;
 use crate::plan::RestirPlan;
 
 /// The specialization constants of the ReSTIR shaders for a plan; `exact_spans`: some
 /// super-voxel of some density frame is hot for final ratio tracking
-/// ([`crate::gpu::scene::needs_exact_spans`]).
+/// ([`crate::shader_data::scene::needs_exact_spans`]).
 /// `two_level`: some brick indirection section is two-level.
 pub fn specialization(
     plan: &RestirPlan,

@@ -4,7 +4,7 @@
 use anyhow::Result;
 
 use super::volumes::DerivedVolume;
-use crate::gpu::sparse::Indirection;
+use crate::shader_data::sparse::Indirection;
 
 /// Where each grid's indirection section starts in the `grid_bricks[]` buffer. Without
 /// density frames the previous frame's sections are this frame's.

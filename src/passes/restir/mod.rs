@@ -31,14 +31,14 @@ use self::schedule::{schedule, ScheduleSettings, Stage};
 use self::velocity::{velocity_texels, velocity_uvw};
 use self::volumes::{grid_level, march_step, Volumes};
 use super::{image_groups, scene_grid, FrameConstants, Pass, Targets};
-use crate::gpu::sparse::{upload_atlas, TexelFormat};
-use crate::gpu::{
+use crate::shader_data::sparse::{upload_atlas, TexelFormat};
+use crate::shader_data::{
     non_empty, shape_records, BaselineUniformsGpu, FrameUniforms, GpuGrid, LightGpu, LightSet,
     MeshBuffers, RecordCounts, RestirPush, RestirUniformsGpu,
 };
 use crate::plan::RestirPlan;
 
-pub use crate::gpu::reservoir_bytes;
+pub use crate::shader_data::reservoir_bytes;
 
 /// The residual majorant's multiple in final ratio tracking
 /// (`FINAL_RATIO_MAJORANT_SCALE` of `shaders/restir/transmittance.glsl`).
@@ -141,10 +141,10 @@ impl RestirPass {
         let density = &g.density;
         let size = grid.bounds_max - grid.bounds_min;
         let shapes = shape_records(scene);
-        let crate::gpu::scene::MediumRecords {
+        let crate::shader_data::scene::MediumRecords {
             media: boxes,
             planes: medium_planes,
-        } = crate::gpu::scene::medium_records(scene);
+        } = crate::shader_data::scene::medium_records(scene);
         let candidates_per_dispatch = candidates_per_dispatch(
             ctx.info().loop_budget(),
             plan,
@@ -155,7 +155,7 @@ impl RestirPass {
                 // Split NEE marches towards the environment sample and every delta light.
                 march_steps: (size.length() / march_step(grid, density, levels.indirect))
                     .ceil()
-                    .min(crate::gpu::features::MARCH_MAX_STEPS as f32)
+                    .min(crate::shader_data::features::MARCH_MAX_STEPS as f32)
                     as u32
                     * if plan.nee_split {
                         1 + grid_gpu.lights.len() as u32

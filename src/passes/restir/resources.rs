@@ -10,8 +10,8 @@ use nimbus_gpu::{
 
 use super::schedule::Stage;
 use super::volumes::{AtlasSizes, DerivedVolume};
-use crate::gpu::sparse::{atlas_dims, upload_atlas, TexelFormat};
-use crate::gpu::{
+use crate::shader_data::sparse::{atlas_dims, upload_atlas, TexelFormat};
+use crate::shader_data::{
     bindings, non_empty, BaselineUniformsGpu, BoxMediumGpu, FrameUniforms, GpuGrid, MeshBuffers,
     RestirPush, RestirUniformsGpu, ShapeGpu,
 };

@@ -9,7 +9,7 @@
 //! does the ping-pong need a third slot. This is a pure function of the frame, the
 //! previous slot and the settings, so it is unit-tested here rather than through images.
 
-use crate::gpu::RestirPush;
+use crate::shader_data::RestirPush;
 
 /// The most reservoir slots a schedule uses.
 pub const MAX_SLOTS: u32 = 3;

@@ -288,7 +288,7 @@ fn convex_hard_cases() -> Vec<Case> {
 
 #[test]
 fn convex_t_box_matches_the_f64_reference_on_random_polyhedra_and_hard_cases() {
-    let gpu = Gpu::with_max_pieces(nimbus::gpu::features::MAX_CONVEX_PLANES);
+    let gpu = Gpu::with_max_pieces(nimbus::shader_data::features::MAX_CONVEX_PLANES);
     let mut rng = Pcg32::new(0xc0_4e3);
     let mut cases: Vec<Case> = (0..1500).map(|i| random_convex_case(&mut rng, i)).collect();
     let hard = convex_hard_cases();
@@ -348,7 +348,7 @@ fn convex_t_box_matches_the_f64_reference_on_random_polyhedra_and_hard_cases() {
 
 #[test]
 fn convex_wvds_pdf_integrates_to_one_and_samples_follow_it() {
-    let gpu = Gpu::with_max_pieces(nimbus::gpu::features::MAX_CONVEX_PLANES);
+    let gpu = Gpu::with_max_pieces(nimbus::shader_data::features::MAX_CONVEX_PLANES);
     let mut rng = Pcg32::new(0x9df_c0e4);
     let mut cases = Vec::new();
     while cases.len() < 120 {

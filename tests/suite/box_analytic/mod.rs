@@ -110,7 +110,7 @@ const _: () = assert!(std::mem::size_of::<GpuConfig>() == 80);
 const _: () = assert!(std::mem::size_of::<GpuQuery>() == 16);
 const _: () = assert!(std::mem::size_of::<GpuResult>() == 32);
 const _: () = assert!(std::mem::size_of::<GpuPieces>() == 5 * 4 * MAX_PIECES);
-const _: () = assert!(MAX_PIECES == nimbus::gpu::features::MAX_CONVEX_PLANES as usize);
+const _: () = assert!(MAX_PIECES == nimbus::shader_data::features::MAX_CONVEX_PLANES as usize);
 
 const LOCAL_SIZE: u32 = 64;
 const FLAG_WRITE_PIECES: u32 = 1;
@@ -152,7 +152,7 @@ impl Gpu {
                 &layout,
                 16,
                 &[(
-                    nimbus::gpu::features::SC_ID_MAX_PIECES,
+                    nimbus::shader_data::features::SC_ID_MAX_PIECES,
                     nimbus_gpu::SpecValue::U32(max_pieces),
                 )],
                 "box analytic test",

@@ -26,8 +26,8 @@ use crate::common::kernel::{records, Arg, Kernel};
 use crate::common::rng::Pcg32;
 use bytemuck::{Pod, Zeroable};
 use glam::{DMat4, DVec3, Vec3};
-use nimbus::gpu::sparse::{grid_space, SparseLayout, TexelFormat};
-use nimbus::gpu::GridParamsGpu;
+use nimbus::shader_data::sparse::{grid_space, SparseLayout, TexelFormat};
+use nimbus::shader_data::GridParamsGpu;
 use nimbus_gpu::{vk, BindingDesc, SamplerDesc};
 use nimbus_scene::{procedural_cloud, BrickGrid, VoxelGrid};
 
@@ -50,7 +50,7 @@ const LOCAL_SIZE: u32 = 64;
 
 // ---------------------------------------------------------------------------------------
 // GPU side: records mirrored from the test shader (its `GridParams` is the renderer's,
-// mirrored by nimbus::gpu::GridParamsGpu).
+// mirrored by nimbus::shader_data::GridParamsGpu).
 
 /// The push constants of grid_volume.comp (its `GridParams` is a storage buffer).
 #[repr(C)]
@@ -288,11 +288,11 @@ impl Gpu {
                 // two-level tag read (one-level sections carry no tag, so they read alike).
                 &[
                     (
-                        nimbus::gpu::features::SC_ID_EXACT_SPANS,
+                        nimbus::shader_data::features::SC_ID_EXACT_SPANS,
                         nimbus_gpu::SpecValue::Bool(true),
                     ),
                     (
-                        nimbus::gpu::features::SC_ID_TWO_LEVEL_BRICKS,
+                        nimbus::shader_data::features::SC_ID_TWO_LEVEL_BRICKS,
                         nimbus_gpu::SpecValue::Bool(true),
                     ),
                 ],

@@ -1,6 +1,6 @@
 //! The numbers the shaders and the Rust side must agree on: specialization-constant IDs,
 //! the box estimator IDs and the limits the shaders hard-code. They are declared once, in
-//! `src/gpu/contract/features.rs`, from which `build.rs` also writes the defines that
+//! `src/shader_data/contract/features.rs`, from which `build.rs` also writes the defines that
 //! `shaders/include/features.glsl` includes (and refuses two features with one ID). The
 //! unit test below checks that no shader names a specialization constant by a bare
 //! number.

@@ -5,8 +5,8 @@
 // structs, std430 / std140, and `#define` tags, which `shaders/include/scene.glsl`,
 // `grid_types.glsl` and `shaders/restir/resources.glsl` include), plus a compile-time
 // check that each `#[repr(C)]` struct below has the offsets and size GLSL gives its
-// struct. `src/gpu/records.rs` includes it and expands it to those `Pod` structs
-// (`crate::gpu::contract` holds both expansions' rules).
+// struct. `src/shader_data/records.rs` includes it and expands it to those `Pod` structs
+// (`crate::shader_data::contract` holds both expansions' rules).
 //
 // Rules: a field is `f32`, `u32`, `i32`, `[T; 2..=4]` of those (a GLSL vector), an array
 // `[T; N]` (a GLSL array) or a record declared earlier (by its Rust name). A `vec3` is

@@ -4,7 +4,7 @@
 //! specialization-constant IDs and limits (`features.rs`) are each written once, as an
 //! invocation of `gpu_records!` / `gpu_consts!` that two sides include:
 //!
-//! - the crate (`src/gpu/{records,bindings,features}.rs`) expands them with the macros
+//! - the crate (`src/shader_data/{records,bindings,features}.rs`) expands them with the macros
 //!   below to `#[repr(C)]` `Pod` structs and `pub const`s;
 //! - `build.rs` expands them with its own macros of the same names to GLSL text in
 //!   `$OUT_DIR/glsl/gpu_{records,bindings,features}.glsl`, which
@@ -40,7 +40,7 @@ macro_rules! gpu_records {
     ) => {
         $(#[doc = $doc])*
         #[doc = ""]
-        #[doc = concat!("GLSL `", stringify!($glsl), "` (generated from `src/gpu/contract/records.rs`).")]
+        #[doc = concat!("GLSL `", stringify!($glsl), "` (generated from `src/shader_data/contract/records.rs`).")]
         #[repr(C)]
         #[derive($($derive),*)]
         pub struct $rust {

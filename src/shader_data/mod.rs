@@ -1,4 +1,6 @@
-//! The GPU side of the scene: what passes upload and how the shaders see it.
+//! The data the shaders read: what passes upload and how the shaders see it (the
+//! Vulkan runtime itself is the `nimbus_gpu` crate; this module was called `gpu` before it
+//! was named apart from it).
 //!
 //! - [`contract`]: how the records, binding numbers and specialization-constant IDs are
 //!   declared once, for the crate and (through `build.rs`) for the shaders;

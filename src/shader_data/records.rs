@@ -1,8 +1,8 @@
 //! Every `#[repr(C)]` record the passes share with their shaders: GPU records,
 //! parameter blocks and push constants, with the type tags of the tagged ones.
 //!
-//! They are declared once, in `src/gpu/contract/records.rs`, which `build.rs` also turns
-//! into the GLSL structs the shaders include (see [`crate::gpu::contract`]): each struct
+//! They are declared once, in `src/shader_data/contract/records.rs`, which `build.rs` also turns
+//! into the GLSL structs the shaders include (see [`crate::shader_data::contract`]): each struct
 //! here has its GLSL struct's members, in order and by the same names (`r#type` is
 //! `type`), and a compile-time check holds its offsets and size to GLSL's std430 rules.
 

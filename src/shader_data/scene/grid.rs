@@ -41,7 +41,7 @@ pub struct GpuGrid {
     pub env_map_luminance: Option<f32>,
     /// The emitting shapes' primitives (empty without area lights); `lights` ends with
     /// their `LIGHT_AREA` record when there are some.
-    pub emitters: crate::gpu::EmitterTable,
+    pub emitters: crate::shader_data::EmitterTable,
 }
 
 /// Whether super-voxel tracking with residual majorants `majorant_scale` x (max - min)
@@ -59,7 +59,7 @@ pub fn needs_exact_spans(
         + p_to_world.y_axis.truncate().length()
         + p_to_world.z_axis.truncate().length();
     let chord = 8.0 * edges;
-    let limit = f64::from(crate::gpu::features::GRID_EXACT_SPAN_STEPS);
+    let limit = f64::from(crate::shader_data::features::GRID_EXACT_SPAN_STEPS);
     super_voxels.iter().any(|v| {
         let residual = f64::from(majorant_scale) * f64::from(v[1] - v[0]);
         // A NaN bound is refused at load; count it as hot all the same.
@@ -184,7 +184,7 @@ impl GpuGrid {
             bricks_offset: offset as u32,
             ..GridSpaceGpu::default()
         };
-        let emission_offset = crate::gpu::sparse::head_len(&density_layout.indirection);
+        let emission_offset = crate::shader_data::sparse::head_len(&density_layout.indirection);
         let emission_space = match &emission {
             Some((e, layout, _)) => grid_space(
                 e,
@@ -197,7 +197,7 @@ impl GpuGrid {
         };
         let temperature_offset = emission_offset
             + emission.as_ref().map_or(1, |(_, layout, _)| {
-                crate::gpu::sparse::head_len(&layout.indirection)
+                crate::shader_data::sparse::head_len(&layout.indirection)
             });
         let temperature_space = match &temperature {
             Some((t, layout)) => grid_space(
@@ -233,7 +233,7 @@ impl GpuGrid {
         };
         let albedo_offset = temperature_offset
             + temperature.as_ref().map_or(1, |(_, layout)| {
-                crate::gpu::sparse::head_len(&layout.indirection)
+                crate::shader_data::sparse::head_len(&layout.indirection)
             });
         let albedo_space = match &albedo_grid {
             Some((a, layout, _)) => grid_space(
@@ -274,7 +274,7 @@ impl GpuGrid {
         if let Some(map) = &env_map {
             uniforms.env_size = map.size;
         }
-        let emitters = crate::gpu::EmitterTable::build(scene);
+        let emitters = crate::shader_data::EmitterTable::build(scene);
         uniforms.emitter_count = emitters.len() as u32;
         let set = LightSet::build(
             &scene.lights,

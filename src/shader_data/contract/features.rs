@@ -2,8 +2,8 @@
 // specialization-constant IDs, the box estimator IDs and the limits the shaders
 // hard-code. `build.rs` includes this file and writes `gpu_features.glsl` (`#define NAME
 // value`, which `shaders/include/features.glsl` includes) and refuses two SC_ID_* with
-// one value; `src/gpu/features.rs` includes it as the Rust constants. See
-// `src/gpu/contract/records.rs` for the literal rules (a `u32` suffix is a GLSL `uint`).
+// one value; `src/shader_data/features.rs` includes it as the Rust constants. See
+// `src/shader_data/contract/records.rs` for the literal rules (a `u32` suffix is a GLSL `uint`).
 
 gpu_consts! {
     // -----------------------------------------------------------------------------------
@@ -51,7 +51,7 @@ gpu_consts! {
     /// Super-voxel tracking (grid_blocks.glsl): some super-voxel span can be too hot for
     /// null collisions (residual majorant x longest chord > GRID_EXACT_SPAN_STEPS), so the
     /// exact tracking of hot spans is compiled in. The pass decides it from the
-    /// super-voxels (`crate::gpu::GpuGrid::needs_exact_spans`).
+    /// super-voxels (`crate::shader_data::GpuGrid::needs_exact_spans`).
     pub const SC_ID_EXACT_SPANS: u32 = 21;
     /// Per-pixel passes: the film's alpha is wanted (the camera ray's transmittance is
     /// computed); off where nothing reads it (profiles, studies, benchmarks).
@@ -69,7 +69,7 @@ gpu_consts! {
     /// conservative grid instead of its distance (restir/combine.glsl).
     pub const SC_ID_SPATIAL_TAU_SHIFT: u32 = 26;
     /// ReSTIR: a medium vertex's emission joins its split-NEE light candidate instead of
-    /// being a candidate of its own (restir/path.glsl, "Folded emission").
+    /// being a candidate of its own (restir/path_lights.glsl, "Folded emission").
     pub const SC_ID_FOLD_EMISSION: u32 = 27;
 
     // -----------------------------------------------------------------------------------
@@ -123,7 +123,7 @@ gpu_consts! {
     /// Most midpoint steps of one ReSTIR ray march (a cap against absurd lengths; the
     /// step grows instead).
     pub const MARCH_MAX_STEPS: u32 = 4096;
-    /// Work counters (counters.glsl, `crate::gpu::counters`) per pass slot. Each counter
+    /// Work counters (counters.glsl, `crate::shader_data::counters`) per pass slot. Each counter
     /// is 64 bits (two uints, low word first) after the STAT_COUNT words of the stats
     /// buffer.
     pub const COUNTER_COUNT: u32 = 8;

@@ -1,8 +1,8 @@
 // The one source of the descriptor binding numbers of set 0 (shared by every pass) and
 // the indices into the stats buffer. `build.rs` includes this file and writes
 // `gpu_bindings.glsl` (`#define BINDING_X n`, which `shaders/include/bindings.glsl`
-// includes); `src/gpu/bindings.rs` includes it as the Rust constants. `=> NAME` names the
-// GLSL define where it is not the Rust name. See `src/gpu/contract/records.rs` for the
+// includes); `src/shader_data/bindings.rs` includes it as the Rust constants. `=> NAME` names the
+// GLSL define where it is not the Rust name. See `src/shader_data/contract/records.rs` for the
 // literal rules.
 
 gpu_consts! {
