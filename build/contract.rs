@@ -328,7 +328,10 @@ fn records_glsl(records: &[Record]) -> Result<(String, String), String> {
             .unwrap_or(r.rust)
             .trim()
             .to_owned();
-        let at = format!("src/shader_data/contract/records.rs: {} ({})", r.rust, r.glsl);
+        let at = format!(
+            "src/shader_data/contract/records.rs: {} ({})",
+            r.rust, r.glsl
+        );
         let mut members = Vec::new();
         for f in &r.fields {
             let ty: String = f.ty.chars().filter(|c| !c.is_whitespace()).collect();

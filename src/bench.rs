@@ -9,7 +9,7 @@
 //!
 //! Counts are deterministic for a scene, seed and device, so a counter that moves past
 //! [`COUNTER_MARGIN`] is a change of the work itself, not noise: `nimbus bench` exits 1
-//! and `tests/suite/counters.rs` fails. Timings compare only on the baseline's device and
+//! and `tests/suite/contracts/counters.rs` fails. Timings compare only on the baseline's device and
 //! are shown, never judged (machines are shared; compare binaries in one run with
 //! `--compare`). `docs/performance.md` says how to read the report and holds its history.
 
@@ -22,8 +22,8 @@ use nimbus_gpu::{summarize, Context};
 use nimbus_scene::{FieldOverride, Scene};
 use serde::{Deserialize, Serialize};
 
-use crate::shader_data::counters::NAMES;
 use crate::renderer::{self, RenderOptions};
+use crate::shader_data::counters::NAMES;
 
 /// A counter per sample may move by this factor (either way) before it counts as a
 /// regression (or an unexplained drop): far outside the few per cent that a change of

@@ -6,7 +6,6 @@
 
 pub mod bench;
 pub mod budget;
-pub mod shader_data;
 pub mod hashing;
 pub mod merge;
 pub mod output;
@@ -14,6 +13,7 @@ pub mod passes;
 pub mod plan;
 pub mod profile;
 pub mod renderer;
+pub mod shader_data;
 
 use std::path::{Path, PathBuf};
 

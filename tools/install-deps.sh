@@ -21,7 +21,7 @@ packages=(
     python3-openvdb       # OpenVDB 10's pyopenvdb: the .vdb reader's tests write real files
     libopenvdb-tools      # vdb_tool: re-encodes those files as zip / uncompressed
     openexr               # exrheader: the EXR test reads the headers with OpenEXR's own tool
-    slurmctld             # the Slurm farm test (tests/suite/slurm.rs): a one-node
+    slurmctld             # the Slurm farm test (tests/suite/commands/slurm.rs): a one-node
     slurmd                #   cluster on localhost, started by tools/slurm-local.sh
     slurm-client          #   (sbatch, squeue, sinfo)
     munge                 #   Slurm's authentication

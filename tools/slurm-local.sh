@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # A single-node Slurm cluster on localhost, for trying the farm scripts and for the test
-# that runs them (tests/suite/slurm.rs). Everything it writes lives in one directory:
+# that runs them (tests/suite/commands/slurm.rs). Everything it writes lives in one directory:
 # a munge key and socket, slurm.conf, state, spool and logs; it starts munged, slurmctld
 # and slurmd from there (no systemd, no /etc changes) and stops exactly the daemons it
 # started, by the pid files in that directory.

@@ -63,7 +63,7 @@
 // <= 1e7 m, sigma_t <= 1e9 /m): lines only exist for |omega_a| > 1e-20, so |B_a| <= 1e20
 // and sigma_t c <= 1e29. Accuracy is limited by the inputs, not the formulas: rounding a
 // position of magnitude S to f32 moves tau by about 2^-24 sigma_t S / |omega_k|, which
-// matters only for optically thick boxes seen from far away (tests/suite/box_analytic/
+// matters only for optically thick boxes seen from far away (tests/suite/kernels/box_analytic/
 // measures everything else to within 1e-5 of an f64 quadrature).
 #ifndef NIMBUS_BOX_ANALYTIC_GLSL
 #define NIMBUS_BOX_ANALYTIC_GLSL

@@ -1,7 +1,7 @@
 // Sampling routines in pbrt's families: sample_X draws from u in [0, 1)^n, X_pdf is the
 // density of what sample_X returns (in its own measure), and invert_X maps a value back to
 // the u that sample_X takes to it (its CDF), so invert_X(sample_X(u)) = u up to rounding.
-// tests/suite/sampling_gpu/ checks every family on the GPU. The Henyey–Greenstein family sits
+// tests/suite/kernels/sampling_gpu/ checks every family on the GPU. The Henyey–Greenstein family sits
 // with its phase function in phase.glsl, whole-volume distance sampling with its pieces in
 // box_analytic.glsl and the environment map's in envmap.glsl.
 #ifndef NIMBUS_SAMPLING_GLSL

@@ -1,5 +1,5 @@
 #version 460
-// Test harness for box_analytic.glsl (tests/suite/box_analytic/). One invocation per query;
+// Test harness for box_analytic.glsl (tests/suite/kernels/box_analytic/). One invocation per query;
 // a query names a configuration (camera ray, light direction, box or convex polyhedron,
 // sigma_t, interval), a random number for sample_wvds and a distance at which to
 // evaluate wvds_pdf. A configuration with planes (plane_count > 0) is the convex
@@ -15,7 +15,7 @@
 
 layout(local_size_x = 64) in;
 
-// A configuration, in the box's local frame. 80 bytes, mirrored in tests/suite/box_analytic/.
+// A configuration, in the box's local frame. 80 bytes, mirrored in tests/suite/kernels/box_analytic/.
 struct Config {
     vec4 origin_sigma_t;  // xyz camera origin, w sigma_t
     vec4 dir_t_enter;     // xyz unit camera direction, w t_enter

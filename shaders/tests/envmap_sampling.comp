@@ -1,5 +1,5 @@
 #version 460
-// Test harness for envmap.glsl (tests/suite/envmap_gpu.rs). One invocation per query; the
+// Test harness for envmap.glsl (tests/suite/kernels/envmap_gpu.rs). One invocation per query; the
 // query's mode says what to compute:
 //   MODE_SAMPLE:    env_sample(q.a.xy): r0 = (dir, pdf), r1 = (radiance, 0);
 //   MODE_PDF:       r0.x = env_pdf(q.a.xyz);
@@ -27,7 +27,7 @@ layout(std430, set = 0, binding = BINDING_ENV_CDF) readonly buffer EnvCdfBlock {
     float env_cdf[];
 };
 
-// 32 bytes, mirrored in tests/suite/envmap_gpu.rs.
+// 32 bytes, mirrored in tests/suite/kernels/envmap_gpu.rs.
 layout(push_constant) uniform PushBlock {
     uvec4 size;  // (W, H, query count, 0)
 } u_push;

@@ -1,5 +1,5 @@
 #version 460
-// Test harness for grid.glsl and grid_blocks.glsl (tests/suite/grid_volume/). One
+// Test harness for grid.glsl and grid_blocks.glsl (tests/suite/kernels/grid_volume/). One
 // invocation per query; the query's mode says what to compute along its ray o + t d over
 // [t0, t1]:
 //   MODE_CLOSED_FORM: optical depth, transmittance, the box span and sigma_t at o;
@@ -23,7 +23,7 @@ layout(std430, set = 0, binding = 4) readonly buffer GridBrickBlock {
     uint grid_bricks[];
 };
 
-// A query. 48 bytes, mirrored in tests/suite/grid_volume/.
+// A query. 48 bytes, mirrored in tests/suite/kernels/grid_volume/.
 struct Query {
     vec4 o_t0;     // xyz origin, w t0
     vec4 d_t1;     // xyz unit direction, w t1

@@ -1,5 +1,5 @@
 #version 460
-// Test harness for bvh.glsl (tests/suite/mesh_bvh_gpu.rs). One invocation per query: the
+// Test harness for bvh.glsl (tests/suite/kernels/mesh_bvh_gpu.rs). One invocation per query: the
 // closest hit of its ray with the mesh whose root is `root` (the traversal the shapes
 // use), and whether the any-hit traversal finds something on the same range.
 

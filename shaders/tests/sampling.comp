@@ -1,6 +1,6 @@
 #version 460
 // Test harness for the sampling families of sampling.glsl and phase.glsl
-// (tests/suite/sampling_gpu/). One invocation per input; the push constants' mode says what
+// (tests/suite/kernels/sampling_gpu/). One invocation per input; the push constants' mode says what
 // to compute from it:
 //   MODE_HG:          sample_hg(axis, g, u), u = input.xy;
 //   MODE_COSINE:      sample_cosine_hemisphere(axis, u), u = input.xy;
@@ -20,7 +20,7 @@
 
 layout(local_size_x = 64) in;
 
-// 32 bytes, mirrored in tests/suite/sampling_gpu/.
+// 32 bytes, mirrored in tests/suite/kernels/sampling_gpu/.
 layout(push_constant) uniform PushBlock {
     vec4 axis_g;  // xyz unit direction d (HG) or normal n (cosine), or cone axis; w the parameter
     uint mode;

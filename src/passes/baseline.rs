@@ -13,6 +13,7 @@ use super::{
     atlas_image, compute_pipeline, upload_env_map, upload_params, upload_records, FrameConstants,
     ImagePass, Pass, StaticGrids, Targets,
 };
+use crate::plan::BaselinePlan;
 use crate::shader_data::features::*;
 use crate::shader_data::scene::{medium_records, MediumRecords};
 use crate::shader_data::sparse::TexelFormat;
@@ -20,7 +21,6 @@ use crate::shader_data::{
     bindings, non_empty, shape_records, BaselineUniformsGpu, FrameUniforms, GpuGrid, LightGpu,
     LightSet, MeshBuffers, PassPush, RecordCounts,
 };
-use crate::plan::BaselinePlan;
 use crate::shaders;
 
 /// The specialization constants of `pathtrace.comp` for a plan; `two_level`: some

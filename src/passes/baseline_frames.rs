@@ -13,8 +13,8 @@ use nimbus_scene::{GridMedium, Scene};
 
 use super::baseline::{self, BaselinePass};
 use super::{FrameUniforms, Pass, Targets};
-use crate::shader_data::GpuGrid;
 use crate::plan::{animated_grid, scene_of_grid, BaselinePlan};
+use crate::shader_data::GpuGrid;
 
 /// One baseline pass per density grid; `active` dispatches.
 pub struct BaselineFrames {

@@ -16,12 +16,12 @@ use nimbus_scene::{Scene, Shape};
 use super::{
     compute_pipeline, upload_env_map, upload_records, FrameConstants, ImagePass, Pass, Targets,
 };
+use crate::plan::{estimator_id, moment_levels, moment_texels_per_light, CrepuscularPlan};
 use crate::shader_data::features::*;
 use crate::shader_data::{
     bindings, non_empty, BoxMediumGpu, FrameUniforms, GpuEnvMap, GpuScene, MeshBuffers,
     MomentFrameGpu, MomentPush, PassPush, RecordCounts,
 };
-use crate::plan::{estimator_id, moment_levels, moment_texels_per_light, CrepuscularPlan};
 use crate::shaders;
 
 /// The specialization constants of `crepuscular.comp` for a plan.

@@ -20,7 +20,7 @@
 //!    specialization constant the shader declares unset (it would take the shader's
 //!    default silently), lacks a binding the shader uses or gives it another kind, or
 //!    gives a push-constant range shorter than the shader's block; the pass's
-//!    `pipeline_contracts` (see [`pipeline_contracts`]) lets `tests/suite/contract.rs`
+//!    `pipeline_contracts` (see [`pipeline_contracts`]) lets `tests/suite/contracts/contract.rs`
 //!    check the same without a device.
 //! 2. **Plan**: a settings struct and a variant of [`Integrator`] in `src/plan/`, with its
 //!    decision rows (what runs, which features are on, and why); `--explain` prints them.
@@ -46,11 +46,11 @@ use nimbus_gpu::{
 };
 use nimbus_scene::{BrickGrid, GridMedium, Medium, Scene};
 
+use crate::plan::{Integrator, RenderPlan};
 use crate::shader_data::sparse::{SparseLayout, TexelFormat};
 use crate::shader_data::{
     bindings, frame_uniforms, FrameUniforms, GpuEnvMap, GpuGrid, PassPush, RecordCounts,
 };
-use crate::plan::{Integrator, RenderPlan};
 
 /// Workgroup size of every image-space shader (`local_size_x`, `local_size_y`).
 pub const GROUP_SIZE: [u32; 2] = [
@@ -436,13 +436,15 @@ pub fn pipeline_specialization(
         crate::shader_data::features::SC_ID_ALPHA,
         SpecValue::Bool(film.alpha),
     ));
-    all.extend(crate::shader_data::counters::specialization(film.counter_slot));
+    all.extend(crate::shader_data::counters::specialization(
+        film.counter_slot,
+    ));
     all
 }
 
 /// What one pipeline of a pass gives its shader, known without a device: the module,
 /// the descriptor layout, every specialization constant and the push-constant size, from
-/// the same functions the pass creates the pipeline with. `tests/suite/contract.rs`
+/// the same functions the pass creates the pipeline with. `tests/suite/contracts/contract.rs`
 /// checks each against its SPIR-V.
 pub struct PipelineContract {
     pub name: String,

@@ -19,7 +19,8 @@ pub use nimbus_scene::MAX_SPATIAL_NEIGHBORS;
 pub const MAX_BASELINE_LIGHTS: usize = 16;
 /// Emitting shapes add one `LIGHT_AREA` record to the set, so a set holds at most
 /// `MAX_BASELINE_LIGHTS + 1` records, which must stay below ReSTIR's environment index.
-const _: () = assert!(MAX_BASELINE_LIGHTS < crate::shader_data::features::MAX_RESTIR_LIGHTS as usize);
+const _: () =
+    assert!(MAX_BASELINE_LIGHTS < crate::shader_data::features::MAX_RESTIR_LIGHTS as usize);
 
 /// The plan of a scene with a grid medium and its decision rows.
 pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {

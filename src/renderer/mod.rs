@@ -25,12 +25,12 @@ use nimbus_gpu::{vk, Buffer, BufferDesc, Context, GpuObjects, Handle, Profiler, 
 use nimbus_scene::Scene;
 
 use crate::budget::film_partial_bytes;
-use crate::shader_data::counters::{self, WorkCounts};
-use crate::shader_data::{bindings, FrameUniforms};
 use crate::output::ImageRgb;
 use crate::passes::{self, Pass, Targets};
 pub use crate::plan::error_batch;
 use crate::plan::RenderPlan;
+use crate::shader_data::counters::{self, WorkCounts};
+use crate::shader_data::{bindings, FrameUniforms};
 use film::{Batches, Totals};
 use progress::{Progress, Status};
 

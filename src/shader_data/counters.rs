@@ -1,6 +1,6 @@
 //! Deterministic work counters (`shaders/include/counters.glsl`): what a pass did, counted
 //! on the GPU, per pass slot. Timings on shared machines are noise; work is not: the same
-//! scene, seed and device give the same counts, so tests pin them (`tests/suite/counters.rs`)
+//! scene, seed and device give the same counts, so tests pin them (`tests/suite/contracts/counters.rs`)
 //! and `nimbus bench` compares them with a stored baseline.
 //!
 //! The counters live in the stats buffer after its [`STAT_COUNT`] words: per slot,

@@ -5,8 +5,8 @@
 use nimbus_gpu::SpecValue;
 
 use super::schedule::ScheduleSettings;
-use crate::shader_data::features::*;
 use crate::plan::RestirPlan;
+use crate::shader_data::features::*;
 
 /// The specialization constants of the ReSTIR shaders for a plan; `exact_spans`: some
 /// super-voxel of some density frame is hot for final ratio tracking

@@ -31,12 +31,12 @@ use self::schedule::{schedule, ScheduleSettings, Stage};
 use self::velocity::{velocity_texels, velocity_uvw};
 use self::volumes::{grid_level, march_step, Volumes};
 use super::{image_groups, scene_grid, FrameConstants, Pass, Targets};
+use crate::plan::RestirPlan;
 use crate::shader_data::sparse::{upload_atlas, TexelFormat};
 use crate::shader_data::{
     non_empty, shape_records, BaselineUniformsGpu, FrameUniforms, GpuGrid, LightGpu, LightSet,
     MeshBuffers, RecordCounts, RestirPush, RestirUniformsGpu,
 };
-use crate::plan::RestirPlan;
 
 pub use crate::shader_data::reservoir_bytes;
 

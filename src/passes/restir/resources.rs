@@ -10,13 +10,13 @@ use nimbus_gpu::{
 
 use super::schedule::Stage;
 use super::volumes::{AtlasSizes, DerivedVolume};
+use crate::passes::{
+    compute_pipeline, image_3d, upload_env_map, upload_params, upload_records, StaticGrids, Targets,
+};
 use crate::shader_data::sparse::{atlas_dims, upload_atlas, TexelFormat};
 use crate::shader_data::{
     bindings, non_empty, BaselineUniformsGpu, BoxMediumGpu, FrameUniforms, GpuGrid, MeshBuffers,
     RestirPush, RestirUniformsGpu, ShapeGpu,
-};
-use crate::passes::{
-    compute_pipeline, image_3d, upload_env_map, upload_params, upload_records, StaticGrids, Targets,
 };
 use crate::shaders;
 

@@ -10,9 +10,9 @@ use glam::IVec3;
 use nimbus_scene::precision::PositionScale;
 use nimbus_scene::{BrickGrid, GridMedium};
 
+use crate::plan::{Levels, RestirPlan};
 use crate::shader_data::sparse::{atlas_slots, SparseLayout, TexelFormat};
 use crate::shader_data::GridLevelGpu;
-use crate::plan::{Levels, RestirPlan};
 
 /// The texel format of the ray-march mips: half floats where every density of the
 /// animation fits f16 (the paper's choice, half the bandwidth), f32 otherwise. An f16
@@ -282,7 +282,11 @@ impl Volumes {
     /// can meet a hot super-voxel span in any density frame.
     pub fn needs_exact_spans(&self, p_to_world: &glam::DMat4, majorant_scale: f32) -> bool {
         self.by_index.values().any(|v| {
-            crate::shader_data::scene::needs_exact_spans(&v.grids.super_voxels, p_to_world, majorant_scale)
+            crate::shader_data::scene::needs_exact_spans(
+                &v.grids.super_voxels,
+                p_to_world,
+                majorant_scale,
+            )
         })
     }
 

@@ -13,7 +13,7 @@
 //!   std430 (and std140) offsets GLSL gives every member, asserted at compile time
 //!   against `offset_of!` of the Rust struct ([`RecordLayout`], `RECORD_LAYOUTS`).
 //!
-//! `tests/suite/contract.rs` reads the compiled SPIR-V and checks it against the same
+//! `tests/suite/contracts/contract.rs` reads the compiled SPIR-V and checks it against the same
 //! layouts, binding numbers and IDs, and each pass's pipelines against their modules.
 
 /// The crate side of a record table: each `struct Rust as Glsl [rules] { .. }` becomes a

@@ -9,9 +9,9 @@ use std::path::Path;
 use glam::Vec3;
 use nimbus_scene::TriangleMesh;
 
-use crate::baseline::check_against_oracle;
 use crate::common::cli::scratch;
 use crate::common::gpu::{context, render_checked};
+use crate::oracle::baseline::check_against_oracle;
 
 /// A regular octahedron of "radius" 1 about the origin, counter-clockwise seen from
 /// outside (so it emits outwards).

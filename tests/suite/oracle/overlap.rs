@@ -5,9 +5,9 @@
 
 use std::path::Path;
 
-use crate::baseline::check_against_oracle;
 use crate::common::cli::scratch;
 use crate::common::gpu::{assert_means_agree, channels_beyond, context, render_checked, scene};
+use crate::oracle::baseline::check_against_oracle;
 
 const DIMS: [u32; 3] = [16, 10, 16];
 

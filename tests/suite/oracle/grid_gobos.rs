@@ -4,8 +4,8 @@
 //! re-evaluate the stored sun vertex from other shading points through the gobo) agrees
 //! with the baseline, and a gobo that misses the scene leaves only the other lights.
 
-use crate::baseline::check_against_oracle;
 use crate::common::gpu::{assert_means_agree, context, render_checked, scene, se_of_mean};
+use crate::oracle::baseline::check_against_oracle;
 
 /// A gobo whose prism cuts the cloud about in half (u ≈ (0.78, 0, 0.62) is
 /// `Gobo::basis` of the sun's direction) and lights the floor beside the cloud's

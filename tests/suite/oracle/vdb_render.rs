@@ -125,7 +125,7 @@ fn raw_twin_of(dir: &Path, name: &str, m: DMat4, values: &HashMap<IVec3, f32>) -
 /// spatial neighbours, the spatial output as history), whose per-frame spread these
 /// twin comparisons were calibrated with: with Q = 20 and no spatial reuse, 8 frames are
 /// too correlated for the spread to stand for the error, and single pixels at the
-/// silhouette keep their rare-event offsets (see tests/suite/restir/mod.rs).
+/// silhouette keep their rare-event offsets (see tests/suite/oracle/restir/mod.rs).
 fn scene_text(medium: &str, volume: &str) -> String {
     // ReSTIR draws one path per pixel per frame (the plan refuses spp > 1 for it).
     let spp = if volume == "restir" { 1 } else { 2 };

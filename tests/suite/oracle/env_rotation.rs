@@ -9,7 +9,7 @@
 //! - **ReSTIR under a turning sky**: the mean of 16 independent renders of a map turning
 //!   5° a frame (each frame's temporal history turned by the previous frame's angle)
 //!   agrees pixel by pixel with the baseline's renders of every frame's static scene,
-//!   with the criteria of tests/suite/restir/mod.rs.
+//!   with the criteria of tests/suite/oracle/restir/mod.rs.
 
 use std::path::PathBuf;
 
@@ -19,7 +19,7 @@ use nimbus_scene::Scene;
 
 use crate::common::cli::scratch;
 use crate::common::gpu::{assert_means_agree, channels_beyond, context, render_checked, scene};
-use crate::restir::{check_cases_against, Cloud, Estimate, BOTH, PAIRWISE, RUN_FRAMES};
+use crate::oracle::restir::{check_cases_against, Cloud, Estimate, BOTH, PAIRWISE, RUN_FRAMES};
 
 /// Map size: 64 × 32 texels, 5.625° a column.
 const MAP: (usize, usize) = (64, 32);

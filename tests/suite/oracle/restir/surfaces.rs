@@ -64,7 +64,7 @@ f 1 3 5\nf 1 6 3\nf 1 5 4\nf 1 4 6\nf 2 5 3\nf 2 3 6\nf 2 4 5\nf 2 6 4\n";
 /// The scene of the surfaces tests at K = `bounces`: a floor, a box shape half inside the
 /// cloud's grid, an emitting quad and an emitting mesh, a fog box in front of the cloud;
 /// checked with temporal and spatial reuse against the baseline (criteria in the module
-/// docs), which tests/suite/emitters.rs checks against the CPU oracle.
+/// docs), which tests/suite/oracle/emitters.rs checks against the CPU oracle.
 fn check_surfaces_and_emitters(bounces: u32) {
     let dir = scratch("restir", &format!("emitters-k{bounces}"));
     let mesh = dir.join("octahedron.obj");

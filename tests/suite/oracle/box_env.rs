@@ -7,9 +7,9 @@
 
 use std::path::PathBuf;
 
-use nimbus::shader_data::features::{SC_ID_HAS_ENV, SC_ID_HAS_ENV_MAP};
 use nimbus::output::ImageRgb;
 use nimbus::plan::{self, Integrator};
+use nimbus::shader_data::features::{SC_ID_HAS_ENV, SC_ID_HAS_ENV_MAP};
 use nimbus_gpu::{Context, SpecValue};
 use nimbus_reference::mc::{render_mc, McOptions};
 use nimbus_scene::{BoxEstimator, Scene};
@@ -182,7 +182,7 @@ fn box_and_convex_media_under_an_environment_map_match_the_oracle() {
             agrees_with_the_oracle(&ctx, &mut s, k, 8192, &what);
         }
     }
-    let planes = crate::render_convex::dodecahedron_planes([0.0, 0.0, 0.0], 0.7, 0.3);
+    let planes = crate::oracle::render_convex::dodecahedron_planes([0.0, 0.0, 0.0], 0.7, 0.3);
     let convex =
         format!("[[medium]]\ntype = \"convex\"\n{planes}\nsigma_t = 1.7\nalbedo = 0.9\ng = 0.5\n");
     let mut s = scene(

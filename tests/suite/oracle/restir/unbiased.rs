@@ -95,7 +95,7 @@ fn blackbody_matches_the_baseline() {
 #[test]
 fn albedo_grid_matches_the_baseline() {
     let dir = crate::common::cli::scratch("restir", "albedo-grid");
-    let path = crate::pyro::albedo_vol(&dir, "rgb.vol", [12, 8, 12], &[21, 22, 23]);
+    let path = crate::oracle::pyro::albedo_vol(&dir, "rgb.vol", [12, 8, 12], &[21, 22, 23]);
     let albedo = format!("{{ file = {:?} }}", path.display().to_string());
     check_cases(
         Cloud {
@@ -112,7 +112,7 @@ fn albedo_grid_matches_the_baseline() {
 /// cloud) and a second one in vacuum beside it, K = 3: where box and grid overlap a vertex
 /// scatters by both media's sigma_s rho and the walk's collision density is the summed
 /// majorant; ReSTIR converges to the baseline, which races the media's free flights
-/// (tests/suite/overlap.rs checks that against the CPU oracle).
+/// (tests/suite/oracle/overlap.rs checks that against the CPU oracle).
 #[test]
 fn a_box_overlapping_the_grid_matches_the_baseline() {
     let boxes = "[[medium]]\ntype = \"box\"\ncenter = [0.3, -0.2, 0.5]\nsize = [0.8, 0.6, 0.8]\n\
@@ -133,10 +133,10 @@ fn a_box_overlapping_the_grid_matches_the_baseline() {
 /// A dodecahedron (convex medium) half inside the cloud and a box beside it, K = 3: a
 /// vertex in the polyhedron is found by its planes (box_medium_at), overlapping the grid
 /// it scatters by both media, and ReSTIR converges to the baseline
-/// (tests/suite/overlap.rs checks the baseline against the CPU oracle).
+/// (tests/suite/oracle/overlap.rs checks the baseline against the CPU oracle).
 #[test]
 fn a_convex_medium_overlapping_the_grid_matches_the_baseline() {
-    let media = crate::overlap::convex_and_box();
+    let media = crate::oracle::overlap::convex_and_box();
     let cloud = Cloud {
         bounces: 3,
         shapes: &media,

@@ -6,9 +6,9 @@ use std::path::{Path, PathBuf};
 use glam::DVec3;
 use nimbus_scene::cie1931::{CIE_1931_XYZ, CIE_FIRST_NM, CIE_STEP_NM};
 
-use crate::baseline::check_against_oracle;
 use crate::common::cli::scratch;
 use crate::common::gpu::{context, render_checked, scene};
+use crate::oracle::baseline::check_against_oracle;
 
 /// RGB(T) by this test's own integration: Simpson's rule at every half nanometre over
 /// 360..830 nm of Planck's law times the CIE 1931 observer (linear between its 5 nm

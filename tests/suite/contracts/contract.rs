@@ -9,8 +9,8 @@
 
 use std::collections::BTreeSet;
 
-use nimbus::shader_data::{bindings, features};
 use nimbus::passes::{pipeline_contracts, spirv_words, PipelineContract};
+use nimbus::shader_data::{bindings, features};
 use nimbus_gpu::{vk, BindingDesc, SpecValue};
 
 fn asset(name: &str) -> std::path::PathBuf {

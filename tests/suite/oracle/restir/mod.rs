@@ -4,7 +4,7 @@
 //! - **unbiasedness**: on a small static cloud, every reuse configuration (none, temporal
 //!   only, spatial only, both; direction and vertex reuse; with and without emission; with
 //!   surfaces beside and inside the cloud) converges to the unbiased baseline path tracer (decomposition tracking + residual
-//!   ratio tracking, itself checked against the CPU oracle in tests/suite/baseline.rs);
+//!   ratio tracking, itself checked against the CPU oracle in tests/suite/oracle/baseline.rs);
 //! - **hard cases**: empty and extremely dense grids, g = ±0.99, a camera inside the
 //!   medium, black lights, a 1×1 image, a 1-voxel grid, a spatial radius of 0,
 //!   Q = 1 and surfaces in odd places (around the camera, around the cloud, black, through
