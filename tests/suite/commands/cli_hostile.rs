@@ -322,7 +322,7 @@ fn judge(run: &Run, dir: &Path, arg: &Arg, value: &str) -> Option<String> {
 }
 
 #[test]
-fn every_flag_of_every_subcommand_takes_hostile_values_or_names_the_flag() {
+fn every_flag_of_every_subcommand_takes_hostile_values_or_names_the_flag_slow() {
     let start = Instant::now();
     // Per process: two test runs in one checkout must not remove each other's files.
     let group = format!("cli_hostile-{}", std::process::id());

@@ -437,7 +437,7 @@ fn a_second_interrupt_says_what_was_written() {
 /// `--frame N` renders one frame of an animation, `--frame-range` each frame into the
 /// sequence, `--resume` skips what is there; a static scene has no frames to pick.
 #[test]
-fn frames_of_an_animation_are_their_own_images() {
+fn frames_of_an_animation_are_their_own_images_slow() {
     let dir = scratch("frames");
     let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/scenes/plume-anim.toml");
     let run = |args: &[&str]| {
@@ -549,7 +549,7 @@ fn frames_of_an_animation_are_their_own_images() {
 /// temporal_limit 4 and batches of 20: 1.08 times it at this size; 1.07 at 48x36 with 400
 /// frames).
 #[test]
-fn restir_error_estimates_account_for_correlated_frames() {
+fn restir_error_estimates_account_for_correlated_frames_slow() {
     let dir = scratch("restir-error");
     let scene = concat!(
         env!("CARGO_MANIFEST_DIR"),

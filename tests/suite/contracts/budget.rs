@@ -27,7 +27,7 @@ fn asset(name: &str) -> PathBuf {
 /// ReSTIR's half-float ray-march mips as f32 unless the density is the procedural cloud,
 /// whose values lie in [0, 1], and leaves out records of a few bytes.)
 #[test]
-fn footprint_matches_what_the_passes_create() {
+fn footprint_matches_what_the_passes_create_slow() {
     let ctx = context();
     for name in [
         "window.toml",

@@ -334,7 +334,7 @@ fn command_line_values_are_checked_like_the_file() {
 /// the binary, the loader). On lavapipe the GPU's allocations are host memory too, so
 /// they count.
 #[test]
-fn the_host_memory_estimate_bounds_the_real_peak() {
+fn the_host_memory_estimate_bounds_the_real_peak_slow() {
     let dir = scratch("hard_cases", "memory");
     // ReSTIR's levels are fixed: `auto` ones are counted at the finest they can be (an
     // upper bound by design), which would hide how close the estimate is for given levels.

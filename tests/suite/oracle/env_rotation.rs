@@ -198,7 +198,7 @@ fn animated_reference(ctx: &Context, cloud: &Cloud, frames: u32, spp: u32) -> Es
 /// up with the frame it is shaded in; looking it up with the frame it was found in
 /// moves the sun's light with the history and fails here.
 #[test]
-fn restir_under_a_turning_sky_matches_the_baseline() {
+fn restir_under_a_turning_sky_matches_the_baseline_slow() {
     let ctx = context();
     let (map, _) = maps("restir", 6.0);
     let sky = format!(

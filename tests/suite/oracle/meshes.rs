@@ -222,7 +222,7 @@ fn a_mesh_cube_renders_as_a_box_shape_in_the_baseline_pass() {
 
 /// Volumetric ReSTIR's surface vertices on a mesh: the same image as on the box shape.
 #[test]
-fn a_mesh_cube_renders_as_a_box_shape_in_restir() {
+fn a_mesh_cube_renders_as_a_box_shape_in_restir_slow() {
     mesh_cube_matches_the_box_shape("restir");
 }
 

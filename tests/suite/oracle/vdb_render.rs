@@ -315,7 +315,7 @@ fn a_rotated_vdb_renders_as_the_rotated_scene() {
 /// neighbouring leaves as a raw twin of them (the three single voxels thousands of
 /// voxels away are out of view and left out of the twin).
 #[test]
-fn a_grid_spread_over_thousands_of_voxels_renders_as_its_near_voxels() {
+fn a_grid_spread_over_thousands_of_voxels_renders_as_its_near_voxels_slow() {
     let ctx = context();
     let dir = scratch("vdb_render", "tiles");
     let name = "tiles_blosc.vdb";

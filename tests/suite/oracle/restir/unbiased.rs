@@ -8,7 +8,7 @@ use super::*;
 /// Single scattering (K = 1): no reuse, temporal only, spatial only, both, and both with
 /// pairwise MIS converge to the baseline (criteria in the module docs).
 #[test]
-fn single_scattering_matches_the_baseline() {
+fn single_scattering_matches_the_baseline_slow() {
     check_cases(
         Cloud {
             bounces: 1,
@@ -22,11 +22,11 @@ fn single_scattering_matches_the_baseline() {
 /// Multiple scattering (K = 3): no reuse, both reuses, both with vertex reuse, and the
 /// levers together (two rounds of pairwise MIS, the pre-spatial history, a σ* floor)
 /// converge to the baseline (criteria in the module docs). Temporal-only and
-/// spatial-only reuse are checked apart at K = 1 (single_scattering_matches_the_baseline);
+/// spatial-only reuse are checked apart at K = 1 (single_scattering_matches_the_baseline_slow);
 /// here they were left out for CI time (the root suite had grown to 26 minutes on two
 /// cores), as any bias of theirs shows in "both".
 #[test]
-fn multiple_scattering_matches_the_baseline() {
+fn multiple_scattering_matches_the_baseline_slow() {
     check_cases(
         Cloud {
             bounces: 3,
@@ -40,7 +40,7 @@ fn multiple_scattering_matches_the_baseline() {
 /// An emitting cloud (emission candidates at every vertex), K = 2, temporal and spatial
 /// reuse: converges to the baseline (criteria in the module docs).
 #[test]
-fn emission_matches_the_baseline() {
+fn emission_matches_the_baseline_slow() {
     check_cases(
         Cloud {
             bounces: 2,
