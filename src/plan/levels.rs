@@ -74,6 +74,54 @@ pub const MIN_AUTO_INDIRECT: u32 = 1;
 /// and the position scale.
 static CHOSEN: OnceLock<Mutex<HashMap<u64, LevelChoice>>> = OnceLock::new();
 
+/// The densities the last level choice loaded, for the pass that renders the plan to take
+/// instead of reading them again ([`take_density`], [`take_frames`]); the renderer
+/// drops what is left once its passes exist ([`forget_loaded`]), so nothing outlives
+/// the render it was loaded for.
+static LOADED: Mutex<Option<Loaded>> = Mutex::new(None);
+
+struct Loaded {
+    /// [`loaded_key`] of the grid medium they are.
+    key: u64,
+    density: Option<BrickGrid>,
+    frames: Option<Vec<BrickGrid>>,
+}
+
+/// What identifies a medium's loaded densities: its sources and the position scale they
+/// were checked against.
+fn loaded_key(grid: &GridMedium, scale: &PositionScale) -> u64 {
+    let key = format!("{:?}", (grid, scale));
+    crate::hashing::fnv1a64(crate::hashing::FNV_OFFSET, key.as_bytes())
+}
+
+/// `grid`'s base density as the plan loaded and checked it (`BrickGrid::load` of its
+/// `density` with one channel, then `check_density_bricks` at `scale`), if the plan
+/// loaded this medium and nothing took it yet.
+pub fn take_density(grid: &GridMedium, scale: &PositionScale) -> Option<BrickGrid> {
+    let key = loaded_key(grid, scale);
+    let mut slot = LOADED.lock().ok()?;
+    slot.as_mut()
+        .filter(|l| l.key == key)
+        .and_then(|l| l.density.take())
+}
+
+/// `grid`'s `[[medium.frame]]` densities as [`load_frames`] gave them to the plan, if
+/// the plan loaded this medium and nothing took them yet.
+pub fn take_frames(grid: &GridMedium, scale: &PositionScale) -> Option<Vec<BrickGrid>> {
+    let key = loaded_key(grid, scale);
+    let mut slot = LOADED.lock().ok()?;
+    slot.as_mut()
+        .filter(|l| l.key == key)
+        .and_then(|l| l.frames.take())
+}
+
+/// Drops the densities no pass took.
+pub fn forget_loaded() {
+    if let Ok(mut slot) = LOADED.lock() {
+        *slot = None;
+    }
+}
+
 /// Refuses, before any of it is read, a density whose bricks (every frame's, all held at
 /// once while the levels are chosen) exceed the host memory budget: the renderer checks
 /// the whole render's footprint only after the plan is built.
@@ -188,6 +236,13 @@ impl LevelChoice {
         let choice = Levels::choose(asked, &grids, grid.density_scale, voxel)?;
         if let Ok(mut c) = chosen.lock() {
             c.insert(key, choice.clone());
+        }
+        if let Ok(mut slot) = LOADED.lock() {
+            *slot = Some(Loaded {
+                key: loaded_key(grid, &scale),
+                density: Some(density),
+                frames: Some(frames),
+            });
         }
         Ok(choice)
     }

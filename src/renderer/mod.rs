@@ -249,7 +249,10 @@ pub fn render_each(
     })?;
     let result = (|| {
         let targets = handles.targets(&objects);
-        let mut pass = passes::create(ctx, scene, plan, &targets)?;
+        let pass = passes::create(ctx, scene, plan, &targets);
+        // The pass took what the plan loaded for it; nothing else outlives this point.
+        crate::plan::levels::forget_loaded();
+        let mut pass = pass?;
         let device_bytes = objects.bytes() + pass.device_bytes();
         // The pass's notes, then the plan's (what it chose from the grid's content).
         let mut notes = pass.notes();

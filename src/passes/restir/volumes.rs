@@ -240,7 +240,12 @@ impl Volumes {
     ) -> Result<Volumes> {
         let s = grid.density_scale;
         let mut loaded = vec![base];
-        for density in crate::plan::load_frames(grid, &loaded[0].0, scale, label)? {
+        // The plan loaded them to choose the levels: the same loads and checks.
+        let frames = match crate::plan::levels::take_frames(grid, scale) {
+            Some(frames) => frames,
+            None => crate::plan::load_frames(grid, &loaded[0].0, scale, label)?,
+        };
+        for density in frames {
             let (bricks, records): (Vec<_>, Vec<_>) = density
                 .super_voxels()
                 .into_iter()

@@ -124,8 +124,15 @@ impl GpuGrid {
             scene.source.display(),
             index + 1
         );
-        let density = BrickGrid::load(&grid.density, 1, &what)?;
-        grid.check_density_bricks(&density, &scene.position_scale(), &what)?;
+        // The plan loaded it to choose ReSTIR's levels: the same load and check.
+        let density = match crate::plan::levels::take_density(grid, &scene.position_scale()) {
+            Some(density) => density,
+            None => {
+                let density = BrickGrid::load(&grid.density, 1, &what)?;
+                grid.check_density_bricks(&density, &scene.position_scale(), &what)?;
+                density
+            }
+        };
         let p_to_world = grid.p_to_world(&density)?;
         let world_box = grid
             .vdb
