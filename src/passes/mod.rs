@@ -8,27 +8,35 @@
 //!
 //! # How to add a pass
 //!
-//! Four places, each checked by a test or by the compiler:
+//! Six source files (`docs/architecture.md`, "Adding a pass", is the checklist), each
+//! step checked by a test or by the compiler:
 //!
 //! 1. **Shader**: `shaders/<pass>/<name>.comp` (shared code in `shaders/include/`). New
 //!    specialization-constant IDs, estimator IDs or limits go into
-//!    `src/shader_data/contract/features.rs`, new bindings into `src/shader_data/contract/bindings.rs`, a
-//!    new uniform or record struct into `src/shader_data/contract/records.rs` (with named scalar
-//!    members): each is written once, and `build.rs` generates the GLSL the shaders
-//!    include from it (see [`crate::shader_data::contract`]). When the pipeline is created,
+//!    `src/shader_data/contract/features.rs`, new bindings into
+//!    `src/shader_data/contract/bindings.rs`, a new uniform or record struct into
+//!    `src/shader_data/contract/records.rs` (with named scalar members): each is written
+//!    once, and `build.rs` generates the GLSL the shaders include from it (see
+//!    [`crate::shader_data::contract`]). When the pipeline is created,
 //!    `nimbus_gpu::spirv` reads the compiled module and refuses it if the pass leaves a
 //!    specialization constant the shader declares unset (it would take the shader's
 //!    default silently), lacks a binding the shader uses or gives it another kind, or
 //!    gives a push-constant range shorter than the shader's block; the pass's
-//!    `pipeline_contracts` (see [`pipeline_contracts`]) lets `tests/suite/contracts/contract.rs`
-//!    check the same without a device.
-//! 2. **Plan**: a settings struct and a variant of [`Integrator`] in `src/plan/`, with its
-//!    decision rows (what runs, which features are on, and why); `--explain` prints them.
-//! 3. **Pass**: `src/passes/<pass>.rs`, a struct implementing [`Pass`]: `new` creates its
+//!    `pipeline_contracts` (see [`pipeline_contracts`]) lets
+//!    `tests/suite/contracts/contract.rs` check the same without a device.
+//! 2. **Pass**: `src/passes/<pass>.rs`, a struct implementing [`Pass`]: `new` creates its
 //!    pipelines and resources inside [`GpuObjects::build`], `record` dispatches.
-//! 4. **Dispatch**: one arm in [`create`] below, and one in [`pipeline_contracts`].
+//! 3. **Dispatch**: its `mod` line here, one arm in [`create`] below, and one in
+//!    [`pipeline_contracts`].
+//! 4. **Plan**: a settings struct and a variant of [`Integrator`] in `src/plan/mod.rs`
+//!    (its `PASSES` row, its arm in `effective_scene`), and
+//! 5. the builder that picks it, with its decision rows (what runs, which features are
+//!    on, and why; `--explain` prints them): `src/plan/boxes.rs`, `src/plan/volume.rs` or
+//!    a new one beside them.
+//! 6. **Footprint**: what it allocates, in `src/plan/footprint.rs`, so the renderer
+//!    refuses a render that does not fit before anything is created.
 //!
-//! Then a test: a golden image or a comparison with a CPU oracle in `tests/`.
+//! Then a test: a golden image or a comparison with a CPU oracle under `tests/suite/`.
 //! `build.rs` compiles every `.comp` it finds, and `crate::shaders` names its SPIR-V by
 //! path (`shaders/box/crepuscular.comp` is `shaders::BOX_CREPUSCULAR`).
 

@@ -5,7 +5,7 @@
 //! Features of the scene format that no pass renders yet are errors here, naming the
 //! scene file and the table, never silently skipped.
 //!
-//! [`build`] picks one [`Integrator`] (box scenes: [`boxes`]; grid scenes: [`volume`])
+//! [`build`] picks one [`Integrator`] (box scenes: `boxes.rs`; grid scenes: `volume.rs`)
 //! and one decision table, [`RenderPlan::decisions`]: a row for every pass the renderer
 //! has (from [`PASSES`]) and every feature of the chosen one, on or off with the
 //! reason. `nimbus render --explain` prints that table.

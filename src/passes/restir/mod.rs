@@ -1,7 +1,7 @@
 //! Volumetric ReSTIR (`shaders/restir/*.comp`): initial candidates, temporal reuse,
 //! spatial reuse and final shading, with reservoirs that persist across frames.
 //!
-//! - [`schedule`]: which stages a frame dispatches on which of the two or three reservoir slots
+//! - [`mod@schedule`]: which stages a frame dispatches on which of the two or three reservoir slots
 //!   (pure, unit-tested);
 //! - [`volumes`]: the piecewise-constant levels and ray-march mips derived, brick by
 //!   brick, from every density grid of the animation, and their atlas layouts;

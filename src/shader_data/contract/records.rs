@@ -62,6 +62,7 @@ gpu_records! {
     /// An opaque Lambertian shape, perhaps an area light. 112 bytes. `p` is a tagged union
     /// on `type` (GLSL has no unions; one named member per shape's parameter would more
     /// than double the record):
+    /// ```text
     ///   quad:   p[0] corner, p[1] edge_u, p[2] edge_v, p[3].xyz w = n / dot(n, n),
     ///           n = cross(edge_u, edge_v)
     ///   box:    p[0..2] rows of R^T (w 0), p[3].xyz centre, p[4].xyz half extents
@@ -69,6 +70,7 @@ gpu_records! {
     ///   mesh:   p[0] uints bit-cast to floats (floatBitsToUint): x its root's index in
     ///           bvh_nodes[], y its first triangle's in mesh_triangles[], z its triangle
     ///           count, w its node count
+    /// ```
     #[derive(Clone, Copy, Debug, Pod, Zeroable)]
     struct ShapeGpu as Shape [std430] {
         p: [[f32; 4]; 5],

@@ -66,7 +66,7 @@ impl LightSet {
     /// bounding sphere (radius R): directional E·πR², point 4π·I, sphere 4π²r²·L,
     /// environment 4π²R²·L (luminance of each; `env_map_luminance` replaces the constant
     /// radiance's when the environment has a map), and the emitting shapes, if
-    /// `area_power` (their total π·A·L, [`EmitterTable`](super::EmitterTable)) is positive,
+    /// `area_power` (their total π·A·L, [`EmitterTable`](crate::shader_data::EmitterTable)) is positive,
     /// as one `LIGHT_AREA` light after the analytic ones.
     pub fn build(
         scene_lights: &[Light],
