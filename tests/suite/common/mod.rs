@@ -26,6 +26,7 @@ pub mod cli;
 pub mod gpu;
 pub mod kernel;
 pub mod rng;
+pub mod scenes;
 
 use std::path::{Path, PathBuf};
 

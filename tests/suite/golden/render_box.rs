@@ -11,6 +11,7 @@ use nimbus_reference::quadrature::{self, ReferenceOptions};
 use nimbus_scene::{BoxEstimator, Scene};
 
 use crate::common::gpu::{context, scene};
+use crate::common::scenes::probe_header;
 
 fn render_scene(ctx: &Context, scene: &Scene, box_samples: Option<u32>) -> RenderResult {
     crate::common::gpu::render_checked(ctx, scene, box_samples)
@@ -325,21 +326,10 @@ fn degenerate_configurations_stay_finite_and_match_the_reference() {
         ),
     ];
     for (name, position, look_at, direction, size, sigma_t, g) in cases {
+        let header = probe_header(position, look_at, direction);
         let text = format!(
             r#"
-[render]
-width = 8
-height = 8
-frames = 32
-spp = 4
-[camera]
-position = {position:?}
-look_at = {look_at:?}
-horizontal_fov_deg = 70
-[[light]]
-type = "directional"
-direction = {direction:?}
-irradiance = 1.0
+{header}
 [[medium]]
 type = "box"
 center = [0.0, 0.0, 0.0]

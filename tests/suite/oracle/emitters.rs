@@ -11,6 +11,7 @@ use nimbus_scene::TriangleMesh;
 
 use crate::common::cli::scratch;
 use crate::common::gpu::{context, render_checked};
+use crate::common::scenes::{LOW_CLOUD, LOW_CLOUD_CAMERA, LOW_CLOUD_FLOOR};
 use crate::oracle::baseline::check_against_oracle;
 
 /// A regular octahedron of "radius" 1 about the origin, counter-clockwise seen from
@@ -51,31 +52,16 @@ height = {h}
 frames = 32
 spp = 4
 seed = 13
-[camera]
-position = [0.4, 1.5, 4.0]
-look_at = [0.0, 0.6, 0.0]
-horizontal_fov_deg = 55
+{LOW_CLOUD_CAMERA}
 [[light]]
 type = "directional"
 direction = [0.4, -1.0, -0.5]
 irradiance = 0.5
-[[medium]]
-type = "grid"
-bounds_min = [-0.9, 0.4, -0.8]
-bounds_max = [0.7, 1.1, 0.6]
-density = {{ procedural = "cloud", dims = [16, 8, 16], noise_seed = 5 }}
-density_scale = 8.0
-albedo = 0.85
-g = 0.3
+{LOW_CLOUD}
 [integrator]
 volume = "baseline"
 max_bounces = {bounces}
-[[shape]]
-type = "quad"
-corner = [-3, 0, -3]
-edge_u = [0, 0, 6]
-edge_v = [6, 0, 0]
-albedo = 0.6
+{LOW_CLOUD_FLOOR}
 {emitters}"#,
         w = size.0,
         h = size.1

@@ -5,6 +5,7 @@
 //! with the baseline, and a gobo that misses the scene leaves only the other lights.
 
 use crate::common::gpu::{assert_means_agree, context, render_checked, scene, se_of_mean};
+use crate::common::scenes::{LOW_CLOUD, LOW_CLOUD_CAMERA, LOW_CLOUD_FLOOR};
 use crate::oracle::baseline::check_against_oracle;
 
 /// A gobo whose prism cuts the cloud about in half (u ≈ (0.78, 0, 0.62) is
@@ -41,29 +42,14 @@ height = 12
 frames = {frames}
 spp = {spp}
 seed = 17
-[camera]
-position = [0.4, 1.5, 4.0]
-look_at = [0.0, 0.6, 0.0]
-horizontal_fov_deg = 55
+{LOW_CLOUD_CAMERA}
 {sun}
 {extra}
-[[medium]]
-type = "grid"
-bounds_min = [-0.9, 0.4, -0.8]
-bounds_max = [0.7, 1.1, 0.6]
-density = {{ procedural = "cloud", dims = [16, 8, 16], noise_seed = 5 }}
-density_scale = 8.0
-albedo = 0.85
-g = 0.3
+{LOW_CLOUD}
 [integrator]
 volume = "{volume}"
 max_bounces = {bounces}
-[[shape]]
-type = "quad"
-corner = [-3, 0, -3]
-edge_u = [0, 0, 6]
-edge_v = [6, 0, 0]
-albedo = 0.6
+{LOW_CLOUD_FLOOR}
 "#
     );
     scene(&text, &format!("gobo-{volume}.toml"))

@@ -12,6 +12,7 @@ use nimbus_scene::{procedural_cloud, BrickGrid, VoxelGrid};
 
 use crate::common::cli::scratch;
 use crate::common::gpu::{assert_means_agree, channels_beyond, context, render_checked, scene};
+use crate::common::scenes::STEEP_SUN_AND_GREY_SKY;
 
 /// World size of one voxel (both grids).
 const VOXEL: f64 = 0.1;
@@ -54,13 +55,7 @@ seed = 3
 position = [0.2, 0.5, 3.2]
 look_at = [0.0, 0.0, 0.0]
 horizontal_fov_deg = 45
-[[light]]
-type = "directional"
-direction = [0.4, -0.8, -0.5]
-irradiance = 3.0
-[[light]]
-type = "environment"
-radiance = 0.2
+{STEEP_SUN_AND_GREY_SKY}
 [[medium]]
 {medium}
 density_scale = 12.0

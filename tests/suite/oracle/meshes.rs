@@ -47,6 +47,15 @@ fn cube(mesh: bool) -> String {
     }
 }
 
+/// The camera and the sun of the cube scenes.
+const CAMERA_AND_SUN: &str = r#"[camera]
+position = [0.3, 1.6, 4.2]
+look_at = [0.0, 0.6, 0.0]
+horizontal_fov_deg = 50
+[[light]]
+type = "directional"
+direction = [0.35, -1.0, -0.45]
+irradiance = 3.0"#;
 const FLOOR: &str = "[[shape]]\ntype = \"quad\"\ncorner = [-3, 0, -3]\nedge_u = [6, 0, 0]\n\
 edge_v = [0, 0, 6]\nalbedo = 0.5\n";
 
@@ -92,14 +101,7 @@ height = 48
 frames = 4
 seed = 5
 pixel_jitter = false
-[camera]
-position = [0.3, 1.6, 4.2]
-look_at = [0.0, 0.6, 0.0]
-horizontal_fov_deg = 50
-[[light]]
-type = "directional"
-direction = [0.35, -1.0, -0.45]
-irradiance = 3.0
+{CAMERA_AND_SUN}
 [[medium]]
 type = "box"
 center = [0.0, 1.25, 0.0]
@@ -155,14 +157,7 @@ frames = 4
 spp = {spp}
 seed = 9
 pixel_jitter = false
-[camera]
-position = [0.3, 1.6, 4.2]
-look_at = [0.0, 0.6, 0.0]
-horizontal_fov_deg = 50
-[[light]]
-type = "directional"
-direction = [0.35, -1.0, -0.45]
-irradiance = 3.0
+{CAMERA_AND_SUN}
 [[light]]
 type = "environment"
 radiance = 0.2

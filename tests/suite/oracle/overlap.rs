@@ -7,6 +7,7 @@ use std::path::Path;
 
 use crate::common::cli::scratch;
 use crate::common::gpu::{assert_means_agree, channels_beyond, context, render_checked, scene};
+use crate::common::scenes::{CLOUD_BOUNDS, CLOUD_SUN_AND_SKY};
 use crate::oracle::baseline::check_against_oracle;
 
 const DIMS: [u32; 3] = [16, 10, 16];
@@ -34,17 +35,10 @@ seed = 11
 position = [0.4, 0.5, 2.6]
 look_at = [0.0, 0.0, 0.0]
 horizontal_fov_deg = 60
-[[light]]
-type = "directional"
-direction = [0.5, -0.7, -0.4]
-irradiance = 2.0
-[[light]]
-type = "environment"
-radiance = [0.2, 0.3, 0.5]
+{CLOUD_SUN_AND_SKY}
 [[medium]]
 type = "grid"
-bounds_min = [-1.0, -0.6, -1.0]
-bounds_max = [1.0, 0.6, 1.0]
+{CLOUD_BOUNDS}
 density = {{ file = {density:?}, dims = [{}, {}, {}] }}
 density_scale = 8.0
 albedo = [0.9, 0.8, 0.7]

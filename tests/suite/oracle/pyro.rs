@@ -8,6 +8,7 @@ use nimbus_scene::cie1931::{CIE_1931_XYZ, CIE_FIRST_NM, CIE_STEP_NM};
 
 use crate::common::cli::scratch;
 use crate::common::gpu::{context, render_checked, scene};
+use crate::common::scenes::{CLOUD_BOUNDS, CLOUD_SUN_AND_SKY};
 use crate::oracle::baseline::check_against_oracle;
 
 /// RGB(T) by this test's own integration: Simpson's rule at every half nanometre over
@@ -262,17 +263,10 @@ seed = 11
 position = [0.3, 0.5, 2.4]
 look_at = [0.0, 0.0, 0.0]
 horizontal_fov_deg = 60
-[[light]]
-type = "directional"
-direction = [0.5, -0.7, -0.4]
-irradiance = 2.0
-[[light]]
-type = "environment"
-radiance = [0.2, 0.3, 0.5]
+{CLOUD_SUN_AND_SKY}
 [[medium]]
 type = "grid"
-bounds_min = [-1.0, -0.6, -1.0]
-bounds_max = [1.0, 0.6, 1.0]
+{CLOUD_BOUNDS}
 density = {{ procedural = "cloud", dims = [32, 20, 32], noise_seed = 3 }}
 density_scale = 16.0
 albedo = {albedo}

@@ -6,6 +6,7 @@
 //! CPU Monte Carlo oracle.
 
 use crate::common::gpu::{assert_means_agree, context, render_checked, scene, se_of_mean};
+use crate::common::scenes::probe_header;
 use nimbus::output::ImageRgb;
 use nimbus_reference::quadrature::{self, ReferenceOptions};
 use nimbus_scene::BoxEstimator;
@@ -270,21 +271,10 @@ fn convex_hard_cases_render_right_with_every_estimator() {
         ),
     ];
     for (name, position, look_at, direction, planes, sigma_t) in cases {
+        let header = probe_header(position, look_at, direction);
         let text = format!(
             r#"
-[render]
-width = 8
-height = 8
-frames = 32
-spp = 4
-[camera]
-position = {position:?}
-look_at = {look_at:?}
-horizontal_fov_deg = 70
-[[light]]
-type = "directional"
-direction = {direction:?}
-irradiance = 1.0
+{header}
 [[medium]]
 type = "convex"
 {planes}

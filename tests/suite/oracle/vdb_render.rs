@@ -14,6 +14,7 @@ use glam::{DMat4, DVec3, IVec3};
 
 use crate::common::cli::scratch;
 use crate::common::gpu::{assert_means_agree, channels_beyond, context, render_checked, scene};
+use crate::common::scenes::STEEP_SUN_AND_GREY_SKY;
 
 fn asset(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -141,13 +142,7 @@ seed = 5
 position = [0.6, 1.0, 9.0]
 look_at = [0.0, 0.0, 0.0]
 horizontal_fov_deg = 40
-[[light]]
-type = "directional"
-direction = [0.4, -0.8, -0.5]
-irradiance = 3.0
-[[light]]
-type = "environment"
-radiance = 0.2
+{STEEP_SUN_AND_GREY_SKY}
 [[medium]]
 {medium}
 density_scale = 2.5
