@@ -286,3 +286,27 @@ fn comments_point_only_to_files_that_exist() {
     problems.dedup();
     assert!(problems.is_empty(), "{}", problems.join("\n"));
 }
+
+/// The README's install command ends in `cargo run -- render`: at the workspace root that
+/// builds every default member, and with nimbus-study's binary among them `cargo run`
+/// cannot tell which binary is meant unless the root package names its own (it failed
+/// so when the study moved into its own crate).
+#[test]
+fn cargo_run_at_the_root_runs_the_renderer() {
+    let manifest = std::fs::read_to_string(repo().join("Cargo.toml")).unwrap();
+    let readme = std::fs::read_to_string(repo().join("README.md")).unwrap();
+    assert!(
+        readme.contains("cargo run -- render"),
+        "the README's command changed"
+    );
+    let members = manifest
+        .lines()
+        .find(|l| l.starts_with("default-members"))
+        .expect("default-members");
+    if members.contains("crates/nimbus-study") {
+        assert!(
+            manifest.contains("default-run = \"nimbus\""),
+            "Cargo.toml: [package] needs default-run = \"nimbus\" for the README's `cargo run`"
+        );
+    }
+}
