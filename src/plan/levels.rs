@@ -8,7 +8,7 @@ use std::sync::{Mutex, OnceLock};
 use anyhow::{bail, Result};
 use nimbus_scene::bricks::{march_errors, MARCH_ERROR_SEGMENTS};
 use nimbus_scene::precision::PositionScale;
-use nimbus_scene::{BrickGrid, BrickTopology, GridMedium, Scene};
+use nimbus_scene::{BrickGrid, BrickTopology, GridMedium, GridSource, Scene};
 
 use crate::budget::{brick_bytes, host_budget};
 
@@ -70,8 +70,8 @@ pub const MAX_AUTO_LEVEL: u32 = 3;
 /// add costs a full-resolution copy of the density.
 pub const MIN_AUTO_INDIRECT: u32 = 1;
 
-/// The level choices this process made, by a hash of the grid medium, the asked levels
-/// and the position scale.
+/// The level choices this process made, by a hash of the grid medium (with its files'
+/// sizes and modification times), the asked levels and the position scale.
 static CHOSEN: OnceLock<Mutex<HashMap<u64, LevelChoice>>> = OnceLock::new();
 
 /// The densities the last level choice loaded, for the pass that renders the plan to take
@@ -90,8 +90,24 @@ struct Loaded {
 /// What identifies a medium's loaded densities: its sources and the position scale they
 /// were checked against.
 fn loaded_key(grid: &GridMedium, scale: &PositionScale) -> u64 {
-    let key = format!("{:?}", (grid, scale));
+    let key = format!("{:?}", (grid, scale, file_stamps(grid)));
     crate::hashing::fnv1a64(crate::hashing::FNV_OFFSET, key.as_bytes())
+}
+
+/// The size and modification time of every density file of `grid` (base and frames),
+/// so that a file rewritten between two plans in one process is read again.
+fn file_stamps(grid: &GridMedium) -> Vec<Option<(u64, std::time::SystemTime)>> {
+    std::iter::once(&grid.density)
+        .chain(grid.frames.iter().map(|f| &f.density))
+        .map(|source| match source {
+            GridSource::Raw { file, .. }
+            | GridSource::MitsubaVol { file }
+            | GridSource::Vdb { file, .. } => std::fs::metadata(file)
+                .ok()
+                .and_then(|m| Some((m.len(), m.modified().ok()?))),
+            GridSource::ProceduralCloud { .. } => None,
+        })
+        .collect()
 }
 
 /// `grid`'s base density as the plan loaded and checked it (`BrickGrid::load` of its
@@ -215,7 +231,10 @@ impl LevelChoice {
     ) -> Result<LevelChoice> {
         // The same grid, frames and asks choose the same levels: a study plans every
         // configuration, and each would otherwise load every density frame again.
-        let key = format!("{:?}", (grid, asked, scene.position_scale()));
+        let key = format!(
+            "{:?}",
+            (grid, asked, scene.position_scale(), file_stamps(grid))
+        );
         let key = crate::hashing::fnv1a64(crate::hashing::FNV_OFFSET, key.as_bytes());
         let chosen = CHOSEN.get_or_init(Default::default);
         if let Some(choice) = chosen.lock().ok().and_then(|c| c.get(&key).cloned()) {
