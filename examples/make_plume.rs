@@ -13,7 +13,8 @@
 //! benchmark (the paper's Fig. 4, bottom) at 320x240 under a still camera, sun and sky,
 //! the density swapped every frame and the velocity guiding ReSTIR's reprojection. Its
 //! `nimbus study --per-frame` window starts after ReSTIR's warm-up (80 frames at Q = 20),
-//! so give F >= 96. Every frame stays resident in the baseline (about F · N³ · 4 bytes).
+//! so give F >= 96; past the fourth frame a source at the stem's base keeps the plume
+//! rising (without it the plume leaves the box by frame 40). Every frame stays resident in the baseline (about F · N³ · 4 bytes).
 //!
 //! With a resolution N other than 32, the same plume is written at N³ with turbulent
 //! detail the 32³ grid cannot hold (the density times 0.45 + 0.9 · fractal noise of
@@ -100,6 +101,33 @@ fn plume_velocity([x, _, z]: [f64; 3]) -> [f64; 3] {
     let up = 0.02 * (0.75 + 0.5 * (-r2 / 0.03).exp());
     let swirl = 0.06 * (-r2 / 0.05).exp(); // rad/frame, counter-clockwise seen from +Y
     [swirl * z, up, -swirl * x]
+}
+
+/// The source that keeps a benchmark's plume rising (more frames than the committed
+/// four): a disc of radius 0.16 m below y = -0.15 m, puffing with a period of 16 frames,
+/// with fractal detail that rises 0.02 m per frame, taken where it is denser than what
+/// the advection brought. Without it the plume
+/// leaves the box by frame 40 and a study's window (frames 80..) renders an empty box.
+fn feed(density: &mut VoxelGrid, frame: usize) {
+    let n = density.dims[0];
+    for k in 0..n {
+        for j in 0..n {
+            for i in 0..n {
+                let p = voxel_centre(n, [i, j, k]);
+                if p[1] >= -0.15 {
+                    continue;
+                }
+                let r2_xz = p[0] * p[0] + p[2] * p[2];
+                let puff = 0.7 + 0.3 * (std::f64::consts::TAU * frame as f64 / 16.0).sin();
+                let base = puff * bump(r2_xz / (0.16 * 0.16)) * smoothstep(-0.42, -0.3, p[1]);
+                let rise = [p[0], p[1] - 0.02 * frame as f64, p[2]];
+                let detail = 0.45 + 0.9 * nimbus_scene::fbm_noise(11, 4, 14.0, rise);
+                let d = (base * detail).clamp(0.0, 1.0) as f32;
+                let at = ((k * n + j) * n + i) as usize;
+                density.data[at] = density.data[at].max(d);
+            }
+        }
+    }
 }
 
 /// A grid of `channels` values per voxel from `f`, x fastest.
@@ -189,6 +217,9 @@ fn main() -> Result<()> {
     for frame in 0..frame_count {
         if frame > 0 {
             density = advect(&density, &velocity);
+            if frame_count > FRAMES {
+                feed(&mut density, frame);
+            }
         }
         let path = out_dir.join(name(&format!("f{frame}")));
         nimbus_scene::write_vol(&path, &density, BOUNDS_MIN, BOUNDS_MAX)?;

@@ -3,7 +3,7 @@
 # timings, and the equal-time studies of both papers (error against a converged
 # reference versus GPU milliseconds, several seeds with their spread).
 #
-#   tools/gpu-check.sh [--quick | --lent] [--no-tests] [OUT_DIR]
+#   tools/gpu-check.sh [--quick | --lent | --motion] [--no-tests] [OUT_DIR]
 #
 # OUT_DIR (default gpu-check-<date>) receives devices.txt, tests.txt (the whole test
 # suite on this machine's default device, validation layers on), profile-*.txt, one
@@ -22,6 +22,15 @@
 # run into a lavapipe smoke test of the script (a few minutes on 2 cores): a test of the
 # script, not a measurement.
 #
+# --motion sizes issue 26's motion studies for one lent-machine command (about 9 minutes
+# on an H200): the per-frame equal-time studies at 960x540 of the motion benchmarks
+# (assets/scenes/bench/motion) not measured yet, most wanted first: the rotating HDR sky,
+# the explosions under the orbiting camera with emission separate and folded, the moving
+# camera at K = 7, the animated plume (written first by the make_plume example: set
+# NIMBUS_MAKE_PLUME to its binary, target/release/examples/make_plume by default), the
+# moving sun at K = 1 and 7. Each study is cut at its own time limit so that a slow one
+# leaves the others their time; steps.txt says which finished.
+#
 # The release binary is built when NIMBUS_BIN is unset; on a lent machine, carry one
 # built here and set NIMBUS_BIN. Set NIMBUS_DEVICE=<name substring> to pick a device.
 set -euo pipefail
@@ -32,6 +41,7 @@ while [[ "${1:-}" == --* ]]; do
     case "$1" in
         --quick) mode=quick ;;
         --lent) mode=lent; tests=0 ;;
+        --motion) mode=motion; tests=0 ;;
         --no-tests) tests=0 ;;
         *) echo "unknown option $1" >&2; exit 2 ;;
     esac
@@ -100,6 +110,47 @@ esac
 cache=(--cache-dir "$out/references")
 
 nimbus devices | tee "$out/devices.txt"
+
+if [[ $mode == motion ]]; then
+    [[ -f target/bench/sky-sun.exr ]] || nimbus make-sky target/bench/sky-sun.exr
+    plume_bin="${NIMBUS_MAKE_PLUME:-$root/target/release/examples/make_plume}"
+    # NIMBUS_MOTION_SMOKE=1 shrinks it into a test of this script on lavapipe.
+    if [[ -n ${NIMBUS_MOTION_SMOKE:-} ]]; then
+        motion_size=(--width 32 --height 24 --frames 2 --seeds 1 --reference-frames 2 --reference-spp 1)
+    else
+        motion_size=(--width 960 --height 540 --frames 8 --seeds 3 --reference-frames 32 --reference-spp 16)
+    fi
+    motion_common=("${motion_size[@]}" --per-frame --cache-dir "$out/references"
+        --vary volume=baseline,restir --vary spp=1,2,4,8,16,32 --baseline volume=baseline)
+    # NAME SECONDS SCENE K [--vary ...]: one study, cut after SECONDS (only the names in
+    # NIMBUS_MOTION_ONLY where that is set).
+    motion_study() {
+        local name=$1 limit=$2 scene=$3 k=$4
+        shift 4
+        if [[ -n ${NIMBUS_MOTION_ONLY:-} && " $NIMBUS_MOTION_ONLY " != *" $name "* ]]; then
+            return 0
+        fi
+        step "study $name" timeout "$limit" "$NIMBUS_BIN" study "$scene" "${motion_common[@]}" \
+            --vary "max_bounces=$k" "$@" --out-dir "$out/study-$name" >"$out/study-$name.log" 2>&1
+    }
+    m=assets/scenes/bench/motion
+    motion_study sky-g06-k3 100 $m/sky-g06.toml 3 --vary env_reuse=map,world
+    motion_study explosion-mismatched-k3 110 $m/explosion-mismatched.toml 3 --vary emission=separate,folded
+    motion_study explosion-matched-k3 110 $m/explosion-matched.toml 3 --vary emission=separate,folded
+    motion_study camera-g0-k7 90 $m/camera-g0.toml 7
+    if [[ -x $plume_bin && ( -z ${NIMBUS_MOTION_ONLY:-} || " $NIMBUS_MOTION_ONLY " == *" plume-k"* ) ]]; then
+        step "make plume" "$plume_bin" "$out/plume" 64 96 >"$out/make-plume.log" 2>&1
+        motion_study plume-k3 120 "$out/plume/plume-motion-64.toml" 3
+        motion_study plume-k1 100 "$out/plume/plume-motion-64.toml" 1
+    fi
+    motion_study sun-g0-k1 60 $m/sun-g0.toml 1
+    motion_study sun-g0-k7 70 $m/sun-g0.toml 7
+    motion_study sky-g06-k1 60 $m/sky-g06.toml 1
+    motion_study sky-g06-k7 70 $m/sky-g06.toml 7
+    rm -rf "$out/references" "$out/plume"
+    echo "wrote $out"
+    exit 0
+fi
 
 # The cost guard on this device: the benchmark cases' ms and work per sample (counters
 # are shown, not judged, on a device other than the baseline's).

@@ -16,6 +16,10 @@ scene format interpolates linearly in between, and holds the last key after fram
   light; `nimbus make-sky target/bench/sky-sun.exr` writes it) turns 90 degrees about the
   vertical over 128 frames (0.7 degrees per frame): the paper's rotating environment map
   (Fig. 4, top).
+- explosion-matched / explosion-mismatched: the emissive explosions of bench/ (fire
+  coloured like its smoke's scattered light, and orange fire in bluish smoke) under the
+  camera of camera-g0 (orbit and dolly): issue 26's explosions in motion, where each
+  pixel's history is weak and the hue of its one selected path decides the error.
 
 `nimbus study --per-frame` measures each frame against a reference of that frame (the
 window after the longest warm-up, e.g. 80 frames for ReSTIR's default Q = 20); see
@@ -76,6 +80,32 @@ def camera_scene(static, g_text):
     return out + medium_and_integrator(static)
 
 
+def lights_of(static):
+    """The [[light]] tables of a static benchmark scene (up to its [[medium]])."""
+    text = (BENCH / static).read_text()
+    return text[text.index("[[light]]"):text.index("[[medium]]")].rstrip() + "\n\n"
+
+
+def explosion_scene(static, what):
+    out = header(
+        f"the {what} explosion under the orbiting camera.",
+        [
+            "The camera of camera-g0: 40 degrees of orbit, 2.6 -> 2.0 m, over 128 frames;",
+            "the explosion's own sky lights it, its fire glows.",
+        ],
+    )
+    out += "[camera]\nhorizontal_fov_deg = 55\n\n"
+    for f in range(0, FRAMES + 1, STEP):
+        t = f / FRAMES
+        az = math.radians(40.0 * t)
+        r = 2.6 - 0.6 * t
+        y = 0.3 - 0.15 * t
+        pos = (r * math.sin(az), y, r * math.cos(az))
+        out += f"[[camera.keyframe]]\nframe = {f}\nposition = {fmt(pos)}\nlook_at = [0.0, 0.0, 0.0]\n\n"
+    out += lights_of(static)
+    return out + medium_and_integrator(static)
+
+
 def sun_scene(static, g_text):
     out = header(
         f"the sun moves across the sky ({g_text}).",
@@ -121,6 +151,8 @@ def main():
         "sun-g0.toml": sun_scene("cloud-g0.toml", "g = 0"),
         "sun-g08.toml": sun_scene("cloud-g08.toml", "g = 0.8"),
         "sky-g06.toml": sky_scene("sky-sun.toml", "g = 0.6"),
+        "explosion-matched.toml": explosion_scene("explosion-matched.toml", "colour-matched"),
+        "explosion-mismatched.toml": explosion_scene("explosion-mismatched.toml", "colour-mismatched"),
     }
     for name, text in scenes.items():
         (out / name).write_text(text)

@@ -88,6 +88,8 @@ fn motion_benchmarks_are_the_generators_output_and_plan() {
         [
             "camera-g0.toml",
             "camera-g08.toml",
+            "explosion-matched.toml",
+            "explosion-mismatched.toml",
             "sky-g06.toml",
             "sun-g0.toml",
             "sun-g08.toml"
