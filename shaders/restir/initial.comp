@@ -71,8 +71,8 @@ void add_nee_candidate(uint at, inout Reservoir r, inout uint rng, vec3 x, Surfa
         }
         // The direction as the reservoir stores it and its density, both what path_value
         // evaluates (quantization moves it by < 6e-5 rad).
-        dir_code = oct_encode(wi);
-        ls.wi = oct_decode(dir_code);
+        dir_code = oct_encode(env_stored_dir(wi, u_frame.env_rotation));
+        ls.wi = env_reused_dir(oct_decode(dir_code), u_frame.env_rotation);
         ls.index = LIGHT_ENV;
         ls.pdf = env_sample_pdf(ls.wi, u_frame.env_rotation);
         ls.L = env_radiance_along(ls.wi, u_frame.env_rotation);
@@ -80,7 +80,8 @@ void add_nee_candidate(uint at, inout Reservoir r, inout uint rng, vec3 x, Surfa
         ls.L_over_pdf = ls.pdf > 0.0 ? ls.L / ls.pdf : vec3(0.0);
     } else {
         ls = light_sample(0u, u_frame.env_rotation, x, u_light, u2);
-        dir_code = light_is_area(0u, ls.index) ? ls.prim : oct_encode(ls.wi);
+        dir_code = light_is_area(0u, ls.index) ? ls.prim
+                   : oct_encode(ls.index == LIGHT_ENV ? env_stored_dir(ls.wi, u_frame.env_rotation) : ls.wi);
     }
     if (!(ls.pdf > 0.0)) {
         return;

@@ -31,6 +31,17 @@
 
 // The density q the environment sample is drawn with (solid angle), the map turned by
 // env_rot (the turn keeps the density's values, at turned directions).
+// The direction a reservoir stores for an environment sample drawn along world_dir, and
+// the world direction of a stored one when the map is turned by env_rot: in the map's
+// frame with env_reuse = "map" (a reused sample turns with a turning map, so a small sun
+// keeps its samples: the shift is a rotation, Jacobian 1), else the world direction.
+vec3 env_stored_dir(vec3 world_dir, vec2 env_rot) {
+    return SC_ENV_REUSE_MAP ? env_world_to_map(world_dir, env_rot) : world_dir;
+}
+vec3 env_reused_dir(vec3 stored_dir, vec2 env_rot) {
+    return SC_ENV_REUSE_MAP ? env_map_to_world(stored_dir, env_rot) : stored_dir;
+}
+
 float env_sample_pdf(vec3 wi, vec2 env_rot) {
     return SC_HAS_ENV_MAP ? env_pdf_rotated(wi, env_rot) : uniform_sphere_pdf();
 }

@@ -180,6 +180,9 @@ vec3 path_value(uint at, Reservoir r, CameraRay cam, CameraRay src, uint mode, i
     // weighted by the environment sample's density q (one loop: the transmittance code is
     // compiled once).
     vec3 stored_dir = oct_decode(r.light_dir);
+    if (res_light(r) == LIGHT_ENV) {
+        stored_dir = env_reused_dir(stored_dir, env_rot);
+    }
     float q = SC_NEE_SPLIT ? env_sample_pdf(stored_dir, env_rot) : 1.0;
     vec3 light = vec3(0.0);
     uint terms = light_terms();

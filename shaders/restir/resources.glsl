@@ -36,6 +36,8 @@ layout(constant_id = SC_ID_MIS_PAIRWISE) const bool SC_MIS_PAIRWISE = false;
 layout(constant_id = SC_ID_SPATIAL_TAU_SHIFT) const bool SC_SPATIAL_TAU_SHIFT = false;
 // A medium vertex's emission is part of its split-NEE candidate (restir/path_lights.glsl).
 layout(constant_id = SC_ID_FOLD_EMISSION) const bool SC_FOLD_EMISSION = false;
+// Reservoirs keep an environment sample's direction in the map's frame (env_reuse = "map").
+layout(constant_id = SC_ID_ENV_REUSE_MAP) const bool SC_ENV_REUSE_MAP = false;
 layout(constant_id = SC_ID_NEE_SPLIT) const bool SC_NEE_SPLIT = false;
 layout(constant_id = SC_ID_DIRECT_EACH_WALK) const bool SC_DIRECT_EACH_WALK = false;
 // Opaque shapes beside the grid: paths may have surface vertices (restir/path_surfaces.glsl).

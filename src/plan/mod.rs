@@ -200,6 +200,9 @@ pub struct RestirPlan {
     /// Emission folded into the split-NEE candidates (`emission = "folded"`, with split
     /// NEE and an emitting grid only).
     pub fold_emission: bool,
+    /// Reservoirs keep an environment map sample's direction in the map's frame
+    /// (`env_reuse = "map"`, with an environment map).
+    pub env_reuse_map: bool,
     /// Spatial reuse only where the reservoir's M after temporal reuse is below this
     /// many times M (0: everywhere).
     pub spatial_max_history: f32,

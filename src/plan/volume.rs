@@ -314,6 +314,7 @@ fn restir_plan(
             && boxes == 0,
         // Set below, once split NEE is known.
         fold_emission: false,
+        env_reuse_map: s.env_reuse == nimbus_scene::EnvReuse::Map && has_env_map,
         history_before_spatial: s.temporal_history == nimbus_scene::HistoryMode::Temporal,
         direct_each_walk: s.direct == nimbus_scene::DirectMode::EachWalk,
         nee_split: match s.nee {
@@ -486,6 +487,20 @@ fn restir_plan(
                     .into()
             } else {
                 "emission paths are candidates of their own (emission = \"separate\")".into()
+            },
+        ),
+        on(
+            "  SC_ENV_REUSE_MAP",
+            plan.env_reuse_map,
+            if plan.env_reuse_map {
+                "reused environment samples keep their direction in the map's frame: they turn \
+                 with a turning map (a small sun keeps its samples)"
+                    .into()
+            } else if has_env_map {
+                "reused environment samples keep their world direction (env_reuse = \"world\")"
+                    .into()
+            } else {
+                "no environment map".into()
             },
         ),
         on(

@@ -91,6 +91,7 @@
 //! | restir `temporal_history` | `"spatial"`, `"temporal"` |
 //! | restir `sigma_star_floor` | [0, 1] |
 //! | restir `spatial_shift` | `"distance"`, `"optical_depth"` |
+//! | restir `env_reuse` | `"map"`, `"world"` |
 //! | restir `emission` | `"separate"`, `"folded"` (folded only takes effect with split NEE) |
 //! | restir `spatial_max_history` | [0, 1025] (0: spatial reuse on every pixel) |
 //! | restir `nee` | `"auto"`, `"one"`, `"split"` (only with delta lights and an environment alone besides) |

@@ -552,6 +552,17 @@ pub enum SpatialShift {
     OpticalDepth,
 }
 
+/// Where a reused path keeps the direction of its environment sample (`env_reuse`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum EnvReuse {
+    /// In the map's own frame: as the map turns, the reused direction turns with it, so a
+    /// sample of a small sun keeps its sun (a rotation: Jacobian 1).
+    Map,
+    /// In the world: a reused direction stays put while the map turns under it (the
+    /// paper's direction reuse).
+    World,
+}
+
 /// Which reservoir of a frame becomes the next frame's temporal history
 /// (`temporal_history`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -625,6 +636,8 @@ pub struct RestirSettings {
     pub fold_emission: bool,
     /// How spatial reuse moves x_1 between pixels (`spatial_shift`).
     pub spatial_shift: SpatialShift,
+    /// Where reused environment samples keep their direction (`env_reuse`).
+    pub env_reuse: EnvReuse,
     /// Spatial reuse only on pixels whose reservoir after temporal reuse holds an M below
     /// this many times `candidates` (the history was dropped or is short: first frames,
     /// disocclusions, changed light); 0: on every pixel (`spatial_max_history`).
@@ -664,6 +677,7 @@ impl Default for RestirSettings {
             final_ratio_tracking: false,
             mis: MisMode::Talbot,
             spatial_shift: SpatialShift::Distance,
+            env_reuse: EnvReuse::World,
             fold_emission: false,
             spatial_max_history: 0.0,
             temporal_history: HistoryMode::Temporal,

@@ -164,6 +164,13 @@ pub(super) fn apply(scene: &mut Scene, key: &str, value: &str) -> Result<Option<
                 _ => bail!("{key}: unknown shift {value:?}; valid: distance, optical_depth"),
             };
         }
+        "env_reuse" => {
+            scene.integrator.restir.env_reuse = match value {
+                "map" => nimbus_scene::EnvReuse::Map,
+                "world" => nimbus_scene::EnvReuse::World,
+                _ => bail!("{key}: unknown choice {value:?}; valid: map, world"),
+            };
+        }
         "temporal_history" => {
             scene.integrator.restir.temporal_history = match value {
                 "spatial" => nimbus_scene::HistoryMode::Spatial,
@@ -482,6 +489,7 @@ mod tests {
             ("final_transmittance", "ratio"),
             ("mis", "pairwise"),
             ("spatial_shift", "optical_depth"),
+            ("env_reuse", "map"),
             ("spatial_when", "always"),
             ("emission", "folded"),
             ("spatial_max_history", "8"),
@@ -517,6 +525,7 @@ mod tests {
         assert!(r.final_ratio_tracking);
         assert_eq!(r.nee, nimbus_scene::NeeMode::One);
         assert_eq!(r.direct, nimbus_scene::DirectMode::Escape);
+        assert_eq!(r.env_reuse, nimbus_scene::EnvReuse::Map);
         assert_eq!(
             (r.spatial_shift, r.spatial_max_history),
             (nimbus_scene::SpatialShift::OpticalDepth, 8.0)

@@ -16,7 +16,7 @@ pub fn specialization(
     plan: &RestirPlan,
     exact_spans: bool,
     two_level: bool,
-) -> [(u32, SpecValue); 23] {
+) -> [(u32, SpecValue); 24] {
     [
         (SC_ID_TWO_LEVEL_BRICKS, SpecValue::Bool(two_level)),
         (
@@ -48,6 +48,7 @@ pub fn specialization(
             SpecValue::Bool(plan.spatial_tau_shift),
         ),
         (SC_ID_FOLD_EMISSION, SpecValue::Bool(plan.fold_emission)),
+        (SC_ID_ENV_REUSE_MAP, SpecValue::Bool(plan.env_reuse_map)),
         (SC_ID_NEE_SPLIT, SpecValue::Bool(plan.nee_split)),
         (
             SC_ID_DIRECT_EACH_WALK,

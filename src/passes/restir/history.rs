@@ -14,8 +14,11 @@
 //! ∫ |L_prev − L_cur| dω / (2 ∫ L dω) ∈ [0, 1] (luminance), exact for the nearest-texel
 //! map at up to [`ENV_CHANGE_WIDTH`] × [`ENV_CHANGE_HEIGHT`] texels ([`EnvLuminance`]):
 //! 0 for a map that is the same all around (a constant radiance, a sky that varies with
-//! height only), 1 once a small sun has moved off its own place. Without the table the
-//! turn counts like a directional light's, 1 at [`LIGHT_TURN_RADIANS`].
+//! height only), 1 once a small sun has moved off its own place. That is the change
+//! the history sees when its samples keep their world directions (`env_reuse =
+//! "world"`, the default). With `env_reuse = "map"` they turn with the map, a small
+//! sun's samples stay on it, and the pass gives no table: the turn counts like a
+//! directional light's, 1 at [`LIGHT_TURN_RADIANS`].
 
 use glam::Vec3;
 use nimbus_scene::{EnvMap, Light};

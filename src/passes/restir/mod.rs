@@ -264,7 +264,9 @@ impl RestirPass {
             env_change: grid_gpu
                 .env_map
                 .as_ref()
-                .filter(|_| scene.lights_animated())
+                // With env_reuse = "map" the reused samples turn with the map, so its turn
+                // counts as a light's turn (history::light_confidence without the table).
+                .filter(|_| scene.lights_animated() && !plan.env_reuse_map)
                 .map(|m| {
                     history::EnvLuminance::from_texels(m.size[0], m.size[1], |i| {
                         let t = m.texels[i];

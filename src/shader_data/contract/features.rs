@@ -71,6 +71,10 @@ gpu_consts! {
     /// ReSTIR: a medium vertex's emission joins its split-NEE light candidate instead of
     /// being a candidate of its own (restir/path_lights.glsl, "Folded emission").
     pub const SC_ID_FOLD_EMISSION: u32 = 27;
+    /// ReSTIR: reservoirs keep an environment sample's direction in the map's frame, so
+    /// that a reused sample turns with a turning map (`env_reuse = "map"`;
+    /// restir/path_value.glsl). 28..30 are the AOVs'.
+    pub const SC_ID_ENV_REUSE_MAP: u32 = 31;
 
     // -----------------------------------------------------------------------------------
     // Values of SC_ESTIMATOR (`shaders/box/crepuscular.comp`): the box-medium estimators

@@ -19,7 +19,9 @@ use nimbus_scene::Scene;
 
 use crate::common::cli::scratch;
 use crate::common::gpu::{assert_means_agree, channels_beyond, context, render_checked, scene};
-use crate::oracle::restir::{check_cases_against, Cloud, Estimate, BOTH, PAIRWISE, RUN_FRAMES};
+use crate::oracle::restir::{
+    check_cases_against, Case, Cloud, Estimate, BOTH, PAIRWISE, RUN_FRAMES,
+};
 
 /// Map size: 64 × 32 texels, 5.625° a column.
 const MAP: (usize, usize) = (64, 32);
@@ -192,11 +194,20 @@ fn animated_reference(ctx: &Context, cloud: &Cloud, frames: u32, spp: u32) -> Es
     }
 }
 
+/// [`BOTH`] with the environment samples kept in the map's frame (`env_reuse = "map"`):
+/// the history's sun samples turn with the sun.
+const MAP_REUSE: Case = Case {
+    label: "temporal + spatial, environment samples in the map's frame",
+    restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 1\nspatial_neighbors = 3\n\
+             spatial_when = \"always\"\nspatial_radius_px = 10\nenv_reuse = \"map\"",
+};
+
 /// ReSTIR renders a map turning 5° a frame (a sun 6° wide and a sky, alone: split NEE;
 /// and beside a directional light: one light per vertex, pairwise MIS) as the baseline
 /// renders each frame's static scene. Every reused path's environment vertex is looked
 /// up with the frame it is shaded in; looking it up with the frame it was found in
-/// moves the sun's light with the history and fails here.
+/// moves the sun's light with the history and fails here. The sky alone also with its
+/// samples turning with the map (`env_reuse = "map"`).
 #[test]
 fn restir_under_a_turning_sky_matches_the_baseline_slow() {
     let ctx = context();
@@ -208,9 +219,9 @@ fn restir_under_a_turning_sky_matches_the_baseline_slow() {
     let with_sun = format!(
         "{sky}[[light]]\ntype = \"directional\"\ndirection = [0.5, -0.7, -0.4]\nirradiance = 1.5\n"
     );
-    for (lights, case, group) in [
-        (sky.as_str(), BOTH, "turning sky"),
-        (with_sun.as_str(), PAIRWISE, "turning sky and a sun"),
+    for (lights, cases, group) in [
+        (sky.as_str(), &[BOTH, MAP_REUSE][..], "turning sky"),
+        (with_sun.as_str(), &[PAIRWISE][..], "turning sky and a sun"),
     ] {
         let base = Cloud {
             lights,
@@ -224,6 +235,6 @@ fn restir_under_a_turning_sky_matches_the_baseline_slow() {
             reference.image_mean_se,
             start.elapsed()
         );
-        check_cases_against(&ctx, &reference, base, &[case], group);
+        check_cases_against(&ctx, &reference, base, cases, group);
     }
 }

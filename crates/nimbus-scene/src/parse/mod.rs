@@ -100,6 +100,7 @@ pub const RESTIR_KEYS: &[&str] = &[
     "final_transmittance",
     "mis",
     "spatial_shift",
+    "env_reuse",
     "emission",
     "spatial_max_history",
     "temporal_history",
@@ -603,6 +604,11 @@ fn parse_restir(source: &Source, table: &toml::Table) -> Result<RestirSettings> 
                 ("distance", SpatialShift::Distance),
                 ("optical_depth", SpatialShift::OpticalDepth),
             ],
+        )?,
+        env_reuse: f.choice(
+            "env_reuse",
+            Some(d.env_reuse),
+            &[("map", EnvReuse::Map), ("world", EnvReuse::World)],
         )?,
         temporal_history: f.choice(
             "temporal_history",

@@ -232,6 +232,7 @@ nee = "split"
 direct = "escape"
 mis = "pairwise"
 spatial_shift = "optical_depth"
+env_reuse = "map"
 emission = "folded"
 temporal_history = "temporal"
 sigma_star_floor = 0.125
@@ -433,6 +434,7 @@ sigma_star_floor = 0.125
                 final_ratio_tracking: true,
                 mis: MisMode::Pairwise,
                 spatial_shift: SpatialShift::OpticalDepth,
+                env_reuse: EnvReuse::Map,
                 fold_emission: true,
                 spatial_max_history: 2.5,
                 temporal_history: HistoryMode::Temporal,
