@@ -26,6 +26,13 @@ fn main() {
 }
 
 fn run() -> Result<(), String> {
+    // With the `oidn` feature: an rpath to the folder crates/nimbus-oidn linked Intel Open
+    // Image Denoise from (tools/install-oidn.sh puts it in /opt, outside the loader's
+    // paths; docs/oidn.md).
+    if let Ok(dir) = std::env::var("DEP_NIMBUS_OIDN_LIBDIR") {
+        println!("cargo:rustc-link-arg-bins=-Wl,-rpath,{dir}");
+        println!("cargo:rustc-link-arg-tests=-Wl,-rpath,{dir}");
+    }
     let root = PathBuf::from(std::env::var("CARGO_MANIFEST_DIR").map_err(|e| e.to_string())?);
     let shader_dir = root.join("shaders");
     let include_dir = shader_dir.join("include");
