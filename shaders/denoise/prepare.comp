@@ -110,6 +110,8 @@ void main() {
     // Temporal accumulation: the history reprojected bilinearly, taps that show another
     // surface left out; no usable tap restarts the pixel's history.
     float len = 1.0;
+    // The weight of this frame in the integrated colour (1: no history).
+    float alpha = 1.0;
     vec4 integrated = d;
     vec2 m = vec2(l, l * l);
     if (has(DENOISE_TEMPORAL)) {
@@ -137,7 +139,7 @@ void main() {
                 h_color /= w_sum;
                 h_moments /= w_sum;
                 len = min(h_moments.z + 1.0, u_push.max_history);
-                float alpha = max(u_push.temporal_alpha, 1.0 / len);
+                alpha = max(u_push.temporal_alpha, 1.0 / len);
                 float alpha_m = max(u_push.moments_alpha, 1.0 / len);
                 integrated = mix(h_color, d, alpha);
                 m = mix(h_moments.xy, m, alpha_m);
@@ -156,7 +158,9 @@ void main() {
         float sl = luminance(s);
         variance = sl * sl;
     } else if (has(DENOISE_TEMPORAL) && len >= 4.0) {
-        variance = max(0.0, m.y - m.x * m.x);
+        // The moments give one frame's variance; the moving average's is
+        // alpha / (2 - alpha) of it (the steady state of an exponential average).
+        variance = max(0.0, m.y - m.x * m.x) * alpha / (2.0 - alpha);
     }
     variance_dst[i] = variance;
 }
