@@ -362,8 +362,8 @@ fn render_denoise_writes_the_noisy_layer() {
     for (k, name) in ["R", "G", "B"].iter().enumerate() {
         let values = channel(name);
         assert_eq!(values.len(), n);
-        for i in 0..n {
-            assert_eq!(values[i], plain.color.data[i][k], "noisy.{name} at {i}");
+        for (i, (v, p)) in values.iter().zip(&plain.color.data).enumerate() {
+            assert_eq!(*v, p[k], "noisy.{name} at {i}");
         }
     }
     assert_eq!(channel("A"), &plain.alpha);
