@@ -1,8 +1,8 @@
 #version 460
 // Denoiser stage 2, one invocation per pixel: the luminance variance where prepare.comp
 // left none (-1: one frame, no film variance, too short a history), estimated from the
-// 7x7 neighbourhood as the mean square of the luminance's residuals from their 4
-// neighbours' mean (residual() below: an image's smooth gradients do not count as noise),
+// 7x7 neighbourhood as the mean of the squared luminance residuals residual.comp wrote
+// (an image's smooth gradients do not count as noise),
 // the neighbours weighted by the geometry guides (depth, normal) so that it stays on the
 // pixel's surface, times variance_boost. Elsewhere the variance passes through.
 
@@ -10,8 +10,8 @@
 
 #include "common.glsl"
 
-layout(std430, set = 0, binding = BINDING_DENOISE_COLOR_SRC) readonly buffer ColorSrcBlock {
-    vec4 color_src[];
+layout(std430, set = 0, binding = BINDING_DENOISE_RESIDUAL) readonly buffer ResidualBlock {
+    float residual2[];
 };
 layout(std430, set = 0, binding = BINDING_DENOISE_VARIANCE_SRC) readonly buffer VarianceSrcBlock {
     float variance_src[];
@@ -25,24 +25,6 @@ layout(std430, set = 0, binding = BINDING_DENOISE_GUIDES) readonly buffer Guides
 layout(std430, set = 0, binding = BINDING_DENOISE_GRADIENT) readonly buffer GradientBlock {
     vec2 gradient[];
 };
-
-// The luminance at q minus the mean of its neighbours in the image (left, right, up,
-// down), scaled so that its square estimates the noise's variance where the noise is
-// independent between pixels (Var = sigma^2 (1 + 1/k) for k neighbours): a smooth
-// gradient of the image (whose Laplacian is 0) adds nothing.
-float residual(ivec2 q) {
-    float l = luminance(color_src[pixel_index(q)].rgb);
-    float sum = 0.0;
-    float k = 0.0;
-    for (int n = 0; n < 4; ++n) {
-        ivec2 o = n < 2 ? ivec2(2 * n - 1, 0) : ivec2(0, 2 * n - 5);
-        if (inside(q + o)) {
-            sum += luminance(color_src[pixel_index(q + o)].rgb);
-            k += 1.0;
-        }
-    }
-    return (l - sum / k) * inversesqrt(1.0 + 1.0 / k);
-}
 
 void main() {
     ivec2 p = ivec2(gl_GlobalInvocationID.xy);
@@ -71,9 +53,8 @@ void main() {
             if (w <= 0.0) {
                 continue;
             }
-            float r = residual(q);
             w_sum += w;
-            r2 += w * r * r;
+            r2 += w * residual2[j];
         }
     }
     variance_dst[i] = (w_sum > 0.0 ? r2 / w_sum : 0.0) * u_push.variance_boost;

@@ -1,5 +1,5 @@
 //! `nimbus render --denoise`: a GPU denoiser of the SVGF family (Schied et al. 2017,
-//! *Spatiotemporal Variance-Guided Filtering*), as four compute stages in
+//! *Spatiotemporal Variance-Guided Filtering*), as compute stages in
 //! `shaders/denoise/` that run on a render's final image. `docs/denoise.md` has the
 //! measurements; in short:
 //!
@@ -12,12 +12,13 @@
 //!    exponential moving average (weight of the new frame `max(temporal_alpha, 1/n)`
 //!    for a history of n frames, at most `max_history`), with the luminance's first
 //!    two moments beside it.
-//! 2. **variance** (`variance.comp`): the per-pixel variance of the luminance that steers
+//! 2. **residual**, **variance** (`residual.comp`, `variance.comp`): the per-pixel
+//!    variance of the luminance that steers
 //!    the filter: the film's variance of the mean (its standard error squared) where
 //!    the image has two or more independent estimates; else the temporal moments' after
-//!    four frames of history; else a 7×7 spatial estimate (the luminance's spread around
-//!    the pixel, the neighbours weighted by the geometry guides), times
-//!    `variance_boost`.
+//!    four frames of history; else a 7×7 spatial estimate (the mean squared residual of
+//!    the luminance from its 4 neighbours' mean, the neighbours weighted by the geometry
+//!    guides), times `variance_boost`.
 //! 3. **à-trous** (`atrous.comp`) × `iterations`: the edge-avoiding à-trous wavelet
 //!    filter, a 5×5 B3-spline kernel with holes of 1, 2, 4, 8, 16 pixels; each tap is
 //!    weighted by exp(−|l_p − l_q| / (σ_l √var_p)) (var_p 3×3-prefiltered), by the
@@ -336,6 +337,7 @@ struct State {
     motion: Handle<Buffer>,
     output: Handle<Buffer>,
     prepare: (Handle<ComputePipeline>, Handle<DescriptorSet>),
+    residual: (Handle<ComputePipeline>, Handle<DescriptorSet>),
     variance: (Handle<ComputePipeline>, Handle<DescriptorSet>),
     /// The à-trous pipeline and its sets A → B and B → A.
     atrous: (Handle<ComputePipeline>, [Handle<DescriptorSet>; 2]),
@@ -357,8 +359,9 @@ const PREPARE_BINDINGS: [u32; 12] = [
     b::DENOISE_MOMENTS_PREV,
     b::DENOISE_GUIDES_PREV,
 ];
+const RESIDUAL_BINDINGS: [u32; 2] = [b::DENOISE_COLOR_SRC, b::DENOISE_RESIDUAL];
 const VARIANCE_BINDINGS: [u32; 5] = [
-    b::DENOISE_COLOR_SRC,
+    b::DENOISE_RESIDUAL,
     b::DENOISE_VARIANCE_SRC,
     b::DENOISE_VARIANCE_DST,
     b::DENOISE_GUIDES,
@@ -384,13 +387,18 @@ const FINAL_BINDINGS: [u32; 8] = [
     b::DENOISE_HISTORY,
 ];
 
-/// The four stages: name, SPIR-V, bindings.
-fn stages() -> [(&'static str, &'static [u8], &'static [u32]); 4] {
+/// The five pipelines: name, SPIR-V, bindings.
+fn stages() -> [(&'static str, &'static [u8], &'static [u32]); 5] {
     [
         (
             "denoise prepare",
             crate::shaders::DENOISE_PREPARE,
             &PREPARE_BINDINGS,
+        ),
+        (
+            "denoise residual",
+            crate::shaders::DENOISE_RESIDUAL,
+            &RESIDUAL_BINDINGS,
         ),
         (
             "denoise variance",
@@ -507,8 +515,8 @@ impl Denoiser {
             self.state = Some(State::new(ctx, shape, self.params.iterations)?);
         }
         if self.profiler.is_none() && ctx.info().timestamp_valid_bits > 0 {
-            // Scopes: the whole, prepare, variance, each iteration, final.
-            self.profiler = Some(Profiler::new(ctx, 4 + MAX_ITERATIONS, "denoise")?);
+            // Scopes: the whole, prepare, residual, variance, each iteration, final.
+            self.profiler = Some(Profiler::new(ctx, 5 + MAX_ITERATIONS, "denoise")?);
         }
         let state = self
             .state
@@ -637,6 +645,7 @@ impl State {
                 "denoise guides (previous)",
             )?;
             let output = buffer(o, pixels * 16, "denoise output")?;
+            let residual = buffer(o, pixels * 4, "denoise residuals")?;
 
             let mut pipelines = Vec::new();
             for (name, spirv, bindings) in stages() {
@@ -653,8 +662,8 @@ impl State {
                 )?;
                 pipelines.push(o.add(pipeline));
             }
-            let [prepare, variance_p, atrous, finish] = pipelines[..] else {
-                bail!("internal: the denoiser has four stages");
+            let [prepare, residual_p, variance_p, atrous, finish] = pipelines[..] else {
+                bail!("internal: the denoiser has five pipelines");
             };
             // Every binding's buffer, by binding number, for one set.
             let set = |o: &mut GpuObjects,
@@ -691,11 +700,20 @@ impl State {
                 ],
                 "denoise prepare",
             )?;
+            let residual_set = set(
+                o,
+                residual_p,
+                &[
+                    (b::DENOISE_COLOR_SRC, color[0]),
+                    (b::DENOISE_RESIDUAL, residual),
+                ],
+                "denoise residual",
+            )?;
             let variance_set = set(
                 o,
                 variance_p,
                 &[
-                    (b::DENOISE_COLOR_SRC, color[0]),
+                    (b::DENOISE_RESIDUAL, residual),
                     (b::DENOISE_VARIANCE_SRC, variance[1]),
                     (b::DENOISE_VARIANCE_DST, variance[0]),
                     (b::DENOISE_GUIDES, guides),
@@ -750,6 +768,7 @@ impl State {
                 motion,
                 output,
                 prepare: (prepare, prepare_set),
+                residual: (residual_p, residual_set),
                 variance: (variance_p, variance_set),
                 atrous: (atrous, [atrous_sets[0], atrous_sets[1]]),
                 finish: (finish, finish_set),
@@ -765,6 +784,7 @@ impl State {
             motion: state.motion,
             output: state.output,
             prepare: state.prepare,
+            residual: state.residual,
             variance: state.variance,
             atrous: state.atrous,
             finish: state.finish,
@@ -868,6 +888,7 @@ impl State {
                 Ok(())
             };
             stage("prepare", self.prepare, push, true)?;
+            stage("residual", self.residual, push, false)?;
             stage("variance", self.variance, push, false)?;
             for k in 0..iterations {
                 let mut it = *push;
@@ -909,6 +930,7 @@ struct StateHandles {
     motion: Handle<Buffer>,
     output: Handle<Buffer>,
     prepare: (Handle<ComputePipeline>, Handle<DescriptorSet>),
+    residual: (Handle<ComputePipeline>, Handle<DescriptorSet>),
     variance: (Handle<ComputePipeline>, Handle<DescriptorSet>),
     atrous: (Handle<ComputePipeline>, [Handle<DescriptorSet>; 2]),
     finish: (Handle<ComputePipeline>, Handle<DescriptorSet>),

@@ -81,6 +81,8 @@ gpu_consts! {
     pub const DENOISE_GUIDES_PREV: u32 = 61 => BINDING_DENOISE_GUIDES_PREV;
     /// The denoised image (premultiplied RGB, A).
     pub const DENOISE_OUTPUT: u32 = 62 => BINDING_DENOISE_OUTPUT;
+    /// Each pixel's squared luminance residual, for the spatial variance estimate.
+    pub const DENOISE_RESIDUAL: u32 = 63 => BINDING_DENOISE_RESIDUAL;
 
     /// Index of the non-finite sample counter in the stats buffer (uint counters).
     pub const STAT_NON_FINITE: usize = 0;
