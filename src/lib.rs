@@ -6,6 +6,7 @@
 
 pub mod bench;
 pub mod budget;
+pub mod denoise;
 pub mod hashing;
 pub mod merge;
 pub mod output;

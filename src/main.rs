@@ -290,6 +290,12 @@ struct RenderArgs {
     /// the first one (ReSTIR with temporal reuse: up to 4·(temporal_limit + 1)).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(0..=1_000_000))]
     warmup: Option<u32>,
+    /// Denoise the image (an SVGF-style a-trous filter on the GPU, docs/denoise.md): the
+    /// main RGBA is denoised, the noisy image stays in the .exr as the layer `noisy`.
+    /// With --frame-range, each frame's image (temporal accumulation through the motion
+    /// vectors where the render has them).
+    #[arg(long)]
+    denoise: bool,
     #[command(flatten)]
     overrides: Overrides,
 }

@@ -8,7 +8,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use anyhow::{bail, ensure, Context as _, Result};
-use nimbus::merge::{settings_of, write_render, RenderInfo};
+use nimbus::merge::{settings_of, RenderInfo};
 use nimbus::output::{self, Display, Tonemap};
 use nimbus::renderer::{self, FrameSelection, RenderOptions, RenderResult, StopReason, StopRule};
 use nimbus::{load_scene_text, plan};
@@ -365,6 +365,8 @@ pub(super) fn render(args: RenderArgs) -> Result<ExitCode> {
         None => "accumulated frames".to_string(),
     };
 
+    // `--denoise`: the images are denoised as they are written (docs/denoise.md).
+    let mut writer = nimbus::denoise::Writer::new(args.denoise.then(Default::default))?;
     // Each image of a frame range goes into the sequence as soon as it is done.
     let range_dir = args.sequence.clone().filter(|_| args.frame_range.is_some());
     let mut sink = |result: &RenderResult| -> Result<()> {
@@ -374,16 +376,19 @@ pub(super) fn render(args: RenderArgs) -> Result<ExitCode> {
         let partial = result.stop == StopReason::Interrupted;
         let path = sequence_path(dir, frame, &args.sequence_format, partial);
         let info = identity.info(&scene, result, &selection_words(result));
-        write_render(
-            &path,
-            result,
-            &info,
-            &display,
-            scene.render.transparent_background,
-            Some(view_of(&scene, result)),
-        )
-        .with_context(|| format!("writing frame {frame}"))?;
+        let denoised = writer
+            .write(
+                &ctx,
+                &path,
+                result,
+                &info,
+                &display,
+                scene.render.transparent_background,
+                Some(view_of(&scene, result)),
+            )
+            .with_context(|| format!("writing frame {frame}"))?;
         eprintln!("{}", summary(&path, &scene, result));
+        denoised.into_iter().for_each(|line| eprintln!("{line}"));
         Ok(())
     };
     let result = if picked.is_some() {
@@ -418,7 +423,8 @@ pub(super) fn render(args: RenderArgs) -> Result<ExitCode> {
     match &out {
         Some(out) => {
             let info = identity.info(&scene, &result, &selection_words(&result));
-            write_render(
+            let denoised = writer.write(
+                &ctx,
                 out,
                 &result,
                 &info,
@@ -427,6 +433,7 @@ pub(super) fn render(args: RenderArgs) -> Result<ExitCode> {
                 Some(view_of(&scene, &result)),
             )?;
             eprintln!("{}, {memory}", summary(out, &scene, &result));
+            denoised.into_iter().for_each(|line| eprintln!("{line}"));
         }
         None => eprintln!("rendered the frames, {memory}"),
     }
@@ -445,6 +452,7 @@ pub(super) fn render(args: RenderArgs) -> Result<ExitCode> {
             result.step_cap_hits
         );
     }
+    writer.destroy(&ctx);
     report_validation(&ctx)?;
     if result.stop == StopReason::Interrupted {
         eprintln!(

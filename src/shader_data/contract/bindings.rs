@@ -52,6 +52,38 @@ gpu_consts! {
     /// The grid medium's albedo atlas (R32F or RGBA32F).
     pub const GRID_ALBEDO: u32 = 33 => BINDING_GRID_ALBEDO;
 
+    // The denoiser's own pipelines (src/denoise, shaders/denoise): per-pixel buffers.
+    /// The noisy image (premultiplied RGB, A).
+    pub const DENOISE_NOISY: u32 = 48 => BINDING_DENOISE_NOISY;
+    /// The film's variance of the mean (stderr^2 of R, G, B, A).
+    pub const DENOISE_FILM_VARIANCE: u32 = 49 => BINDING_DENOISE_FILM_VARIANCE;
+    /// Guides: normal (xyz) and camera depth (w; < 0 where there is none).
+    pub const DENOISE_GUIDES: u32 = 50 => BINDING_DENOISE_GUIDES;
+    /// Guide: albedo (rgb).
+    pub const DENOISE_ALBEDO: u32 = 51 => BINDING_DENOISE_ALBEDO;
+    /// Guide: screen-space motion (pixels per frame; vec2).
+    pub const DENOISE_MOTION: u32 = 52 => BINDING_DENOISE_MOTION;
+    /// The depth gradient per pixel (dZ/dx, dZ/dy), from the guides.
+    pub const DENOISE_GRADIENT: u32 = 53 => BINDING_DENOISE_GRADIENT;
+    /// The colour (demodulated RGB, A) and luminance variance an iteration reads ...
+    pub const DENOISE_COLOR_SRC: u32 = 54 => BINDING_DENOISE_COLOR_SRC;
+    pub const DENOISE_VARIANCE_SRC: u32 = 55 => BINDING_DENOISE_VARIANCE_SRC;
+    /// ... and writes.
+    pub const DENOISE_COLOR_DST: u32 = 56 => BINDING_DENOISE_COLOR_DST;
+    pub const DENOISE_VARIANCE_DST: u32 = 57 => BINDING_DENOISE_VARIANCE_DST;
+    /// Temporal history: the previous frame's filtered colour (demodulated RGB, A).
+    pub const DENOISE_HISTORY: u32 = 58 => BINDING_DENOISE_HISTORY;
+    /// Luminance moments (m1, m2, history length) of this frame ...
+    pub const DENOISE_MOMENTS: u32 = 59 => BINDING_DENOISE_MOMENTS;
+    /// ... and of the previous one.
+    pub const DENOISE_MOMENTS_PREV: u32 = 60 => BINDING_DENOISE_MOMENTS_PREV;
+    /// The previous frame's guides (normal, depth).
+    pub const DENOISE_GUIDES_PREV: u32 = 61 => BINDING_DENOISE_GUIDES_PREV;
+    /// The denoised image (premultiplied RGB, A).
+    pub const DENOISE_OUTPUT: u32 = 62 => BINDING_DENOISE_OUTPUT;
+    /// Each pixel's squared luminance residual, for the spatial variance estimate.
+    pub const DENOISE_RESIDUAL: u32 = 63 => BINDING_DENOISE_RESIDUAL;
+
     /// Index of the non-finite sample counter in the stats buffer (uint counters).
     pub const STAT_NON_FINITE: usize = 0;
     /// Index of the counter of walks cut short at `GRID_MAX_STEPS`.

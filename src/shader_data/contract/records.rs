@@ -30,6 +30,20 @@ gpu_consts! {
     pub const LIGHT_SPHERE: u32 = 2u32;
     /// Every emitting shape at once (the emitter table, `EmitterGpu`); grid passes only.
     pub const LIGHT_AREA: u32 = 3u32;
+    /// DenoisePush.flags (the denoiser, src/denoise): which guides are given, where the
+    /// variance comes from, the temporal history.
+    pub const DENOISE_HAS_DEPTH: u32 = 1u32;
+    pub const DENOISE_HAS_NORMAL: u32 = 2u32;
+    pub const DENOISE_HAS_ALBEDO: u32 = 4u32;
+    pub const DENOISE_HAS_MOTION: u32 = 8u32;
+    /// The film's per-pixel variance is known (two or more estimates).
+    pub const DENOISE_FILM_VARIANCE: u32 = 16u32;
+    /// The history holds a previous frame to reproject.
+    pub const DENOISE_HISTORY: u32 = 32u32;
+    /// Temporal accumulation is on (the history is read and written).
+    pub const DENOISE_TEMPORAL: u32 = 64u32;
+    /// This a-trous iteration also writes its output into the history colour.
+    pub const DENOISE_WRITE_HISTORY: u32 = 128u32;
 }
 
 gpu_records! {
@@ -430,6 +444,41 @@ gpu_records! {
         velocity_uvw_x: [f32; 4],
         velocity_uvw_y: [f32; 4],
         velocity_uvw_z: [f32; 4],
+    }
+
+    /// Push constants of every dispatch of the denoiser (src/denoise, shaders/denoise).
+    /// 64 bytes.
+    #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+    struct DenoisePush as DenoisePush [std430] {
+        /// Image size in pixels.
+        width: u32,
+        height: u32,
+        /// Pixel step of this a-trous iteration (1, 2, 4, ...).
+        step: u32,
+        /// DENOISE_* bits.
+        flags: u32,
+        /// Luminance edge-stopping: differences in units of the local standard deviation.
+        sigma_luminance: f32,
+        /// Depth edge-stopping: differences in units of the depth gradient's prediction.
+        sigma_depth: f32,
+        /// Normal edge-stopping exponent: max(0, dot(n_p, n_q))^sigma_normal.
+        sigma_normal: f32,
+        /// Temporal accumulation: weight of the new frame once the history is long.
+        temporal_alpha: f32,
+        /// The same for the luminance moments.
+        moments_alpha: f32,
+        /// Factor of the spatial variance estimate (one-frame images).
+        variance_boost: f32,
+        /// Albedo below this is not demodulated (the colour is filtered as it is).
+        albedo_epsilon: f32,
+        /// Longest history (frames) a pixel accumulates.
+        max_history: f32,
+        /// Depth edge-stopping: the relative depth difference per pixel of offset that
+        /// is tolerated besides the gradient's prediction.
+        depth_relative: f32,
+        _pad0: u32,
+        _pad1: u32,
+        _pad2: u32,
     }
 
     /// Push constants of every ReSTIR dispatch. 16 bytes.

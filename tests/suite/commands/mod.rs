@@ -4,6 +4,7 @@
 mod bench_scenes;
 mod cli;
 mod cli_hostile;
+mod denoise;
 mod docs;
 mod exr_header;
 mod generators;
