@@ -493,6 +493,20 @@ fn the_command_line_writes_aov_layers_only_when_asked() {
         "{err}"
     );
 
+    let png = dir.join("x.png");
+    let out = nimbus(&[
+        "render",
+        scene.to_str().unwrap(),
+        "--aovs",
+        "depth",
+        "--out",
+        png.to_str().unwrap(),
+    ]);
+    assert!(!out.status.success());
+    let err = text(&out.stderr);
+    assert!(err.contains("x.png") && err.contains(".exr"), "{err}");
+    assert!(!png.exists());
+
     let out = nimbus(&[
         "render",
         scene.to_str().unwrap(),
