@@ -205,7 +205,7 @@ fn opaque_box_medium_depth_normal_and_albedo() {
 }
 
 #[test]
-fn constant_grid_depth_is_where_transmittance_halves() {
+fn grid_depth_at_half_transmittance_and_normal_against_the_gradient() {
     let ctx = context();
     let dir = scratch("aovs", "constant_grid");
     let ones: Vec<u8> = [1.0f32; 8].iter().flat_map(|v| v.to_le_bytes()).collect();
@@ -246,6 +246,40 @@ fn constant_grid_depth_is_where_transmittance_halves() {
         }
     }
     assert!(checked > 10);
+
+    // A density rising along +x: the normal is the negative gradient, -x.
+    let ramp: Vec<u8> = (0..8)
+        .flat_map(|v| (1.0f32 + 2.0 * (v % 2) as f32).to_le_bytes())
+        .collect();
+    std::fs::write(dir.join("ramp.raw"), ramp).unwrap();
+    let text = std::fs::read_to_string(&path)
+        .unwrap()
+        .replace("ones.raw", "ramp.raw")
+        .replace("[\"depth\", \"albedo\"]", "[\"normal\"]");
+    std::fs::write(&path, text).unwrap();
+    let scene = nimbus_scene::load(&path).unwrap_or_else(|e| panic!("{e:#}"));
+    let result = run(&ctx, &scene, FrameSelection::Mean);
+    let (nx, ny, nz) = (
+        channel(&result, "N.X"),
+        channel(&result, "N.Y"),
+        channel(&result, "N.Z"),
+    );
+    let mut checked = 0;
+    for y in 0..12 {
+        for x in 0..16 {
+            let (o, d) = centre_ray(&scene, 0, x, y);
+            let p = o + ((1.0 - o.z) / d.z) * d;
+            // Where the ramp's trilinear field rises (between the two voxel centres).
+            if p.x.abs() > 0.3 || p.y.abs() > 0.7 {
+                continue;
+            }
+            let i = (y * 16 + x) as usize;
+            let n = Vec3::new(nx[i], ny[i], nz[i]);
+            assert!((n - Vec3::NEG_X).length() < 0.01, "N at ({x}, {y}): {n}");
+            checked += 1;
+        }
+    }
+    assert!(checked > 4, "{checked}");
 }
 
 /// Per pixel and channel, |Σ parts − RGB| within float rounding of their magnitudes.
