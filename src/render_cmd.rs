@@ -181,6 +181,18 @@ pub(super) fn render(args: RenderArgs) -> Result<ExitCode> {
             nimbus_scene::FieldOverride::new("render.transparent_background", true),
         );
     }
+    if let Some(list) = &args.aovs {
+        // Checked here so that a refusal names the flag.
+        let names: Vec<&str> = list.split(',').filter(|n| !n.trim().is_empty()).collect();
+        let aovs = nimbus_scene::Aov::parse_list(names.iter().copied())
+            .map_err(|e| anyhow::anyhow!("--aovs {list}: {e}"))?;
+        let value: Vec<String> = aovs.iter().map(|a| a.name().to_string()).collect();
+        fields.push(nimbus_scene::FieldOverride::from_flag(
+            "--aovs",
+            "render.aovs",
+            value,
+        ));
+    }
     let (scene, scene_text) = load_scene_text(args.scene.as_deref(), &fields)?;
     let plan = plan::build(&scene, None)?;
     if !args.explain && args.frame.is_none() && args.frame_range.is_none() {
@@ -251,6 +263,22 @@ pub(super) fn render(args: RenderArgs) -> Result<ExitCode> {
             bail!("--out FILE is required to render (or pass --explain to print the plan)")
         }
     };
+    // AOVs are EXR layers: an image that cannot hold them is refused, not written without.
+    if !scene.render.aovs.is_empty() {
+        if let Some(out) = &out {
+            ensure!(
+                output::image_extension(out)? == "exr",
+                "--out {}: the AOVs ([render] aovs / --aovs) are layers of an .exr; a .png holds \
+                 the beauty only: write --out x.exr",
+                out.display()
+            );
+        }
+        ensure!(
+            !(args.frame_range.is_some() && args.sequence_format == "png"),
+            "--sequence-format png: the AOVs ([render] aovs / --aovs) are layers of an .exr; \
+             use the exr sequence format"
+        );
+    }
     if let Some(dir) = &args.sequence {
         ensure!(
             !(args.sequence_format == "png" && scene.render.transparent_background),
