@@ -295,12 +295,15 @@ struct RenderArgs {
     /// the first one (ReSTIR with temporal reuse: up to 4·(temporal_limit + 1)).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(0..=1_000_000))]
     warmup: Option<u32>,
-    /// Denoise the image (an SVGF-style a-trous filter on the GPU, docs/denoise.md): the
-    /// main RGBA is denoised, the noisy image stays in the .exr as the layer `noisy`.
-    /// With --frame-range, each frame's image (temporal accumulation through the motion
-    /// vectors where the render has them).
-    #[arg(long)]
-    denoise: bool,
+    /// Denoise the image (docs/denoise.md): the main RGBA is denoised, the noisy image
+    /// stays in the .exr as the layer `noisy`, and the denoiser's guides (depth, normal,
+    /// albedo; motion with --frame-range) are rendered as AOVs and written as layers.
+    /// `--denoise` (or `--denoise=svgf`): an SVGF-style a-trous filter on the GPU, with
+    /// temporal accumulation through the motion vectors across a --frame-range.
+    /// `--denoise=oidn`: Intel Open Image Denoise on the CPU (or CUDA), for final frames;
+    /// needs a nimbus built with `--features oidn` (tools/install-oidn.sh, docs/oidn.md).
+    #[arg(long, num_args = 0..=1, require_equals = true, default_missing_value = "svgf", value_name = "DENOISER", value_parser = nimbus::denoise::Engine::parse)]
+    denoise: Option<nimbus::denoise::Engine>,
     #[command(flatten)]
     overrides: Overrides,
 }

@@ -193,7 +193,27 @@ pub(super) fn render(args: RenderArgs) -> Result<ExitCode> {
             value,
         ));
     }
-    let (scene, scene_text) = load_scene_text(args.scene.as_deref(), &fields)?;
+    let (mut scene, scene_text) = load_scene_text(args.scene.as_deref(), &fields)?;
+    // What the user asked for ([render] aovs / --aovs): the layers an image must hold.
+    let asked_aovs = !scene.render.aovs.is_empty();
+    if args.denoise.is_some() {
+        // The denoiser's guides (docs/denoise.md): depth, normal and albedo, and the motion
+        // that carries its history from frame to frame in a frame range. They are layers
+        // of a denoised .exr too.
+        let mut guides = vec![
+            nimbus_scene::Aov::Depth,
+            nimbus_scene::Aov::Normal,
+            nimbus_scene::Aov::Albedo,
+        ];
+        if args.frame_range.is_some() {
+            guides.push(nimbus_scene::Aov::Motion);
+        }
+        for aov in guides {
+            if !scene.render.aovs.contains(&aov) {
+                scene.render.aovs.push(aov);
+            }
+        }
+    }
     let plan = plan::build(&scene, None)?;
     if !args.explain && args.frame.is_none() && args.frame_range.is_none() {
         if let Some(note) = plan.stills_note(&scene) {
@@ -264,7 +284,7 @@ pub(super) fn render(args: RenderArgs) -> Result<ExitCode> {
         }
     };
     // AOVs are EXR layers: an image that cannot hold them is refused, not written without.
-    if !scene.render.aovs.is_empty() {
+    if asked_aovs {
         if let Some(out) = &out {
             ensure!(
                 output::image_extension(out)? == "exr",
@@ -394,7 +414,7 @@ pub(super) fn render(args: RenderArgs) -> Result<ExitCode> {
     };
 
     // `--denoise`: the images are denoised as they are written (docs/denoise.md).
-    let mut writer = nimbus::denoise::Writer::new(args.denoise.then(Default::default))?;
+    let mut writer = nimbus::denoise::Writer::new(args.denoise)?;
     // Each image of a frame range goes into the sequence as soon as it is done.
     let range_dir = args.sequence.clone().filter(|_| args.frame_range.is_some());
     let mut sink = |result: &RenderResult| -> Result<()> {

@@ -34,7 +34,7 @@
 
 mod writer;
 
-pub use writer::Writer;
+pub use writer::{Engine, Writer};
 
 use anyhow::{bail, ensure, Context as _, Result};
 use nimbus_gpu::{

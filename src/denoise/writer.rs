@@ -17,10 +17,38 @@ use crate::renderer::RenderResult;
 /// The layer that keeps the noisy image in a denoised EXR.
 pub const NOISY_LAYER: &str = "noisy";
 
+/// Which denoiser `nimbus render --denoise[=ENGINE]` runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Engine {
+    /// The SVGF-style à-trous filter on the GPU ([`Denoiser`]), with temporal history.
+    Svgf,
+    /// Intel Open Image Denoise (crates/nimbus-oidn, the `oidn` feature): a neural
+    /// denoiser for final frames, on the CPU or CUDA; no temporal history.
+    Oidn,
+}
+
+impl Engine {
+    /// The engine named `text` (`svgf` or `oidn`), for the command line.
+    pub fn parse(text: &str) -> std::result::Result<Engine, String> {
+        match text {
+            "svgf" => Ok(Engine::Svgf),
+            "oidn" => Ok(Engine::Oidn),
+            _ => Err(format!("unknown denoiser {text:?}; valid: svgf, oidn")),
+        }
+    }
+}
+
+/// The denoiser a [`Writer`] holds.
+enum Held {
+    Svgf(Box<Denoiser>),
+    #[cfg(feature = "oidn")]
+    Oidn(nimbus_oidn::Denoiser),
+}
+
 /// Writes a render's images, denoised when asked for; in a sequence it carries the
 /// denoiser's temporal history from one frame to the next.
 pub struct Writer {
-    denoiser: Option<Denoiser>,
+    denoiser: Option<Held>,
     /// The scene frame last denoised (a gap in the frames restarts the history), and the
     /// last image in and out: the same result written twice (the last frame of a range
     /// to --out too) is denoised once.
@@ -28,19 +56,33 @@ pub struct Writer {
 }
 
 impl Writer {
-    /// A writer that denoises with `params`, or writes the noisy image as it is (`None`).
-    pub fn new(params: Option<DenoiseParams>) -> Result<Self> {
+    /// A writer that denoises with `engine` (the SVGF filter with its default
+    /// parameters, or Open Image Denoise), or writes the noisy image as it is (`None`).
+    pub fn new(engine: Option<Engine>) -> Result<Self> {
+        let denoiser = match engine {
+            None => None,
+            Some(Engine::Svgf) => Some(Held::Svgf(Box::new(Denoiser::new(
+                DenoiseParams::default(),
+            )?))),
+            #[cfg(feature = "oidn")]
+            Some(Engine::Oidn) => Some(Held::Oidn(nimbus_oidn::Denoiser::new()?)),
+            #[cfg(not(feature = "oidn"))]
+            Some(Engine::Oidn) => anyhow::bail!(
+                "--denoise=oidn: this nimbus was built without Open Image Denoise; install it \
+                 with tools/install-oidn.sh and build with `cargo build --release --features \
+                 oidn` (docs/oidn.md), or use --denoise (the GPU filter)"
+            ),
+        };
         Ok(Self {
-            denoiser: params.map(Denoiser::new).transpose()?,
+            denoiser,
             last: None,
         })
     }
 
     /// The guides of a render's image: its depth, normal, albedo and motion AOVs where it
-    /// has them. (The render's AOVs reach [`RenderResult`] on the AOV branch; until they
-    /// do, a render has none and the denoiser runs on the colour and its variance.)
-    fn guides_of(_result: &RenderResult) -> Guides {
-        Guides::none()
+    /// has them (`nimbus render --denoise` asks for them).
+    fn guides_of(result: &RenderResult) -> Guides {
+        Guides::from_aovs(&result.aovs)
     }
 
     /// Writes `result` to `path` like [`write_render`], denoised when this writer
@@ -67,11 +109,17 @@ impl Writer {
                 (Some((Some(prev), _, _)), Some(frame)) => frame == prev + 1,
                 _ => false,
             };
-            if !follows {
-                denoiser.reset();
-            }
             let guides = Self::guides_of(result);
-            let denoised = denoiser.run(ctx, &NoisyImage::of(result), &guides)?;
+            let denoised = match denoiser {
+                Held::Svgf(d) => {
+                    if !follows {
+                        d.reset();
+                    }
+                    d.run(ctx, &NoisyImage::of(result), &guides)?
+                }
+                #[cfg(feature = "oidn")]
+                Held::Oidn(d) => oidn_denoise(d, result, &guides)?,
+            };
             self.last = Some((result.scene_frame, result.image.clone(), denoised));
         }
         let Some((_, _, denoised)) = &self.last else {
@@ -90,9 +138,16 @@ impl Writer {
             });
             layers.color = denoised.color.clone();
             layers.alpha = denoised.alpha.clone();
-            layers
-                .attributes
-                .insert("denoise".into(), denoiser.params().describe());
+            layers.attributes.insert(
+                "denoise".into(),
+                match denoiser {
+                    Held::Svgf(d) => d.params().describe(),
+                    #[cfg(feature = "oidn")]
+                    Held::Oidn(_) => {
+                        "Open Image Denoise 2 (hdr, albedo and normal guides where present)".into()
+                    }
+                },
+            );
             write_layers(path, &layers)?;
         } else {
             let alpha = transparent.then_some(denoised.alpha.as_slice());
@@ -104,10 +159,12 @@ impl Writer {
                 &info.attributes(),
             )?;
         }
-        let ms = denoised.gpu_ms.map_or_else(
-            || "no GPU timestamps".to_string(),
-            |ms| format!("GPU {ms:.2} ms"),
-        );
+        let ms = match (denoiser, denoised.gpu_ms) {
+            #[cfg(feature = "oidn")]
+            (Held::Oidn(_), _) => "Open Image Denoise".to_string(),
+            (_, Some(ms)) => format!("GPU {ms:.2} ms"),
+            (_, None) => "no GPU timestamps".to_string(),
+        };
         Ok(Some(format!(
             "denoised {} ({ms}; variance from {}{}; guides: {})",
             path.display(),
@@ -126,8 +183,41 @@ impl Writer {
 
     /// Frees the denoiser's GPU objects.
     pub fn destroy(self, ctx: &Context) {
-        if let Some(d) = self.denoiser {
+        if let Some(Held::Svgf(d)) = self.denoiser {
             d.destroy(ctx);
         }
     }
+}
+
+/// Open Image Denoise on a render's image: the premultiplied RGB as an HDR image, with the
+/// albedo and normal AOVs as its auxiliary images where the render has both (OIDN takes a
+/// normal only beside an albedo); the alpha stays the render's.
+#[cfg(feature = "oidn")]
+fn oidn_denoise(
+    d: &nimbus_oidn::Denoiser,
+    result: &RenderResult,
+    guides: &Guides,
+) -> Result<Denoised> {
+    let (w, h) = (result.image.width, result.image.height);
+    let interleave = |planes: &[Vec<f32>; 3]| -> Vec<f32> {
+        (0..planes[0].len())
+            .flat_map(|i| [planes[0][i], planes[1][i], planes[2][i]])
+            .collect()
+    };
+    let color: Vec<f32> = result.image.data.iter().flat_map(|p| *p).collect();
+    let albedo = guides.albedo.as_ref().map(interleave);
+    let normal = albedo.as_ref().and(guides.normal.as_ref()).map(interleave);
+    let out = d.denoise(w, h, &color, albedo.as_deref(), normal.as_deref(), true)?;
+    let mut image = ImageRgb::new(w, h);
+    for (p, c) in image.data.iter_mut().zip(out.chunks_exact(3)) {
+        *p = [c[0], c[1], c[2]];
+    }
+    Ok(Denoised {
+        color: image,
+        alpha: result.alpha.clone(),
+        gpu_ms: None,
+        timings: Vec::new(),
+        variance: super::VarianceSource::Estimated,
+        temporal: false,
+    })
 }

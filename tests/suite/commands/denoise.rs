@@ -326,7 +326,8 @@ fn the_pipelines_match_their_spirv() {
 }
 
 /// The CLI: the EXR's RGBA is the denoised image (the denoiser run again on its `noisy`
-/// layer gives it), the `noisy` layer is the render without --denoise.
+/// layer and its guide layers gives it), the `noisy` layer is the render without
+/// --denoise, and the guides it was steered by (depth, normal, albedo) are layers too.
 #[test]
 fn render_denoise_writes_the_noisy_layer() {
     let dir = scratch("denoise", "cli");
@@ -370,6 +371,8 @@ fn render_denoise_writes_the_noisy_layer() {
     assert!(layers.attributes.contains_key("denoise"));
     assert_ne!(layers.color, plain.color, "the RGBA is not denoised");
 
+    let guides = Guides::from_aovs(&layers.aovs);
+    assert_eq!(guides.describe(), "albedo, normal, depth");
     let ctx = context();
     let again = run(
         &ctx,
@@ -380,7 +383,7 @@ fn render_denoise_writes_the_noisy_layer() {
             alpha_std_error: plain.alpha_std_error.clone(),
             estimates: layers.attributes["estimates"].parse().unwrap(),
         },
-        &Guides::none(),
+        &guides,
     );
     assert_eq!(again.variance, VarianceSource::Film);
     for (a, b) in again.color.data.iter().zip(&layers.color.data) {
