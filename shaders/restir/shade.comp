@@ -28,14 +28,25 @@ void restir_main() {
     CameraRay cam = camera_ray(pixel, res_jitter(r), SET_CURRENT);
     vec3 L = vec3(0.0);
     // An empty reservoir (no candidate with a positive target) estimates 0.
+    if (RESTIR_AOV_SPLIT) {
+        restir_aov_clear();
+    }
     if (res_valid(r) && r.p_hat > 0.0 && r.M > 0.0 && r.w_sum > 0.0) {
         vec3 f = path_value(at, r, cam, cam, MODE_FINAL, rng);
         // Domain: p_hat > 0 and M > 0 (checked).
-        L = f * (r.w_sum / (r.p_hat * r.M));
+        if (RESTIR_AOV_SPLIT) {
+            // The components times W; the RGB is the sum of the weighted kinds.
+            L = restir_aov_weigh(r.w_sum / (r.p_hat * r.M));
+        } else {
+            L = f * (r.w_sum / (r.p_hat * r.M));
+        }
     }
     // A non-finite estimate counts as 0: the frame still counts (uniform mean weights).
     if (!film_sample_finite(L)) {
         L = vec3(0.0);
+        if (RESTIR_AOV_SPLIT) {
+            restir_aov_clear();
+        }
     }
     // The film's alpha: 1 - the camera ray's closed-form transmittance through the media,
     // 1 where it meets an emitting sphere or a shape (opaque where nothing reads alpha).
