@@ -62,6 +62,8 @@ pub fn scene_files(scene: &Scene) -> Vec<(String, &Path)> {
         camera: _,
         lights,
         light_keyframes: _,
+        // Names only.
+        light_groups: _,
         media,
         // Follows from the media.
         overlaps: _,

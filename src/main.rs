@@ -274,6 +274,11 @@ struct RenderArgs {
     /// then RGBA with straight alpha.
     #[arg(long)]
     transparent: bool,
+    /// Output layers (AOVs) written into the .exr beside the beauty, comma separated
+    /// (overrides [render] aovs): depth (Z), normal (N), albedo, emission, direct,
+    /// indirect, lightgroups (lightgroup.<name> per [[light]] group), motion, or all.
+    #[arg(long, value_name = "LIST")]
+    aovs: Option<String>,
     /// Tone curve of a .png: aces (Narkowicz's ACES fit), filmic (Hable's curve) or
     /// clamp (none: values above 1 clip).
     #[arg(long, default_value = "aces", value_parser = ["aces", "filmic", "clamp"])]

@@ -6,8 +6,10 @@
 //! pixel (its `samples`), with standard error s_i. The merge is their sample-weighted
 //! mean x = Σ w_i x_i / W (W = Σ w_i), the mean one render of all W samples would give,
 //! and since the inputs are independent (different seeds), its standard error is
-//! exactly s = sqrt(Σ (w_i / W)² s_i²), per pixel and channel. Alpha and AOVs merge the
-//! same way.
+//! exactly s = sqrt(Σ (w_i / W)² s_i²), per pixel and channel. Alpha and the path AOVs
+//! (emission, direct, indirect, light groups, and their `<layer>_stderr` layers in
+//! quadrature) merge the same way; the geometric AOVs (`Z`, `N`, `albedo`, `motion`: the
+//! pixel-centre ray, the same in every part) are the first part's.
 //!
 //! Inputs are refused, naming the file and the attribute, when their Nimbus version,
 //! scene hash (the scene file's bytes), settings hash (the effective scene after every
@@ -206,7 +208,7 @@ pub fn layers_of(result: &RenderResult, info: &RenderInfo, view: Option<ExrView>
         alpha: result.alpha.clone(),
         std_error: result.std_error.clone(),
         alpha_std_error: result.alpha_std_error.clone(),
-        aovs: Vec::new(),
+        aovs: result.aovs.clone(),
         attributes: info.attributes(),
         view,
     }
@@ -437,11 +439,19 @@ fn merge(parts: &[Part]) -> Result<(Layers, RenderInfo)> {
         out.std_error.data[i] = [se4[i][0], se4[i][1], se4[i][2]];
         out.alpha_std_error[i] = se4[i][3];
     }
-    // AOVs present in every part, sample-weighted the same way.
+    // AOVs present in every part. The geometric ones (Z, N, albedo, motion: the
+    // pixel-centre ray, deterministic) are the first part's; the path estimates
+    // (emission, direct, indirect, light groups) are sample-weighted like the beauty and
+    // their `<layer>_stderr` layers added in quadrature, Σ w² s².
     for aov in &first.aovs {
         let mut merged = aov.clone();
+        if crate::renderer::aovs::is_geometric_layer(&aov.name) {
+            out.aovs.push(merged);
+            continue;
+        }
+        let is_stderr = aov.name.ends_with(crate::renderer::aovs::STDERR_SUFFIX);
         for (channel, values) in merged.channels.iter_mut() {
-            values.iter_mut().for_each(|v| *v = 0.0);
+            let mut acc = vec![0.0f64; values.len()];
             for (part, &w) in parts.iter().zip(&weights) {
                 let Some(src) = part
                     .layers
@@ -451,14 +461,18 @@ fn merge(parts: &[Part]) -> Result<(Layers, RenderInfo)> {
                     .and_then(|a| a.channels.iter().find(|(c, _)| c == channel))
                 else {
                     bail!(
-                        "cannot merge: {} has no AOV channel {}.{channel}",
+                        "cannot merge: {} has no AOV channel {}",
                         part.path.display(),
-                        aov.name
+                        aov.channel_name(channel)
                     );
                 };
-                for (v, s) in values.iter_mut().zip(&src.1) {
-                    *v += (w * f64::from(*s)) as f32;
+                for (v, s) in acc.iter_mut().zip(&src.1) {
+                    let s = f64::from(*s);
+                    *v += if is_stderr { w * w * s * s } else { w * s };
                 }
+            }
+            for (v, a) in values.iter_mut().zip(acc) {
+                *v = if is_stderr { a.sqrt() } else { a } as f32;
             }
         }
         out.aovs.push(merged);

@@ -181,6 +181,18 @@ pub(super) fn render(args: RenderArgs) -> Result<ExitCode> {
             nimbus_scene::FieldOverride::new("render.transparent_background", true),
         );
     }
+    if let Some(list) = &args.aovs {
+        // Checked here so that a refusal names the flag.
+        let names: Vec<&str> = list.split(',').filter(|n| !n.trim().is_empty()).collect();
+        let aovs = nimbus_scene::Aov::parse_list(names.iter().copied())
+            .map_err(|e| anyhow::anyhow!("--aovs {list}: {e}"))?;
+        let value: Vec<String> = aovs.iter().map(|a| a.name().to_string()).collect();
+        fields.push(nimbus_scene::FieldOverride::from_flag(
+            "--aovs",
+            "render.aovs",
+            value,
+        ));
+    }
     let (scene, scene_text) = load_scene_text(args.scene.as_deref(), &fields)?;
     let plan = plan::build(&scene, None)?;
     if !args.explain && args.frame.is_none() && args.frame_range.is_none() {

@@ -53,6 +53,7 @@ layout(push_constant) uniform PushBlock {
 #include "grid_resources.glsl"
 #include "shapes.glsl"
 #include "box_media.glsl"
+#include "aov_trace.glsl"
 
 // The first real collision along o + t d in [0, t_end) among the grid and the boxes:
 // the media are disjoint, so the first collision is the earliest of independent first
@@ -111,6 +112,10 @@ float shadow_transmittance(vec3 x, vec3 w, float dist, float t_occlude, float t_
     return T;
 }
 
+// The light record (or LIGHT_ENV) the last sample_light drew: its light group is its
+// contribution's (aov.glsl).
+uint g_light_index = NO_INDEX;
+
 // Sample a light for next-event estimation at x: the direction wi towards it, the
 // distance along wi, how far shapes may block it (t_occlude), and the arriving radiance
 // divided by the (selection x measure) pdf. Zero when the sample carries nothing. A point
@@ -129,6 +134,7 @@ vec3 sample_light(vec3 x, vec3 d, float g, vec3 n, bool on_surface, inout uint r
     float u = rng_next(rng);
     vec2 u2 = vec2(rng_next(rng), rng_next(rng));
     LightSample s = light_sample(0u, u_frame.env_rotation, x, u, u2);
+    g_light_index = s.index;
     wi = s.wi;
     dist = s.dist;
     t_occlude = light_is_area(0u, s.index) ? s.dist * (1.0 - 1e-4) : s.dist;
@@ -150,7 +156,9 @@ vec3 sample_light(vec3 x, vec3 d, float g, vec3 n, bool on_surface, inout uint r
     return s.L_over_pdf;
 }
 
-// Radiance arriving at o from direction -d.
+// Radiance arriving at o from direction -d. Every `L += c` has its twin aov_add (aov.glsl)
+// with the same c: emission seen after `bounce` scatterings (aov_kind_emitted), NEE at
+// vertex `bounce` (aov_kind_nee), each with its light group.
 vec3 radiance(vec3 o, vec3 d, inout uint rng) {
     vec3 L = vec3(0.0);
     vec3 beta = vec3(1.0);
@@ -188,7 +196,9 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
             // A real collision: absorbed emission (sigma_a Le over sigma_t), next-event
             // estimation, then continue by HG.
             if (SC_HAS_EMISSION && medium == NO_INDEX) {
-                L += beta * (1.0 - albedo_medium) * grid_emission(x);
+                vec3 c = beta * (1.0 - albedo_medium) * grid_emission(x);
+                L += c;
+                aov_add(aov_kind_emitted(bounce), AOV_GROUP_DEFAULT, c);
             }
             vec3 wi;
             float dist;
@@ -197,7 +207,9 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
             vec3 Li = sample_light(x, d, g, vec3(0.0), false, rng, wi, dist, t_occlude, target);
             if (any(greaterThan(Li, vec3(0.0)))) {
                 float T = shadow_transmittance(x, wi, dist, t_occlude, 0.0, target, rng);
-                L += beta * albedo_medium * hg_phase(dot(wi, d), g) * Li * T;
+                vec3 c = beta * albedo_medium * hg_phase(dot(wi, d), g) * Li * T;
+                L += c;
+                aov_add(aov_kind_nee(bounce), light_group(g_light_index), c);
             }
             if (bounce + 1u >= SC_MAX_BOUNCES) {
                 break;
@@ -208,7 +220,9 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
         } else if (t_light < t_surface) {
             // An emitting sphere: seen directly only by the camera segment.
             if (bounce == 0u) {
-                L += beta * lights[light_index].irradiance;
+                vec3 c = beta * lights[light_index].irradiance;
+                L += c;
+                aov_add(AOV_EMISSION, light_group(light_index), c);
             }
             break;
         } else if (t_surface < FAR) {
@@ -217,7 +231,9 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
             Shape s = shapes[shape_index];
             vec3 x = o + t_surface * d;
             if (SC_HAS_AREA_LIGHTS && bounce == 0u) {
-                L += beta * shape_emitted(shape_index, x, d);
+                vec3 c = beta * shape_emitted(shape_index, x, d);
+                L += c;
+                aov_add(AOV_EMISSION, AOV_GROUP_DEFAULT, c);
             }
             vec3 albedo = s.albedo;
             if (!any(greaterThan(albedo, vec3(0.0)))) {
@@ -233,7 +249,9 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
             float cos_i = dot(n, wi);
             if (cos_i > 0.0 && any(greaterThan(Li, vec3(0.0)))) {
                 float T = shadow_transmittance(x_off, wi, dist, t_occlude, 0.0, target, rng);
-                L += beta * albedo * INV_PI * cos_i * Li * T;
+                vec3 c = beta * albedo * INV_PI * cos_i * Li * T;
+                L += c;
+                aov_add(aov_kind_nee(bounce), light_group(g_light_index), c);
             }
             if (bounce + 1u >= SC_MAX_BOUNCES) {
                 break;
@@ -244,7 +262,9 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
         } else {
             // Escaped: the environment, seen directly by the camera segment only.
             if (SC_HAS_ENV && bounce == 0u) {
-                L += beta * env_radiance_along(d, u_frame.env_rotation) * u_frame.background;
+                vec3 c = beta * env_radiance_along(d, u_frame.env_rotation) * u_frame.background;
+                L += c;
+                aov_add(AOV_EMISSION, AOV_GROUP_ENV, c);
             }
             break;
         }

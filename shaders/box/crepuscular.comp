@@ -63,14 +63,22 @@ layout(std430, set = 0, binding = BINDING_LIGHTS) readonly buffer LightsBlock {
     Light lights[];
 };
 
+// The light group (aov.glsl) of directional light `index`.
+uint light_group(uint index) {
+    return SC_AOV_GROUPS == 0u ? 0u : lights[index].group;
+}
+
 #include "shapes.glsl"
 #include "box_media.glsl"
+#define AOV_TRACE_NO_GRID
+#include "aov_trace.glsl"
 #include "directional.glsl"
 #include "moments.glsl"
 #include "estimators.glsl"
 #include "environment.glsl"
 
-// Direct light reflected by the Lambertian shape hit at x towards -d.
+// Direct light reflected by the Lambertian shape hit at x towards -d (with light groups,
+// each light's part also added to aov.glsl's g_aov_parts).
 vec3 surface_direct(Shape s, vec3 x, vec3 n) {
     // Shadow rays leave from just off the surface.
     vec3 x_off = offset_ray_origin(x, n);
@@ -80,7 +88,9 @@ vec3 surface_direct(Shape s, vec3 x, vec3 n) {
         Light light = lights[l];
         float cos_i = dot(n, -light.direction_or_position);
         if (cos_i > 0.0) {
-            E += cos_i * light_arriving(light, x_off, 0.0);
+            vec3 e = cos_i * light_arriving(light, x_off, 0.0);
+            E += e;
+            aov_parts_add(light_group(l), s.albedo * INV_PI * e);
         }
     }
     return s.albedo * INV_PI * E;
@@ -150,11 +160,18 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
             float t_b = min(span.y, t_surface);
             if (t_b > t_enter && media[m].sigma_t > 0.0) {
                 float T_before = exp(-box_optical_depth_except(o, d, 0.0, t_enter, m));
+                aov_parts_clear();
                 vec3 L_m = single_scatter_box(m, o, d, t_enter, t_b, rng);
+                vec3 L_sky = vec3(0.0);
                 if (SC_HAS_ENV) {
-                    L_m += sky_scatter_box(m, o, d, t_enter, t_b, rng);
+                    L_sky = sky_scatter_box(m, o, d, t_enter, t_b, rng);
+                    L_m += L_sky;
                 }
                 L += beta * T_before * L_m;
+                // Light scattered once here, after `bounce` earlier scatterings.
+                aov_add_kind(aov_kind_nee(bounce), beta * T_before * L_m);
+                aov_parts_flush(beta * T_before);
+                aov_add_group(AOV_GROUP_ENV, beta * T_before * L_sky);
             }
         }
 
@@ -165,16 +182,25 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
             vec3 x = o + t_surface * d;
             n = shape_normal(s, x, d);
             if (any(greaterThan(s.albedo, vec3(0.0)))) {
+                aov_parts_clear();
                 vec3 L_s = surface_direct(s, x, n);
+                vec3 L_sky = vec3(0.0);
                 if (SC_HAS_ENV) {
-                    L_s += sky_reflect(s, x, n, rng);
+                    L_sky = sky_reflect(s, x, n, rng);
+                    L_s += L_sky;
                 }
-                L += beta * exp(-box_optical_depth(o, d, 0.0, t_surface)) * L_s;
+                vec3 w = beta * exp(-box_optical_depth(o, d, 0.0, t_surface));
+                L += w * L_s;
+                aov_add_kind(aov_kind_nee(bounce), w * L_s);
+                aov_parts_flush(w);
+                aov_add_group(AOV_GROUP_ENV, w * L_sky);
             }
         } else if (SC_HAS_ENV && bounce == 0u) {
             // Add the environment seen through the media by the camera ray (after a
             // scattering it arrives by next-event estimation only).
-            L += exp(-box_optical_depth(o, d, 0.0, FAR)) * sky_radiance(d) * u_frame.background;
+            vec3 c = exp(-box_optical_depth(o, d, 0.0, FAR)) * sky_radiance(d) * u_frame.background;
+            L += c;
+            aov_add(AOV_EMISSION, AOV_GROUP_ENV, c);
         }
         if (bounce + 1u >= SC_MAX_BOUNCES) {
             break;

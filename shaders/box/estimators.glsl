@@ -185,6 +185,7 @@ vec3 single_scatter_me(uint m, BoxMedium bm, vec3 o, vec3 d, vec3 o_local, vec3 
         }
         if (!SC_HAS_SHAPES && !other_media) {
             L += U[l];
+            aov_parts_add(light_group(l), U[l]);
             continue;
         }
         Light light = lights[l];
@@ -231,6 +232,7 @@ vec3 single_scatter_me(uint m, BoxMedium bm, vec3 o, vec3 d, vec3 o_local, vec3 
             V *= T_other / float(n);
         }
         L += U[l] * V;
+        aov_parts_add(light_group(l), U[l] * V);
     }
     return L;
 }
@@ -240,7 +242,9 @@ vec3 single_scatter_me(uint m, BoxMedium bm, vec3 o, vec3 d, vec3 o_local, vec3 
 
 // Single-scattered radiance towards o from box medium m along o + t d, t in
 // [t_enter, t_b], by the estimator SC_ESTIMATOR with u_frame.ray_samples samples. Excludes
-// the transmittance of other media between o and t_enter.
+// the transmittance of other media between o and t_enter. With light groups, the parts of
+// each group (their sum is the result, to rounding) are added to aov.glsl's g_aov_parts,
+// which the caller clears.
 vec3 single_scatter_box(uint m, vec3 o, vec3 d, float t_enter, float t_b, inout uint rng) {
     uint sampling = estimator_sampler(SC_ESTIMATOR);
     uint combiner = estimator_combiner(SC_ESTIMATOR);
@@ -313,6 +317,7 @@ vec3 single_scatter_box(uint m, vec3 o, vec3 d, float t_enter, float t_b, inout 
         // Weight by the visibility towards the light.
         float V = s.lit ? light_visibility(o + s.t * d, light.direction_or_position, m) : 0.0;
         sum_FV += s.F * V;
+        aov_parts_add(light_group(l), s.F * V);
         if (combiner == COMBINER_RATIO) {
             sum_F += s.F;
         }
@@ -322,9 +327,13 @@ vec3 single_scatter_box(uint m, vec3 o, vec3 d, float t_enter, float t_b, inout 
         // unoccluded estimate is zero contributes zero. Domain: sum_F > 0 where divided.
         vec3 ratio = vec3(sum_F.r > 0.0 ? sum_FV.r / sum_F.r : 0.0, sum_F.g > 0.0 ? sum_FV.g / sum_F.g : 0.0,
                           sum_F.b > 0.0 ? sum_FV.b / sum_F.b : 0.0);
+        // Each light group's part of the numerator, over the same denominator.
+        aov_parts_scale(U_total * vec3(sum_F.r > 0.0 ? 1.0 / sum_F.r : 0.0, sum_F.g > 0.0 ? 1.0 / sum_F.g : 0.0,
+                                       sum_F.b > 0.0 ? 1.0 / sum_F.b : 0.0));
         return U_total * ratio;
     }
     // Monte Carlo: the mean. Domain: n >= 1.
+    aov_parts_scale(vec3(1.0 / float(n)));
     return sum_FV / float(n);
 }
 

@@ -57,6 +57,7 @@ layout(std430, set = 0, binding = BINDING_FILM_PARTIAL) buffer FilmPartialBlock 
 #include "camera.glsl"
 #include "counters.glsl"
 #include "rng.glsl"
+#include "aov.glsl"
 
 // Whether `pixel` lies inside the image (dispatches round up to whole workgroups).
 bool film_contains(uvec2 pixel) {
@@ -144,7 +145,9 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng);
 // s, seed). A share that does not end the frame leaves its sums (radiance, coverage,
 // finite samples) in film_partial; the one that ends it adds the frame's estimate (rgb
 // the mean radiance of its finite samples, a the coverage 1 - T; 0 if none is finite) to
-// the film: one estimate per pixel and frame, however the frame was shared.
+// the film: one estimate per pixel and frame, however the frame was shared. The path
+// AOVs (aov.glsl) follow the beauty's sums exactly (per sample, per frame, partial sums
+// between dispatches), and the frame's first dispatch writes the geometric AOVs.
 //
 // In the grid passes the coverage is that of the frame's first camera sample alone: the
 // camera ray's transmittance is a closed form (the grid's costs a dual-cell walk of the
@@ -166,8 +169,13 @@ void film_take_samples(uvec2 pixel, uint frame, uint sample_base, uint sample_co
         coverage = a.a;
         kept = film_partial[2u * index + 1u].x;
     }
+    if (sample_base == 0u) {
+        aov_geometry_pixel(pixel);
+    }
+    aov_frame_begin(index, sample_base);
     for (uint s = 0u; s < sample_count; ++s) {
         uint rng = rng_init(pixel, frame, sample_base + s, u_frame.seed);
+        aov_sample_begin();
         vec2 px = vec2(pixel) + pixel_jitter(rng);
         g_camera_transmittance = 0.0;
 #ifdef FILM_ALPHA_EVERY_SAMPLE
@@ -192,14 +200,17 @@ void film_take_samples(uvec2 pixel, uint frame, uint sample_base, uint sample_co
         if (finite) {
             sum += L;
             kept += 1.0;
+            aov_sample_keep();
         }
     }
     film_flush_counters();
     if (sample_base + sample_count < u_frame.spp) {
         film_partial[2u * index] = vec4(sum, coverage);
         film_partial[2u * index + 1u] = vec4(kept, 0.0, 0.0, 0.0);
+        aov_frame_store(index);
         return;
     }
+    aov_frame_end(index, kept);
     // Domain: kept >= 1 where divided.
     vec3 estimate = kept > 0.0 ? sum / kept : vec3(0.0);
 #ifdef FILM_ALPHA_EVERY_SAMPLE

@@ -64,4 +64,13 @@ layout(std430, set = 0, binding = BINDING_ENV_CDF) readonly buffer EnvCdfBlock {
 #include "grid_emission.glsl"
 #include "lights.glsl"
 
+// The light group (aov.glsl) of light record `index` of lights[], or of the environment
+// for LIGHT_ENV.
+uint light_group(uint index) {
+    if (SC_AOV_GROUPS == 0u) {
+        return 0u;
+    }
+    return index == LIGHT_ENV ? AOV_GROUP_ENV : lights[index].group;
+}
+
 #endif

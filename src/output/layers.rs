@@ -100,10 +100,39 @@ impl ExrView {
 }
 
 /// An extra image beside the beauty: `channels` are (channel name, one value per pixel).
+/// Its channels are written as `<name>.<channel>`, or `<channel>` alone for the empty
+/// name (the depth `Z`).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Aov {
     pub name: String,
     pub channels: Vec<(String, Vec<f32>)>,
+}
+
+impl Aov {
+    /// The full EXR name of its channel `channel`: `N.X`, or `Z` for the empty layer.
+    pub fn channel_name(&self, channel: &str) -> String {
+        if self.name.is_empty() {
+            channel.to_string()
+        } else {
+            format!("{}.{channel}", self.name)
+        }
+    }
+}
+
+/// The values of the AOV channel named `full` as the EXR names it (`Z`, `N.X`,
+/// `albedo.R`, `motion.Y`, `lightgroup.key.G`, ...), if `aovs` has it.
+pub fn find_channel<'a>(aovs: &'a [Aov], full: &str) -> Option<&'a [f32]> {
+    aovs.iter().find_map(|a| {
+        a.channels
+            .iter()
+            .find(|(c, _)| a.channel_name(c) == full)
+            .map(|(_, v)| v.as_slice())
+    })
+}
+
+/// Whether a channel may hold +inf: the depth `Z` where the camera ray meets nothing.
+fn may_be_infinite(full: &str) -> bool {
+    full == "Z"
 }
 
 /// Everything a render's EXR holds.
@@ -158,7 +187,7 @@ impl Layers {
         ];
         for aov in &self.aovs {
             for (channel, values) in &aov.channels {
-                planes.push((format!("{}.{channel}", aov.name), &values[..]));
+                planes.push((aov.channel_name(channel), &values[..]));
             }
         }
         for (name, values) in planes {
@@ -168,7 +197,9 @@ impl Layers {
                 path.display(),
                 values.len()
             );
-            if let Some(i) = values.iter().position(|v| !v.is_finite()) {
+            let infinite_ok = may_be_infinite(&name);
+            let bad = |v: &f32| !(v.is_finite() || (infinite_ok && *v == f32::INFINITY));
+            if let Some(i) = values.iter().position(bad) {
                 bail!(
                     "cannot write {}: channel {name} is not finite at pixel ({}, {})",
                     path.display(),
@@ -222,7 +253,7 @@ pub fn write_layers(path: &Path, layers: &Layers) -> Result<()> {
     for aov in &layers.aovs {
         for (channel, values) in &aov.channels {
             channels.push(AnyChannel::new(
-                format!("{}.{channel}", aov.name).as_str(),
+                aov.channel_name(channel).as_str(),
                 FlatSamples::F32(values.clone()),
             ));
         }

@@ -99,6 +99,8 @@ pub struct BaselinePass {
     area_power: f64,
     /// The scene frame whose lights are uploaded (`None`: the scene's un-keyed lights).
     lights_frame: Option<u32>,
+    /// The AOVs of the render (the light records' groups).
+    aov: crate::plan::AovPlan,
 }
 
 /// Creates the pass of `plan`.
@@ -139,7 +141,9 @@ pub fn create(
         let shapes = upload_records(ctx, o, &non_empty(&shapes), "shapes")?;
         let bvh_nodes = upload_records(ctx, o, &meshes.nodes, "mesh BVH nodes")?;
         let mesh_triangles = upload_records(ctx, o, &meshes.triangles, "mesh triangles")?;
-        let lights = upload_records(ctx, o, &non_empty(&grid.lights), "lights")?;
+        let mut light_records = grid.lights.clone();
+        targets.aov.assign_groups(scene, &mut light_records);
+        let lights = upload_records(ctx, o, &non_empty(&light_records), "lights")?;
         // Without gobos the (compiled-out) planes are one zeroed record.
         let gobo_planes = upload_records(ctx, o, &grid.gobo_planes, "gobo planes")?;
         // Without area lights the (compiled-out) table is one zeroed record.
@@ -268,6 +272,7 @@ pub fn create(
         env_map_luminance: grid.env_map_luminance,
         area_power: grid.emitters.total_power,
         lights_frame: None,
+        aov: targets.aov.clone(),
     })
 }
 
@@ -298,7 +303,8 @@ impl Pass for BaselinePass {
             self.env_map_luminance,
             self.area_power,
         );
-        let records: Vec<LightGpu> = non_empty(&set.lights);
+        let mut records: Vec<LightGpu> = non_empty(&set.lights);
+        self.aov.assign_groups(scene, &mut records);
         let objects = &self.image.objects;
         ctx.upload_buffer(&objects[self.lights], 0, bytemuck::cast_slice(&records))?;
         let base = BaselineUniformsGpu {

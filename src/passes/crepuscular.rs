@@ -263,6 +263,8 @@ pub struct CrepuscularPass {
     moment_map_size: u32,
     /// The scene frame whose lights are uploaded (`None`: the scene's un-keyed lights).
     lights_frame: Option<u32>,
+    /// The AOVs of the render (the light records' groups).
+    aov: crate::plan::AovPlan,
 }
 
 /// Creates the pass of `plan`.
@@ -315,7 +317,9 @@ pub fn create(
         let shapes = upload_records(ctx, o, &non_empty(&records.shapes), "shapes")?;
         let bvh_nodes = upload_records(ctx, o, &meshes.nodes, "mesh BVH nodes")?;
         let mesh_triangles = upload_records(ctx, o, &meshes.triangles, "mesh triangles")?;
-        let lights = upload_records(ctx, o, &non_empty(&records.lights), "lights")?;
+        let mut light_records = records.lights.clone();
+        targets.aov.assign_groups(scene, &mut light_records);
+        let lights = upload_records(ctx, o, &non_empty(&light_records), "lights")?;
         let gobo_planes = upload_records(ctx, o, &non_empty(&records.gobo_planes), "gobo planes")?;
         let moment_map = o.add(ctx.create_buffer(
             &BufferDesc::gpu_only(map_texels * 16, vk::BufferUsageFlags::STORAGE_BUFFER),
@@ -426,6 +430,7 @@ pub fn create(
         moment_frames: light_buffers.2,
         moment_map_size: plan.moment_map_size,
         lights_frame: None,
+        aov: targets.aov.clone(),
     })
 }
 
@@ -505,7 +510,8 @@ impl Pass for CrepuscularPass {
         keyed.lights = scene.lights_at(scene_frame);
         let records = GpuScene::build(&keyed)?;
         let objects = &self.image.objects;
-        let lights = non_empty(&records.lights);
+        let mut lights = non_empty(&records.lights);
+        self.aov.assign_groups(scene, &mut lights);
         ctx.upload_buffer(&objects[self.lights], 0, bytemuck::cast_slice(&lights))?;
         let planes = non_empty(&records.gobo_planes);
         ctx.upload_buffer(&objects[self.gobo_planes], 0, bytemuck::cast_slice(&planes))?;

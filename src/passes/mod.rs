@@ -151,6 +151,9 @@ pub fn create(
 }
 
 /// Buffers shared with the renderer: written by the pass, read back by the renderer.
+/// Every pass binds them (their layout entries and writes are [`Targets::layout`] and
+/// [`Targets::writes`]), the AOV buffers included: without AOVs those are one-element
+/// dummies and the shaders' AOV code is specialized out (`crate::plan::AovPlan`).
 pub struct Targets<'a> {
     pub uniforms: &'a Buffer,
     pub accum: &'a Buffer,
@@ -159,6 +162,18 @@ pub struct Targets<'a> {
     /// A frame's partial sums while its samples are shared among dispatches (pixels x
     /// 32 bytes on a device with a loop budget, 32 bytes elsewhere).
     pub film_partial: &'a Buffer,
+    /// The geometric AOVs of the last frame (`bindings::AOV_GEOMETRY`).
+    pub aov_geometry: &'a Buffer,
+    /// The path AOVs' sums over frames and their squares.
+    pub aov_accum: &'a Buffer,
+    pub aov_accum_sq: &'a Buffer,
+    /// The path AOVs' partial sums of a frame shared among dispatches.
+    pub aov_partial: &'a Buffer,
+    /// `AovUniformsGpu`: the previous frame's camera, the environment's light group.
+    pub aov_uniforms: &'a Buffer,
+    /// Which AOVs the render writes: the specialization constants, and the light groups
+    /// a pass writes into its light records ([`crate::plan::AovPlan::assign_groups`]).
+    pub aov: &'a crate::plan::AovPlan,
     /// Whether the passes count their work into the stats buffer
     /// ([`crate::shader_data::counters`]): `nimbus profile --counters` and `nimbus bench`.
     pub counters: bool,
@@ -169,50 +184,68 @@ pub struct Targets<'a> {
 
 impl<'a> Targets<'a> {
     /// The film's specialization constants for a pipeline counting into counter slot
-    /// `slot` (when this render counts work): `SC_ALPHA` and the counters'.
+    /// `slot` (when this render counts work): `SC_ALPHA`, the counters' and the AOVs'.
     pub fn film_spec(&self, slot: u32) -> FilmSpec {
         FilmSpec {
             counter_slot: self.counters.then_some(slot),
             alpha: self.alpha,
+            aov: AovSpec::of(self.aov),
         }
     }
 
-    /// The descriptor writes of the frame uniforms and the film buffers, which every
-    /// pass binds at the same binding numbers.
-    pub fn writes(&self) -> [DescriptorWrite<'a>; 5] {
+    /// The descriptor writes of the frame uniforms, the film buffers and the AOV
+    /// buffers, which every pass binds at the same binding numbers.
+    pub fn writes(&self) -> [DescriptorWrite<'a>; 10] {
+        let buffer = |binding, buffer| DescriptorWrite::StorageBuffer { binding, buffer };
         [
-            DescriptorWrite::StorageBuffer {
-                binding: bindings::FRAME_UNIFORMS,
-                buffer: self.uniforms,
-            },
-            DescriptorWrite::StorageBuffer {
-                binding: bindings::ACCUM,
-                buffer: self.accum,
-            },
-            DescriptorWrite::StorageBuffer {
-                binding: bindings::ACCUM_SQ,
-                buffer: self.accum_sq,
-            },
-            DescriptorWrite::StorageBuffer {
-                binding: bindings::STATS,
-                buffer: self.stats,
-            },
-            DescriptorWrite::StorageBuffer {
-                binding: bindings::FILM_PARTIAL,
-                buffer: self.film_partial,
-            },
+            buffer(bindings::FRAME_UNIFORMS, self.uniforms),
+            buffer(bindings::ACCUM, self.accum),
+            buffer(bindings::ACCUM_SQ, self.accum_sq),
+            buffer(bindings::STATS, self.stats),
+            buffer(bindings::FILM_PARTIAL, self.film_partial),
+            buffer(bindings::AOV_GEOMETRY, self.aov_geometry),
+            buffer(bindings::AOV_ACCUM, self.aov_accum),
+            buffer(bindings::AOV_ACCUM_SQ, self.aov_accum_sq),
+            buffer(bindings::AOV_PARTIAL, self.aov_partial),
+            buffer(bindings::AOV_UNIFORMS, self.aov_uniforms),
         ]
     }
 
     /// The layout entries of [`Targets::writes`].
-    pub fn layout() -> [BindingDesc; 5] {
+    pub fn layout() -> [BindingDesc; 10] {
         [
             BindingDesc::storage_buffer(bindings::FRAME_UNIFORMS),
             BindingDesc::storage_buffer(bindings::ACCUM),
             BindingDesc::storage_buffer(bindings::ACCUM_SQ),
             BindingDesc::storage_buffer(bindings::STATS),
             BindingDesc::storage_buffer(bindings::FILM_PARTIAL),
+            BindingDesc::storage_buffer(bindings::AOV_GEOMETRY),
+            BindingDesc::storage_buffer(bindings::AOV_ACCUM),
+            BindingDesc::storage_buffer(bindings::AOV_ACCUM_SQ),
+            BindingDesc::storage_buffer(bindings::AOV_PARTIAL),
+            BindingDesc::storage_buffer(bindings::AOV_UNIFORMS),
         ]
+    }
+}
+
+/// The AOV specialization constants of a pipeline (`shaders/include/aov.glsl`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct AovSpec {
+    /// `SC_AOV_GEOMETRY`.
+    pub geometry: bool,
+    /// `SC_AOV_PATHS`.
+    pub paths: bool,
+    /// `SC_AOV_GROUPS`.
+    pub groups: u32,
+}
+
+impl AovSpec {
+    pub fn of(plan: &crate::plan::AovPlan) -> AovSpec {
+        AovSpec {
+            geometry: plan.geometry,
+            paths: plan.paths,
+            groups: plan.group_count(),
+        }
     }
 }
 
@@ -249,6 +282,8 @@ pub struct FilmSpec {
     pub counter_slot: Option<u32>,
     /// Whether the film's alpha is computed.
     pub alpha: bool,
+    /// The AOVs computed.
+    pub aov: AovSpec,
 }
 
 /// A pass of one pipeline dispatched once per frame, one invocation per pixel, with
@@ -447,6 +482,20 @@ pub fn pipeline_specialization(
     all.extend(crate::shader_data::counters::specialization(
         film.counter_slot,
     ));
+    all.extend([
+        (
+            crate::shader_data::features::SC_ID_AOV_GEOMETRY,
+            SpecValue::Bool(film.aov.geometry),
+        ),
+        (
+            crate::shader_data::features::SC_ID_AOV_PATHS,
+            SpecValue::Bool(film.aov.paths),
+        ),
+        (
+            crate::shader_data::features::SC_ID_AOV_GROUPS,
+            SpecValue::U32(film.aov.groups),
+        ),
+    ]);
     all
 }
 
@@ -474,6 +523,7 @@ impl PipelineContract {
         let film = FilmSpec {
             counter_slot: None,
             alpha: false,
+            aov: AovSpec::default(),
         };
         PipelineContract {
             name: name.to_owned(),

@@ -49,6 +49,21 @@ impl Footprint {
             0
         };
         f.host_peak += 2 * pixels * 16 + 2 * pixels * 16 + batches + pixels * 12 * 2;
+        // The AOV buffers (src/plan/aovs.rs): one-element dummies without AOVs.
+        let aov = super::aovs::AovBytes::of(&plan.aov, pixels, true);
+        let aovs = format!("{file}: [render] field `aovs`");
+        for bytes in aov.buffers() {
+            f.add(&aovs, Binding::Storage, bytes);
+        }
+        f.add(
+            "AOV uniforms",
+            Binding::Storage,
+            std::mem::size_of::<crate::shader_data::AovUniformsGpu>() as u64,
+        );
+        // Read back: the geometric buffer, both sums (and their batch sums), and the
+        // layers written.
+        let slots = u64::from(plan.aov.path_slots());
+        f.host_peak += aov.geometry + 2 * aov.accum + batches * slots / 2 + pixels * 4 * 12;
 
         match &plan.integrator {
             Integrator::Crepuscular(p) => crepuscular(scene, p, &mut f)?,

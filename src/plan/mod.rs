@@ -18,6 +18,7 @@
 //! `crate::budget::Footprint::of`, from the plan and the files' headers alone), which the
 //! renderer checks before it allocates anything.
 
+pub mod aovs;
 mod boxes;
 pub mod footprint;
 pub mod levels;
@@ -30,6 +31,7 @@ use nimbus_scene::{BoxEstimator, GridMedium, Medium, RestirSettings, Scene};
 
 use crate::shader_data::features;
 
+pub use aovs::AovPlan;
 pub use levels::{
     load_frames, AskedLevels, LevelChoice, Levels, MAX_AUTO_LEVEL, MAX_LEVEL_EXCESS_TAU,
     MAX_MARCH_ERROR, MIN_AUTO_INDIRECT,
@@ -48,6 +50,8 @@ pub struct RenderPlan {
     /// Every pass the renderer knows and every feature of the chosen one, with whether
     /// it is on and why: the table `--explain` prints.
     pub decisions: Vec<Decision>,
+    /// The output layers beside the beauty (`[render] aovs`).
+    pub aov: AovPlan,
 }
 
 /// The integrator that renders a scene, with its settings.
@@ -443,9 +447,14 @@ impl RenderPlan {
                 decisions.push(Decision::new(name, false, off_reason(scene, kind, other)));
             }
         }
+        let aov = AovPlan::of(scene);
+        if aov.any() {
+            decisions.push(aov.decision());
+        }
         RenderPlan {
             integrator,
             decisions,
+            aov,
         }
     }
 

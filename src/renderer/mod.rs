@@ -14,6 +14,7 @@
 //! still returned).
 use std::time::{Duration, Instant};
 
+pub mod aovs;
 pub mod film;
 pub mod progress;
 
@@ -27,10 +28,12 @@ use nimbus_scene::Scene;
 use crate::budget::film_partial_bytes;
 use crate::output::ImageRgb;
 use crate::passes::{self, Pass, Targets};
+use crate::plan::aovs::AovBytes;
 pub use crate::plan::error_batch;
-use crate::plan::RenderPlan;
+use crate::plan::{AovPlan, RenderPlan};
 use crate::shader_data::counters::{self, WorkCounts};
-use crate::shader_data::{bindings, FrameUniforms};
+use crate::shader_data::{bindings, AovUniformsGpu, FrameUniforms};
+use bytemuck::Zeroable as _;
 use film::{Batches, Totals};
 use progress::{Progress, Status};
 
@@ -176,6 +179,13 @@ pub struct RenderResult {
     /// The work counters of the image's frames, when [`RenderOptions::counters`] asked
     /// for them.
     pub work: Option<WorkCounts>,
+    /// The output layers beside the beauty (`[render] aovs`), named as the EXR names
+    /// them (`Z`, `N.X`, `albedo.R`, `direct.R`, `direct_stderr.R`,
+    /// `lightgroup.<name>.R`, `motion.X`, ...; see [`aovs`]): the geometric ones of the
+    /// image's last frame, the path ones the mean over its frames with their standard
+    /// errors (batch means where the beauty's use them). Look one up by its channel name
+    /// with [`crate::output::layers::find_channel`].
+    pub aovs: Vec<crate::output::layers::Aov>,
 }
 
 impl RenderResult {
@@ -237,18 +247,39 @@ pub fn render_each(
             &BufferDesc::gpu_only(partial_bytes, storage),
             "film partial sums",
         )?);
+        // The AOV buffers: one-element dummies for what the render does not ask for.
+        let aov = AovBytes::of(&plan.aov, pixels, ctx.info().loop_budget().is_some());
+        let mut buffer = |bytes: u64, name: &str| -> Result<Handle<Buffer>> {
+            Ok(o.add(ctx.create_buffer(&BufferDesc::gpu_only(bytes, storage), name)?))
+        };
+        let aov_geometry = buffer(aov.geometry, "AOV geometry")?;
+        let aov_accum = buffer(aov.accum, "AOV sums")?;
+        let aov_accum_sq = buffer(aov.accum, "AOV squares")?;
+        let aov_partial = buffer(aov.partial, "AOV partial sums")?;
+        let aov_uniforms = buffer(std::mem::size_of::<AovUniformsGpu>() as u64, "AOV uniforms")?;
         Ok(TargetHandles {
             uniforms,
             accum,
             accum_sq,
             stats,
             film_partial,
+            aov_geometry,
+            aov_accum,
+            aov_accum_sq,
+            aov_partial,
+            aov_uniforms,
             counters: opts.counters,
             alpha: !opts.skip_alpha,
         })
     })?;
     let result = (|| {
-        let targets = handles.targets(&objects);
+        let targets = handles.targets(&objects, &plan.aov);
+        // Defined contents even where nothing reads them.
+        ctx.upload_buffer(
+            targets.aov_uniforms,
+            0,
+            bytemuck::bytes_of(&AovUniformsGpu::zeroed()),
+        )?;
         let pass = passes::create(ctx, scene, plan, &targets);
         // The pass took what the plan loaded for it; nothing else outlives this point.
         crate::plan::levels::forget_loaded();
@@ -272,6 +303,8 @@ pub fn render_each(
             last_scene_frame: None,
             progress: Progress::new(opts.progress),
             counter_labels: pass.counter_labels(),
+            aov: &plan.aov,
+            last_aov_uniforms: None,
         };
         let outcome = run.all(pass.as_mut(), sink);
         run.progress.finish();
@@ -292,18 +325,29 @@ struct TargetHandles {
     accum_sq: Handle<Buffer>,
     stats: Handle<Buffer>,
     film_partial: Handle<Buffer>,
+    aov_geometry: Handle<Buffer>,
+    aov_accum: Handle<Buffer>,
+    aov_accum_sq: Handle<Buffer>,
+    aov_partial: Handle<Buffer>,
+    aov_uniforms: Handle<Buffer>,
     counters: bool,
     alpha: bool,
 }
 
 impl TargetHandles {
-    fn targets<'a>(&self, objects: &'a GpuObjects) -> Targets<'a> {
+    fn targets<'a>(&self, objects: &'a GpuObjects, aov: &'a AovPlan) -> Targets<'a> {
         Targets {
             uniforms: &objects[self.uniforms],
             accum: &objects[self.accum],
             accum_sq: &objects[self.accum_sq],
             stats: &objects[self.stats],
             film_partial: &objects[self.film_partial],
+            aov_geometry: &objects[self.aov_geometry],
+            aov_accum: &objects[self.aov_accum],
+            aov_accum_sq: &objects[self.aov_accum_sq],
+            aov_partial: &objects[self.aov_partial],
+            aov_uniforms: &objects[self.aov_uniforms],
+            aov,
             counters: self.counters,
             alpha: self.alpha,
         }
@@ -328,6 +372,8 @@ struct ImageState {
     /// When the error was last estimated (to keep read-backs to about one a second).
     last_check: Option<Instant>,
     rel_error: Option<f64>,
+    /// The path AOVs' batches (one per slot), like `batches`.
+    aov_batches: Option<Vec<Batches>>,
 }
 
 /// The frames loop and what it carries between frames.
@@ -350,6 +396,10 @@ struct Run<'a> {
     progress: Progress,
     /// The pass's counter slots by label ([`Pass::counter_labels`]).
     counter_labels: Vec<&'static str>,
+    /// The AOVs the render writes.
+    aov: &'a AovPlan,
+    /// The AOV uniforms last uploaded (their bytes).
+    last_aov_uniforms: Option<Vec<u8>>,
 }
 
 impl Run<'_> {
@@ -440,6 +490,25 @@ impl Run<'_> {
             ctx.upload_buffer(self.targets.uniforms, 0, bytes)?;
             self.last_uniforms = Some(bytes.to_vec());
         }
+        if self.aov.any() {
+            // Motion is against the animation's previous scene frame (none at frame 0).
+            let aov = AovUniformsGpu {
+                prev: if frame > 0 {
+                    pass.frame_uniforms(self.scene, frame - 1)
+                } else {
+                    uniforms
+                },
+                has_prev: u32::from(frame > 0),
+                env_group: self.aov.env_group(self.scene),
+                default_group: self.aov.default_group(),
+                _pad0: 0,
+            };
+            let bytes = bytemuck::bytes_of(&aov);
+            if self.last_aov_uniforms.as_deref() != Some(bytes) {
+                ctx.upload_buffer(self.targets.aov_uniforms, 0, bytes)?;
+                self.last_aov_uniforms = Some(bytes.to_vec());
+            }
+        }
         let previous = self
             .last_scene_frame
             .unwrap_or_else(|| frame.saturating_sub(1));
@@ -493,6 +562,11 @@ impl Run<'_> {
             slowest_frame: Duration::ZERO,
             last_check: None,
             rel_error: None,
+            aov_batches: (self.batch > 1 && self.aov.path_slots() > 0).then(|| {
+                (0..self.aov.path_slots())
+                    .map(|_| Batches::new(self.batch, pixels))
+                    .collect()
+            }),
         };
         let mut stop = StopReason::Done;
         while state.frames < count {
@@ -537,6 +611,14 @@ impl Run<'_> {
                 };
                 if let Some(b) = state.batches.as_mut() {
                     b.close(&sum);
+                }
+                if let Some(batches) = state.aov_batches.as_mut() {
+                    let sums: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(
+                        &self.ctx.readback_buffer(self.targets.aov_accum)?,
+                    );
+                    for (slot, b) in batches.iter_mut().enumerate() {
+                        b.close(&sums[slot * pixels..(slot + 1) * pixels]);
+                    }
                 }
             }
             state.slowest_frame = state.slowest_frame.max(frame_start.elapsed());
@@ -619,6 +701,7 @@ impl Run<'_> {
                 self.ctx.info().name,
             );
         }
+        let aovs = self.aov_layers(&state)?;
         let mut image = ImageRgb::new(r.width, r.height);
         let mut std_error = ImageRgb::new(r.width, r.height);
         for (i, (m, s)) in e.mean.iter().zip(&e.std_error).enumerate() {
@@ -653,7 +736,40 @@ impl Run<'_> {
                     state.frames,
                 )
             }),
+            aovs,
         })
+    }
+
+    /// The image's AOV layers: the geometric buffer and the path AOVs' sums read back.
+    fn aov_layers(&self, state: &ImageState) -> Result<Vec<crate::output::layers::Aov>> {
+        if !self.aov.any() {
+            return Ok(Vec::new());
+        }
+        let r = &self.scene.render;
+        let geometry: Vec<[f32; 4]> = if self.aov.geometry {
+            bytemuck::pod_collect_to_vec(&self.ctx.readback_buffer(self.targets.aov_geometry)?)
+        } else {
+            Vec::new()
+        };
+        let (sum, sum_sq): (Vec<[f32; 4]>, Vec<[f32; 4]>) = if self.aov.path_slots() > 0 {
+            (
+                bytemuck::pod_collect_to_vec(&self.ctx.readback_buffer(self.targets.aov_accum)?),
+                bytemuck::pod_collect_to_vec(&self.ctx.readback_buffer(self.targets.aov_accum_sq)?),
+            )
+        } else {
+            (Vec::new(), Vec::new())
+        };
+        Ok(aovs::layers(
+            self.aov,
+            (r.width, r.height),
+            &geometry,
+            &aovs::PathSums {
+                sum: &sum,
+                sum_sq: &sum_sq,
+                frames: state.frames,
+                batches: state.aov_batches.as_deref(),
+            },
+        ))
     }
 }
 
@@ -679,5 +795,9 @@ fn read_frame(
 fn clear_targets(ctx: &Context, targets: &Targets) -> Result<()> {
     ctx.fill_buffer(targets.accum, 0)?;
     ctx.fill_buffer(targets.accum_sq, 0)?;
+    if targets.aov.path_slots() > 0 {
+        ctx.fill_buffer(targets.aov_accum, 0)?;
+        ctx.fill_buffer(targets.aov_accum_sq, 0)?;
+    }
     ctx.fill_buffer(targets.stats, 0)
 }

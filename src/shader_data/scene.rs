@@ -95,6 +95,10 @@ impl GpuScene {
                         gobo_first_plane: first,
                         gobo_v: v.to_array(),
                         select_cdf: 0.0,
+                        group: 0,
+                        _pad0: 0,
+                        _pad1: 0,
+                        _pad2: 0,
                     });
                 }
                 Light::Environment {

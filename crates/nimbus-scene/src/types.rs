@@ -23,6 +23,11 @@ pub struct Scene {
     /// them when it is empty, e.g. in a scene built in code) is not animated. Use
     /// [`Scene::lights_at`] rather than reading it directly.
     pub light_keyframes: Vec<Vec<LightKeyframe>>,
+    /// `[[light]] group`, indexed like `lights`: the light group of each light (`None`:
+    /// the `default` group). A light past the end of this list (all of them when it is
+    /// empty, e.g. in a scene built in code) is in the default group. Use
+    /// [`Scene::light_group`].
+    pub light_groups: Vec<Option<String>>,
     pub media: Vec<Medium>,
     /// Pairs `(i, j)`, i < j, of `media` indices that share volume (their extinctions
     /// add there): found by the loader's exact test, which lets touching media be.
@@ -51,7 +56,109 @@ pub struct RenderSettings {
     /// foreground alone, premultiplied by its alpha, ready to composite over a plate.
     /// The environment still lights the scene.
     pub transparent_background: bool,
+    /// Nimbus setting `[render] aovs` (default none): the output layers (AOVs) written
+    /// beside the beauty, in [`Aov::ALL`] order, each once.
+    pub aovs: Vec<Aov>,
 }
+
+/// An output layer beside the beauty (`[render] aovs`, `nimbus render --aovs`). The
+/// layers each writes are named in `docs/scene-format.md`, "Output layers (AOVs)".
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Aov {
+    /// `Z`: camera-space depth of the first surface or of the point where the camera
+    /// ray's transmittance falls to 0.5.
+    Depth,
+    /// `N.X N.Y N.Z`: world-space normal there.
+    Normal,
+    /// `albedo.R/G/B`: surface albedo or single-scattering albedo there.
+    Albedo,
+    /// `emission.R/G/B`: emitted radiance seen with no scattering in between.
+    Emission,
+    /// `direct.R/G/B`: light scattered exactly once.
+    Direct,
+    /// `indirect.R/G/B`: everything else.
+    Indirect,
+    /// `lightgroup.<name>.R/G/B` per light group.
+    LightGroups,
+    /// `motion.X motion.Y`: screen-space motion in pixels per frame.
+    Motion,
+}
+
+impl Aov {
+    /// Every AOV, in the order they are written.
+    pub const ALL: [Aov; 8] = [
+        Aov::Depth,
+        Aov::Normal,
+        Aov::Albedo,
+        Aov::Emission,
+        Aov::Direct,
+        Aov::Indirect,
+        Aov::LightGroups,
+        Aov::Motion,
+    ];
+
+    /// The name `[render] aovs` and `--aovs` take.
+    pub fn name(self) -> &'static str {
+        match self {
+            Aov::Depth => "depth",
+            Aov::Normal => "normal",
+            Aov::Albedo => "albedo",
+            Aov::Emission => "emission",
+            Aov::Direct => "direct",
+            Aov::Indirect => "indirect",
+            Aov::LightGroups => "lightgroups",
+            Aov::Motion => "motion",
+        }
+    }
+
+    /// Whether it is geometric (from the pixel-centre camera ray, overwritten each frame)
+    /// rather than a path estimate accumulated like the beauty.
+    pub fn is_geometric(self) -> bool {
+        matches!(self, Aov::Depth | Aov::Normal | Aov::Albedo | Aov::Motion)
+    }
+
+    /// The valid names, for messages: every AOV's, then `all`.
+    pub fn valid_names() -> String {
+        let mut names: Vec<String> = Aov::ALL
+            .iter()
+            .map(|a| format!("\"{}\"", a.name()))
+            .collect();
+        names.push("\"all\"".to_string());
+        names.join(", ")
+    }
+
+    /// Parses a list of names (`all` stands for every AOV) into AOVs in [`Aov::ALL`]
+    /// order, each once; the error names the unknown one and lists the valid names.
+    pub fn parse_list<'a>(names: impl IntoIterator<Item = &'a str>) -> Result<Vec<Aov>, String> {
+        let mut picked = Vec::new();
+        for name in names {
+            let name = name.trim();
+            if name == "all" {
+                picked.extend(Aov::ALL);
+                continue;
+            }
+            match Aov::ALL.iter().find(|a| a.name() == name) {
+                Some(a) => picked.push(*a),
+                None => {
+                    return Err(format!(
+                        "unknown AOV \"{name}\"; valid names: {}",
+                        Aov::valid_names()
+                    ))
+                }
+            }
+        }
+        picked.sort();
+        picked.dedup();
+        Ok(picked)
+    }
+}
+
+/// The light group of lights without `group` (and of media emission and emitting
+/// shapes).
+pub const DEFAULT_LIGHT_GROUP: &str = "default";
+
+/// Most light groups of a scene (named ones and `default` together).
+pub const MAX_LIGHT_GROUPS: usize = 8;
 
 impl Default for RenderSettings {
     fn default() -> Self {
@@ -63,6 +170,7 @@ impl Default for RenderSettings {
             seed: 0,
             pixel_jitter: true,
             transparent_background: false,
+            aovs: Vec::new(),
         }
     }
 }
@@ -707,5 +815,15 @@ impl Gobo {
         let u = direction.cross(up_ref).normalize();
         let v = u.cross(direction);
         (u, v)
+    }
+}
+
+impl Scene {
+    /// The light group of `lights[index]`: its `group`, or [`DEFAULT_LIGHT_GROUP`].
+    pub fn light_group(&self, index: usize) -> &str {
+        self.light_groups
+            .get(index)
+            .and_then(|g| g.as_deref())
+            .unwrap_or(DEFAULT_LIGHT_GROUP)
     }
 }

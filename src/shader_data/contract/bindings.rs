@@ -51,6 +51,19 @@ gpu_consts! {
     pub const BLACKBODY: u32 = 32 => BINDING_BLACKBODY;
     /// The grid medium's albedo atlas (R32F or RGBA32F).
     pub const GRID_ALBEDO: u32 = 33 => BINDING_GRID_ALBEDO;
+    /// The geometric AOVs of the last frame (`AOV_GEOMETRY_VEC4S` vec4 per pixel; one
+    /// vec4 without them), aov.glsl.
+    pub const AOV_GEOMETRY: u32 = 34 => BINDING_AOV_GEOMETRY;
+    /// The path AOVs' sums over frames, slot-major (`vec4 aov_accum[slot * pixels +
+    /// pixel]`; one vec4 without them) ...
+    pub const AOV_ACCUM: u32 = 35 => BINDING_AOV_ACCUM;
+    /// ... and their sums of squares.
+    pub const AOV_ACCUM_SQ: u32 = 36 => BINDING_AOV_ACCUM_SQ;
+    /// A frame's path-AOV partial sums while its samples are shared among dispatches.
+    pub const AOV_PARTIAL: u32 = 37 => BINDING_AOV_PARTIAL;
+    /// `AovUniforms`: the previous frame's camera and the light groups of what has no
+    /// light record.
+    pub const AOV_UNIFORMS: u32 = 38 => BINDING_AOV_UNIFORMS;
 
     /// Index of the non-finite sample counter in the stats buffer (uint counters).
     pub const STAT_NON_FINITE: usize = 0;

@@ -71,6 +71,14 @@ gpu_consts! {
     /// ReSTIR: a medium vertex's emission joins its split-NEE light candidate instead of
     /// being a candidate of its own (restir/path_lights.glsl, "Folded emission").
     pub const SC_ID_FOLD_EMISSION: u32 = 27;
+    /// Every per-pixel pass: the geometric AOVs (depth, normal, albedo, motion) are asked
+    /// for: the pixel-centre camera ray is traced once per frame (aov.glsl).
+    pub const SC_ID_AOV_GEOMETRY: u32 = 28;
+    /// Every per-pixel pass: the path AOVs emission, direct and indirect are asked for.
+    pub const SC_ID_AOV_PATHS: u32 = 29;
+    /// Every per-pixel pass: light groups written (0: none; else the scene's groups,
+    /// at most AOV_MAX_GROUPS).
+    pub const SC_ID_AOV_GROUPS: u32 = 30;
 
     // -----------------------------------------------------------------------------------
     // Values of SC_ESTIMATOR (`shaders/box/crepuscular.comp`): the box-medium estimators
@@ -84,7 +92,21 @@ gpu_consts! {
     pub const ESTIMATOR_ME: u32 = 5u32;
 
     // -----------------------------------------------------------------------------------
+    // Kinds of a path AOV contribution (`aov_add` in aov.glsl): emitted radiance seen with
+    // no scattering in between, light scattered exactly once, everything else.
+    pub const AOV_EMISSION: u32 = 0u32;
+    pub const AOV_DIRECT: u32 = 1u32;
+    pub const AOV_INDIRECT: u32 = 2u32;
+
+    // -----------------------------------------------------------------------------------
     // Limits.
+
+    /// Most light groups (named ones and `default`), nimbus_scene::MAX_LIGHT_GROUPS.
+    pub const AOV_MAX_GROUPS: u32 = 8u32;
+    /// Most path-AOV slots: emission, direct, indirect and the light groups.
+    pub const AOV_MAX_SLOTS: u32 = 11u32;
+    /// vec4s per pixel of the geometric AOV buffer: (N, Z), (albedo, 0), (motion, 0, 0).
+    pub const AOV_GEOMETRY_VEC4S: u32 = 3u32;
 
     /// Workgroup width of every per-pixel pass (the dispatch is ceil(image / group)
     /// groups).

@@ -142,7 +142,7 @@ gpu_records! {
         _pad1: u32,
     }
 
-    /// An analytic light. 80 bytes. The crepuscular pass reads directional lights with
+    /// An analytic light. 96 bytes. The crepuscular pass reads directional lights with
     /// their gobos; the grid-medium passes read every type with its selection CDF.
     #[derive(Clone, Copy, Debug, Pod, Zeroable)]
     struct LightGpu as Light [std430] {
@@ -166,6 +166,12 @@ gpu_records! {
         gobo_v: [f32; 3],
         /// Grid passes: CDF of next-event light selection over the light set.
         select_cdf: f32,
+        /// Its light group (`[[light]] group`; an area light's: `default`), an index into
+        /// the render's groups (`crate::plan::AovPlan::groups`); 0 without light groups.
+        group: u32,
+        _pad0: u32,
+        _pad1: u32,
+        _pad2: u32,
     }
 
     /// Parameters fixed for a frame (std430 storage buffer, see film.glsl). 128 bytes.
@@ -208,6 +214,21 @@ gpu_records! {
         /// (cos, sin) of the environment map's turn about +Y at this frame (envmap.glsl,
         /// `nimbus_scene::EnvRotation`); exactly (1, 0) for none, which the shaders skip.
         env_rotation: [f32; 2],
+    }
+
+    /// What the AOVs read beside the frame's uniforms (std430 storage buffer at
+    /// BINDING_AOV_UNIFORMS, aov.glsl). 144 bytes.
+    #[derive(Clone, Copy, Debug, Pod, Zeroable)]
+    struct AovUniformsGpu as AovUniforms [std430] {
+        /// The previous scene frame's uniforms (its camera), for motion vectors.
+        prev: FrameUniforms,
+        /// 1 when `prev` holds a previous frame (0 for scene frame 0: motion is 0).
+        has_prev: u32,
+        /// The light group of the environment (it has no light record).
+        env_group: u32,
+        /// The `default` group: media emission and emitting shapes.
+        default_group: u32,
+        _pad0: u32,
     }
 
     /// Where light l's moment shadow map lies (the ME estimator, moments.glsl): an

@@ -146,6 +146,10 @@ impl LightSet {
                 gobo_first_plane: gobo_fields.3,
                 gobo_v: gobo_fields.2.to_array(),
                 select_cdf: 0.0,
+                group: 0,
+                _pad0: 0,
+                _pad1: 0,
+                _pad2: 0,
             });
             weights.push(weight.max(0.0));
         }
@@ -161,6 +165,10 @@ impl LightSet {
                 gobo_first_plane: 0,
                 gobo_v: [0.0; 3],
                 select_cdf: 0.0,
+                group: 0,
+                _pad0: 0,
+                _pad1: 0,
+                _pad2: 0,
             });
             weights.push(area_power as f32);
         }

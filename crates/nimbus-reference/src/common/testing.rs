@@ -17,6 +17,7 @@ pub(crate) fn test_scene(
     Scene {
         source: std::path::PathBuf::from("<test>"),
         light_keyframes: Vec::new(),
+        light_groups: Vec::new(),
         render: nimbus_scene::RenderSettings {
             width: size.0,
             height: size.1,

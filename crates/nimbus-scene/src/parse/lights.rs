@@ -17,6 +17,7 @@ pub(super) const LIGHT_TYPES: &[(&str, &[&str])] = &[
             "gobo",
             "gobo_origin",
             "keyframe",
+            "group",
         ],
     ),
     (
@@ -28,12 +29,16 @@ pub(super) const LIGHT_TYPES: &[(&str, &[&str])] = &[
             "scale",
             "rotation_deg",
             "keyframe",
+            "group",
         ],
     ),
-    ("point", &["type", "position", "intensity", "keyframe"]),
+    (
+        "point",
+        &["type", "position", "intensity", "keyframe", "group"],
+    ),
     (
         "sphere",
-        &["type", "center", "radius", "radiance", "keyframe"],
+        &["type", "center", "radius", "radiance", "keyframe", "group"],
     ),
 ];
 /// What a `[[light.keyframe]]` may set, per light type: `frame`, then the animated
@@ -49,14 +54,15 @@ pub(super) const LIGHT_KEYFRAME_KEYS: &[(&str, &[&str])] = &[
 /// rejected: their normalized lerp is ill-conditioned (undefined when exactly opposite).
 const MIN_KEYFRAME_DIRECTION_DOT: f32 = -0.999;
 
-/// A `[[light]]` and its `[[light.keyframe]]` entries (resolved: fields a keyframe
-/// leaves out hold the light's static value).
+/// A `[[light]]`, its `[[light.keyframe]]` entries (resolved: fields a keyframe leaves
+/// out hold the light's static value) and its light `group`.
 pub(super) fn parse_light(
     source: &Source,
     index: usize,
     table: &toml::Table,
-) -> Result<(Light, Vec<LightKeyframe>)> {
+) -> Result<(Light, Vec<LightKeyframe>, Option<String>)> {
     let (kind, f) = typed_fields(source, "light", index, table, LIGHT_TYPES)?;
+    let group = parse_light_group(&f)?;
     let keys = parse_light_keyframes(&f, kind)?;
     // With keyframes, the static animatable fields default to the first keyframe's.
     let first_vector = keys.first().and_then(|k| k.vector);
@@ -127,7 +133,30 @@ pub(super) fn parse_light(
         },
     };
     let keyframes = resolve_light_keyframes(&f, &light, &keys)?;
-    Ok((light, keyframes))
+    Ok((light, keyframes, group))
+}
+
+/// `group`: a light group name, written into EXR channel names
+/// (`lightgroup.<name>.R`): 1 to 64 ASCII letters, digits, `_` or `-`.
+fn parse_light_group(f: &Fields) -> Result<Option<String>> {
+    let Some(name) = f.opt_str("group")? else {
+        return Ok(None);
+    };
+    let valid = !name.is_empty()
+        && name.len() <= 64
+        && name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-');
+    if !valid {
+        return Err(f.error(
+            "group",
+            format!(
+                "\"{name}\" is not a light group name: 1 to 64 ASCII letters, digits, `_` or \
+                 `-` (it becomes the EXR layer lightgroup.<name>)"
+            ),
+        ));
+    }
+    Ok(Some(name.to_string()))
 }
 
 /// One `[[light.keyframe]]` as written: the fields it leaves out are `None`.

@@ -45,6 +45,7 @@ const RENDER_KEYS: &[&str] = &[
     "seed",
     "pixel_jitter",
     "transparent_background",
+    "aovs",
 ];
 const CAMERA_KEYS: &[&str] = &[
     "position",
@@ -176,12 +177,37 @@ pub(crate) fn parse_scene(text: &str, file: &Path, overrides: &[FieldOverride]) 
         .ok_or_else(|| source.error("missing required table [camera]"))?;
     let camera = parse_camera(&source, camera_table, render.frames)?;
 
-    let (lights, light_keyframes) = top
-        .tables("light")?
-        .into_iter()
-        .enumerate()
-        .map(|(i, table)| parse_light(&source, i + 1, table))
-        .collect::<Result<(Vec<_>, Vec<_>)>>()?;
+    let mut lights = Vec::new();
+    let mut light_keyframes = Vec::new();
+    let mut light_groups = Vec::new();
+    let mut group_names: Vec<String> = Vec::new();
+    for (i, table) in top.tables("light")?.into_iter().enumerate() {
+        let (light, keys, group) = parse_light(&source, i + 1, table)?;
+        if let Some(name) = &group {
+            if !group_names.contains(name) {
+                group_names.push(name.clone());
+            }
+            // Named groups and `default` (which a scene may need for its other lights,
+            // its emitting media and shapes) together.
+            let named = group_names
+                .iter()
+                .filter(|g| g.as_str() != DEFAULT_LIGHT_GROUP)
+                .count();
+            if named >= MAX_LIGHT_GROUPS {
+                return Err(source.error(format!(
+                    "[[light]] #{}: field `group`: \"{name}\" is light group {} of the scene \
+                     besides \"{DEFAULT_LIGHT_GROUP}\"; at most {} named groups are allowed \
+                     ({MAX_LIGHT_GROUPS} with \"{DEFAULT_LIGHT_GROUP}\")",
+                    i + 1,
+                    named,
+                    MAX_LIGHT_GROUPS - 1
+                )));
+            }
+        }
+        lights.push(light);
+        light_keyframes.push(keys);
+        light_groups.push(group);
+    }
 
     let mut media = Vec::new();
     let mut medium_bounds: Vec<(String, Solid)> = Vec::new();
@@ -219,6 +245,7 @@ pub(crate) fn parse_scene(text: &str, file: &Path, overrides: &[FieldOverride]) 
         camera,
         lights,
         light_keyframes,
+        light_groups,
         media,
         overlaps,
         shapes,
@@ -294,7 +321,43 @@ fn parse_render(source: &Source, table: &toml::Table) -> Result<RenderSettings> 
         transparent_background: f
             .opt_bool("transparent_background")?
             .unwrap_or(defaults.transparent_background),
+        aovs: parse_aovs(&f)?,
     })
+}
+
+/// `[render] aovs`: an array of AOV names ([`Aov::parse_list`]).
+fn parse_aovs(f: &Fields) -> Result<Vec<Aov>> {
+    let Some(value) = f.value("aovs") else {
+        return Ok(Vec::new());
+    };
+    let Value::Array(items) = value else {
+        return Err(f.error(
+            "aovs",
+            format!(
+                "expected an array of AOV names such as [\"depth\", \"normal\"], found {}; \
+                 valid names: {}",
+                type_name(value),
+                Aov::valid_names()
+            ),
+        ));
+    };
+    let mut names = Vec::with_capacity(items.len());
+    for item in items {
+        match item {
+            Value::String(s) => names.push(s.as_str()),
+            other => {
+                return Err(f.error(
+                    "aovs",
+                    format!(
+                        "expected AOV names (strings), found {}; valid names: {}",
+                        type_name(other),
+                        Aov::valid_names()
+                    ),
+                ))
+            }
+        }
+    }
+    Aov::parse_list(names).map_err(|message| f.error("aovs", message))
 }
 
 /// Why a camera looking from `position` at `look_at` with `up` has no frame, if it

@@ -250,6 +250,7 @@ sigma_star_floor = 0.125
             seed: 42,
             pixel_jitter: false,
             transparent_background: false,
+            aovs: Vec::new(),
         }
     );
     let camera = &scene.camera;
