@@ -52,12 +52,12 @@ bool segment_hits_light(uint set, vec3 o, vec3 d, float t1) {
 //   MODE_FINAL:  the integrand F with unbiased transmittance (current frame).
 // `src` is the camera ray of the pixel that owns the stored representation; only vertex
 // reuse needs it, to rebuild x_2 in world space.
-// With path AOVs (RESTIR_AOV_SPLIT), the final mode also leaves the value's components in
-// g_aov_kind / g_aov_group (path_aovs.glsl) and returns their sum.
+// With path AOVs (aov_paths_on()), the final mode also leaves the value's terms in the
+// sample's AOV slots (path_aovs.glsl) and returns their sum.
 vec3 path_value(uint at, Reservoir r, CameraRay cam, CameraRay src, uint mode, inout uint rng) {
-    bool split = RESTIR_AOV_SPLIT && mode == MODE_FINAL;
+    bool split = aov_paths_on() && mode == MODE_FINAL;
     if (split) {
-        restir_aov_clear();
+        aov_sample_begin();
     }
     if (!res_valid(r)) {
         return vec3(0.0);
@@ -80,8 +80,8 @@ vec3 path_value(uint at, Reservoir r, CameraRay cam, CameraRay src, uint mode, i
         if (split) {
             // Emission seen directly: the group of the sphere light or the environment
             // it ends on (an emitting shape's is the default group).
-            restir_aov_part(AOV_EMISSION, camera_end_group(set, cam.o, cam.d),
-                            L * T * boxes_transmittance(cam.o, cam.d, t_end));
+            aov_add(aov_kind_emitted(0u), camera_end_group(set, cam.o, cam.d),
+                    L * T * boxes_transmittance(cam.o, cam.d, t_end));
             return restir_aov_sum();
         }
         return L * T * boxes_transmittance(cam.o, cam.d, t_end);
@@ -180,8 +180,8 @@ vec3 path_value(uint at, Reservoir r, CameraRay cam, CameraRay src, uint mode, i
             // a box does not emit).
             if (split) {
                 // Emitted after the k' - 1 scatterings before x_k'.
-                restir_aov_part(restir_aov_kind(kp - 1u), AOV_GROUP_DEFAULT,
-                                f * (vec3(1.0) - albedo) * sigma_t * grid_emission(x) * geometry);
+                aov_add(aov_kind_emitted(kp - 1u), AOV_GROUP_DEFAULT,
+                        f * (vec3(1.0) - albedo) * sigma_t * grid_emission(x) * geometry);
                 return restir_aov_sum();
             }
             return f * (vec3(1.0) - albedo) * sigma_t * grid_emission(x) * geometry;
@@ -217,7 +217,7 @@ vec3 path_value(uint at, Reservoir r, CameraRay cam, CameraRay src, uint mode, i
             // Light scattered at each of the k' vertices; term 0 is the stored light's,
             // term k the delta light k - 1's.
             vec3 term = s * T * boxes_transmittance(x, wi, dist);
-            restir_aov_part(restir_aov_kind(kp), restir_aov_light_group(k == 0u ? res_light(r) : k - 1u), term);
+            aov_add(aov_kind_nee(kp - 1u), restir_light_group(set, k == 0u ? res_light(r) : k - 1u), term);
             light += term;
             continue;
         }
@@ -230,9 +230,10 @@ vec3 path_value(uint at, Reservoir r, CameraRay cam, CameraRay src, uint mode, i
     if (split) {
         // Folded emission: emitted at x_k', after the k' - 1 scatterings before it.
         if (SC_FOLD_EMISSION) {
-            restir_aov_part(restir_aov_kind(kp - 1u), AOV_GROUP_DEFAULT, q_fold * last_emitted);
+            aov_add(aov_kind_emitted(kp - 1u), AOV_GROUP_DEFAULT, q_fold * last_emitted);
         }
-        return restir_aov_finish(f, geometry);
+        restir_aov_finish(f, geometry);
+        return restir_aov_sum();
     }
     light += q_fold * last_emitted;
     return f * light * geometry;
