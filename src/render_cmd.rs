@@ -263,6 +263,22 @@ pub(super) fn render(args: RenderArgs) -> Result<ExitCode> {
             bail!("--out FILE is required to render (or pass --explain to print the plan)")
         }
     };
+    // AOVs are EXR layers: an image that cannot hold them is refused, not written without.
+    if !scene.render.aovs.is_empty() {
+        if let Some(out) = &out {
+            ensure!(
+                output::image_extension(out)? == "exr",
+                "--out {}: the AOVs ([render] aovs / --aovs) are layers of an .exr; a .png holds \
+                 the beauty only: write --out x.exr",
+                out.display()
+            );
+        }
+        ensure!(
+            !(args.frame_range.is_some() && args.sequence_format == "png"),
+            "--sequence-format png: the AOVs ([render] aovs / --aovs) are layers of an .exr; \
+             use the exr sequence format"
+        );
+    }
     if let Some(dir) = &args.sequence {
         ensure!(
             !(args.sequence_format == "png" && scene.render.transparent_background),

@@ -197,7 +197,7 @@ fn check_image(path: &Path, img: &ImageRgb) -> anyhow::Result<()> {
 }
 
 /// The lower-case extension of an image path, if Nimbus writes that format.
-pub(crate) fn image_extension(path: &Path) -> anyhow::Result<String> {
+pub fn image_extension(path: &Path) -> anyhow::Result<String> {
     let extension = path
         .extension()
         .and_then(|e| e.to_str())

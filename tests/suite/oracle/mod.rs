@@ -3,6 +3,7 @@
 //! an invariant every integrator must keep.
 
 mod alpha;
+mod aovs;
 mod baseline;
 mod box_env;
 mod box_estimators;
