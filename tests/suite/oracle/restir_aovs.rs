@@ -435,7 +435,7 @@ fn check_sums(ctx: &Context, label: &str, cloud: Cloud, groups: &[&str]) -> Rend
 /// Split NEE (a sun, a point light and a sky, K = 3), with and without emission and with
 /// folded emission; one-light NEE with emission candidates.
 #[test]
-fn restir_path_aovs_sum_to_the_rgb() {
+fn restir_path_aovs_sum_to_the_rgb_slow() {
     let ctx = context();
     let base = Cloud {
         size: (20, 14),
@@ -485,7 +485,7 @@ fn restir_path_aovs_sum_to_the_rgb() {
 /// emission seen directly from each, one-light NEE (sphere and area lights), and light
 /// groups alone (no kinds asked): the groups then sum to the RGB.
 #[test]
-fn restir_path_aovs_sum_to_the_rgb_with_emitters() {
+fn restir_path_aovs_sum_to_the_rgb_with_emitters_slow() {
     let ctx = context();
     let lights = r#"
 [[light]]
