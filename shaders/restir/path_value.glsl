@@ -34,6 +34,7 @@
 #include "vertex_media.glsl"
 #include "path_surfaces.glsl"
 #include "path_lights.glsl"
+#include "path_aovs.glsl"
 
 // Path values (Algorithm 4 for targets, Algorithm 6's F for final shading).
 
@@ -51,7 +52,13 @@ bool segment_hits_light(uint set, vec3 o, vec3 d, float t1) {
 //   MODE_FINAL:  the integrand F with unbiased transmittance (current frame).
 // `src` is the camera ray of the pixel that owns the stored representation; only vertex
 // reuse needs it, to rebuild x_2 in world space.
+// With path AOVs (aov_paths_on()), the final mode also leaves the value's terms in the
+// sample's AOV slots (path_aovs.glsl) and returns their sum.
 vec3 path_value(uint at, Reservoir r, CameraRay cam, CameraRay src, uint mode, inout uint rng) {
+    bool split = aov_paths_on() && mode == MODE_FINAL;
+    if (split) {
+        aov_sample_begin();
+    }
     if (!res_valid(r)) {
         return vec3(0.0);
     }
@@ -70,6 +77,13 @@ vec3 path_value(uint at, Reservoir r, CameraRay cam, CameraRay src, uint mode, i
         }
         float T = mode == MODE_FINAL ? final_transmittance(cam.o, cam.d, t_end, rng)
                                      : reuse_transmittance(set, cam.o, cam.d, t_end);
+        if (split) {
+            // Emission seen directly: the group of the sphere light or the environment
+            // it ends on (an emitting shape's is the default group).
+            aov_add(aov_kind_emitted(0u), camera_end_group(set, cam.o, cam.d),
+                    L * T * boxes_transmittance(cam.o, cam.d, t_end));
+            return restir_aov_sum();
+        }
         return L * T * boxes_transmittance(cam.o, cam.d, t_end);
     }
     // The medium vertex's scattering, set at each medium vertex.
@@ -164,6 +178,12 @@ vec3 path_value(uint at, Reservoir r, CameraRay cam, CameraRay src, uint mode, i
             }
             // Emission path: the grid's sigma_a Le at x_k' (absorbed-emission convention;
             // a box does not emit).
+            if (split) {
+                // Emitted after the k' - 1 scatterings before x_k'.
+                aov_add(aov_kind_emitted(kp - 1u), AOV_GROUP_DEFAULT,
+                        f * (vec3(1.0) - albedo) * sigma_t * grid_emission(x) * geometry);
+                return restir_aov_sum();
+            }
             return f * (vec3(1.0) - albedo) * sigma_t * grid_emission(x) * geometry;
         }
         // Folded emission: the last vertex's sigma_a Le joins its light terms.
@@ -196,12 +216,28 @@ vec3 path_value(uint at, Reservoir r, CameraRay cam, CameraRay src, uint mode, i
             continue;
         }
         float T = mode == MODE_FINAL ? final_transmittance(x, wi, dist, rng) : reuse_transmittance(set, x, wi, dist);
+        if (split) {
+            // Light scattered at each of the k' vertices; term 0 is the stored light's,
+            // term k the delta light k - 1's.
+            vec3 term = s * T * boxes_transmittance(x, wi, dist);
+            aov_add(aov_kind_nee(kp - 1u), restir_light_group(set, k == 0u ? res_light(r) : k - 1u), term);
+            light += term;
+            continue;
+        }
         light += s * T * boxes_transmittance(x, wi, dist);
     }
     // Folded emission, weighted by q as the delta lights are: its integral over the
     // environment sample is sigma_a Le (without split NEE the environment is the only
     // light, drawn with probability 1: q is its density).
     float q_fold = SC_NEE_SPLIT ? q : env_sample_pdf(stored_dir, env_rot);
+    if (split) {
+        // Folded emission: emitted at x_k', after the k' - 1 scatterings before it.
+        if (SC_FOLD_EMISSION) {
+            aov_add(aov_kind_emitted(kp - 1u), AOV_GROUP_DEFAULT, q_fold * last_emitted);
+        }
+        restir_aov_finish(f, geometry);
+        return restir_aov_sum();
+    }
     light += q_fold * last_emitted;
     return f * light * geometry;
 }

@@ -107,6 +107,15 @@ vec2 env_rotation_of(uint set) {
     return set == SET_CURRENT ? u_frame.env_rotation : u_prev_frame.env_rotation;
 }
 
+// Velocity (m per frame) at world x, linearly filtered (temporal reprojection and the
+// motion AOV).
+vec3 velocity_at(vec3 x) {
+    vec4 h = vec4(x, 1.0);
+    vec3 uvw = vec3(dot(u_restir.velocity_uvw_x, h), dot(u_restir.velocity_uvw_y, h),
+                    dot(u_restir.velocity_uvw_z, h));
+    return textureLod(u_velocity, uvw, 0.0).xyz;
+}
+
 // The reservoir of `pixel` in slot `slot`: slot s of pixel p starts at uint
 // (s * pixels + p) * stride, stride = reservoir_stride (see reservoir.glsl).
 uint res_at(uint slot, uvec2 pixel) {

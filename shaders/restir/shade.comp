@@ -6,8 +6,38 @@
 
 #extension GL_GOOGLE_include_directive : require
 #include "path_value.glsl"
+// aov_geometry_point: the geometric AOVs' point, shared by every integrator.
+#include "aov_trace.glsl"
 
 void restir_main();
+
+// The geometric AOVs of `pixel` (aov.glsl's definition): the point P of the pixel-centre
+// camera ray that every integrator finds (aov_geometry_point, exact transmittance: not
+// the conservative grid the walks track), and P's motion as temporal reuse reprojects it:
+// a point of the grid medium moves back by the velocity field (metres per frame), a
+// surface, an emitting sphere or a box medium's point stays where it is.
+void restir_geometry_aovs(uvec2 pixel) {
+    vec3 o = u_frame.cam_position;
+    vec3 d = camera_direction(u_frame, vec2(pixel) + 0.5);
+    float t;
+    vec3 normal;
+    vec3 albedo;
+    if (!aov_geometry_point(o, d, t, normal, albedo)) {
+        aov_write_geometry(pixel, aov_infinity(), vec3(0.0), vec3(0.0), vec2(0.0));
+        return;
+    }
+    vec3 p = o + t * d;
+    vec3 p_prev = p;
+    if (SC_HAS_VELOCITY) {
+        // P lies in the media where it is nearer than everything opaque on the ray.
+        uint sphere;
+        float t_opaque = min(nearest_sphere_light(0u, o, d, 0.0, FAR, sphere), surface_along(o, d, FAR).t);
+        if (t < t_opaque && box_medium_at(p) == NO_INDEX) {
+            p_prev = p - velocity_at(p);
+        }
+    }
+    aov_write_geometry(pixel, t * dot(d, u_frame.cam_forward), normal, albedo, aov_motion(p, p_prev));
+}
 
 // The stage, then its counters into the stats buffer.
 void main() {
@@ -27,15 +57,27 @@ void restir_main() {
     Reservoir r = res_load(at);
     CameraRay cam = camera_ray(pixel, res_jitter(r), SET_CURRENT);
     vec3 L = vec3(0.0);
+    if (aov_paths_on()) {
+        aov_sample_begin();
+    }
     // An empty reservoir (no candidate with a positive target) estimates 0.
     if (res_valid(r) && r.p_hat > 0.0 && r.M > 0.0 && r.w_sum > 0.0) {
         vec3 f = path_value(at, r, cam, cam, MODE_FINAL, rng);
         // Domain: p_hat > 0 and M > 0 (checked).
-        L = f * (r.w_sum / (r.p_hat * r.M));
+        if (aov_paths_on()) {
+            // The terms times W; the RGB is the sum of the weighted slots.
+            restir_aov_weigh(r.w_sum / (r.p_hat * r.M));
+            L = restir_aov_sum();
+        } else {
+            L = f * (r.w_sum / (r.p_hat * r.M));
+        }
     }
     // A non-finite estimate counts as 0: the frame still counts (uniform mean weights).
     if (!film_sample_finite(L)) {
         L = vec3(0.0);
+        if (aov_paths_on()) {
+            aov_sample_begin();
+        }
     }
     // The film's alpha: 1 - the camera ray's closed-form transmittance through the media,
     // 1 where it meets an emitting sphere or a shape (opaque where nothing reads alpha).
@@ -47,4 +89,9 @@ void restir_main() {
         T_camera = opaque ? 0.0 : grid_transmittance(cam.o, cam.d, 0.0, FAR) * boxes_transmittance(cam.o, cam.d, FAR);
     }
     film_accumulate(pixel, L, 1.0 - clamp(T_camera, 0.0, 1.0));
+    // The weighted slots are the frame's estimates (a dropped sample's are 0).
+    aov_accumulate(pixel, 1.0);
+    if (SC_AOV_GEOMETRY) {
+        restir_geometry_aovs(pixel);
+    }
 }

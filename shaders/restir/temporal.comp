@@ -16,14 +16,6 @@
 #extension GL_GOOGLE_include_directive : require
 #include "combine.glsl"
 
-// Velocity (m per frame) at world x, linearly filtered.
-vec3 velocity_at(vec3 x) {
-    vec4 h = vec4(x, 1.0);
-    vec3 uvw = vec3(dot(u_restir.velocity_uvw_x, h), dot(u_restir.velocity_uvw_y, h),
-                    dot(u_restir.velocity_uvw_z, h));
-    return textureLod(u_velocity, uvw, 0.0).xyz;
-}
-
 // The sub-pixel centre's jitter code (offset 127.5 / 256 per axis).
 #define JITTER_CODE_CENTRE 0x7f7fu
 // Floor of the transmittance a relative change is measured against: below it a camera ray

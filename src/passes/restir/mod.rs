@@ -77,6 +77,8 @@ pub struct RestirPass {
     restir_uniforms: RestirUniformsGpu,
     /// What the velocity grid's magnitude suggests about its unit, if anything.
     velocity_note: Option<String>,
+    /// The render's AOVs: the light groups written into animated light records.
+    aov: crate::plan::AovPlan,
 }
 
 impl RestirPass {
@@ -102,6 +104,8 @@ impl RestirPass {
             (None, None)
         };
         let velocity_uvw = velocity_uvw(grid);
+        // Light records carry their light group (both sets copy these).
+        targets.aov.assign_groups(scene, &mut grid_gpu.lights);
         // The density moves into `volumes`; the rest of the grid records are uploaded.
         let density = std::mem::take(&mut grid_gpu.density);
         let bricks = std::mem::take(&mut grid_gpu.density_layout.bricks);
@@ -280,6 +284,7 @@ impl RestirPass {
             prev_uploaded: None,
             restir_uniforms,
             velocity_note,
+            aov: targets.aov.clone(),
         })
     }
 
@@ -312,12 +317,14 @@ impl RestirPass {
             return Ok(());
         }
         let set = |f| {
-            LightSet::build(
+            let mut set = LightSet::build(
                 &scene.lights_at(f),
                 self.scene_lights_radius,
                 self.env_map_luminance,
                 self.area_power,
-            )
+            );
+            self.aov.assign_groups(scene, &mut set.lights);
+            set
         };
         let (cur, prev) = (set(frame), set(prev));
         let records: Vec<LightGpu> = non_empty(&[cur.lights, prev.lights].concat());

@@ -19,5 +19,6 @@ mod overlap;
 mod pyro;
 mod render_convex;
 mod restir;
+mod restir_aovs;
 mod restir_history;
 mod vdb_render;
