@@ -49,6 +49,7 @@ fn set_param(p: &mut DenoiseParams, kv: &str) -> Result<()> {
         "iterations" => p.iterations = f as u32,
         "sigma_luminance" => p.sigma_luminance = f,
         "sigma_depth" => p.sigma_depth = f,
+        "depth_relative" => p.depth_relative = f,
         "sigma_normal" => p.sigma_normal = f,
         "variance_boost" => p.variance_boost = f,
         "albedo_epsilon" => p.albedo_epsilon = f,
@@ -187,10 +188,20 @@ fn errors(ctx: &Context, args: &[String]) -> Result<()> {
 type GuideSet = (&'static str, fn(&Guides) -> Guides);
 
 /// The guide sets `errors` compares for the GPU filter.
-const GUIDE_SETS: [GuideSet; 3] = [
+const GUIDE_SETS: [GuideSet; 5] = [
     ("none", |_| Guides::none()),
     ("albedo", |g| Guides {
         albedo: g.albedo.clone(),
+        ..Guides::none()
+    }),
+    ("albedo+depth", |g| Guides {
+        albedo: g.albedo.clone(),
+        depth: g.depth.clone(),
+        ..Guides::none()
+    }),
+    ("albedo+normal", |g| Guides {
+        albedo: g.albedo.clone(),
+        normal: g.normal.clone(),
         ..Guides::none()
     }),
     ("albedo+normal+depth", |g| Guides {
