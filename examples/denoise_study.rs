@@ -155,11 +155,11 @@ fn errors(ctx: &Context, args: &[String]) -> Result<()> {
             }
             if let (Some(prefix), true) = (&pngs, seed == seeds[0]) {
                 let name = prefix.file_name().unwrap_or_default().to_string_lossy();
-                // "denoised" is what `nimbus render --denoise` gives: all the guides.
+                // "denoised" is what `nimbus render --denoise` gives: the albedo guide.
                 let mut images = vec![("noisy", &result.image)];
                 for (label, image, _) in &outputs {
                     match label.as_str() {
-                        "svgf albedo+normal+depth" => images.push(("denoised", image)),
+                        "svgf albedo" => images.push(("denoised", image)),
                         "oidn albedo+normal" => images.push(("oidn", image)),
                         _ => {}
                     }

@@ -196,17 +196,17 @@ pub(super) fn render(args: RenderArgs) -> Result<ExitCode> {
     let (mut scene, scene_text) = load_scene_text(args.scene.as_deref(), &fields)?;
     // What the user asked for ([render] aovs / --aovs): the layers an image must hold.
     let asked_aovs = !scene.render.aovs.is_empty();
-    if args.denoise.is_some() {
-        // The denoiser's guides (docs/denoise.md): depth, normal and albedo, and the motion
-        // that carries its history from frame to frame in a frame range. They are layers
-        // of a denoised .exr too.
-        let mut guides = vec![
-            nimbus_scene::Aov::Depth,
-            nimbus_scene::Aov::Normal,
-            nimbus_scene::Aov::Albedo,
-        ];
-        if args.frame_range.is_some() {
-            guides.push(nimbus_scene::Aov::Motion);
+    if let Some(engine) = args.denoise {
+        // The denoiser's guides (docs/denoise.md, "Guides"): the albedo; for the GPU
+        // filter the motion that carries its history from frame to frame in a frame
+        // range, for Open Image Denoise the normal. They are layers of a denoised .exr too.
+        let mut guides = vec![nimbus_scene::Aov::Albedo];
+        match engine {
+            nimbus::denoise::Engine::Svgf if args.frame_range.is_some() => {
+                guides.push(nimbus_scene::Aov::Motion);
+            }
+            nimbus::denoise::Engine::Oidn => guides.push(nimbus_scene::Aov::Normal),
+            nimbus::denoise::Engine::Svgf => {}
         }
         for aov in guides {
             if !scene.render.aovs.contains(&aov) {

@@ -305,7 +305,12 @@ impl State {
 
     /// Uploads the image and its guides (non-finite guide values made harmless: no
     /// depth, a zero normal or albedo, no motion).
-    pub(super) fn upload(&self, ctx: &Context, image: &NoisyImage<'_>, guides: &Guides) -> Result<()> {
+    pub(super) fn upload(
+        &self,
+        ctx: &Context,
+        image: &NoisyImage<'_>,
+        guides: &Guides,
+    ) -> Result<()> {
         let pixels = image.color.data.len();
         let rgba: Vec<[f32; 4]> = (0..pixels)
             .map(|i| {
@@ -447,4 +452,3 @@ pub(super) struct StateHandles {
     pub(super) atrous: (Handle<ComputePipeline>, [Handle<DescriptorSet>; 2]),
     pub(super) finish: (Handle<ComputePipeline>, Handle<DescriptorSet>),
 }
-

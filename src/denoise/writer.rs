@@ -79,10 +79,19 @@ impl Writer {
         })
     }
 
-    /// The guides of a render's image: its depth, normal, albedo and motion AOVs where it
-    /// has them (`nimbus render --denoise` asks for them).
+    /// The guides of a render's image for the GPU filter: its albedo and motion AOVs
+    /// where it has them (`nimbus render --denoise` asks for them). Not its depth and
+    /// normal, even where `--aovs` renders them: in a medium the normal is the density's
+    /// gradient, which turns from pixel to pixel, and on the benchmark media the normal
+    /// guide left 0.77-1.02 of the noisy error where the albedo alone leaves 0.16-0.66,
+    /// and the depth cost too on two scenes of three (docs/denoise.md, "Guides").
     fn guides_of(result: &RenderResult) -> Guides {
-        Guides::from_aovs(&result.aovs)
+        let all = Guides::from_aovs(&result.aovs);
+        Guides {
+            albedo: all.albedo,
+            motion: all.motion,
+            ..Guides::none()
+        }
     }
 
     /// Writes `result` to `path` like [`write_render`], denoised when this writer
@@ -118,7 +127,8 @@ impl Writer {
                     d.run(ctx, &NoisyImage::of(result), &guides)?
                 }
                 #[cfg(feature = "oidn")]
-                Held::Oidn(d) => oidn_denoise(d, result, &guides)?,
+                // OIDN's network uses a medium's normals without harm (docs/denoise.md).
+                Held::Oidn(d) => oidn_denoise(d, result, &Guides::from_aovs(&result.aovs))?,
             };
             self.last = Some((result.scene_frame, result.image.clone(), denoised));
         }
@@ -159,7 +169,7 @@ impl Writer {
                 &info.attributes(),
             )?;
         }
-        let ms = match (denoiser, denoised.gpu_ms) {
+        let ms = match (&*denoiser, denoised.gpu_ms) {
             #[cfg(feature = "oidn")]
             (Held::Oidn(_), _) => "Open Image Denoise".to_string(),
             (_, Some(ms)) => format!("GPU {ms:.2} ms"),
@@ -177,7 +187,11 @@ impl Writer {
             } else {
                 ""
             },
-            Self::guides_of(result).describe()
+            match denoiser {
+                Held::Svgf(_) => Self::guides_of(result).describe(),
+                #[cfg(feature = "oidn")]
+                Held::Oidn(_) => Guides::from_aovs(&result.aovs).describe(),
+            }
         )))
     }
 
