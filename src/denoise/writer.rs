@@ -175,13 +175,16 @@ impl Writer {
             (_, Some(ms)) => format!("GPU {ms:.2} ms"),
             (_, None) => "no GPU timestamps".to_string(),
         };
+        // The variance steers the GPU filter only; Open Image Denoise reads none.
+        let variance = match (&*denoiser, denoised.variance) {
+            #[cfg(feature = "oidn")]
+            (Held::Oidn(_), _) => "",
+            (_, super::VarianceSource::Film) => "; variance from the film",
+            (_, super::VarianceSource::Estimated) => "; variance from a spatial estimate",
+        };
         Ok(Some(format!(
-            "denoised {} ({ms}; variance from {}{}; guides: {})",
+            "denoised {} ({ms}{variance}{}; guides: {})",
             path.display(),
-            match denoised.variance {
-                super::VarianceSource::Film => "the film",
-                super::VarianceSource::Estimated => "a spatial estimate",
-            },
             if denoised.temporal {
                 ", temporal history"
             } else {
