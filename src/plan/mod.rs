@@ -436,7 +436,26 @@ pub fn build(scene: &Scene, samples_along_ray: Option<u32>) -> Result<RenderPlan
     } else {
         boxes::build(scene, samples_along_ray)?
     };
-    Ok(RenderPlan::new(scene, integrator, rows))
+    let plan = RenderPlan::new(scene, integrator, rows);
+    // The baseline pass does not read a velocity field, so its motion AOV would show a
+    // moving medium as still: refused rather than written wrong.
+    if plan.baseline().is_some() && plan.aov.wants(nimbus_scene::Aov::Motion) {
+        if let Some(i) = scene
+            .media
+            .iter()
+            .position(|m| matches!(m, Medium::Grid(g) if g.velocity.is_some()))
+        {
+            anyhow::bail!(
+                "{}: [render] aovs asks for motion and [[medium]] #{} has a velocity field, \
+                 which the baseline integrator's motion AOV does not follow (it moves with \
+                 the camera only): render it with [integrator] volume = \"restir\", whose \
+                 motion follows the velocity, or leave motion out",
+                scene.source.display(),
+                i + 1
+            );
+        }
+    }
+    Ok(plan)
 }
 
 impl RenderPlan {

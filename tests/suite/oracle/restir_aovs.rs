@@ -340,6 +340,19 @@ max_bounces = 1
         surface > 50 && medium > 50,
         "{surface} quad and {medium} cloud pixels"
     );
+    // The baseline's motion AOV does not follow a velocity field: the same scene with the
+    // baseline integrator is refused by its plan, before anything is allocated.
+    let mut baseline = scene.clone();
+    baseline.integrator.volume = nimbus_scene::VolumeIntegrator::Baseline;
+    let e = format!("{:#}", nimbus::plan::build(&baseline, None).unwrap_err());
+    for needle in [
+        "restir-aov-motion.toml",
+        "motion",
+        "[[medium]] #1",
+        "velocity",
+    ] {
+        assert!(e.contains(needle), "{needle:?} not in: {e}");
+    }
 }
 
 // ---------------------------------------------------------------------------------------
