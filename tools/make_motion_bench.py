@@ -59,6 +59,20 @@ def header(title, lines):
 SKY = '[[light]]\ntype = "environment"\nradiance = [0.25, 0.35, 0.55]\n\n'
 
 
+def orbit_camera():
+    """The [camera] of camera-g0: 40 degrees of orbit about the vertical axis while it
+    dollies in from 2.6 to 2.0 m and sinks from 0.3 to 0.15 m, keyed every STEP frames."""
+    out = "[camera]\nhorizontal_fov_deg = 55\n\n"
+    for f in range(0, FRAMES + 1, STEP):
+        t = f / FRAMES
+        az = math.radians(40.0 * t)
+        r = 2.6 - 0.6 * t
+        y = 0.3 - 0.15 * t
+        pos = (r * math.sin(az), y, r * math.cos(az))
+        out += f"[[camera.keyframe]]\nframe = {f}\nposition = {fmt(pos)}\nlook_at = [0.0, 0.0, 0.0]\n\n"
+    return out
+
+
 def camera_scene(static, g_text):
     out = header(
         f"the camera orbits and dollies ({g_text}).",
@@ -67,14 +81,7 @@ def camera_scene(static, g_text):
             "the silhouette sweeps the image by about 2 px per frame.",
         ],
     )
-    out += "[camera]\nhorizontal_fov_deg = 55\n\n"
-    for f in range(0, FRAMES + 1, STEP):
-        t = f / FRAMES
-        az = math.radians(40.0 * t)
-        r = 2.6 - 0.6 * t
-        y = 0.3 - 0.15 * t
-        pos = (r * math.sin(az), y, r * math.cos(az))
-        out += f"[[camera.keyframe]]\nframe = {f}\nposition = {fmt(pos)}\nlook_at = [0.0, 0.0, 0.0]\n\n"
+    out += orbit_camera()
     out += '[[light]]\ntype = "directional"\ndirection = [0.6, -0.5, -0.6]\nirradiance = [6.0, 5.6, 5.0]\n\n'
     out += SKY
     return out + medium_and_integrator(static)
@@ -94,14 +101,7 @@ def explosion_scene(static, what):
             "the explosion's own sky lights it, its fire glows.",
         ],
     )
-    out += "[camera]\nhorizontal_fov_deg = 55\n\n"
-    for f in range(0, FRAMES + 1, STEP):
-        t = f / FRAMES
-        az = math.radians(40.0 * t)
-        r = 2.6 - 0.6 * t
-        y = 0.3 - 0.15 * t
-        pos = (r * math.sin(az), y, r * math.cos(az))
-        out += f"[[camera.keyframe]]\nframe = {f}\nposition = {fmt(pos)}\nlook_at = [0.0, 0.0, 0.0]\n\n"
+    out += orbit_camera()
     out += lights_of(static)
     return out + medium_and_integrator(static)
 
