@@ -76,7 +76,7 @@ fn channel<'a>(result: &'a RenderResult, name: &str) -> &'a [f32] {
 }
 
 /// The unit direction of pixel (x, y)'s centre ray, as camera.glsl computes it.
-fn centre_ray(scene: &Scene, frame: u32, x: u32, y: u32) -> (Vec3, Vec3) {
+pub(crate) fn centre_ray(scene: &Scene, frame: u32, x: u32, y: u32) -> (Vec3, Vec3) {
     let c = scene.camera.frame_at(frame);
     let (w, h) = (scene.render.width as f32, scene.render.height as f32);
     let tan_y = c.tan_half_fov_x * h / w;

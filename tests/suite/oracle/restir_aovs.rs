@@ -17,6 +17,7 @@ use nimbus::renderer::RenderResult;
 use nimbus_gpu::Context;
 use nimbus_scene::{Aov, Scene};
 
+use super::aovs::centre_ray;
 use super::restir::{Cloud, SUN_AND_SKY};
 use crate::common::cli::scratch;
 use crate::common::gpu::{context, render_checked};
@@ -45,20 +46,6 @@ fn rgb(r: &RenderResult, layer: &str) -> Vec<[f32; 3]> {
 fn with_aovs(mut scene: Scene, aovs: &[Aov]) -> Scene {
     scene.render.aovs = aovs.to_vec();
     scene
-}
-
-/// The unit camera ray through the centre of pixel (x, y) of camera frame `f` (as
-/// shaders/include/camera.glsl forms it).
-fn centre_ray(scene: &Scene, frame: u32, x: u32, y: u32) -> (Vec3, Vec3) {
-    let c = scene.camera.frame_at(frame);
-    let (w, h) = (scene.render.width as f32, scene.render.height as f32);
-    let tan_y = c.tan_half_fov_x * h / w;
-    let sx = (2.0 * (x as f32 + 0.5) / w - 1.0) * c.tan_half_fov_x;
-    let sy = (1.0 - 2.0 * (y as f32 + 0.5) / h) * tan_y;
-    (
-        c.position,
-        (c.forward + sx * c.right + sy * c.up).normalize(),
-    )
 }
 
 /// The pixel position of world point p in camera frame `f` (camera.glsl's
