@@ -174,6 +174,9 @@ fn summary(path: &Path, scene: &Scene, result: &RenderResult) -> String {
 }
 
 pub(super) fn render(args: RenderArgs) -> Result<ExitCode> {
+    if let Some(engine) = args.denoise {
+        engine.check_available()?;
+    }
     let mut fields = args.overrides.fields(args.frames)?;
     if args.transparent {
         fields.insert(

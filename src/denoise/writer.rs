@@ -36,6 +36,19 @@ impl Engine {
             _ => Err(format!("unknown denoiser {text:?}; valid: svgf, oidn")),
         }
     }
+
+    /// Refuses an engine this build lacks (Open Image Denoise without the `oidn`
+    /// feature), so that a render is refused before it starts.
+    pub fn check_available(self) -> Result<()> {
+        if self == Engine::Oidn && !cfg!(feature = "oidn") {
+            anyhow::bail!(
+                "--denoise=oidn: this nimbus was built without Open Image Denoise; install it \
+                 with tools/install-oidn.sh and build with `cargo build --release --features \
+                 oidn` (docs/oidn.md), or use --denoise (the GPU filter)"
+            );
+        }
+        Ok(())
+    }
 }
 
 /// The denoiser a [`Writer`] holds.
@@ -67,11 +80,10 @@ impl Writer {
             #[cfg(feature = "oidn")]
             Some(Engine::Oidn) => Some(Held::Oidn(nimbus_oidn::Denoiser::new()?)),
             #[cfg(not(feature = "oidn"))]
-            Some(Engine::Oidn) => anyhow::bail!(
-                "--denoise=oidn: this nimbus was built without Open Image Denoise; install it \
-                 with tools/install-oidn.sh and build with `cargo build --release --features \
-                 oidn` (docs/oidn.md), or use --denoise (the GPU filter)"
-            ),
+            Some(Engine::Oidn) => {
+                Engine::Oidn.check_available()?;
+                None
+            }
         };
         Ok(Self {
             denoiser,
