@@ -15,7 +15,7 @@ use std::fmt::Write as _;
 
 use anyhow::{bail, Result};
 use nimbus_gpu::DeviceInfo;
-use nimbus_scene::bricks::procedural_cloud_super_voxel_may_be_nonzero;
+use nimbus_scene::bricks::procedural_super_voxel_test;
 use nimbus_scene::{BrickTopology, GridMedium, GridSource, Light, Medium, Scene};
 
 use crate::shader_data::sparse::{
@@ -65,14 +65,19 @@ pub struct GridFootprint<'s> {
 /// their 26 neighbours.
 pub fn density_slot_bound(source: &GridSource, topo: &BrickTopology) -> u64 {
     match source {
-        GridSource::ProceduralCloud { dims, .. } => {
+        GridSource::ProceduralCloud {
+            dims,
+            noise_seed,
+            kind,
+        } => {
+            let may_be_nonzero = procedural_super_voxel_test(*dims, *noise_seed, *kind);
             let [bx, by, bz] = topo.brick_dims().map(|d| d as i32);
             let mut n = 0u64;
             for z in 0..bz {
                 for y in 0..by {
                     for x in 0..bx {
                         let b = glam::IVec3::new(x, y, z);
-                        n += u64::from(procedural_cloud_super_voxel_may_be_nonzero(*dims, b));
+                        n += u64::from(may_be_nonzero(b));
                     }
                 }
             }

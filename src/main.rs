@@ -78,6 +78,21 @@ struct MakeSkyArgs {
     /// The sun's angular diameter, degrees, in [0.06, 28].
     #[arg(long, default_value_t = 1.5, value_parser = parse_sun_diameter)]
     sun_diameter_deg: f64,
+    /// The irradiance of the sun's disc at normal incidence, W/m², in [0, 1e6]: 0 leaves
+    /// the disc out (the sky and its glow around the sun stay), for a scene that gives
+    /// the sun as a `directional` light instead.
+    #[arg(long, default_value_t = 20.0, value_parser = parse_sun_irradiance)]
+    sun_irradiance: f64,
+}
+
+/// The sun disc's irradiance in W/m², within [0, 1e6].
+fn parse_sun_irradiance(text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(v) if (0.0..=1e6).contains(&v) => Ok(v),
+        _ => Err(format!(
+            "{text:?} is not an irradiance in W/m² within [0, 1e6]"
+        )),
+    }
 }
 
 /// A finite angle in degrees, within [-360, 360].
@@ -101,7 +116,7 @@ fn parse_sun_diameter(text: &str) -> Result<f64, String> {
 }
 
 /// `nimbus make-sky`: the daylight sky of `nimbus_scene::daylight_sky`, the sun alone
-/// giving 20 W/m² at normal incidence.
+/// giving `--sun-irradiance` (20 W/m² by default) at normal incidence.
 fn make_sky_cmd(args: MakeSkyArgs) -> Result<()> {
     // An environment light's `file` must end in .exr, so a sky written under any other
     // name could not be used (issue 24: `make-sky abc` wrote an EXR named abc).
@@ -120,7 +135,13 @@ fn make_sky_cmd(args: MakeSkyArgs) -> Result<()> {
         args.sun_elevation_deg.to_radians() as f32,
         args.sun_azimuth_deg.to_radians() as f32,
     );
-    let texels = nimbus_scene::daylight_sky(w, h, sun, args.sun_diameter_deg.to_radians(), 20.0);
+    let texels = nimbus_scene::daylight_sky(
+        w,
+        h,
+        sun,
+        args.sun_diameter_deg.to_radians(),
+        args.sun_irradiance,
+    );
     let out = &args.out;
     if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
@@ -132,11 +153,12 @@ fn make_sky_cmd(args: MakeSkyArgs) -> Result<()> {
         })
         .with_context(|| format!("writing {}", out.display()))
     })?;
-    println!(
-        "wrote {} ({w}x{h}, sun {:.2} deg across)",
-        out.display(),
-        args.sun_diameter_deg
-    );
+    let sun = if args.sun_irradiance > 0.0 {
+        format!("sun {:.2} deg across", args.sun_diameter_deg)
+    } else {
+        "no sun disc".to_string()
+    };
+    println!("wrote {} ({w}x{h}, {sun})", out.display());
     Ok(())
 }
 

@@ -96,7 +96,7 @@
 //! | restir `spatial_max_history` | [0, 1025] (0: spatial reuse on every pixel) |
 //! | restir `nee` | `"auto"`, `"one"`, `"split"` (only with delta lights and an environment alone besides) |
 //! | restir `direct` | `"each_walk"`, `"escape"` |
-//! | grid `procedural` | `"cloud"` (not allowed for `velocity`) |
+//! | grid `procedural` | `"cloud"`, `"cumulus"` (not allowed for `velocity`) |
 //! | mesh `file` | ends in `.obj` or `.ply` (any case), exists, and loads (see [`mesh`]: finite vertices, also after `to_world`; indices in range; fannable faces; at most 2^26 triangles) |
 //! | `to_world` `scale` | each component non-zero, magnitude at most 1e7; `translate` within ±1e7 m |
 //!
@@ -106,7 +106,8 @@
 //! [`MAX_GRID_VALUES`] (2^31 voxels·channels, 8 GiB of f32) before allocating, and
 //! rejects NaN / infinite values anywhere and negative density or emission, naming
 //! the file, the voxel (i, j, k) and the value. `procedural = "cloud"` grids come from
-//! [`procedural_cloud`], bit-identical for a `(dims, noise_seed)` on every platform.
+//! [`procedural_cloud`], `"cumulus"` ones from [`procedural_cumulus`], bit-identical for a
+//! `(dims, noise_seed)` on every platform.
 //!
 //! # Animated grids
 //! [`GridMedium::density_index_at`] / [`GridMedium::density_at`] give the density grid
@@ -154,6 +155,7 @@ pub mod blackbody;
 pub mod bricks;
 pub mod cie1931;
 pub mod convex;
+mod cumulus;
 mod envmap;
 mod fields;
 mod files;
@@ -173,6 +175,7 @@ use std::path::Path;
 use anyhow::{anyhow, Result};
 
 pub use bricks::{BrickGrid, BrickTopology};
+pub use cumulus::procedural_cumulus;
 pub use envmap::{
     direction_to_uv, environment_rotation, luminance, uv_to_direction, EnvMap, EnvRotation,
     EnvSampler, MAX_ENVMAP_HEIGHT, MAX_ENVMAP_WIDTH,

@@ -433,6 +433,16 @@ impl VdbPlacement {
     }
 }
 
+/// Which procedural cloud a `procedural` grid is.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ProceduralKind {
+    /// `"cloud"`: a noisy ellipsoid (`procedural.rs`), the test cloud.
+    #[default]
+    Cloud,
+    /// `"cumulus"`: a cumulus congestus of puffs, billows and wisps (`cumulus.rs`).
+    Cumulus,
+}
+
 /// Where a voxel grid comes from. Files are checked to exist (and, for raw files, to
 /// have the size `dims` implies) by the loader; their contents are read later.
 #[derive(Clone, Debug, PartialEq)]
@@ -441,8 +451,12 @@ pub enum GridSource {
     Raw { file: PathBuf, dims: [u32; 3] },
     /// Mitsuba `.vol` grid file; dims come from its header.
     MitsubaVol { file: PathBuf },
-    /// Deterministic procedural cloud.
-    ProceduralCloud { dims: [u32; 3], noise_seed: u64 },
+    /// Deterministic procedural cloud of `kind`.
+    ProceduralCloud {
+        dims: [u32; 3],
+        noise_seed: u64,
+        kind: ProceduralKind,
+    },
     /// One grid of an OpenVDB file (`type = "vdb"` media): the one named `grid`, else the
     /// file's only grid of the kind needed, else (scalars) the one named "density". It
     /// loads as the dense grid `window` cuts out of it.

@@ -12,9 +12,10 @@ use std::path::Path;
 
 use anyhow::{anyhow, bail, Context, Result};
 
+use crate::cumulus::procedural_cumulus;
 use crate::files::{file_size, read_vol_header, VolEncoding, VOL_HEADER_BYTES};
 use crate::procedural::procedural_cloud;
-use crate::types::{GridMedium, GridSource};
+use crate::types::{GridMedium, GridSource, ProceduralKind};
 
 /// Most f32 values (voxels × channels) in one loaded grid: 2^31, i.e. 8 GiB of data.
 pub const MAX_GRID_VALUES: u64 = 1 << 31;
@@ -509,12 +510,19 @@ pub fn load_grid(source: &GridSource, channels: u32, what: &str) -> Result<Voxel
                 data,
             }
         }
-        GridSource::ProceduralCloud { dims, noise_seed } => {
+        GridSource::ProceduralCloud {
+            dims,
+            noise_seed,
+            kind,
+        } => {
             if channels != 1 {
                 bail!("{what}: a procedural cloud has 1 channel, {channels} were expected");
             }
             check_grid_memory(*dims, 1, what)?;
-            procedural_cloud(*dims, *noise_seed)
+            match kind {
+                ProceduralKind::Cloud => procedural_cloud(*dims, *noise_seed),
+                ProceduralKind::Cumulus => procedural_cumulus(*dims, *noise_seed),
+            }
         }
         GridSource::Vdb { file, grid, window } => {
             check_grid_memory(
@@ -706,7 +714,8 @@ mod tests {
         assert!(load_grid(
             &GridSource::ProceduralCloud {
                 dims: [4, 4, 4],
-                noise_seed: 0
+                noise_seed: 0,
+                kind: Default::default(),
             },
             3,
             "v"

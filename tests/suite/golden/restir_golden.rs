@@ -10,6 +10,12 @@ use crate::common::gpu::{assert_no_validation_errors, context, scene};
 use crate::common::{compare_with_golden, SAME_DEVICE};
 use nimbus::renderer::{render, RenderOptions};
 
+/// The path of the scene `name` of assets/scenes (what its relative files resolve
+/// against).
+fn asset_path(name: &str) -> String {
+    format!("{}/assets/scenes/{name}", env!("CARGO_MANIFEST_DIR"))
+}
+
 fn asset(name: &str) -> String {
     std::fs::read_to_string(format!(
         "{}/assets/scenes/{name}",
@@ -42,7 +48,10 @@ fn render_frames(
 #[test]
 fn golden_cloud_restir_last_frame() {
     let ctx = context();
-    let mut scene = scene(&asset("cloud-restir.toml"), "cloud-restir.toml");
+    let mut scene = scene(
+        &asset("cloud-restir.toml"),
+        &asset_path("cloud-restir.toml"),
+    );
     scene.render.width = 48;
     scene.render.height = 36;
     scene.render.frames = 3;
@@ -61,7 +70,7 @@ fn golden_cloud_restir_emissive_vertex_reuse() {
             "g = 0.6",
             "g = 0.6\nemission = { procedural = \"cloud\", dims = [32, 20, 32], noise_seed = 5 }\nemission_scale = [3.0, 1.2, 0.4]",
         );
-    let mut scene = scene(&text, "cloud-emissive.toml");
+    let mut scene = scene(&text, &asset_path("cloud-emissive.toml"));
     scene.render.width = 40;
     scene.render.height = 30;
     scene.render.frames = 2;

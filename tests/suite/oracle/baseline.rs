@@ -123,12 +123,10 @@ fn furnace_non_absorbing_cloud_under_constant_environment() {
 #[test]
 fn golden_cloud_baseline() {
     let ctx = context();
-    let text = std::fs::read_to_string(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/assets/scenes/cloud.toml"
-    ))
-    .expect("cloud scene");
-    let mut scene = scene(&text, "cloud.toml");
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/scenes/cloud.toml");
+    let text = std::fs::read_to_string(path).expect("cloud scene");
+    // (Its path, not its name alone: the sky map is relative to it.)
+    let mut scene = scene(&text, path);
     scene.render.width = 64;
     scene.render.height = 48;
     scene.render.frames = 2;

@@ -26,6 +26,7 @@ fn grid_medium(lo: Vec3, hi: Vec3, density_scale: f32, albedo: Vec3, g: f32) -> 
         density: GridSource::ProceduralCloud {
             dims: [16, 16, 16],
             noise_seed: 7,
+            kind: Default::default(),
         },
         density_scale,
         albedo,
@@ -360,6 +361,7 @@ fn emission_only_is_le_times_one_minus_transmittance() {
     m.emission = Some(GridSource::ProceduralCloud {
         dims: [2, 2, 2],
         noise_seed: 0,
+        kind: Default::default(),
     });
     m.emission_scale = Vec3::new(0.5, 1.0, 2.0);
     let le = m.emission_scale.as_dvec3();
@@ -390,6 +392,7 @@ fn results_are_deterministic_and_options_checked() {
     cloud.emission = Some(GridSource::ProceduralCloud {
         dims: [8, 8, 8],
         noise_seed: 3,
+        kind: Default::default(),
     });
     let s = scene(
         vec![Medium::Grid(cloud)],

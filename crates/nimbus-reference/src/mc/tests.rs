@@ -365,6 +365,7 @@ fn unsupported_scenes_and_options_are_errors() {
         density: GridSource::ProceduralCloud {
             dims: [4, 4, 4],
             noise_seed: 1,
+            kind: Default::default(),
         },
         density_scale: 1.0,
         albedo: Vec3::ONE,

@@ -8,6 +8,8 @@ use anyhow::{anyhow, bail, Result};
 use glam::{DVec3, IVec3};
 
 use super::{shr, BrickGrid, BRICK_EDGE, BRICK_POINTS};
+use crate::cumulus::Cumulus;
+use crate::types::ProceduralKind;
 use crate::vdb::{SparseGrid, LEAF_DIM};
 use crate::volume::VoxelGrid;
 
@@ -199,9 +201,42 @@ impl BrickGrid {
         Ok(out)
     }
 
-    /// The procedural cloud of `dims` (see [`crate::procedural_cloud`]), generated brick
-    /// by brick: bricks outside the cloud's envelope are never evaluated. Bit-identical to
-    /// [`BrickGrid::from_dense`] of the dense cloud.
+    /// The procedural cloud of `kind` (see [`crate::procedural_cloud`] and
+    /// [`crate::procedural_cumulus`]), generated brick by brick: bricks its bound leaves
+    /// out are never evaluated. Bit-identical to [`BrickGrid::from_dense`] of the dense
+    /// cloud.
+    pub fn procedural(dims: [u32; 3], seed: u64, kind: ProceduralKind) -> Result<BrickGrid> {
+        match kind {
+            ProceduralKind::Cloud => BrickGrid::procedural_cloud(dims, seed),
+            ProceduralKind::Cumulus => BrickGrid::procedural_cumulus(dims, seed),
+        }
+    }
+
+    /// The cumulus of `dims`, brick by brick.
+    fn procedural_cumulus(dims: [u32; 3], seed: u64) -> Result<BrickGrid> {
+        let mut out = BrickTopology::dense(dims, 1, Vec::new()).grid()?;
+        let mut brick = vec![0f32; BRICK_POINTS];
+        Cumulus::new(dims, seed).for_each_block(BRICK_EDGE, |lo, hi, values| {
+            if values.iter().all(|v| *v == 0.0) {
+                return Ok(());
+            }
+            brick.iter_mut().for_each(|v| *v = 0.0);
+            let b = lo / BRICK_EDGE;
+            let mut n = 0;
+            for k in lo.z..=hi.z {
+                for j in lo.y..=hi.y {
+                    for i in lo.x..=hi.x {
+                        brick[super::point_index(IVec3::new(i, j, k) - lo)] = values[n];
+                        n += 1;
+                    }
+                }
+            }
+            out.push_brick(b, &brick)
+        })?;
+        Ok(out)
+    }
+
+    /// The procedural `"cloud"` of `dims`, brick by brick.
     pub fn procedural_cloud(dims: [u32; 3], seed: u64) -> Result<BrickGrid> {
         let mut out = BrickTopology::dense(dims, 1, Vec::new()).grid()?;
         let mut values = vec![0f32; BRICK_POINTS];
@@ -357,6 +392,22 @@ impl BrickTopology {
         BrickTopology::dense(dims, 1, bricks)
     }
 
+    /// The topology of a procedural cloud of `kind`: the bricks its bound may reach.
+    pub fn procedural(dims: [u32; 3], seed: u64, kind: ProceduralKind) -> BrickTopology {
+        match kind {
+            ProceduralKind::Cloud => BrickTopology::procedural_cloud(dims),
+            ProceduralKind::Cumulus => {
+                let shape = Cumulus::shape(dims, seed);
+                let bricks = dense_bricks(dims)
+                    .filter(|b| {
+                        shape.may_be_nonzero(*b * BRICK_EDGE, *b * BRICK_EDGE + BRICK_EDGE - 1)
+                    })
+                    .collect();
+                BrickTopology::dense(dims, 1, bricks)
+            }
+        }
+    }
+
     /// The topology of a dense grid streamed by `fill` as in
     /// [`BrickGrid::from_slabs`]: exactly the bricks with a non-zero value.
     pub fn scan_slabs(
@@ -415,6 +466,21 @@ pub fn procedural_cloud_brick_may_be_nonzero(dims: [u32; 3], b: IVec3) -> bool {
 /// this holds bound the density's atlas slots.
 pub fn procedural_cloud_super_voxel_may_be_nonzero(dims: [u32; 3], b: IVec3) -> bool {
     procedural_cloud_points_may_be_nonzero(dims, b * BRICK_EDGE - 1, b * BRICK_EDGE + BRICK_EDGE)
+}
+
+/// The super-voxels of a procedural grid that may have a positive maximum, as
+/// [`procedural_cloud_super_voxel_may_be_nonzero`] for every kind: `test(b)` for each
+/// brick `b`.
+pub fn procedural_super_voxel_test(
+    dims: [u32; 3],
+    seed: u64,
+    kind: ProceduralKind,
+) -> impl Fn(IVec3) -> bool {
+    let shape = (kind == ProceduralKind::Cumulus).then(|| Cumulus::shape(dims, seed));
+    move |b| match &shape {
+        None => procedural_cloud_super_voxel_may_be_nonzero(dims, b),
+        Some(s) => s.may_be_nonzero(b * BRICK_EDGE - 1, b * BRICK_EDGE + BRICK_EDGE),
+    }
 }
 
 /// Whether a voxel of `first ..= last` (clamped to the grid) may be non-zero.

@@ -146,12 +146,16 @@ impl BrickGrid {
             .with_context(|| what.to_string());
         }
         match source {
-            GridSource::ProceduralCloud { dims, noise_seed } => {
+            GridSource::ProceduralCloud {
+                dims,
+                noise_seed,
+                kind,
+            } => {
                 if channels == 3 {
                     bail!("{what}: a procedural cloud has 1 channel, 3 were expected");
                 }
                 check_grid_memory(*dims, 1, what)?;
-                BrickGrid::procedural_cloud(*dims, *noise_seed).with_context(|| what.to_string())
+                BrickGrid::procedural(*dims, *noise_seed, *kind).with_context(|| what.to_string())
             }
             GridSource::Vdb { file, grid, .. } => {
                 let sparse = read_vdb_grid(file, grid.as_deref(), vdb_kind(channels), what)?;
@@ -177,7 +181,11 @@ impl BrickTopology {
             .with_context(|| what.to_string());
         }
         match source {
-            GridSource::ProceduralCloud { dims, .. } => Ok(BrickTopology::procedural_cloud(*dims)),
+            GridSource::ProceduralCloud {
+                dims,
+                noise_seed,
+                kind,
+            } => Ok(BrickTopology::procedural(*dims, *noise_seed, *kind)),
             GridSource::Vdb { file, grid, .. } => {
                 let header = read_vdb_topology(file, grid.as_deref(), vdb_kind(channels), what)?;
                 let name = format!("{what}: {}: grid \"{}\"", file.display(), header.name);

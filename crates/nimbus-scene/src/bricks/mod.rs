@@ -45,7 +45,7 @@ pub use indirection::Indirection;
 
 pub use build::{
     procedural_cloud_brick_may_be_nonzero, procedural_cloud_super_voxel_may_be_nonzero,
-    BrickTopology,
+    procedural_super_voxel_test, BrickTopology,
 };
 pub use march::{march_errors, MARCH_ERROR_SEGMENTS};
 pub use precision::effective_sigma_t;

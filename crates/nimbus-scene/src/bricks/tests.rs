@@ -139,6 +139,25 @@ fn streamed_and_procedural_bricks_equal_the_dense_bricks() {
     assert!(cloud.bricks.iter().all(|b| bound.bricks.contains(b)));
 }
 
+/// The cumulus brick by brick equals the dense cumulus, and its topology and super-voxel
+/// bounds (from its puffs, not sampled) hold what it stores.
+#[test]
+fn the_procedural_cumulus_bricks_equal_the_dense_ones_within_their_bounds() {
+    use crate::types::ProceduralKind::Cumulus;
+    for (dims, seed) in [([64, 40, 64], 7), ([40, 24, 33], 2), ([23, 48, 17], 3)] {
+        let cumulus = BrickGrid::procedural(dims, seed, Cumulus).unwrap();
+        let dense = BrickGrid::from_dense(&crate::procedural_cumulus(dims, seed)).unwrap();
+        assert_eq!(cumulus, dense, "{dims:?}");
+        assert!(!cumulus.bricks.is_empty(), "{dims:?}");
+        let bound = BrickTopology::procedural(dims, seed, Cumulus);
+        assert!(cumulus.bricks.iter().all(|b| bound.bricks.contains(b)));
+        let super_voxel = super::procedural_super_voxel_test(dims, seed, Cumulus);
+        for (b, _) in cumulus.super_voxels() {
+            assert!(super_voxel(b), "{dims:?} seed {seed}: super-voxel {b}");
+        }
+    }
+}
+
 /// The procedural cloud's brick bound (derived from the density formula, not sampled)
 /// holds every non-zero voxel of dense clouds of several sizes and seeds.
 #[test]

@@ -347,7 +347,14 @@ fn parse_grid_source(
                     "a velocity grid must come from a file (3 float32 channels)",
                 ));
             }
-            f.choice("procedural", None, &[("cloud", ())])?;
+            let kind = f.choice(
+                "procedural",
+                None,
+                &[
+                    ("cloud", ProceduralKind::Cloud),
+                    ("cumulus", ProceduralKind::Cumulus),
+                ],
+            )?;
             let dims = dims.ok_or_else(|| {
                 f.error(
                     "dims",
@@ -355,7 +362,11 @@ fn parse_grid_source(
                 )
             })?;
             let noise_seed = f.int_in("noise_seed", Some(0), 0..=i64::MAX)? as u64;
-            Ok(GridSource::ProceduralCloud { dims, noise_seed })
+            Ok(GridSource::ProceduralCloud {
+                dims,
+                noise_seed,
+                kind,
+            })
         }
         (Some(name), None) => {
             if f.has("noise_seed") {

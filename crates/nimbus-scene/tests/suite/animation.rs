@@ -320,6 +320,7 @@ fn grid_medium(frames: &[u32]) -> GridMedium {
     let source = |seed| GridSource::ProceduralCloud {
         dims: [4, 4, 4],
         noise_seed: seed,
+        kind: Default::default(),
     };
     GridMedium {
         bounds_min: Vec3::ZERO,

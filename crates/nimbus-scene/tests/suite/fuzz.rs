@@ -97,6 +97,7 @@ const TYPES: &[&str] = &[
     "point",
     "environment",
     "cloud",
+    "cumulus",
     "restir",
     "baseline",
     "mcwvds",

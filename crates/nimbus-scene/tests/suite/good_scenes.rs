@@ -354,7 +354,8 @@ sigma_star_floor = 0.125
                     frame: 2,
                     density: GridSource::ProceduralCloud {
                         dims: [8, 8, 8],
-                        noise_seed: 7
+                        noise_seed: 7,
+                        kind: Default::default(),
                     }
                 },
                 GridFrame {
@@ -375,7 +376,8 @@ sigma_star_floor = 0.125
         defaults.density,
         GridSource::ProceduralCloud {
             dims: [16, 16, 16],
-            noise_seed: 0
+            noise_seed: 0,
+            kind: Default::default(),
         }
     );
     assert_eq!(defaults.density_scale, 1.0);

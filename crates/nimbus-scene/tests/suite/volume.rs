@@ -2,7 +2,10 @@
 //! structures (mip chain, conservative piecewise-constant grid, super-voxels).
 
 use crate::common::{assert_contains, TempDir};
-use nimbus_scene::{load_grid, procedural_cloud, GridSource, VoxelGrid, MAX_GRID_VALUES};
+use nimbus_scene::{
+    load_grid, procedural_cloud, procedural_cumulus, GridSource, ProceduralKind, VoxelGrid,
+    MAX_GRID_VALUES,
+};
 
 /// A small deterministic PRNG (SplitMix64) for the property tests.
 struct Rng(u64);
@@ -205,6 +208,7 @@ fn memory_guard_refuses_before_reading() {
         &GridSource::ProceduralCloud {
             dims: [4096, 4096, 4096],
             noise_seed: 1,
+            kind: Default::default(),
         },
         1,
         "cloud",
@@ -225,6 +229,51 @@ fn memory_guard_refuses_before_reading() {
     assert_contains(&format!("{e:#}"), &["not found", "huge.raw"]);
 }
 
+/// `procedural = "cumulus"` parses, loads as `procedural_cumulus` (deterministic, seeds
+/// differ), and is a cumulus: densities in [0, 1], a flat base (no density below its
+/// lowest filled layer's height, which is well above the floor of the box, and a wide
+/// footprint there), taller than its base is wide at the top, zeros on every face.
+#[test]
+fn procedural_cumulus_loads_and_has_a_flat_base() {
+    let scene = nimbus_scene::parse_str(
+        "[camera]\nposition = [0, 0, 3]\nlook_at = [0, 0, 0]\n[[medium]]\ntype = \"grid\"\nbounds_min = [-1, -0.6, -1]\nbounds_max = [1, 0.6, 1]\n\
+         density = { procedural = \"cumulus\", dims = [64, 40, 64], noise_seed = 3 }\n",
+        std::path::Path::new("cumulus.toml"),
+    )
+    .unwrap();
+    let nimbus_scene::Medium::Grid(g) = &scene.media[0] else {
+        panic!("a grid medium")
+    };
+    let source = GridSource::ProceduralCloud {
+        dims: [64, 40, 64],
+        noise_seed: 3,
+        kind: ProceduralKind::Cumulus,
+    };
+    assert_eq!(g.density, source);
+    let a = load_grid(&source, 1, "cumulus").unwrap();
+    let bits = |g: &VoxelGrid| g.data.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&a), bits(&procedural_cumulus([64, 40, 64], 3)));
+    assert_ne!(bits(&a), bits(&procedural_cumulus([64, 40, 64], 4)));
+    assert!(a.data.iter().all(|&v| (0.0..=1.0).contains(&v)));
+    // Filled voxels per layer (y).
+    let layer = |j: u32| {
+        (0..64u32)
+            .flat_map(|k| (0..64u32).map(move |i| (i, k)))
+            .filter(|&(i, k)| a.get(i, j, k) > 0.0)
+            .count()
+    };
+    let counts: Vec<usize> = (0..40).map(layer).collect();
+    let base = counts.iter().position(|&n| n > 0).expect("a filled layer");
+    assert!(base >= 4, "base at layer {base}: {counts:?}");
+    // Flat: within two layers of the base it is already at a third of its widest.
+    let widest = *counts.iter().max().unwrap();
+    assert!(3 * counts[base + 2] >= widest, "{counts:?}");
+    // Billowing towers: the top layers are narrower than the body.
+    let top = counts.iter().rposition(|&n| n > 0).unwrap();
+    assert!(top > base + 20, "{counts:?}");
+    assert!(4 * counts[top - 2] < widest, "{counts:?}");
+}
+
 #[test]
 fn procedural_cloud_is_deterministic_and_cloud_like() {
     let dims = [64, 64, 64];
@@ -233,6 +282,7 @@ fn procedural_cloud_is_deterministic_and_cloud_like() {
         &GridSource::ProceduralCloud {
             dims,
             noise_seed: 7,
+            kind: Default::default(),
         },
         1,
         "cloud",
