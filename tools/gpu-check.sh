@@ -3,7 +3,7 @@
 # timings, and the equal-time studies of both papers (error against a converged
 # reference versus GPU milliseconds, several seeds with their spread).
 #
-#   tools/gpu-check.sh [--quick | --lent | --motion] [--no-tests] [OUT_DIR]
+#   tools/gpu-check.sh [--quick | --lent | --motion | --gallery] [--no-tests] [OUT_DIR]
 #
 # OUT_DIR (default gpu-check-<date>) receives devices.txt, tests.txt (the whole test
 # suite on this machine's default device, validation layers on), profile-*.txt, one
@@ -31,6 +31,16 @@
 # moving sun at K = 1 and 7. Each study is cut at its own time limit so that a slow one
 # leaves the others their time; steps.txt says which finished.
 #
+# --gallery renders docs/gallery.md's scenes at 1920x1080 (gallery/NAME.png, NAME.log
+# with the render's GPU time) and profiles each at 1080p (gallery/profile-NAME.txt: median
+# ms per frame and pass), times the GPU denoiser on a 1080p frame of each grid
+# integrator, and runs the per-frame equal-time study (ReSTIR against the baseline at
+# 960x540, 3 seeds) on the cumulus and on the explosion (issue 27). The explosion and
+# the plume are written first by the make_explosion and make_plume examples (set
+# NIMBUS_MAKE_EXPLOSION / NIMBUS_MAKE_PLUME to their binaries; by default
+# target/release/examples/). About 6 minutes on an H200; NIMBUS_GALLERY_SMOKE=1 shrinks
+# it into a lavapipe test of the script.
+#
 # The release binary is built when NIMBUS_BIN is unset; on a lent machine, carry one
 # built here and set NIMBUS_BIN. Set NIMBUS_DEVICE=<name substring> to pick a device.
 set -euo pipefail
@@ -42,6 +52,7 @@ while [[ "${1:-}" == --* ]]; do
         --quick) mode=quick ;;
         --lent) mode=lent; tests=0 ;;
         --motion) mode=motion; tests=0 ;;
+        --gallery) mode=gallery; tests=0 ;;
         --no-tests) tests=0 ;;
         *) echo "unknown option $1" >&2; exit 2 ;;
     esac
@@ -95,7 +106,7 @@ case $mode in
         bounces_list="1 3 7"
         spp_list=1,2,4,8,16,32
         ;;
-    full)
+    full | gallery)
         size=(--width 640 --height 480)
         hd=(--width 1920 --height 1080)
         frames=16
@@ -148,6 +159,75 @@ if [[ $mode == motion ]]; then
     motion_study sky-g06-k1 60 $m/sky-g06.toml 1
     motion_study sky-g06-k7 70 $m/sky-g06.toml 7
     rm -rf "$out/references" "$out/plume"
+    echo "wrote $out"
+    exit 0
+fi
+
+if [[ $mode == gallery ]]; then
+    g="$out/gallery"
+    mkdir -p "$g"
+    examples="$root/target/release/examples"
+    explosion_bin="${NIMBUS_MAKE_EXPLOSION:-$examples/make_explosion}"
+    plume_bin="${NIMBUS_MAKE_PLUME:-$examples/make_plume}"
+    if [[ -n ${NIMBUS_GALLERY_SMOKE:-} ]]; then
+        shot_size=(--width 48 --height 27)
+        scale=1
+        grid_n=32
+        study_size=(--width 32 --height 18 --frames 2 --seeds 1 --reference-frames 2 --reference-spp 1)
+    else
+        shot_size=(--width 1920 --height 1080)
+        scale=4
+        grid_n=128
+        study_size=(--width 960 --height 540 --frames 8 --seeds 3 --reference-frames 32 --reference-spp 16)
+    fi
+    step "make explosion" "$explosion_bin" "$out/explosion" "$grid_n" >"$g/make-explosion.log" 2>&1
+    # 96 frames: the plume stands tall and billowing by its last one.
+    step "make plume" "$plume_bin" "$out/plume" "$grid_n" 96 >"$g/make-plume.log" 2>&1
+    # NAME SCENE FRAMES [ARGS...]: one picture at 1080p, then its per-frame profile.
+    shot() {
+        local name=$1 scene=$2 shot_frames=$3
+        shift 3
+        if [[ ! -f $scene ]]; then
+            echo "shot $name: no $scene" | tee -a "$out/steps.txt"
+            return 0
+        fi
+        step "render $name" timeout 120 "$NIMBUS_BIN" render "$scene" "${shot_size[@]}" \
+            --frames "$shot_frames" "$@" --out "$g/$name.png" >"$g/$name.log" 2>&1
+        step "profile $name" timeout 60 "$NIMBUS_BIN" profile "$scene" "${shot_size[@]}" \
+            --frames 8 --warmup 2 "$@" >"$g/profile-$name.txt" 2>&1
+    }
+    baseline=(--set integrator.volume=baseline)
+    shot cumulus-baseline assets/scenes/cloud.toml $((4 * scale)) --spp $((4 * scale))
+    shot cumulus-restir assets/scenes/cloud-restir.toml $((4 * scale))
+    shot explosion-baseline "$out/explosion/explosion-$grid_n.toml" $((4 * scale)) \
+        --spp $((4 * scale)) "${baseline[@]}"
+    shot explosion-restir "$out/explosion/explosion-$grid_n.toml" $((4 * scale))
+    shot plume-fog "$out/plume/plume-fog-$grid_n.toml" $((4 * scale))
+    shot window assets/scenes/window.toml $((2 * scale)) --spp 4
+    # The GPU denoiser on one 1080p frame of each grid integrator (its report line gives
+    # the filter's GPU milliseconds).
+    step "denoise restir" timeout 60 "$NIMBUS_BIN" render assets/scenes/cloud-restir.toml \
+        "${shot_size[@]}" --frames 1 --denoise --out "$g/cumulus-restir-1f-denoised.png" \
+        >"$g/denoise-restir.log" 2>&1
+    step "denoise baseline" timeout 60 "$NIMBUS_BIN" render assets/scenes/cloud.toml \
+        "${shot_size[@]}" --frames 1 --spp 16 --denoise --out "$g/cumulus-baseline-16spp-denoised.png" \
+        >"$g/denoise-baseline.log" 2>&1
+    # Issue 15's per-frame equal-time metric on the gallery's grid scenes.
+    gallery_study() {
+        local name=$1 limit=$2 scene=$3
+        shift 3
+        [[ -f $scene ]] || return 0
+        step "study $name" timeout "$limit" "$NIMBUS_BIN" study "$scene" "${study_size[@]}" \
+            --per-frame --cache-dir "$out/references" --vary volume=baseline,restir \
+            --vary spp=1,2,4,8,16,32 --baseline volume=baseline "$@" \
+            --out-dir "$out/study-$name" >"$out/study-$name.log" 2>&1
+    }
+    gallery_study cumulus 150 assets/scenes/cloud-restir.toml
+    gallery_study explosion 150 "$out/explosion/explosion-$grid_n.toml"
+    for f in "$g"/*.log; do
+        [[ $f == */make-* ]] || grep -H "^wrote\|^denoised" "$f" || true
+    done >"$g/summary.txt"
+    rm -rf "$out/references" "$out/explosion" "$out/plume"
     echo "wrote $out"
     exit 0
 fi
