@@ -39,7 +39,13 @@
 # the plume are written first by the make_explosion and make_plume examples (set
 # NIMBUS_MAKE_EXPLOSION / NIMBUS_MAKE_PLUME to their binaries; by default
 # target/release/examples/). About 6 minutes on an H200; NIMBUS_GALLERY_SMOKE=1 shrinks
-# it into a lavapipe test of the script.
+# it into a lavapipe test of the script; NIMBUS_GALLERY_ONLY="NAME ..." runs only the
+# named pictures (cumulus-baseline, plume-fog, ...), `denoise` and `study-cumulus` /
+# `study-explosion`.
+#
+# NIMBUS_MOTION_HD=1 makes --motion the 1080p run issue 26 asks for (about 5 minutes on
+# an H200): the motion benchmarks' per-frame profiles at 1920x1080 (K = 1 and 3, ReSTIR
+# and the 1-spp baseline) and the moving camera's equal-time study at 1080p (2 seeds).
 #
 # The release binary is built when NIMBUS_BIN is unset; on a lent machine, carry one
 # built here and set NIMBUS_BIN. Set NIMBUS_DEVICE=<name substring> to pick a device.
@@ -128,6 +134,8 @@ if [[ $mode == motion ]]; then
     # NIMBUS_MOTION_SMOKE=1 shrinks it into a test of this script on lavapipe.
     if [[ -n ${NIMBUS_MOTION_SMOKE:-} ]]; then
         motion_size=(--width 32 --height 24 --frames 2 --seeds 1 --reference-frames 2 --reference-spp 1)
+    elif [[ -n ${NIMBUS_MOTION_HD:-} ]]; then
+        motion_size=(--width 1920 --height 1080 --frames 8 --seeds 2 --reference-frames 16 --reference-spp 16)
     else
         motion_size=(--width 960 --height 540 --frames 8 --seeds 3 --reference-frames 32 --reference-spp 16)
     fi
@@ -145,6 +153,27 @@ if [[ $mode == motion ]]; then
             --vary "max_bounces=$k" "$@" --out-dir "$out/study-$name" >"$out/study-$name.log" 2>&1
     }
     m=assets/scenes/bench/motion
+    if [[ -n ${NIMBUS_MOTION_HD:-} ]]; then
+        # The paper's marks are ms per 1080p frame (55 at K = 1, 142 at K = 3 on an RTX
+        # 3090): each motion benchmark's frame at 1080p, K = 1 and 3, by ReSTIR and by
+        # the 1-spp baseline, then the equal-time study of the moving camera at 1080p.
+        hd_size=(--width 1920 --height 1080)
+        [[ -n ${NIMBUS_MOTION_SMOKE:-} ]] && hd_size=(--width 32 --height 24)
+        for scene in camera-g0 sun-g0 sky-g06 explosion-matched; do
+            for k in 1 3; do
+                step "profile $scene k$k" timeout 60 "$NIMBUS_BIN" profile "$m/$scene.toml" \
+                    "${hd_size[@]}" --frames 8 --warmup 4 --set "integrator.max_bounces=$k" \
+                    >"$out/profile-$scene-hd-k$k.txt" 2>&1
+                step "profile $scene baseline k$k" timeout 60 "$NIMBUS_BIN" profile "$m/$scene.toml" \
+                    "${hd_size[@]}" --frames 8 --warmup 4 --set "integrator.max_bounces=$k" \
+                    --set integrator.volume=baseline >"$out/profile-$scene-baseline-hd-k$k.txt" 2>&1
+            done
+        done
+        motion_study camera-g0-hd-k1 200 $m/camera-g0.toml 1
+        rm -rf "$out/references"
+        echo "wrote $out"
+        exit 0
+    fi
     motion_study sky-g06-k3 100 $m/sky-g06.toml 3 --vary env_reuse=map,world
     motion_study explosion-mismatched-k3 110 $m/explosion-mismatched.toml 3 --vary emission=separate,folded
     motion_study explosion-matched-k3 110 $m/explosion-matched.toml 3 --vary emission=separate,folded
@@ -180,13 +209,22 @@ if [[ $mode == gallery ]]; then
         grid_n=128
         study_size=(--width 960 --height 540 --frames 8 --seeds 3 --reference-frames 32 --reference-spp 16)
     fi
-    step "make explosion" "$explosion_bin" "$out/explosion" "$grid_n" >"$g/make-explosion.log" 2>&1
-    # 96 frames: the plume stands tall and billowing by its last one.
-    step "make plume" "$plume_bin" "$out/plume" "$grid_n" 96 >"$g/make-plume.log" 2>&1
+    if [[ -z ${NIMBUS_GALLERY_ONLY:-} || $NIMBUS_GALLERY_ONLY == *explosion* ]]; then
+        step "make explosion" "$explosion_bin" "$out/explosion" "$grid_n" >"$g/make-explosion.log" 2>&1
+    fi
+    if [[ -z ${NIMBUS_GALLERY_ONLY:-} || $NIMBUS_GALLERY_ONLY == *plume* ]]; then
+        # 96 frames: the plume stands tall and billowing by its last one.
+        step "make plume" "$plume_bin" "$out/plume" "$grid_n" 96 >"$g/make-plume.log" 2>&1
+    fi
+    # Whether step NAME runs: every one, or those named in NIMBUS_GALLERY_ONLY.
+    wanted() {
+        [[ -z ${NIMBUS_GALLERY_ONLY:-} || " $NIMBUS_GALLERY_ONLY " == *" $1 "* ]]
+    }
     # NAME SCENE FRAMES [ARGS...]: one picture at 1080p, then its per-frame profile.
     shot() {
         local name=$1 scene=$2 shot_frames=$3
         shift 3
+        wanted "$name" || return 0
         if [[ ! -f $scene ]]; then
             echo "shot $name: no $scene" | tee -a "$out/steps.txt"
             return 0
@@ -206,17 +244,17 @@ if [[ $mode == gallery ]]; then
     shot window assets/scenes/window.toml $((2 * scale)) --spp 4
     # The GPU denoiser on one 1080p frame of each grid integrator (its report line gives
     # the filter's GPU milliseconds).
-    step "denoise restir" timeout 60 "$NIMBUS_BIN" render assets/scenes/cloud-restir.toml \
+    wanted denoise && step "denoise restir" timeout 60 "$NIMBUS_BIN" render assets/scenes/cloud-restir.toml \
         "${shot_size[@]}" --frames 1 --denoise --out "$g/cumulus-restir-1f-denoised.png" \
         >"$g/denoise-restir.log" 2>&1
-    step "denoise baseline" timeout 60 "$NIMBUS_BIN" render assets/scenes/cloud.toml \
+    wanted denoise && step "denoise baseline" timeout 60 "$NIMBUS_BIN" render assets/scenes/cloud.toml \
         "${shot_size[@]}" --frames 1 --spp 16 --denoise --out "$g/cumulus-baseline-16spp-denoised.png" \
         >"$g/denoise-baseline.log" 2>&1
     # Issue 15's per-frame equal-time metric on the gallery's grid scenes.
     gallery_study() {
         local name=$1 limit=$2 scene=$3
         shift 3
-        [[ -f $scene ]] || return 0
+        [[ -f $scene ]] && wanted "study-$name" || return 0
         step "study $name" timeout "$limit" "$NIMBUS_BIN" study "$scene" "${study_size[@]}" \
             --per-frame --cache-dir "$out/references" --vary volume=baseline,restir \
             --vary spp=1,2,4,8,16,32 --baseline volume=baseline "$@" \
