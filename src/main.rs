@@ -147,11 +147,16 @@ fn make_sky_cmd(args: MakeSkyArgs) -> Result<()> {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
     nimbus::output::write_atomically(out, |tmp| {
-        exr::prelude::write_rgb_file(tmp, w, h, |x, y| {
+        use exr::prelude::{Encoding, Image, SpecificChannels, Vec2, WritableImage};
+        // Lossless ZIP: the sky is smooth along its rows, so a committed map stays small.
+        let channels = SpecificChannels::rgb(|Vec2(x, y): Vec2<usize>| {
             let [r, g, b] = texels[y * w + x];
             (r, g, b)
-        })
-        .with_context(|| format!("writing {}", out.display()))
+        });
+        Image::from_encoded_channels((w, h), Encoding::SMALL_LOSSLESS, channels)
+            .write()
+            .to_file(tmp)
+            .with_context(|| format!("writing {}", out.display()))
     })?;
     let sun = if args.sun_irradiance > 0.0 {
         format!("sun {:.2} deg across", args.sun_diameter_deg)
