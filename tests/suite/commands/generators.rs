@@ -89,6 +89,32 @@ fn the_plume_generator_writes_an_animated_plume_at_any_size() {
             .any(|p| (p[0] - sky[0]).abs() > 0.05),
         "the plume is seen"
     );
+    // And the smoke-in-fog still (issue 27): with four frames, the last one, in three
+    // box media of fog that overlap the grid, for the baseline path tracer.
+    let scene =
+        nimbus_scene::load(&dir.join("plume-fog-40.toml")).unwrap_or_else(|e| panic!("{e:#}"));
+    assert!(!scene.is_animated());
+    assert_eq!((scene.render.width, scene.render.height), (640, 360));
+    assert_eq!(
+        scene.integrator.volume,
+        nimbus_scene::VolumeIntegrator::Baseline
+    );
+    match &scene.media[..] {
+        [nimbus_scene::Medium::Grid(g), fog @ ..] => {
+            match &g.density {
+                nimbus_scene::GridSource::MitsubaVol { file } => {
+                    assert!(file.ends_with("plume-40-f3.vol"), "{file:?}")
+                }
+                other => panic!("{other:?}"),
+            }
+            assert_eq!(fog.len(), 3);
+            assert!(fog
+                .iter()
+                .all(|m| matches!(m, nimbus_scene::Medium::Box(_))));
+        }
+        other => panic!("{other:?}"),
+    }
+    render_small(&dir.join("plume-fog-40.toml"));
 
     // More frames: the motion benchmark scene, one density frame per scene frame.
     let dir = scratch("generators", "plume-motion");
