@@ -21,14 +21,6 @@
 //! 4 octaves from 14 per metre, clamped), and `plume-anim-N.toml` next to it renders
 //! it at 640x360 (the committed 32³ assets keep their exact values).
 //!
-//! At a resolution other than 32, `plume-fog-N.toml` shows one still frame (frame 16,
-//! tall, with its head billowing near the top of the box; the last frame written if
-//! there are fewer, so give F >= 17) as smoke rising out of a layer of ground fog: the
-//! grid scaled to 3 m, grey smoke (albedo 0.75), graded fog (three overlapping box
-//! media: extinctions add) on a ground, a low sun from behind to the left whose light
-//! the smoke shadows in the fog, and a daylight sky; 640x360 with the baseline path
-//! tracer (`cargo run --release --example make_plume -- target/plume 128 17`).
-//!
 //! - `plume-f0.vol` .. `plume-f3.vol`: 32³ voxels, 1 channel, density in [0, 1]: a
 //!   smooth stem rising into a rounded head, with three lobes around the vertical axis
 //!   so that the swirl shows. Exactly 0 outside a compact support that stays at least
@@ -55,8 +47,6 @@ use nimbus_scene::VoxelGrid;
 const N_ASSETS: u32 = 32;
 /// Density frames written.
 const FRAMES: usize = 4;
-/// The density frame `plume-fog-N.toml` shows (the last one written if there are fewer).
-const FOG_FRAME: usize = 16;
 /// The medium's bounds in the scene (written into the .vol headers too).
 const BOUNDS_MIN: Vec3 = Vec3::splat(-0.5);
 const BOUNDS_MAX: Vec3 = Vec3::splat(0.5);
@@ -249,8 +239,6 @@ fn main() -> Result<()> {
         if frames.len() > FRAMES {
             write_motion_scene(&out_dir, n, &frames, &path)?;
         }
-        let fog_frame = FOG_FRAME.min(frames.len() - 1);
-        write_fog_scene(&out_dir, n, fog_frame, &frames[fog_frame])?;
     }
     Ok(())
 }
@@ -317,92 +305,6 @@ fn write_scene(out_dir: &Path, n: u32, frames: &[PathBuf], velocity: &Path) -> R
         format!("# plume-anim.toml at {n}^3, written by examples/make_plume.rs.\n{text}"),
     )
     .with_context(|| format!("writing {}", path.display()))?;
-    println!("wrote {}", path.display());
-    Ok(())
-}
-
-/// `plume-fog-N.toml`: one density frame as smoke rising out of ground fog (issue 27).
-fn write_fog_scene(out_dir: &Path, n: u32, frame: usize, density: &Path) -> Result<()> {
-    let density = density
-        .canonicalize()
-        .with_context(|| format!("resolving {}", density.display()))?;
-    let text = format!(
-        r#"# A smoke plume in ground fog ({n}^3 voxels, density frame {frame}), written by
-# examples/make_plume.rs. The plume's grid is scaled to 3 m, its base hidden in a layer
-# of ground fog: three overlapping box media (extinctions add) thinning upwards, so
-# sigma_t is 0.5 per metre below 0.3 m, 0.25 up to 0.6 m and 0.1 up to 1 m. A low sun
-# from behind on the left rims the grey smoke and casts its shadow through the fog
-# towards the camera; a daylight sky fills in. Rendered with the baseline path tracer,
-# which is cleaner than ReSTIR here at equal time (the fog fills most of the frame).
-
-[render]
-width = 640
-height = 360
-spp = 256
-seed = 7
-
-[camera]
-position = [-0.6, 1.55, 6.3]
-look_at = [0.6, 1.3, 0.0]
-horizontal_fov_deg = 55
-
-[[light]]
-type = "directional"
-direction = [0.8, -0.3, 0.45]
-irradiance = [5.0, 4.0, 2.8]
-
-[[light]]
-type = "environment"
-radiance = [0.12, 0.17, 0.28]
-
-[[medium]]
-type = "grid"
-bounds_min = [-1.5, 0.0, -1.5]
-bounds_max = [1.5, 3.0, 1.5]
-density = {{ file = "{}" }}
-density_scale = 22.0
-albedo = 0.75
-g = 0.3
-
-[[medium]]
-type = "box"
-center = [0.0, 0.5, 0.0]
-size = [40.0, 1.0, 40.0]
-sigma_t = 0.1
-albedo = 0.9
-g = 0.6
-
-[[medium]]
-type = "box"
-center = [0.0, 0.3, 0.0]
-size = [40.0, 0.6, 40.0]
-sigma_t = 0.15
-albedo = 0.9
-g = 0.6
-
-[[medium]]
-type = "box"
-center = [0.0, 0.15, 0.0]
-size = [40.0, 0.3, 40.0]
-sigma_t = 0.25
-albedo = 0.9
-g = 0.6
-
-[[shape]]
-type = "quad"
-corner = [-20.0, 0.0, 20.0]
-edge_u = [40.0, 0.0, 0.0]
-edge_v = [0.0, 0.0, -40.0]
-albedo = [0.3, 0.28, 0.22]
-
-[integrator]
-volume = "baseline"
-max_bounces = 4
-"#,
-        density.display()
-    );
-    let path = out_dir.join(format!("plume-fog-{n}.toml"));
-    std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
     println!("wrote {}", path.display());
     Ok(())
 }

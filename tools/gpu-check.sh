@@ -36,11 +36,11 @@
 # ms per frame and pass), times the GPU denoiser on a 1080p frame of each grid
 # integrator, and runs the per-frame equal-time study (ReSTIR against the baseline at
 # 960x540, 3 seeds) on the cumulus and on the explosion (issue 27). The explosion and
-# the plume are written first by the make_explosion and make_plume examples (set
-# NIMBUS_MAKE_EXPLOSION / NIMBUS_MAKE_PLUME to their binaries; by default
+# the smoke are written first by the make_explosion and make_smoke examples (set
+# NIMBUS_MAKE_EXPLOSION / NIMBUS_MAKE_SMOKE to their binaries; by default
 # target/release/examples/). About 6 minutes on an H200; NIMBUS_GALLERY_SMOKE=1 shrinks
 # it into a lavapipe test of the script; NIMBUS_GALLERY_ONLY="NAME ..." runs only the
-# named pictures (cumulus-baseline, plume-fog, ...), `denoise` and `study-cumulus` /
+# named pictures (cumulus-baseline, smoke-fog, ...), `denoise` and `study-cumulus` /
 # `study-explosion`.
 #
 # NIMBUS_MOTION_HD=1 makes --motion the 1080p run issue 26 asks for (about 5 minutes on
@@ -197,7 +197,7 @@ if [[ $mode == gallery ]]; then
     mkdir -p "$g"
     examples="$root/target/release/examples"
     explosion_bin="${NIMBUS_MAKE_EXPLOSION:-$examples/make_explosion}"
-    plume_bin="${NIMBUS_MAKE_PLUME:-$examples/make_plume}"
+    smoke_bin="${NIMBUS_MAKE_SMOKE:-$examples/make_smoke}"
     if [[ -n ${NIMBUS_GALLERY_SMOKE:-} ]]; then
         shot_size=(--width 48 --height 27)
         scale=1
@@ -212,9 +212,8 @@ if [[ $mode == gallery ]]; then
     if [[ -z ${NIMBUS_GALLERY_ONLY:-} || $NIMBUS_GALLERY_ONLY == *explosion* ]]; then
         step "make explosion" "$explosion_bin" "$out/explosion" "$grid_n" >"$g/make-explosion.log" 2>&1
     fi
-    if [[ -z ${NIMBUS_GALLERY_ONLY:-} || $NIMBUS_GALLERY_ONLY == *plume* ]]; then
-        # 96 frames: the plume stands tall and billowing by its last one.
-        step "make plume" "$plume_bin" "$out/plume" "$grid_n" 96 >"$g/make-plume.log" 2>&1
+    if [[ -z ${NIMBUS_GALLERY_ONLY:-} || $NIMBUS_GALLERY_ONLY == *smoke* ]]; then
+        step "make smoke" "$smoke_bin" "$out/smoke" "$grid_n" >"$g/make-smoke.log" 2>&1
     fi
     # Whether step NAME runs: every one, or those named in NIMBUS_GALLERY_ONLY.
     wanted() {
@@ -240,7 +239,7 @@ if [[ $mode == gallery ]]; then
     shot explosion-baseline "$out/explosion/explosion-$grid_n.toml" $((4 * scale)) \
         --spp $((4 * scale)) "${baseline[@]}"
     shot explosion-restir "$out/explosion/explosion-$grid_n.toml" $((4 * scale))
-    shot plume-fog "$out/plume/plume-fog-$grid_n.toml" $((4 * scale))
+    shot smoke-fog "$out/smoke/smoke-fog-$grid_n.toml" $((4 * scale)) --spp $((4 * scale))
     shot window assets/scenes/window.toml $((2 * scale)) --spp 4
     # The GPU denoiser on one 1080p frame of each grid integrator (its report line gives
     # the filter's GPU milliseconds).
@@ -265,7 +264,7 @@ if [[ $mode == gallery ]]; then
     for f in "$g"/*.log; do
         [[ $f == */make-* ]] || grep -H "^wrote\|^denoised" "$f" || true
     done >"$g/summary.txt"
-    rm -rf "$out/references" "$out/explosion" "$out/plume"
+    rm -rf "$out/references" "$out/explosion" "$out/smoke"
     echo "wrote $out"
     exit 0
 fi
