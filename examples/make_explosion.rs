@@ -1,7 +1,8 @@
-//! Writes a pyro explosion at any resolution: a billowing fireball of smoke (nine
-//! noise-displaced puffs around a core, with a rising column) whose hot core glows as a
-//! blackbody, as Mitsuba `.vol` files, together with a scene file that renders it with
-//! Volumetric ReSTIR at 640x360, sitting in a layer of ground fog on a dark ground:
+//! Writes a pyro explosion at any resolution: a billowing fireball of smoke (twelve
+//! puffs around a core and up a rising column, each crowned by six smaller billows)
+//! whose hot inside glows as a blackbody, as Mitsuba `.vol` files, together with a scene
+//! file that renders it with Volumetric ReSTIR at 640x360, sitting in a layer of ground
+//! fog on a dark ground:
 //!
 //! ```sh
 //! cargo run --release --example make_explosion -- target/explosion 256
@@ -9,15 +10,17 @@
 //! writes `target/explosion/explosion-256-density.vol`, `explosion-256-temperature.vol`
 //! and `explosion-256.toml` (N defaults to 128).
 //!
-//! - Density in [0, 1] over the box [-1, 1]³ (m): each puff is 1 deep inside and falls
-//!   to 0 over its outer quarter, its radius displaced by low-frequency noise (±30 %);
-//!   the union is the largest puff value, times high-frequency detail noise. Exactly 0
-//!   on the outermost voxel layer and wherever no puff reaches (most of the box).
+//! - Density in [0, 1] over the box [-1, 1]³ (m): s, how deep a point lies inside the
+//!   union of the puffs (1 − distance / radius of the nearest-centred one), displaced by
+//!   low-frequency noise (billows), its outer shell eroded by high-frequency noise
+//!   (ragged smoke), then a smooth step over s in [0, 0.2] times detail noise. Exactly
+//!   0 on the outermost voxel layer and wherever no puff reaches (most of the box).
 //! - Temperature (unitless, as simulation tools write it; the scene maps it to
-//!   1200 + 900 · value kelvin): up to 1.5 at the core falling to 0 at 0.55 m, broken up
-//!   by noise, and only where there is smoke. The scene's `temperature` turns it into
-//!   blackbody radiance (absorbed-emission convention: σa · Le is the emitted power), so
-//!   the fire is white-yellow where hottest and dull red at its edges.
+//!   1200 + 900 · value kelvin): up to 1.5 at the core falling to 0 at 0.75 m, broken up
+//!   by noise, and only inside the smoke, not in its outer shell, so the fire glows
+//!   through where the smoke is thin. The scene's `temperature` turns it into blackbody
+//!   radiance (absorbed-emission convention: σa · Le is the emitted power), so the fire
+//!   is white-yellow where hottest and dull red at its edges.
 //!
 //! The same explosion at every resolution: shapes and noise live in world coordinates,
 //! so finer grids resolve finer detail of the same fireball.
@@ -70,24 +73,74 @@ fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
     ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
 }
 
-/// (density, temperature) at world point `p`.
-fn explosion(puffs: &[Puff], p: [f64; 3]) -> (f32, f32) {
-    // One displacement field for every puff: the surface billows as a whole.
-    let displace = 1.0 + 0.6 * (fbm_noise(SEED, 3, 2.5, p) - 0.5);
-    let mut shape = 0.0f64;
-    for puff in puffs {
-        let d = distance(p, puff.c) / (puff.r * displace);
-        shape = shape.max(smoothstep(1.0, 0.75, d));
+/// The puffs with their billows: each puff of [`puffs`] crowned by six puffs of 0.4 its
+/// radius on its surface (upward-biased directions from a hash), the cauliflower
+/// sub-structure of a fireball's smoke.
+fn billowed(puffs: Vec<Puff>) -> Vec<Puff> {
+    let mut out = Vec::with_capacity(puffs.len() * 7);
+    let mut n = 0u64;
+    let mut unit = || {
+        n += 1;
+        let h = mix(SEED ^ mix(n));
+        (h >> 11) as f64 / (1u64 << 53) as f64
+    };
+    for puff in &puffs {
+        for _ in 0..6 {
+            let y = -0.3 + 1.3 * unit();
+            let angle = std::f64::consts::TAU * unit();
+            let ring = (1.0 - y * y).max(0.0).sqrt();
+            let d = [ring * angle.cos(), y, ring * angle.sin()];
+            let r = puff.r * (0.35 + 0.15 * unit());
+            out.push(Puff {
+                c: [0, 1, 2].map(|a| puff.c[a] + d[a] * puff.r * 0.85),
+                r,
+            });
+        }
     }
-    if shape <= 0.0 {
+    let mut all = puffs;
+    all.extend(out);
+    all
+}
+
+/// SplitMix64's finalizer.
+fn mix(mut x: u64) -> u64 {
+    x = x.wrapping_add(0x9e37_79b9_7f4a_7c15);
+    x = (x ^ (x >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    x = (x ^ (x >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    x ^ (x >> 31)
+}
+
+/// (density, temperature) at world point `p`, given [`billowed`] puffs (the first is
+/// the core).
+fn explosion(puffs: &[Puff], p: [f64; 3]) -> (f32, f32) {
+    // How deep inside the union of puffs: 1 at a centre, 0 on a surface.
+    let mut s = f64::MIN;
+    for puff in puffs {
+        s = s.max(1.0 - distance(p, puff.c) / puff.r);
+    }
+    if s <= -0.2 {
         return (0.0, 0.0);
     }
-    let detail = fbm_noise(SEED + 1, 4, 9.0, p);
-    let density = (shape * (0.35 + 1.3 * detail)).clamp(0.0, 1.0);
+    // Billows at the scale of the crowning puffs, then the thin shell eroded into
+    // ragged smoke by finer noise.
+    let s1 = s + 0.4 * (fbm_noise(SEED, 3, 4.0, p) - 0.5);
+    if s1 <= 0.0 {
+        return (0.0, 0.0);
+    }
+    let erosion = 0.3 * (1.0 - fbm_noise(SEED + 1, 4, 14.0, p)) * (1.0 - smoothstep(0.0, 0.35, s1));
+    let s2 = s1 - erosion;
+    if s2 <= 0.0 {
+        return (0.0, 0.0);
+    }
+    let detail = fbm_noise(SEED + 3, 3, 10.0, p);
+    let density = (smoothstep(0.0, 0.2, s2) * (0.55 + 0.7 * detail)).clamp(0.0, 1.0);
+    // Heat: strongest at the core, in noisy pockets, and inside the smoke rather than in
+    // its outer shell, so the fire glows through where the smoke is thin.
     let core = distance(p, puffs[0].c);
     let heat = fbm_noise(SEED + 2, 3, 6.0, p);
-    let temperature = (smoothstep(0.55, 0.0, core) * (0.4 + 1.2 * heat)).clamp(0.0, 1.5);
-    let temperature = if density > 0.0 { temperature } else { 0.0 };
+    let temperature =
+        (smoothstep(0.75, 0.0, core) * (0.3 + 1.4 * heat) * smoothstep(0.05, 0.35, s2))
+            .clamp(0.0, 1.5);
     (density as f32, temperature as f32)
 }
 
@@ -104,7 +157,7 @@ fn main() -> Result<()> {
         bail!("N = {n}: expected 8 ..= 1024 voxels per axis");
     }
     std::fs::create_dir_all(&out_dir).with_context(|| format!("creating {}", out_dir.display()))?;
-    let puffs = puffs();
+    let puffs = billowed(puffs());
     let voxels = (n as usize).pow(3);
     let (mut density, mut temperature) = (Vec::with_capacity(voxels), Vec::with_capacity(voxels));
     let size = f64::from(BOUNDS_MAX.x - BOUNDS_MIN.x);
