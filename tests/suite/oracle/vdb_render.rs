@@ -80,6 +80,18 @@ fn raw_twin(dir: &Path, name: &str, to_world: DMat4) -> String {
 
 /// The raw twin of the voxels `values` (index space) placed by `m` (index to world).
 fn raw_twin_of(dir: &Path, name: &str, m: DMat4, values: &HashMap<IVec3, f32>) -> String {
+    raw_twin_plus(dir, name, m, values, 0.0).0
+}
+
+/// The raw twin with `add` added to every voxel (a constant density filling its box),
+/// and the world box it fills.
+fn raw_twin_plus(
+    dir: &Path,
+    name: &str,
+    m: DMat4,
+    values: &HashMap<IVec3, f32>,
+    add: f32,
+) -> (String, DVec3, DVec3) {
     let lo = values.keys().fold(IVec3::MAX, |a, k| a.min(*k)) - 1;
     let hi = values.keys().fold(IVec3::MIN, |a, k| a.max(*k)) + 1;
     let world = |p: DVec3| (m * p.extend(1.0)).truncate();
@@ -99,14 +111,14 @@ fn raw_twin_of(dir: &Path, name: &str, m: DMat4, values: &HashMap<IVec3, f32>) -
                 assert!((index - ijk.as_dvec3()).abs().max_element() < 1e-6);
                 let v = values.get(&ijk).copied().unwrap_or(0.0);
                 nonzero += usize::from(v != 0.0);
-                data.extend_from_slice(&v.to_le_bytes());
+                data.extend_from_slice(&(v + add).to_le_bytes());
             }
         }
     }
     assert_eq!(nonzero, values.values().filter(|v| **v != 0.0).count());
-    let file = dir.join(format!("{name}.raw"));
+    let file = dir.join(format!("{name}-plus-{add}.raw"));
     std::fs::write(&file, data).unwrap();
-    format!(
+    let text = format!(
         "type = \"grid\"\nbounds_min = [{}, {}, {}]\nbounds_max = [{}, {}, {}]\n\
          density = {{ file = \"{}\", dims = [{}, {}, {}] }}",
         bmin.x,
@@ -119,7 +131,8 @@ fn raw_twin_of(dir: &Path, name: &str, m: DMat4, values: &HashMap<IVec3, f32>) -
         dims.x,
         dims.y,
         dims.z
-    )
+    );
+    (text, bmin, bmax)
 }
 
 /// The scene around `medium`. ReSTIR renders with the paper's reuse settings (Q = 4, three
@@ -219,6 +232,62 @@ fn vdb_renders_as_its_raw_float32_twin() {
             asset(name).canonicalize().unwrap().display()
         );
         renders_like_its_twin(&ctx, name, &vdb, &raw);
+    }
+}
+
+/// Issue 27's mark: a VDB smoke inside a fog box renders, with the baseline and with
+/// ReSTIR, as the one grid whose density is the sum. half_zip.vdb (placed by `TO_WORLD`)
+/// sits in a box of fog (σt = 1, the albedo and g of the smoke) that fills its raw twin's
+/// box; the single grid is the twin with 1 / density_scale added to every voxel (the
+/// trilinear lookup of a constant is that constant, and the twin's outer layer of zeros
+/// keeps the face clamp the same).
+#[test]
+fn a_vdb_inside_a_fog_box_renders_as_the_grid_of_the_summed_density() {
+    let ctx = context();
+    let dir = scratch("vdb_render", "fog");
+    let (file_transform, values) = openvdb_dump("half_zip.vdb");
+    let m = to_world() * file_transform;
+    // scene_text's density_scale.
+    let density_scale = 2.5;
+    let (summed, bmin, bmax) = raw_twin_plus(&dir, "half_zip.vdb", m, &values, 1.0 / density_scale);
+    let (c, size) = ((bmin + bmax) * 0.5, bmax - bmin);
+    let fog = format!(
+        "\n[[medium]]\ntype = \"box\"\ncenter = [{}, {}, {}]\nsize = [{}, {}, {}]\n\
+         sigma_t = 1.0\nalbedo = 0.8\ng = 0.3\n",
+        c.x, c.y, c.z, size.x, size.y, size.z
+    );
+    let vdb = format!(
+        "type = \"vdb\"\ndensity = {{ file = \"{}\" }}\n{TO_WORLD}",
+        asset("half_zip.vdb").canonicalize().unwrap().display()
+    );
+    for volume in ["baseline", "restir"] {
+        let two = scene(&(scene_text(&vdb, volume) + &fog), "vdb-in-fog.toml");
+        assert_eq!(
+            two.overlaps,
+            [(0, 1)],
+            "{volume}: the smoke and the fog overlap"
+        );
+        let two = render_checked(&ctx, &two, None);
+        let one = render_checked(
+            &ctx,
+            &scene(&scene_text(&summed, volume), "summed.toml"),
+            None,
+        );
+        let (a, b) = ((&two.image, &two.std_error), (&one.image, &one.std_error));
+        assert_means_agree(
+            &format!("{volume}: vdb in fog vs summed grid"),
+            a,
+            b,
+            4.0,
+            0.005,
+        );
+        let beyond = channels_beyond(a, b, 4.5);
+        let channels = 3 * a.0.data.len();
+        println!("  {volume}: {beyond} of {channels} channels beyond 4.5 SE");
+        assert!(
+            beyond * 50 <= channels,
+            "{volume}: {beyond} channels beyond 4.5 SE"
+        );
     }
 }
 
