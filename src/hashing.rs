@@ -120,6 +120,12 @@ pub fn scene_files(scene: &Scene) -> Vec<(String, &Path)> {
                 format!("{table} [[medium.frame]] #{} density", j + 1),
                 &frame.density,
             ));
+            sources.extend(frame.temperature.iter().map(|t| {
+                (
+                    format!("{table} [[medium.frame]] #{} temperature", j + 1),
+                    t,
+                )
+            }));
         }
         out.extend(
             sources

@@ -276,6 +276,20 @@ fn restir_plan(
     boxes: usize,
 ) -> Result<(Integrator, Vec<Decision>)> {
     let s = &scene.integrator.restir;
+    // ReSTIR keeps one temperature grid resident for the whole animation; rather than
+    // render frames with the wrong fire, it refuses temperature frames (the baseline
+    // renders each frame's).
+    if let Some(j) = grid.frames.iter().position(|f| f.temperature.is_some()) {
+        anyhow::bail!(
+            "{}: [[medium]] #{} > [[medium.frame]] #{} gives a `temperature`, and Volumetric \
+             ReSTIR keeps one temperature grid for the whole animation: render it with \
+             [integrator] volume = \"baseline\" (which follows each frame's temperature), or \
+             leave the frames' temperature out",
+            scene.source.display(),
+            index + 1,
+            j + 1
+        );
+    }
     let asked_levels = AskedLevels::of(s);
     let k = scene.integrator.max_bounces;
     let mut plan = RestirPlan {

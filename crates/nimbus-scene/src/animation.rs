@@ -244,6 +244,23 @@ impl GridMedium {
         }
     }
 
+    /// The temperature grid in effect with density grid `index` (indexed like
+    /// [`GridMedium::density_index_at`]): the latest `[[medium.frame]]` at or before it
+    /// that gives a `temperature`, else the medium's own (`None` without one).
+    pub fn temperature_source_at_index(&self, index: usize) -> Option<&GridSource> {
+        let base = &self.temperature.as_ref()?.source;
+        let keyed = self.frames[..index.min(self.frames.len())]
+            .iter()
+            .rev()
+            .find_map(|f| f.temperature.as_ref());
+        Some(keyed.unwrap_or(base))
+    }
+
+    /// Whether some `[[medium.frame]]` swaps the temperature grid.
+    pub fn has_temperature_frames(&self) -> bool {
+        self.frames.iter().any(|f| f.temperature.is_some())
+    }
+
     /// Every density grid, indexed like [`GridMedium::density_index_at`]: the base
     /// `density`, then each `[[medium.frame]]`'s in order.
     pub fn density_sources(&self) -> impl Iterator<Item = &GridSource> + '_ {

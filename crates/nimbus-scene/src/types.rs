@@ -482,11 +482,13 @@ pub struct VdbWindow {
     pub vector_map: DMat3,
 }
 
-/// `[[medium.frame]]`: the density grid to use from `frame` on.
+/// `[[medium.frame]]`: the density grid to use from `frame` on, and optionally the
+/// temperature grid (`None`: the last one given at or before it holds).
 #[derive(Clone, Debug, PartialEq)]
 pub struct GridFrame {
     pub frame: u32,
     pub density: GridSource,
+    pub temperature: Option<GridSource>,
 }
 
 /// `[[shape]]`: opaque Lambertian surfaces. Each may emit: `emission` (W/(m²·sr), zero

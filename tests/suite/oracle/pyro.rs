@@ -175,6 +175,138 @@ max_bounces = 2
     check_against_oracle(&ctx, &scene(text, "pyro-cloud.toml"), 8, "blackbody K=2");
 }
 
+/// Animated fire (issue 27): `[[medium.frame]]` entries swap the temperature with the
+/// density. Frame k of the animation, rendered by the baseline, is exactly the image of
+/// the static scene holding frame k's density and the temperature in effect then (frame
+/// 4 gives none, so frame 2's holds), and a frame that changes only the temperature
+/// changes the image. ReSTIR, which keeps one temperature grid, refuses the scene,
+/// naming the frame and the way out.
+#[test]
+fn temperature_frames_swap_the_fire_in_the_baseline() {
+    use nimbus::renderer::{render, FrameSelection, RenderOptions};
+    let ctx = context();
+    let cloud = |seed: u32| {
+        format!("{{ procedural = \"cloud\", dims = [16, 10, 16], noise_seed = {seed} }}")
+    };
+    let text = format!(
+        r#"
+[render]
+width = 16
+height = 12
+spp = 2
+frames = 6
+seed = 11
+[camera]
+position = [0.3, 0.5, 2.4]
+look_at = [0.0, 0.0, 0.0]
+horizontal_fov_deg = 60
+[[camera.keyframe]]
+frame = 0
+position = [0.3, 0.5, 2.4]
+look_at = [0.0, 0.0, 0.0]
+[[camera.keyframe]]
+frame = 5
+position = [0.35, 0.5, 2.4]
+look_at = [0.0, 0.0, 0.0]
+[[light]]
+type = "environment"
+radiance = 0.05
+[[medium]]
+type = "grid"
+bounds_min = [-1.0, -0.6, -1.0]
+bounds_max = [1.0, 0.6, 1.0]
+density = {d0}
+density_scale = 16.0
+albedo = 0.5
+temperature = {t0}
+temperature_offset = 800.0
+temperature_scale = 2500.0
+blackbody_scale = 2e-4
+[[medium.frame]]
+frame = 2
+density = {d0}
+temperature = {t2}
+[[medium.frame]]
+frame = 4
+density = {d4}
+[integrator]
+volume = "baseline"
+max_bounces = 2
+"#,
+        d0 = cloud(3),
+        d4 = cloud(5),
+        t0 = cloud(4),
+        t2 = cloud(8),
+    );
+    let animated = scene(&text, "fire-frames.toml");
+    let frame = |s: &nimbus_scene::Scene, f: u32| {
+        let plan = nimbus::plan::build(s, None).expect("plan");
+        let opts = RenderOptions {
+            frames: FrameSelection::Each {
+                frames: vec![f],
+                passes: 2,
+            },
+            ..Default::default()
+        };
+        let r = render(&ctx, s, &plan, &opts).expect("render");
+        assert_eq!(r.non_finite_samples, 0);
+        r.image
+    };
+    // The scene of frame k alone: its density and the temperature in effect, no frames
+    // (the camera keyframes keep it animated, so frame k draws frame k's numbers).
+    let single = |k: u32| {
+        let mut s = animated.clone();
+        if let nimbus_scene::Medium::Grid(g) = &mut s.media[0] {
+            let index = g.density_index_at(k);
+            let temperature = g.temperature_source_at_index(index).unwrap().clone();
+            g.density = g.density_at(k).clone();
+            g.temperature.as_mut().unwrap().source = temperature;
+            g.frames.clear();
+        }
+        assert!(s.is_animated());
+        s
+    };
+    let images: Vec<_> = [0u32, 2, 4].iter().map(|&k| frame(&animated, k)).collect();
+    for (i, k) in [0u32, 2, 4].into_iter().enumerate() {
+        assert_eq!(images[i].data, frame(&single(k), k).data, "frame {k}");
+    }
+    // What the frames hold: frame 2 the base density with the second temperature, frame
+    // 4 the second density with the second temperature still.
+    let source = |s: &nimbus_scene::Scene| match &s.media[0] {
+        nimbus_scene::Medium::Grid(g) => (
+            g.density.clone(),
+            g.temperature.as_ref().unwrap().source.clone(),
+        ),
+        _ => unreachable!(),
+    };
+    let (d2, t2) = source(&single(2));
+    let (d4, t4) = source(&single(4));
+    assert_eq!(t2, t4);
+    assert_ne!(d2, d4);
+    assert_ne!(t2, source(&single(0)).1);
+    assert_ne!(
+        images[0].data, images[1].data,
+        "frame 2 changes only the temperature"
+    );
+
+    let mut restir = animated.clone();
+    restir.integrator.volume = nimbus_scene::VolumeIntegrator::Restir;
+    restir.render.spp = 1;
+    let err = nimbus::plan::build(&restir, None)
+        .err()
+        .map(|e| format!("{e:#}"))
+        .unwrap_or_default();
+    for part in [
+        "fire-frames.toml",
+        "[[medium.frame]] #1",
+        "temperature",
+        "volume = \"baseline\"",
+    ] {
+        assert!(err.contains(part), "{part:?} missing from: {err}");
+    }
+    crate::common::gpu::assert_no_validation_errors(&ctx);
+}
+
 /// A temperature whose blackbody outshines every radiometric input is refused when the
 /// grid loads, naming the scene, the medium, the field and the voxel.
 #[test]

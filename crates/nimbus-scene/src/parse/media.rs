@@ -50,7 +50,7 @@ pub(super) const MEDIUM_TYPES: &[(&str, &[&str])] = &[
     ("vdb", super::vdb::VDB_KEYS),
 ];
 pub(super) const GRID_KEYS: &[&str] = &["file", "dims", "procedural", "noise_seed"];
-pub(super) const GRID_FRAME_KEYS: &[&str] = &["frame", "density"];
+pub(super) const GRID_FRAME_KEYS: &[&str] = &["frame", "density", "temperature"];
 
 pub(super) fn parse_medium(
     source: &Source,
@@ -216,7 +216,31 @@ pub(super) fn parse_medium(
             density_table,
             GridChannels::Scalar,
         )?;
-        frames.push((GridFrame { frame, density }, name));
+        let frame_temperature = match frame_fields.opt_table("temperature")? {
+            Some(_) if temperature.is_none() => {
+                return Err(frame_fields.error(
+                    "temperature",
+                    "the medium has no `temperature`: give it one (its \
+                     `temperature_offset`, `temperature_scale` and `blackbody_scale` map every \
+                     frame's grid to kelvin and radiance)",
+                ));
+            }
+            Some(table) => Some(parse_grid_source(
+                &frame_fields,
+                "temperature",
+                table,
+                GridChannels::Scalar,
+            )?),
+            None => None,
+        };
+        frames.push((
+            GridFrame {
+                frame,
+                density,
+                temperature: frame_temperature,
+            },
+            name,
+        ));
     }
     frames.sort_by_key(|(frame, _)| frame.frame);
     for pair in frames.windows(2) {

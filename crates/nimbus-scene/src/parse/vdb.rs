@@ -438,6 +438,7 @@ pub(super) fn parse_vdb_medium(
         frames: frames
             .into_iter()
             .map(|(frame, source, _)| GridFrame {
+                temperature: None,
                 frame,
                 density: source.into_source(&window),
             })

@@ -340,6 +340,7 @@ fn grid_medium(frames: &[u32]) -> GridMedium {
             .map(|&frame| GridFrame {
                 frame,
                 density: source(u64::from(frame)),
+                temperature: None,
             })
             .collect(),
         vdb: None,
@@ -403,6 +404,78 @@ density = { procedural = "cloud", dims = [2, 2, 2], noise_seed = 3 }
         other => panic!("unexpected {other:?}"),
     };
     assert_eq!([0, 2, 3, 5, 6, 7].map(seed_at), [0, 0, 3, 3, 6, 6]);
+}
+
+/// `[[medium.frame]]` may swap the temperature too: the latest frame at or before a
+/// density frame that gives one holds (else the medium's own); a frame's temperature
+/// without the medium's is refused, naming the frame and the field.
+#[test]
+fn medium_frames_swap_the_temperature_and_hold_it() {
+    let grid =
+        |seed| format!("{{ procedural = \"cloud\", dims = [2, 2, 2], noise_seed = {seed} }}");
+    let scene = parse_ok(&format!(
+        r#"
+[[medium]]
+type = "grid"
+bounds_min = [0, 0, 0]
+bounds_max = [1, 1, 1]
+density = {d0}
+temperature = {t0}
+temperature_offset = 1000.0
+[[medium.frame]]
+frame = 2
+density = {d2}
+temperature = {t2}
+[[medium.frame]]
+frame = 4
+density = {d4}
+[[medium.frame]]
+frame = 6
+density = {d6}
+temperature = {t6}
+"#,
+        d0 = grid(0),
+        t0 = grid(100),
+        d2 = grid(2),
+        t2 = grid(102),
+        d4 = grid(4),
+        d6 = grid(6),
+        t6 = grid(106),
+    ));
+    let Medium::Grid(g) = &scene.media[0] else {
+        panic!("expected a grid");
+    };
+    assert!(g.has_temperature_frames());
+    let seed = |s: Option<&GridSource>| match s {
+        Some(GridSource::ProceduralCloud { noise_seed, .. }) => *noise_seed,
+        other => panic!("unexpected {other:?}"),
+    };
+    // Density grids 0 (base), 1 (frame 2), 2 (frame 4: no temperature), 3 (frame 6).
+    let temps: Vec<u64> = (0..4)
+        .map(|i| seed(g.temperature_source_at_index(i)))
+        .collect();
+    assert_eq!(temps, [100, 102, 102, 106]);
+
+    let e = parse_err(
+        r#"
+[[medium]]
+type = "grid"
+bounds_min = [0, 0, 0]
+bounds_max = [1, 1, 1]
+density = { procedural = "cloud", dims = [2, 2, 2] }
+[[medium.frame]]
+frame = 1
+density = { procedural = "cloud", dims = [2, 2, 2] }
+temperature = { procedural = "cloud", dims = [2, 2, 2] }
+"#,
+    );
+    for part in [
+        "[[medium.frame]] #1",
+        "temperature",
+        "the medium has no `temperature`",
+    ] {
+        assert!(e.contains(part), "{part:?} missing from {e}");
+    }
 }
 
 #[test]

@@ -356,14 +356,16 @@ sigma_star_floor = 0.125
                         dims: [8, 8, 8],
                         noise_seed: 7,
                         kind: Default::default(),
-                    }
+                    },
+                    temperature: None,
                 },
                 GridFrame {
                     frame: 5,
                     density: GridSource::Raw {
                         file: volumes.join("frame5.raw"),
                         dims: [2, 2, 2]
-                    }
+                    },
+                    temperature: None,
                 },
             ],
             vdb: None,
