@@ -120,12 +120,16 @@ pub fn scene_files(scene: &Scene) -> Vec<(String, &Path)> {
                 format!("{table} [[medium.frame]] #{} density", j + 1),
                 &frame.density,
             ));
-            sources.extend(frame.temperature.iter().map(|t| {
-                (
-                    format!("{table} [[medium.frame]] #{} temperature", j + 1),
-                    t,
-                )
-            }));
+            for (key, grid) in [
+                ("temperature", &frame.temperature),
+                ("albedo", &frame.albedo),
+                ("emission", &frame.emission),
+            ] {
+                sources.extend(
+                    grid.iter()
+                        .map(|g| (format!("{table} [[medium.frame]] #{} {key}", j + 1), g)),
+                );
+            }
         }
         out.extend(
             sources

@@ -325,8 +325,8 @@ pub fn has_density_frames(scene: &Scene) -> bool {
 }
 
 /// The static scene of density grid `index` (0: the base `density`, i: the i-th
-/// `[[medium.frame]]`'s): the grid's density and the temperature in effect with it
-/// replaced, its frames dropped.
+/// `[[medium.frame]]`'s): the grid's density and the temperature, albedo and emission
+/// grids in effect with it replaced, its frames dropped.
 pub fn scene_of_grid(scene: &Scene, index: usize) -> Scene {
     let mut s = scene.clone();
     if let Some((m, grid)) = animated_grid(scene) {
@@ -336,11 +336,15 @@ pub fn scene_of_grid(scene: &Scene, index: usize) -> Scene {
             .cloned()
             .unwrap_or_else(|| grid.density.clone());
         let temperature = grid.temperature_source_at_index(index).cloned();
+        let albedo = grid.albedo_source_at_index(index).cloned();
+        let emission = grid.emission_source_at_index(index).cloned();
         if let Medium::Grid(g) = &mut s.media[m] {
             g.density = density;
             if let (Some(t), Some(source)) = (g.temperature.as_mut(), temperature) {
                 t.source = source;
             }
+            g.albedo_grid = albedo;
+            g.emission = emission;
             g.frames.clear();
         }
     }

@@ -276,15 +276,30 @@ fn restir_plan(
     boxes: usize,
 ) -> Result<(Integrator, Vec<Decision>)> {
     let s = &scene.integrator.restir;
-    // ReSTIR keeps one temperature grid resident for the whole animation; rather than
-    // render frames with the wrong fire, it refuses temperature frames (the baseline
-    // renders each frame's).
-    if let Some(j) = grid.frames.iter().position(|f| f.temperature.is_some()) {
+    // ReSTIR keeps one temperature, albedo and emission grid resident for the whole
+    // animation; rather than render frames with the wrong fire or colour, it refuses
+    // frames that swap them (the baseline renders each frame's).
+    let shading = |f: &nimbus_scene::GridFrame| {
+        [
+            ("temperature", f.temperature.is_some()),
+            ("albedo", f.albedo.is_some()),
+            ("emission", f.emission.is_some()),
+        ]
+        .into_iter()
+        .find(|(_, given)| *given)
+        .map(|(key, _)| key)
+    };
+    if let Some((j, key)) = grid
+        .frames
+        .iter()
+        .enumerate()
+        .find_map(|(j, f)| shading(f).map(|key| (j, key)))
+    {
         anyhow::bail!(
-            "{}: [[medium]] #{} > [[medium.frame]] #{} gives a `temperature`, and Volumetric \
-             ReSTIR keeps one temperature grid for the whole animation: render it with \
-             [integrator] volume = \"baseline\" (which follows each frame's temperature), or \
-             leave the frames' temperature out",
+            "{}: [[medium]] #{} > [[medium.frame]] #{} gives `{key}`, and Volumetric ReSTIR \
+             keeps one {key} grid for the whole animation: render it with [integrator] \
+             volume = \"baseline\" (which follows each frame's grids), or leave the frames' \
+             {key} out",
             scene.source.display(),
             index + 1,
             j + 1

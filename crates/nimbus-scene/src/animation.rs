@@ -6,8 +6,8 @@
 use glam::Vec3;
 
 use crate::types::{
-    reduce_degrees, Camera, CameraFrame, GridMedium, GridSource, Light, LightKeyframe, LightState,
-    Medium, Scene,
+    reduce_degrees, Camera, CameraFrame, GridFrame, GridMedium, GridSource, Light, LightKeyframe,
+    LightState, Medium, Scene,
 };
 
 impl Scene {
@@ -249,16 +249,50 @@ impl GridMedium {
     /// that gives a `temperature`, else the medium's own (`None` without one).
     pub fn temperature_source_at_index(&self, index: usize) -> Option<&GridSource> {
         let base = &self.temperature.as_ref()?.source;
-        let keyed = self.frames[..index.min(self.frames.len())]
-            .iter()
-            .rev()
-            .find_map(|f| f.temperature.as_ref());
-        Some(keyed.unwrap_or(base))
+        Some(
+            self.held_at_index(index, |f| f.temperature.as_ref())
+                .unwrap_or(base),
+        )
     }
 
-    /// Whether some `[[medium.frame]]` swaps the temperature grid.
-    pub fn has_temperature_frames(&self) -> bool {
-        self.frames.iter().any(|f| f.temperature.is_some())
+    /// The albedo grid in effect with density grid `index`, as
+    /// [`GridMedium::temperature_source_at_index`].
+    pub fn albedo_source_at_index(&self, index: usize) -> Option<&GridSource> {
+        let base = self.albedo_grid.as_ref()?;
+        Some(
+            self.held_at_index(index, |f| f.albedo.as_ref())
+                .unwrap_or(base),
+        )
+    }
+
+    /// The emission grid in effect with density grid `index`, as
+    /// [`GridMedium::temperature_source_at_index`].
+    pub fn emission_source_at_index(&self, index: usize) -> Option<&GridSource> {
+        let base = self.emission.as_ref()?;
+        Some(
+            self.held_at_index(index, |f| f.emission.as_ref())
+                .unwrap_or(base),
+        )
+    }
+
+    /// The grid `pick` gives of the latest of the first `index` frames that gives one.
+    fn held_at_index<'a>(
+        &'a self,
+        index: usize,
+        pick: impl Fn(&'a GridFrame) -> Option<&'a GridSource>,
+    ) -> Option<&'a GridSource> {
+        self.frames[..index.min(self.frames.len())]
+            .iter()
+            .rev()
+            .find_map(pick)
+    }
+
+    /// Whether some `[[medium.frame]]` swaps a grid other than the density (temperature,
+    /// albedo or emission).
+    pub fn has_shading_frames(&self) -> bool {
+        self.frames
+            .iter()
+            .any(|f| f.temperature.is_some() || f.albedo.is_some() || f.emission.is_some())
     }
 
     /// Every density grid, indexed like [`GridMedium::density_index_at`]: the base

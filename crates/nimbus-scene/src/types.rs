@@ -483,12 +483,15 @@ pub struct VdbWindow {
 }
 
 /// `[[medium.frame]]`: the density grid to use from `frame` on, and optionally the
-/// temperature grid (`None`: the last one given at or before it holds).
+/// temperature, albedo and emission grids (each `None`: the last one given at or before
+/// it holds, else the medium's own).
 #[derive(Clone, Debug, PartialEq)]
 pub struct GridFrame {
     pub frame: u32,
     pub density: GridSource,
     pub temperature: Option<GridSource>,
+    pub albedo: Option<GridSource>,
+    pub emission: Option<GridSource>,
 }
 
 /// `[[shape]]`: opaque Lambertian surfaces. Each may emit: `emission` (W/(m²·sr), zero

@@ -175,12 +175,13 @@ max_bounces = 2
     check_against_oracle(&ctx, &scene(text, "pyro-cloud.toml"), 8, "blackbody K=2");
 }
 
-/// Animated fire (issue 27): `[[medium.frame]]` entries swap the temperature with the
-/// density. Frame k of the animation, rendered by the baseline, is exactly the image of
-/// the static scene holding frame k's density and the temperature in effect then (frame
-/// 4 gives none, so frame 2's holds), and a frame that changes only the temperature
-/// changes the image. ReSTIR, which keeps one temperature grid, refuses the scene,
-/// naming the frame and the way out.
+/// Animated fire and colour (issue 27): `[[medium.frame]]` entries swap the temperature,
+/// albedo and emission grids with the density. Frame k of the animation, rendered by the
+/// baseline, is exactly the image of the static scene holding frame k's density and the
+/// grids in effect then (frame 4 gives no temperature, so frame 2's holds; frame 2 no
+/// albedo or emission, so the medium's hold), and a frame that changes only the
+/// temperature changes the image. ReSTIR, which keeps one grid of each, refuses the
+/// scene, naming the frame and the way out.
 #[test]
 fn temperature_frames_swap_the_fire_in_the_baseline() {
     use nimbus::renderer::{render, FrameSelection, RenderOptions};
@@ -217,11 +218,13 @@ bounds_min = [-1.0, -0.6, -1.0]
 bounds_max = [1.0, 0.6, 1.0]
 density = {d0}
 density_scale = 16.0
-albedo = 0.5
 temperature = {t0}
 temperature_offset = 800.0
 temperature_scale = 2500.0
 blackbody_scale = 2e-4
+albedo = {a0}
+emission = {e0}
+emission_scale = [0.2, 0.1, 0.05]
 [[medium.frame]]
 frame = 2
 density = {d0}
@@ -229,6 +232,8 @@ temperature = {t2}
 [[medium.frame]]
 frame = 4
 density = {d4}
+albedo = {a4}
+emission = {e4}
 [integrator]
 volume = "baseline"
 max_bounces = 2
@@ -237,6 +242,10 @@ max_bounces = 2
         d4 = cloud(5),
         t0 = cloud(4),
         t2 = cloud(8),
+        a0 = cloud(20),
+        a4 = cloud(24),
+        e0 = cloud(30),
+        e4 = cloud(34),
     );
     let animated = scene(&text, "fire-frames.toml");
     let frame = |s: &nimbus_scene::Scene, f: u32| {
@@ -259,6 +268,8 @@ max_bounces = 2
         if let nimbus_scene::Medium::Grid(g) = &mut s.media[0] {
             let index = g.density_index_at(k);
             let temperature = g.temperature_source_at_index(index).unwrap().clone();
+            g.albedo_grid = g.albedo_source_at_index(index).cloned();
+            g.emission = g.emission_source_at_index(index).cloned();
             g.density = g.density_at(k).clone();
             g.temperature.as_mut().unwrap().source = temperature;
             g.frames.clear();
@@ -276,14 +287,21 @@ max_bounces = 2
         nimbus_scene::Medium::Grid(g) => (
             g.density.clone(),
             g.temperature.as_ref().unwrap().source.clone(),
+            g.albedo_grid.clone(),
+            g.emission.clone(),
         ),
         _ => unreachable!(),
     };
-    let (d2, t2) = source(&single(2));
-    let (d4, t4) = source(&single(4));
-    assert_eq!(t2, t4);
-    assert_ne!(d2, d4);
-    assert_ne!(t2, source(&single(0)).1);
+    let (s0, s2, s4) = (source(&single(0)), source(&single(2)), source(&single(4)));
+    assert_eq!(s2.1, s4.1, "frame 4 keeps frame 2's temperature");
+    assert_ne!(s2.0, s4.0);
+    assert_ne!(s2.1, s0.1);
+    assert_eq!(
+        (&s0.2, &s0.3),
+        (&s2.2, &s2.3),
+        "frame 2 keeps the medium's colour grids"
+    );
+    assert_ne!((&s2.2, &s2.3), (&s4.2, &s4.3), "frame 4 swaps them");
     assert_ne!(
         images[0].data, images[1].data,
         "frame 2 changes only the temperature"

@@ -50,7 +50,8 @@ pub(super) const MEDIUM_TYPES: &[(&str, &[&str])] = &[
     ("vdb", super::vdb::VDB_KEYS),
 ];
 pub(super) const GRID_KEYS: &[&str] = &["file", "dims", "procedural", "noise_seed"];
-pub(super) const GRID_FRAME_KEYS: &[&str] = &["frame", "density", "temperature"];
+pub(super) const GRID_FRAME_KEYS: &[&str] =
+    &["frame", "density", "temperature", "albedo", "emission"];
 
 pub(super) fn parse_medium(
     source: &Source,
@@ -216,28 +217,45 @@ pub(super) fn parse_medium(
             density_table,
             GridChannels::Scalar,
         )?;
-        let frame_temperature = match frame_fields.opt_table("temperature")? {
-            Some(_) if temperature.is_none() => {
-                return Err(frame_fields.error(
-                    "temperature",
-                    "the medium has no `temperature`: give it one (its \
-                     `temperature_offset`, `temperature_scale` and `blackbody_scale` map every \
-                     frame's grid to kelvin and radiance)",
-                ));
-            }
-            Some(table) => Some(parse_grid_source(
-                &frame_fields,
-                "temperature",
-                table,
-                GridChannels::Scalar,
-            )?),
-            None => None,
-        };
+        // A frame's grid of `key`, which the medium must have as a grid too (its scale
+        // and mapping apply to every frame's).
+        let frame_grid =
+            |key: &str, medium_has: bool, channels: GridChannels, why: &str| match frame_fields
+                .opt_table(key)?
+            {
+                Some(_) if !medium_has => Err(frame_fields.error(
+                    key,
+                    format!("the medium has no `{key}` grid: give it one ({why})"),
+                )),
+                Some(table) => parse_grid_source(&frame_fields, key, table, channels).map(Some),
+                None => Ok(None),
+            };
+        let frame_temperature = frame_grid(
+            "temperature",
+            temperature.is_some(),
+            GridChannels::Scalar,
+            "its `temperature_offset`, `temperature_scale` and `blackbody_scale` map every \
+             frame's grid to kelvin and radiance",
+        )?;
+        let frame_albedo = frame_grid(
+            "albedo",
+            albedo_grid.is_some(),
+            GridChannels::ScalarOrRgb,
+            "a constant albedo has no grid for a frame to replace",
+        )?;
+        let frame_emission = frame_grid(
+            "emission",
+            emission.is_some(),
+            GridChannels::ScalarOrRgb,
+            "its `emission_scale` applies to every frame's grid",
+        )?;
         frames.push((
             GridFrame {
                 frame,
                 density,
                 temperature: frame_temperature,
+                albedo: frame_albedo,
+                emission: frame_emission,
             },
             name,
         ));

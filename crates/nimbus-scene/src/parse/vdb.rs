@@ -439,6 +439,8 @@ pub(super) fn parse_vdb_medium(
             .into_iter()
             .map(|(frame, source, _)| GridFrame {
                 temperature: None,
+                albedo: None,
+                emission: None,
                 frame,
                 density: source.into_source(&window),
             })

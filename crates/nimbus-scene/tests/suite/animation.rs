@@ -341,6 +341,8 @@ fn grid_medium(frames: &[u32]) -> GridMedium {
                 frame,
                 density: source(u64::from(frame)),
                 temperature: None,
+                albedo: None,
+                emission: None,
             })
             .collect(),
         vdb: None,
@@ -406,9 +408,10 @@ density = { procedural = "cloud", dims = [2, 2, 2], noise_seed = 3 }
     assert_eq!([0, 2, 3, 5, 6, 7].map(seed_at), [0, 0, 3, 3, 6, 6]);
 }
 
-/// `[[medium.frame]]` may swap the temperature too: the latest frame at or before a
-/// density frame that gives one holds (else the medium's own); a frame's temperature
-/// without the medium's is refused, naming the frame and the field.
+/// `[[medium.frame]]` may swap the temperature (and the albedo and emission grids) too:
+/// the latest frame at or before a density frame that gives one holds (else the
+/// medium's own); a frame's grid the medium lacks is refused, naming the frame and the
+/// field.
 #[test]
 fn medium_frames_swap_the_temperature_and_hold_it() {
     let grid =
@@ -422,6 +425,8 @@ bounds_max = [1, 1, 1]
 density = {d0}
 temperature = {t0}
 temperature_offset = 1000.0
+albedo = {a0}
+emission = {e0}
 [[medium.frame]]
 frame = 2
 density = {d2}
@@ -429,6 +434,8 @@ temperature = {t2}
 [[medium.frame]]
 frame = 4
 density = {d4}
+albedo = {a4}
+emission = {e4}
 [[medium.frame]]
 frame = 6
 density = {d6}
@@ -441,11 +448,15 @@ temperature = {t6}
         d4 = grid(4),
         d6 = grid(6),
         t6 = grid(106),
+        a0 = grid(200),
+        a4 = grid(204),
+        e0 = grid(300),
+        e4 = grid(304),
     ));
     let Medium::Grid(g) = &scene.media[0] else {
         panic!("expected a grid");
     };
-    assert!(g.has_temperature_frames());
+    assert!(g.has_shading_frames());
     let seed = |s: Option<&GridSource>| match s {
         Some(GridSource::ProceduralCloud { noise_seed, .. }) => *noise_seed,
         other => panic!("unexpected {other:?}"),
@@ -455,6 +466,12 @@ temperature = {t6}
         .map(|i| seed(g.temperature_source_at_index(i)))
         .collect();
     assert_eq!(temps, [100, 102, 102, 106]);
+    let albedos: Vec<u64> = (0..4).map(|i| seed(g.albedo_source_at_index(i))).collect();
+    assert_eq!(albedos, [200, 200, 204, 204]);
+    let emissions: Vec<u64> = (0..4)
+        .map(|i| seed(g.emission_source_at_index(i)))
+        .collect();
+    assert_eq!(emissions, [300, 300, 304, 304]);
 
     let e = parse_err(
         r#"
@@ -473,6 +490,27 @@ temperature = { procedural = "cloud", dims = [2, 2, 2] }
         "[[medium.frame]] #1",
         "temperature",
         "the medium has no `temperature`",
+    ] {
+        assert!(e.contains(part), "{part:?} missing from {e}");
+    }
+    let e = parse_err(
+        r#"
+[[medium]]
+type = "grid"
+bounds_min = [0, 0, 0]
+bounds_max = [1, 1, 1]
+density = { procedural = "cloud", dims = [2, 2, 2] }
+albedo = 0.5
+[[medium.frame]]
+frame = 1
+density = { procedural = "cloud", dims = [2, 2, 2] }
+albedo = { procedural = "cloud", dims = [2, 2, 2] }
+"#,
+    );
+    for part in [
+        "[[medium.frame]] #1",
+        "albedo",
+        "the medium has no `albedo` grid",
     ] {
         assert!(e.contains(part), "{part:?} missing from {e}");
     }

@@ -358,6 +358,8 @@ sigma_star_floor = 0.125
                         kind: Default::default(),
                     },
                     temperature: None,
+                    albedo: None,
+                    emission: None,
                 },
                 GridFrame {
                     frame: 5,
@@ -366,6 +368,8 @@ sigma_star_floor = 0.125
                         dims: [2, 2, 2]
                     },
                     temperature: None,
+                    albedo: None,
+                    emission: None,
                 },
             ],
             vdb: None,
