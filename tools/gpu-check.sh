@@ -35,13 +35,13 @@
 # with the render's GPU time) and profiles each at 1080p (gallery/profile-NAME.txt: median
 # ms per frame and pass), times the GPU denoiser on a 1080p frame of each grid
 # integrator, and runs the per-frame equal-time study (ReSTIR against the baseline at
-# 960x540, 3 seeds) on the cumulus and on the explosion (issue 27). The explosion and
+# 960x540, 3 seeds) on the cumulus, the explosion and the smoke (issue 27). The explosion and
 # the smoke are written first by the make_explosion and make_smoke examples (set
 # NIMBUS_MAKE_EXPLOSION / NIMBUS_MAKE_SMOKE to their binaries; by default
 # target/release/examples/). About 6 minutes on an H200; NIMBUS_GALLERY_SMOKE=1 shrinks
 # it into a lavapipe test of the script; NIMBUS_GALLERY_ONLY="NAME ..." runs only the
 # named pictures (cumulus-baseline, smoke-fog, ...), `denoise` and `study-cumulus` /
-# `study-explosion`.
+# `study-explosion` / `study-smoke`.
 #
 # NIMBUS_MOTION_HD=1 makes --motion the 1080p run issue 26 asks for (about 5 minutes on
 # an H200): the motion benchmarks' per-frame profiles at 1920x1080 (K = 1 and 3, ReSTIR
@@ -261,6 +261,7 @@ if [[ $mode == gallery ]]; then
     }
     gallery_study cumulus 150 assets/scenes/cloud-restir.toml
     gallery_study explosion 150 "$out/explosion/explosion-$grid_n.toml"
+    gallery_study smoke 150 "$out/smoke/smoke-fog-$grid_n.toml"
     for f in "$g"/*.log; do
         [[ $f == */make-* ]] || grep -H "^wrote\|^denoised" "$f" || true
     done >"$g/summary.txt"
