@@ -22,6 +22,22 @@ pub fn context() -> Context {
     ctx
 }
 
+/// Scene frame `frame` of the animated scene `s` alone, `passes` dispatches of it
+/// accumulated (no warm-up frames), checked for non-finite samples.
+pub fn render_scene_frame(ctx: &Context, s: &Scene, frame: u32, passes: u32) -> RenderResult {
+    let plan = plan::build(s, None).expect("plan");
+    let opts = RenderOptions {
+        frames: nimbus::renderer::FrameSelection::Each {
+            frames: vec![frame],
+            passes,
+        },
+        ..Default::default()
+    };
+    let r = render(ctx, s, &plan, &opts).expect("render");
+    assert_eq!(r.non_finite_samples, 0, "non-finite samples");
+    r
+}
+
 /// Parse a test scene given as text; `name` stands for its file in messages.
 pub fn scene(text: &str, name: &str) -> Scene {
     nimbus_scene::parse_str(text, Path::new(name)).expect("test scene parses")

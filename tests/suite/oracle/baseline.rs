@@ -295,7 +295,6 @@ fn environment_map_matches_the_cpu_oracle() {
 /// grid (same seed, camera and sun keyframes), and its mean agrees with ReSTIR's.
 #[test]
 fn the_baseline_renders_each_frames_density() {
-    use nimbus::renderer::{render, FrameSelection, RenderOptions};
     use nimbus_scene::{Medium, VolumeIntegrator};
     let ctx = context();
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/scenes/plume-anim.toml");
@@ -304,17 +303,7 @@ fn the_baseline_renders_each_frames_density() {
     plume.render.height = 18;
     plume.integrator.volume = VolumeIntegrator::Baseline;
     let frame = |s: &nimbus_scene::Scene, f: u32, passes: u32| {
-        let plan = nimbus::plan::build(s, None).expect("plan");
-        let opts = RenderOptions {
-            frames: FrameSelection::Each {
-                frames: vec![f],
-                passes,
-            },
-            ..Default::default()
-        };
-        let r = render(&ctx, s, &plan, &opts).expect("render");
-        assert_eq!(r.non_finite_samples, 0);
-        r.image
+        crate::common::gpu::render_scene_frame(&ctx, s, f, passes).image
     };
     for k in [0u32, 2] {
         let animated = frame(&plume, k, 4);

@@ -3,8 +3,6 @@
 //! path tracer too, not only in ReSTIR.
 
 use nimbus::output::ImageRgb;
-use nimbus::plan;
-use nimbus::renderer::{render, FrameSelection, RenderOptions};
 use nimbus_scene::Scene;
 
 use crate::common::gpu::{assert_no_validation_errors, context, scene};
@@ -20,17 +18,8 @@ fn mean(image: &ImageRgb) -> f64 {
 
 /// Scene frame `frame` of `s` alone, `passes` dispatches of it.
 fn frame_mean(ctx: &nimbus_gpu::Context, s: &Scene, frame: u32, passes: u32) -> f64 {
-    let plan = plan::build(s, None).expect("plan");
-    let opts = RenderOptions {
-        frames: FrameSelection::Each {
-            frames: vec![frame],
-            passes,
-        },
-        ..Default::default()
-    };
-    let r = render(ctx, s, &plan, &opts).expect("render");
+    let r = crate::common::gpu::render_scene_frame(ctx, s, frame, passes);
     assert_no_validation_errors(ctx);
-    assert_eq!(r.non_finite_samples, 0);
     mean(&r.image)
 }
 

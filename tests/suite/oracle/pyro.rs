@@ -7,7 +7,7 @@ use glam::DVec3;
 use nimbus_scene::cie1931::{CIE_1931_XYZ, CIE_FIRST_NM, CIE_STEP_NM};
 
 use crate::common::cli::scratch;
-use crate::common::gpu::{context, render_checked, scene};
+use crate::common::gpu::{context, render_checked, render_scene_frame, scene};
 use crate::common::scenes::{CLOUD_BOUNDS, CLOUD_SUN_AND_SKY};
 use crate::oracle::baseline::check_against_oracle;
 
@@ -184,7 +184,6 @@ max_bounces = 2
 /// scene, naming the frame and the way out.
 #[test]
 fn temperature_frames_swap_the_fire_in_the_baseline() {
-    use nimbus::renderer::{render, FrameSelection, RenderOptions};
     let ctx = context();
     let cloud = |seed: u32| {
         format!("{{ procedural = \"cloud\", dims = [16, 10, 16], noise_seed = {seed} }}")
@@ -248,19 +247,7 @@ max_bounces = 2
         e4 = cloud(34),
     );
     let animated = scene(&text, "fire-frames.toml");
-    let frame = |s: &nimbus_scene::Scene, f: u32| {
-        let plan = nimbus::plan::build(s, None).expect("plan");
-        let opts = RenderOptions {
-            frames: FrameSelection::Each {
-                frames: vec![f],
-                passes: 2,
-            },
-            ..Default::default()
-        };
-        let r = render(&ctx, s, &plan, &opts).expect("render");
-        assert_eq!(r.non_finite_samples, 0);
-        r.image
-    };
+    let frame = |s: &nimbus_scene::Scene, f: u32| render_scene_frame(&ctx, s, f, 2).image;
     // The scene of frame k alone: its density and the temperature in effect, no frames
     // (the camera keyframes keep it animated, so frame k draws frame k's numbers).
     let single = |k: u32| {
