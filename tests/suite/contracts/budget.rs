@@ -18,9 +18,10 @@ fn asset(name: &str) -> PathBuf {
 
 /// For every integrator (the box pass, the baseline, ReSTIR static and animated), the
 /// estimate bounds the bytes the render created from above, and is not loose: at least
-/// half of it is really allocated; a third for the procedural cloud, whose bricks are
-/// bounded from its formula per super-voxel without evaluating it (at 256x160x256 the
-/// bound claims 5991 slots, 2.6 times the 2331 the cloud fills), and ReSTIR's levels
+/// half of it is really allocated; a third for the procedural clouds, whose bricks are
+/// bounded from their formula per super-voxel without evaluating it (at 256x160x256,
+/// seed 7, the cumulus of the cloud scenes claims 4 289 slots for the 3 501 super-voxels
+/// it fills, 1.2x; the `"cloud"` ellipsoid 6 468 for 2 430, 2.7x), and ReSTIR's levels
 /// chosen from the content (`"auto"`, when the plan is built; the footprint reads file
 /// headers only) are counted at the finest they can be (measured 2.8x for
 /// cloud-restir.toml, 2.5x for cloud-logo.toml). (It counts
