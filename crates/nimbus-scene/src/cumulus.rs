@@ -451,6 +451,43 @@ mod tests {
         }
     }
 
+    /// Degenerate and extreme boxes: no panic, every value finite in [0, 1], zero on
+    /// the outermost layer, and the puffs (scaled to fit) inside the box.
+    #[test]
+    fn extreme_dims_stay_finite_and_inside() {
+        for dims in [
+            [1, 1, 1],
+            [2, 2, 2],
+            [3, 3, 3],
+            [2, 300, 2],
+            [300, 2, 300],
+            [5, 200, 40],
+        ] {
+            let grid = procedural_cumulus(dims, 1);
+            assert!(grid
+                .data
+                .iter()
+                .all(|v| v.is_finite() && (0.0..=1.0).contains(v)));
+            for (n, v) in grid.data.iter().enumerate() {
+                let (x, y, z) = (
+                    n as u32 % dims[0],
+                    (n as u32 / dims[0]) % dims[1],
+                    n as u32 / (dims[0] * dims[1]),
+                );
+                let edge = [x, y, z]
+                    .iter()
+                    .zip(dims)
+                    .any(|(&c, d)| c == 0 || c + 1 == d);
+                assert!(!edge || *v == 0.0, "{dims:?}: voxel ({x}, {y}, {z}) = {v}");
+            }
+            let c = Cumulus::shape(dims, 1);
+            assert!(
+                c.puffs.iter().all(|p| p.r > 0.0 && p.r.is_finite()),
+                "{dims:?}"
+            );
+        }
+    }
+
     #[test]
     fn the_bound_holds_and_the_cloud_fills_a_sensible_fraction() {
         let dims = [64, 40, 64];
