@@ -262,7 +262,7 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
         } else {
             // Escaped: the environment, seen directly by the camera segment only.
             if (SC_HAS_ENV && bounce == 0u) {
-                vec3 c = beta * env_radiance_along(d, u_frame.env_rotation) * u_frame.background;
+                vec3 c = beta * env_background_along(d, u_frame.env_rotation) * u_frame.background;
                 L += c;
                 aov_add(AOV_EMISSION, AOV_GROUP_ENV, c);
             }

@@ -198,7 +198,7 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
         } else if (SC_HAS_ENV && bounce == 0u) {
             // Add the environment seen through the media by the camera ray (after a
             // scattering it arrives by next-event estimation only).
-            vec3 c = exp(-box_optical_depth(o, d, 0.0, FAR)) * sky_radiance(d) * u_frame.background;
+            vec3 c = exp(-box_optical_depth(o, d, 0.0, FAR)) * sky_background(d) * u_frame.background;
             L += c;
             aov_add(AOV_EMISSION, AOV_GROUP_ENV, c);
         }

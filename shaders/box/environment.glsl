@@ -48,6 +48,15 @@ vec3 sky_radiance(vec3 w) {
     return SC_HAS_ENV_MAP ? env_lookup_rotated(w, u_frame.env_rotation) : u_frame.env_radiance;
 }
 
+// What a camera ray escaping along w sees: the map interpolated between texel centres
+// (env_lookup_bilinear); the light the scene receives keeps sky_radiance's nearest texel.
+vec3 sky_background(vec3 w) {
+    if (!SC_HAS_ENV) {
+        return vec3(0.0);
+    }
+    return SC_HAS_ENV_MAP ? env_background_rotated(w, u_frame.env_rotation) : u_frame.env_radiance;
+}
+
 // Visibility times transmittance from x towards the environment along unit w: 0 behind
 // a shape, else exp(-optical depth of every box medium).
 float sky_visibility(vec3 x, vec3 w) {

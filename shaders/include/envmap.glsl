@@ -120,6 +120,32 @@ vec3 env_lookup(vec3 d) {
     return env_texel(env_texel_of_uv(env_direction_to_uv(d)));
 }
 
+// The background a camera ray sees along d: the map interpolated bilinearly between
+// texel centres (wrapping in u, clamped at the first and last rows), as
+// EnvMap::lookup_bilinear. Only the camera's own escaping rays use it; light reaching the
+// scene keeps env_lookup, the piecewise-constant function the sampler's pdf follows.
+vec3 env_lookup_bilinear(vec3 d) {
+    uvec2 size = ENV_SIZE;
+    if (size.x == 0u || size.y == 0u) {
+        return vec3(0.0);
+    }
+    vec2 uv = env_direction_to_uv(d);
+    float x = uv.x * float(size.x) - 0.5;
+    float y = clamp(uv.y * float(size.y) - 0.5, 0.0, float(size.y - 1u));
+    float x0 = floor(x);
+    float y0 = floor(y);
+    float fx = x - x0;
+    float fy = y - y0;
+    int w = int(size.x);
+    uint xa = uint(((int(x0) % w) + w) % w);
+    uint xb = (xa + 1u) % size.x;
+    uint ya = min(uint(y0), size.y - 1u);
+    uint yb = min(ya + 1u, size.y - 1u);
+    vec3 top = mix(env_texel(uvec2(xa, ya)), env_texel(uvec2(xb, ya)), fx);
+    vec3 bottom = mix(env_texel(uvec2(xa, yb)), env_texel(uvec2(xb, yb)), fx);
+    return mix(top, bottom, fy);
+}
+
 // The segment o ∈ [0, n) of the CDF at env_cdf[base .. base + n] with cdf[o] <= u <
 // cdf[o + 1] (the last entry <= u, so never a zero-width one), and the fraction du ∈
 // [0, 1) of u inside it. cdf[base] = 0 and u >= 0, so o exists.
@@ -223,6 +249,11 @@ vec3 env_map_to_world(vec3 d, vec2 rot) {
 // env_lookup of the map turned by rot.
 vec3 env_lookup_rotated(vec3 d, vec2 rot) {
     return env_lookup(env_world_to_map(d, rot));
+}
+
+// env_lookup_bilinear of the map turned by rot: the camera's background.
+vec3 env_background_rotated(vec3 d, vec2 rot) {
+    return env_lookup_bilinear(env_world_to_map(d, rot));
 }
 
 // env_pdf of the map turned by rot.

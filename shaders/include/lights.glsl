@@ -82,6 +82,16 @@ vec3 env_radiance_along(vec3 d, vec2 env_rot) {
     return SC_HAS_ENV_MAP ? env_lookup_rotated(d, env_rot) : u_frame.env_radiance;
 }
 
+// What a camera ray escaping along d sees: the constant environment, or the map turned
+// by env_rot interpolated between texel centres (env_lookup_bilinear; light reaching the
+// scene keeps env_radiance_along's nearest texel).
+vec3 env_background_along(vec3 d, vec2 env_rot) {
+    if (!SC_HAS_ENV) {
+        return vec3(0.0);
+    }
+    return SC_HAS_ENV_MAP ? env_background_rotated(d, env_rot) : u_frame.env_radiance;
+}
+
 // Nearest emitting sphere of the set at `base` along o + t d in (t_min, t_max): its
 // distance (FAR if none) and index.
 float nearest_sphere_light(uint base, vec3 o, vec3 d, float t_min, float t_max, out uint index) {
@@ -288,7 +298,7 @@ vec3 light_seen(uint base, vec2 env_rot, vec3 o, vec3 d, out float t_end) {
         return lights[base + index].irradiance;
     }
     // The background is weighted for a transparent film (u_frame.background = 0).
-    return env_radiance_along(d, env_rot) * u_frame.background;
+    return env_background_along(d, env_rot) * u_frame.background;
 }
 
 #endif

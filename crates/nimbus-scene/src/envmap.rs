@@ -326,6 +326,33 @@ impl EnvMap {
         let (x, y) = self.texel_of(d);
         self.texels[(y * self.width + x) as usize]
     }
+
+    /// The background a camera ray sees along `d`: the map interpolated bilinearly
+    /// between texel centres (wrapping in u, clamped at the poles' rows), so a smooth sky
+    /// shows no texel rows. Only the camera's own escaping rays see it: light that
+    /// reaches the scene keeps [`EnvMap::lookup`], the piecewise-constant function the
+    /// sampler's pdf follows (no estimator mixes the two). The shader's
+    /// `env_lookup_bilinear` follows this rule.
+    pub fn lookup_bilinear(&self, d: DVec3) -> [f32; 3] {
+        let (u, v) = direction_to_uv(d);
+        let (w, h) = (i64::from(self.width), i64::from(self.height));
+        let x = u * w as f64 - 0.5;
+        let y = (v * h as f64 - 0.5).clamp(0.0, (h - 1) as f64);
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = (x - x0, y - y0);
+        let (x0, y0) = (x0 as i64, y0 as i64);
+        let at = |x: i64, y: i64| {
+            let t = self.texels[(y.min(h - 1) * w + x.rem_euclid(w)) as usize];
+            t.map(f64::from)
+        };
+        let mut out = [0f32; 3];
+        for (c, o) in out.iter_mut().enumerate() {
+            let top = at(x0, y0)[c] * (1.0 - fx) + at(x0 + 1, y0)[c] * fx;
+            let bottom = at(x0, y0 + 1)[c] * (1.0 - fx) + at(x0 + 1, y0 + 1)[c] * fx;
+            *o = (top * (1.0 - fy) + bottom * fy) as f32;
+        }
+        out
+    }
 }
 
 /// Importance-sampling tables for an [`EnvMap`] (pbrt's `PiecewiseConstant2D`), all in

@@ -65,6 +65,19 @@ impl Environment {
         }
     }
 
+    /// What a camera ray escaping along `d` sees: the map interpolated between texel
+    /// centres (`EnvMap::lookup_bilinear`), as the renderer's background; the light
+    /// reaching the scene is [`Environment::radiance`].
+    pub(crate) fn background(&self, d: DVec3) -> DVec3 {
+        match self {
+            Self::Constant(l) => *l,
+            Self::Map { map, rotation, .. } => {
+                let [r, g, b] = map.lookup_bilinear(rotation.world_to_map(d));
+                DVec3::new(f64::from(r), f64::from(g), f64::from(b))
+            }
+        }
+    }
+
     /// A direction drawn from the map's importance sampler, turned into the world, and
     /// its solid-angle pdf (a turn keeps solid angle); `None` for a constant
     /// environment.

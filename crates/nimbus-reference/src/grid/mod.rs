@@ -33,7 +33,8 @@
 //!     also occludes every other light's shadow rays and ends any path that hits it;
 //!     a camera ray that reaches it sees L (bounce 0 only);
 //!   - environment (constant radiance, or an EXR map times `radiance·scale`): lit
-//!     through NEE only; camera rays that escape see it (bounce 0 only).
+//!     through NEE only (a map's nearest texel); camera rays that escape see it (bounce
+//!     0 only; a map interpolated between texel centres, the renderer's background).
 //!
 //! # Estimator
 //!

@@ -236,7 +236,7 @@ impl Tracer {
                         if scatterings == 0 {
                             for light in &self.lights {
                                 if let LightF64::Environment(env) = light {
-                                    radiance += beta * env.radiance(d);
+                                    radiance += beta * env.background(d);
                                 }
                             }
                         }

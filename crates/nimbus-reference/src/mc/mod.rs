@@ -52,8 +52,9 @@
 //!    else continue in a cosine-distributed direction around n (weight 1, the albedo is
 //!    already in β).
 //! 4. **Escape**: add β·L_env(d), d the direction of the ray that escaped (k = 0: the
-//!    camera ray sees the environment; k ≥ 1: the environment's light scattered k
-//!    times). After the K-th scattering a path under a non-black environment traces
+//!    camera ray sees the environment's background, a map interpolated between texel
+//!    centres as the renderer shows it; k ≥ 1: the environment's light, the nearest
+//!    texel, scattered k times). After the K-th scattering a path under a non-black environment traces
 //!    one more free flight in its sampled direction: it adds β·L_env(d) if it escapes
 //!    and nothing if it collides or meets a shape.
 //!

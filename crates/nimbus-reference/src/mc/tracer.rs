@@ -197,9 +197,14 @@ impl Tracer {
                 d = sample_cosine(n, rng);
                 x = p;
             } else {
-                // Escape: the environment, seen by the camera ray or arriving after
-                // 1..=K scatterings.
-                radiance += beta * self.environment.radiance(d);
+                // Escape: the environment, seen by the camera ray (its background, the
+                // map interpolated) or arriving after 1..=K scatterings.
+                radiance += beta
+                    * if scatterings == 0 {
+                        self.environment.background(d)
+                    } else {
+                        self.environment.radiance(d)
+                    };
                 break;
             }
         }

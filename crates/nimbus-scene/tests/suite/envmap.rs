@@ -728,3 +728,36 @@ fn environment_rotation_comes_from_the_map_light() {
     let r = environment_rotation(&[env(None, 10.0), env(Some("sky.exr"), 90.0)]);
     assert_eq!((r.cos, r.sin), (0.0, 1.0));
 }
+
+/// The camera's background is the map interpolated between texel centres: a texel's
+/// centre shows that texel, halfway between two columns their mean (across the u seam
+/// too), halfway between two rows their mean, and beyond the first and last rows' centres
+/// the row itself; a constant map stays constant.
+#[test]
+fn the_bilinear_background_interpolates_between_texel_centres() {
+    // 4 x 2 texels, each its own value.
+    let map = EnvMap {
+        width: 4,
+        height: 2,
+        texels: (0..8).map(|i| [i as f32, 10.0 * i as f32, 1.0]).collect(),
+    };
+    let at = |u: f64, v: f64| map.lookup_bilinear(uv_to_direction(u, v))[0];
+    let close = |a: f32, b: f32| (a - b).abs() < 1e-4;
+    // Texel centres: (x + 0.5) / 4, (y + 0.5) / 2.
+    assert!(close(at(0.125, 0.25), 0.0));
+    assert!(close(at(0.625, 0.75), 6.0));
+    // Halfway between columns 1 and 2 of row 0, and across the seam (3 and 0).
+    assert!(close(at(0.5, 0.25), 1.5));
+    assert!(close(at(0.0, 0.25), 1.5));
+    assert!(close(at(0.999_999, 0.25), 1.5));
+    // Halfway between rows at column 1: (1 + 5) / 2.
+    assert!(close(at(0.375, 0.5), 3.0));
+    // Above the first row's centre and below the last row's: the row.
+    assert!(close(at(0.375, 0.1), 1.0));
+    assert!(close(at(0.375, 0.9), 5.0));
+    let flat = EnvMap::constant(Vec3::new(1.0, 2.0, 3.0));
+    assert_eq!(
+        flat.lookup_bilinear(DVec3::new(0.3, -0.2, 0.9)),
+        [1.0, 2.0, 3.0]
+    );
+}
