@@ -136,9 +136,12 @@ vec3 env_lookup_bilinear(vec3 d) {
     float y0 = floor(y);
     float fx = x - x0;
     float fy = y - y0;
-    int w = int(size.x);
-    uint xa = uint(((int(x0) % w) + w) % w);
-    uint xb = (xa + 1u) % size.x;
+    // x ∈ [−0.5, W − 0.5): the column left of the point is −1 (the last one, wrapped)
+    // up to W − 1 (min: u·W rounding up in f32). No % on a negative int: GLSL leaves it
+    // undefined.
+    int xi = int(x0);
+    uint xa = xi < 0 ? size.x - 1u : min(uint(xi), size.x - 1u);
+    uint xb = xa + 1u == size.x ? 0u : xa + 1u;
     uint ya = min(uint(y0), size.y - 1u);
     uint yb = min(ya + 1u, size.y - 1u);
     vec3 top = mix(env_texel(uvec2(xa, ya)), env_texel(uvec2(xb, ya)), fx);
