@@ -195,8 +195,51 @@ void grid_cell_corners_at(sampler3D atlas, GridSpace s, uint offset, ivec3 cell,
     grid_fetch_corners(atlas, grid_slot_origin(slot, s.slots_x, s.slots_y) + (lo & 7), o, c);
 }
 
+#ifdef NIMBUS_DENSITY_BUFFER
+// The includer (the baseline) also binds the density's slots as a storage buffer, slot
+// after slot, each slot's 9^3 texels x fastest, and reads u_density's values from it where
+// SC_DENSITY_BUFFER: on lavapipe a texelFetch is a call into the sampler's code with its
+// bounds checks and per-lane level strides (a third of the baseline's time on the
+// benchmark cloud), a buffer load one gather.
+layout(constant_id = SC_ID_DENSITY_BUFFER) const bool SC_DENSITY_BUFFER = false;
+layout(std430, set = 0, binding = BINDING_GRID_DENSITY_TEXELS) readonly buffer DensityTexelBlock {
+    float density_texels[];
+};
+#else
+const bool SC_DENSITY_BUFFER = false;
+#endif
+
 // The same for the grid's own density u_density.
 void grid_cell_corners(ivec3 cell, out float c[8]) {
+#ifdef NIMBUS_DENSITY_BUFFER
+    if (SC_DENSITY_BUFFER) {
+        GridSpace s = u_grid.space;
+        COUNT(CTR_DENSITY, 1);
+        ivec3 lo = clamp(cell, s.lattice_min, s.lattice_max);
+        ivec3 o = clamp(cell + 1, s.lattice_min, s.lattice_max) - lo;
+        uint slot = grid_slot(s.bricks_offset, s.brick_dims, lo >> 3);
+        if (slot == NO_BRICK) {
+            for (int i = 0; i < 8; ++i) {
+                c[i] = 0.0;
+            }
+            return;
+        }
+        ivec3 t = lo & 7;
+        int b = int(slot) * 729 + (t.z * 9 + t.y) * 9 + t.x;
+        int ox = o.x;
+        int oy = o.y * 9;
+        int oz = o.z * 81;
+        c[0] = density_texels[b];
+        c[1] = density_texels[b + ox];
+        c[2] = density_texels[b + oy];
+        c[3] = density_texels[b + ox + oy];
+        c[4] = density_texels[b + oz];
+        c[5] = density_texels[b + ox + oz];
+        c[6] = density_texels[b + oy + oz];
+        c[7] = density_texels[b + ox + oy + oz];
+        return;
+    }
+#endif
     grid_cell_corners_at(u_density, u_grid.space, u_grid.space.bricks_offset, cell, c);
 }
 
@@ -220,6 +263,14 @@ float grid_sigma_index_at(sampler3D atlas, uint offset, vec3 p) {
 
 // sigma_t of u_density at p-space point p.
 float grid_sigma_index(vec3 p) {
+    if (SC_DENSITY_BUFFER) {
+        ivec3 cell;
+        vec3 f;
+        grid_locate(u_grid.space, p, cell, f);
+        float c[8];
+        grid_cell_corners(cell, c);
+        return u_grid.density_scale * grid_trilinear(c, f);
+    }
     return grid_sigma_index_at(u_density, u_grid.space.bricks_offset, p);
 }
 
@@ -238,6 +289,9 @@ float grid_sigma_t_in(sampler3D atlas, vec3 x) {
 
 // The same for the grid's own density u_density.
 float grid_sigma_t(vec3 x) {
+    if (SC_DENSITY_BUFFER) {
+        return space_contains(u_grid.space, x) ? grid_sigma_index(space_to_index(u_grid.space, x)) : 0.0;
+    }
     return grid_sigma_t_in(u_density, x);
 }
 

@@ -112,50 +112,42 @@ float nearest_sphere_light(uint base, vec3 o, vec3 d, float t_min, float t_max, 
     return index == NO_INDEX ? FAR : t_hit;
 }
 
-// Pick a light for next-event estimation at x: the environment with probability
-// env_select, else an analytic light (or the area light) by the power CDF; for the area
-// light, u's place within its CDF interval picks the primitive. u in [0, 1), u2 in
-// [0, 1)^2. The map is turned by env_rot.
-LightSample light_sample(uint base, vec2 env_rot, vec3 x, float u, vec2 u2) {
+// Whether light `index` of the set at `base` is a delta light (directional or point):
+// its next-event term needs no sampling, so split NEE adds it at every vertex.
+bool light_is_delta(uint base, uint index) {
+    uint type = lights[base + index].type;
+    return type == LIGHT_DIRECTIONAL || type == LIGHT_POINT;
+}
+
+// A sample of the environment, selected with probability p_select > 0 (u2 in [0, 1)^2,
+// the map turned by env_rot): importance-sampled by luminance x sin(theta) for a map,
+// uniform over the sphere for a constant radiance.
+LightSample light_sample_env(vec2 env_rot, vec3 x, float p_select, vec2 u2) {
     LightSample s = light_sample_none();
-    float p_env = u_base.env_select;
-    if (SC_HAS_ENV && u >= 1.0 - p_env) {
-        s.index = LIGHT_ENV;
-        if (SC_HAS_ENV_MAP) {
-            // Importance sampled by luminance x sin(theta).
-            float pdf_sa;
-            s.L = env_sample_rotated(u2, env_rot, s.wi, pdf_sa);
-            s.pdf = p_env * pdf_sa;
-        } else {
-            // Uniform direction.
-            s.wi = sample_uniform_sphere(u2);
-            s.L = u_frame.env_radiance;
-            s.pdf = p_env * uniform_sphere_pdf();
-        }
-        // Domain: pdf > 0 for a usable sample (0 at the map's poles or black texels).
-        s.L_over_pdf = s.pdf > 0.0 ? s.L / s.pdf : vec3(0.0);
-        s.point = x + s.wi;
-        return s;
+    s.index = LIGHT_ENV;
+    if (SC_HAS_ENV_MAP) {
+        float pdf_sa;
+        s.L = env_sample_rotated(u2, env_rot, s.wi, pdf_sa);
+        s.pdf = p_select * pdf_sa;
+    } else {
+        s.wi = sample_uniform_sphere(u2);
+        s.L = u_frame.env_radiance;
+        s.pdf = p_select * uniform_sphere_pdf();
     }
-    uint count = u_frame.light_count;
-    uint chosen = NO_INDEX;
-    float cdf_before = 0.0;
-    for (uint l = 0u; l < count; ++l) {
-        float cdf = lights[base + l].select_cdf;
-        if (u < cdf) {
-            chosen = l;
-            break;
-        }
-        cdf_before = cdf;
-    }
-    if (chosen == NO_INDEX) {
-        return s;
-    }
-    Light light = lights[base + chosen];
-    float p_select = light.select_cdf - cdf_before;
+    // Domain: pdf > 0 for a usable sample (0 at the map's poles or black texels).
+    s.L_over_pdf = s.pdf > 0.0 ? s.L / s.pdf : vec3(0.0);
+    s.point = x + s.wi;
+    return s;
+}
+
+// A sample of analytic light `chosen` of the set at `base`, selected with probability
+// p_select; u_prim in [0, 1) picks the area light's primitive, u2 in [0, 1)^2 the point.
+LightSample light_sample_chosen(uint base, vec3 x, uint chosen, float p_select, float u_prim, vec2 u2) {
+    LightSample s = light_sample_none();
     if (!(p_select > 0.0)) {
         return s;
     }
+    Light light = lights[base + chosen];
     uint type = light.type;
     s.index = chosen;
     if (type == LIGHT_DIRECTIONAL) {
@@ -176,8 +168,6 @@ LightSample light_sample(uint base, vec2 env_rot, vec3 x, float u, vec2 u2) {
         if (count == 0u) {
             return light_sample_none();
         }
-        // u's place within the area light's interval [cdf_before, select_cdf): in [0, 1).
-        float u_prim = min((u - cdf_before) / p_select, EMITTER_ONE_MINUS_EPSILON);
         uint prim = sample_emitter(count, u_prim);
         float p_prim = emitter_pmf(prim);
         if (!(p_prim > 0.0)) {
@@ -230,6 +220,83 @@ LightSample light_sample(uint base, vec2 env_rot, vec3 x, float u, vec2 u2) {
     // L / pdf with the geometry factor cancelled (finite even at grazing cos_l = 0).
     s.L_over_pdf = light.irradiance * (2.0 * PI * one_minus_cos_max / p_select);
     return s;
+}
+
+
+// Pick a light for next-event estimation at x: the environment with probability
+// env_select, else an analytic light (or the area light) by the power CDF; for the area
+// light, u's place within its CDF interval picks the primitive. u in [0, 1), u2 in
+// [0, 1)^2. The map is turned by env_rot.
+LightSample light_sample(uint base, vec2 env_rot, vec3 x, float u, vec2 u2) {
+    float p_env = u_base.env_select;
+    if (SC_HAS_ENV && u >= 1.0 - p_env) {
+        return light_sample_env(env_rot, x, p_env, u2);
+    }
+    uint count = u_frame.light_count;
+    uint chosen = NO_INDEX;
+    float cdf_before = 0.0;
+    for (uint l = 0u; l < count; ++l) {
+        float cdf = lights[base + l].select_cdf;
+        if (u < cdf) {
+            chosen = l;
+            break;
+        }
+        cdf_before = cdf;
+    }
+    if (chosen == NO_INDEX) {
+        return light_sample_none();
+    }
+    float p_select = lights[base + chosen].select_cdf - cdf_before;
+    // u's place within the chosen light's interval [cdf_before, select_cdf): in [0, 1).
+    float u_prim = p_select > 0.0 ? min((u - cdf_before) / p_select, EMITTER_ONE_MINUS_EPSILON) : 0.0;
+    return light_sample_chosen(base, x, chosen, p_select, u_prim, u2);
+}
+
+// Pick one of the lights that are not delta lights (the environment, sphere lights, the
+// area light) for split next-event estimation, in proportion to their share of the power
+// CDF, and sample it; p_select is the probability it was picked. No sample where there is
+// none. u in [0, 1), u2 in [0, 1)^2, the map turned by env_rot.
+LightSample light_sample_rest(uint base, vec2 env_rot, vec3 x, float u, vec2 u2, out float p_select) {
+    p_select = 0.0;
+    float p_env = SC_HAS_ENV ? u_base.env_select : 0.0;
+    float total = p_env;
+    uint count = u_frame.light_count;
+    float cdf_before = 0.0;
+    uint last = NO_INDEX;
+    for (uint l = 0u; l < count; ++l) {
+        float cdf = lights[base + l].select_cdf;
+        if (!light_is_delta(base, l) && cdf > cdf_before) {
+            total += cdf - cdf_before;
+            last = l;
+        }
+        cdf_before = cdf;
+    }
+    if (!(total > 0.0)) {
+        return light_sample_none();
+    }
+    float v = u * total;
+    if (SC_HAS_ENV && p_env > 0.0 && (v < p_env || last == NO_INDEX)) {
+        p_select = p_env / total;
+        return light_sample_env(env_rot, x, p_select, u2);
+    }
+    v -= p_env;
+    cdf_before = 0.0;
+    for (uint l = 0u; l < count; ++l) {
+        float cdf = lights[base + l].select_cdf;
+        float p = cdf - cdf_before;
+        cdf_before = cdf;
+        if (light_is_delta(base, l) || !(p > 0.0)) {
+            continue;
+        }
+        // The last one takes what rounding leaves over.
+        if (v < p || l == last) {
+            p_select = p / total;
+            float u_prim = min(max(v, 0.0) / p, EMITTER_ONE_MINUS_EPSILON);
+            return light_sample_chosen(base, x, l, p_select, u_prim, u2);
+        }
+        v -= p;
+    }
+    return light_sample_none();
 }
 
 // Re-evaluate a stored light vertex from shading point x: the light `index` of the set at

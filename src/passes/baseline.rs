@@ -19,7 +19,7 @@ use crate::shader_data::scene::{medium_records, MediumRecords};
 use crate::shader_data::sparse::TexelFormat;
 use crate::shader_data::{
     bindings, non_empty, shape_records, BaselineUniformsGpu, FrameUniforms, GpuGrid, LightGpu,
-    LightSet, MeshBuffers, PassPush, RecordCounts,
+    LightSet, MeshBuffers, PassPush, RecordCounts, LIGHT_DIRECTIONAL, LIGHT_POINT,
 };
 use crate::shaders;
 
@@ -29,8 +29,10 @@ pub fn specialization(
     plan: &BaselinePlan,
     exact_spans: bool,
     two_level: bool,
-) -> [(u32, SpecValue); 15] {
+    density_buffer: bool,
+) -> [(u32, SpecValue); 17] {
     [
+        (SC_ID_DENSITY_BUFFER, SpecValue::Bool(density_buffer)),
         (SC_ID_EXACT_SPANS, SpecValue::Bool(exact_spans)),
         (SC_ID_TWO_LEVEL_BRICKS, SpecValue::Bool(two_level)),
         (SC_ID_HAS_AREA_LIGHTS, SpecValue::Bool(plan.has_area_lights)),
@@ -46,6 +48,7 @@ pub fn specialization(
         (SC_ID_HAS_CONVEX, SpecValue::Bool(plan.has_convex)),
         (SC_ID_HAS_BLACKBODY, SpecValue::Bool(plan.has_blackbody)),
         (SC_ID_HAS_ALBEDO_GRID, SpecValue::Bool(plan.has_albedo_grid)),
+        (SC_ID_NEE_SPLIT, SpecValue::Bool(plan.nee_split)),
     ]
 }
 
@@ -58,6 +61,7 @@ fn layout() -> Vec<BindingDesc> {
         BindingDesc::storage_buffer(bindings::GOBO_PLANES),
         BindingDesc::storage_buffer(bindings::BASELINE_UNIFORMS),
         BindingDesc::sampled_image(bindings::GRID_DENSITY),
+        BindingDesc::storage_buffer(bindings::GRID_DENSITY_TEXELS),
         BindingDesc::storage_buffer(bindings::SUPER_VOXELS),
         BindingDesc::sampled_image(bindings::GRID_EMISSION),
         BindingDesc::sampled_image(bindings::GRID_TEMPERATURE),
@@ -82,7 +86,7 @@ pub fn pipeline_contract(plan: &BaselinePlan) -> super::PipelineContract {
         "baseline path tracer",
         shaders::BASELINE_PATHTRACE,
         layout(),
-        &specialization(plan, false, false),
+        &specialization(plan, false, false, false),
     )
 }
 
@@ -127,6 +131,7 @@ pub fn create(
             ray_samples: 0,
         },
     };
+    let density_buffer = density_in_buffer(ctx, plan, &grid, scene)?;
     let (objects, (pipeline, set, lights_buffer, uniforms_buffer)) = GpuObjects::build(ctx, |o| {
         let layout = layout();
         let pipeline = compute_pipeline::<PassPush>(
@@ -134,7 +139,12 @@ pub fn create(
             o,
             shaders::BASELINE_PATHTRACE,
             &layout,
-            &specialization(plan, grid.needs_exact_spans(), grid.two_level_bricks()?),
+            &specialization(
+                plan,
+                grid.needs_exact_spans(),
+                grid.two_level_bricks()?,
+                density_buffer,
+            ),
             targets.film_spec(0),
             "baseline path tracer",
         )?;
@@ -155,15 +165,25 @@ pub fn create(
         let (env_texels, env_tables) = upload_env_map(ctx, o, grid.env_map.as_ref())?;
         let uniforms = upload_params(ctx, o, &grid.uniforms, "baseline uniforms")?;
         let bricks = upload_records(ctx, o, &grid.indirection()?, "grid bricks")?;
-        let density = atlas_image(
-            ctx,
-            o,
-            &grid.density_layout,
-            &grid.density,
-            1.0,
-            TexelFormat::R32,
-            "grid density",
-        )?;
+        let (density, density_texels) = if density_buffer {
+            let buffer = upload_density_texels(ctx, o, &grid)?;
+            let image = objects_dummy_atlas(ctx, o)?;
+            (image, buffer)
+        } else {
+            let image = atlas_image(
+                ctx,
+                o,
+                &grid.density_layout,
+                &grid.density,
+                1.0,
+                TexelFormat::R32,
+                "grid density",
+            )?;
+            (
+                image,
+                upload_records(ctx, o, &[0f32], "grid density texels (unused)")?,
+            )
+        };
         let StaticGrids {
             emission,
             temperature,
@@ -231,6 +251,10 @@ pub fn create(
                 binding: bindings::GRID_DENSITY,
                 image: &o[density],
                 sampler,
+            },
+            DescriptorWrite::StorageBuffer {
+                binding: bindings::GRID_DENSITY_TEXELS,
+                buffer: &o[density_texels],
             },
             DescriptorWrite::SampledImage {
                 binding: bindings::GRID_EMISSION,
@@ -337,6 +361,94 @@ impl Pass for BaselinePass {
     }
 }
 
+/// Whether the pass reads the density from a storage buffer of its slots instead of the
+/// atlas image (`[integrator.baseline] density_fetch`): "auto" takes the buffer on CPU
+/// devices (lavapipe), where its loads are plain gathers and a texelFetch a call into the
+/// sampler's code, when the slots fit one buffer binding; "buffer" is refused where they
+/// do not.
+fn density_in_buffer(
+    ctx: &Context,
+    plan: &BaselinePlan,
+    grid: &GpuGrid,
+    scene: &Scene,
+) -> Result<bool> {
+    let info = ctx.info();
+    let layout = &grid.density_layout;
+    let slots = u64::from(layout.first_slot) + layout.bricks.len() as u64;
+    let bytes = slots * nimbus_scene::bricks::SLOT_TEXELS as u64 * 4;
+    let fits = bytes <= u64::from(info.max_storage_buffer_range);
+    Ok(match plan.density_fetch {
+        nimbus_scene::DensityFetch::Image => false,
+        nimbus_scene::DensityFetch::Auto => info.device_type == vk::PhysicalDeviceType::CPU && fits,
+        nimbus_scene::DensityFetch::Buffer => {
+            if !fits {
+                anyhow::bail!(
+                    "{}: [integrator.baseline] field `density_fetch` = \"buffer\": the density's \
+                     {slots} slots take {bytes} bytes, more than {} allows in one storage buffer \
+                     ({} bytes); use \"image\" or \"auto\"",
+                    scene.source.display(),
+                    info.name,
+                    info.max_storage_buffer_range
+                );
+            }
+            true
+        }
+    })
+}
+
+/// The density's slots as one storage buffer (slot after slot from slot 0, each slot's
+/// 9^3 texels x fastest, R32), uploaded a chunk of slots at a time so that the host never
+/// holds more than a chunk (the memory estimate counts the atlas's layers the same way).
+fn upload_density_texels(
+    ctx: &Context,
+    o: &mut GpuObjects,
+    grid: &GpuGrid,
+) -> Result<Handle<Buffer>> {
+    use crate::shader_data::sparse::SparseLayout;
+    use nimbus_scene::bricks::SLOT_TEXELS;
+    /// Slots per upload: 3 MB of texels.
+    const CHUNK: usize = 1024;
+    let layout = &grid.density_layout;
+    let first = layout.first_slot as usize;
+    let slot_bytes = (SLOT_TEXELS * 4) as u64;
+    let bytes = ((first + layout.bricks.len()) as u64 * slot_bytes).max(4);
+    let buffer = o.add(ctx.create_buffer(
+        &nimbus_gpu::BufferDesc::gpu_only(bytes, vk::BufferUsageFlags::STORAGE_BUFFER),
+        "grid density texels",
+    )?);
+    let mut texels = Vec::with_capacity(CHUNK * SLOT_TEXELS);
+    // Slots before the grid's first belong to no brick here: zeros.
+    for start in (0..first).step_by(CHUNK) {
+        let n = CHUNK.min(first - start);
+        texels.clear();
+        texels.resize(n * SLOT_TEXELS, 0f32);
+        ctx.upload_buffer(
+            &o[buffer],
+            start as u64 * slot_bytes,
+            bytemuck::cast_slice(&texels),
+        )?;
+    }
+    for (c, bricks) in layout.bricks.chunks(CHUNK).enumerate() {
+        texels.clear();
+        SparseLayout::slot_major_texels(&grid.density, bricks, 1.0, &mut texels);
+        let offset = (first + c * CHUNK) as u64 * slot_bytes;
+        ctx.upload_buffer(&o[buffer], offset, bytemuck::cast_slice(&texels))?;
+    }
+    Ok(buffer)
+}
+
+/// A 1-texel atlas bound where the density is read from its buffer.
+fn objects_dummy_atlas(ctx: &Context, o: &mut GpuObjects) -> Result<Handle<nimbus_gpu::Image>> {
+    super::image_3d(
+        ctx,
+        o,
+        [1, 1, 1],
+        vk::Format::R32_SFLOAT,
+        &0f32.to_le_bytes(),
+        "grid density (read from its buffer)",
+    )
+}
+
 /// Loop iterations one camera sample may typically run (see
 /// [`super::samples_per_dispatch`]): K + 1 segments, each with its shadow rays, each
 /// crossing the super-voxel grid (blocks, an exact span of up to `GRID_EXACT_SPAN_STEPS`),
@@ -350,6 +462,17 @@ fn sample_cost(plan: &BaselinePlan, grid: &GpuGrid, scene: &Scene) -> u32 {
     let emitter_search = usize::BITS - grid.emitters.len().leading_zeros();
     let segment =
         blocks + GRID_EXACT_SPAN_STEPS + 3 * grid.lights.len() as u32 + mesh_rays + emitter_search;
-    let segments = 2 * (plan.max_bounces + 1);
+    // Each vertex's walks: the next segment and its shadow rays (with split NEE one per
+    // delta light besides the sampled one).
+    let shadow_rays = if plan.nee_split {
+        1 + grid
+            .lights
+            .iter()
+            .filter(|l| l.r#type == LIGHT_DIRECTIONAL || l.r#type == LIGHT_POINT)
+            .count() as u32
+    } else {
+        1
+    };
+    let segments = (1 + shadow_rays) * (plan.max_bounces + 1);
     segment.saturating_mul(segments)
 }

@@ -151,6 +151,12 @@ pub struct BaselinePlan {
     pub has_env: bool,
     pub has_env_map: bool,
     pub pixel_jitter: bool,
+    /// Split next-event estimation (SC_NEE_SPLIT): every delta light at every vertex,
+    /// plus one sample of the other lights.
+    pub nee_split: bool,
+    /// Where the density is read from (SC_DENSITY_BUFFER): `Auto` is settled by the
+    /// device when the pass is created.
+    pub density_fetch: nimbus_scene::DensityFetch,
 }
 
 /// Settings of the Volumetric ReSTIR passes (initial, temporal, spatial, shade).

@@ -159,6 +159,18 @@ impl SparseLayout {
         upload_atlas(ctx, atlas, self.slots, &[(self, grid, scale)], format)
     }
 
+    /// The first-channel values of `bricks` (consecutive slots of this layout), each
+    /// slot's 9^3 values x fastest, times `scale`, appended to `out`: a chunk of the
+    /// baseline's density buffer on CPU devices (grid.glsl).
+    pub fn slot_major_texels(grid: &BrickGrid, bricks: &[IVec3], scale: f32, out: &mut Vec<f32>) {
+        let mut texels = Vec::with_capacity(SLOT_TEXELS * grid.channels as usize);
+        for b in bricks {
+            texels.clear();
+            grid.slot_texels(*b, scale, &mut texels);
+            out.extend(texels.iter().step_by(grid.channels as usize));
+        }
+    }
+
     /// The whole atlas's texels (small grids and tests; [`upload_atlas`] never holds
     /// them all).
     pub fn atlas_texels(&self, grid: &BrickGrid, scale: f32, format: TexelFormat) -> Vec<u8> {

@@ -96,6 +96,8 @@
 //! | restir `spatial_max_history` | [0, 1025] (0: spatial reuse on every pixel) |
 //! | restir `nee` | `"auto"`, `"one"`, `"split"` (only with delta lights and an environment alone besides) |
 //! | restir `direct` | `"each_walk"`, `"escape"` |
+//! | baseline `nee` | `"auto"`, `"one"`, `"split"` |
+//! | baseline `density_fetch` | `"auto"`, `"image"`, `"buffer"` |
 //! | grid `procedural` | `"cloud"`, `"cumulus"` (not allowed for `velocity`) |
 //! | mesh `file` | ends in `.obj` or `.ply` (any case), exists, and loads (see [`mesh`]: finite vertices, also after `to_world`; indices in range; fannable faces; at most 2^26 triangles) |
 //! | `to_world` `scale` | each component non-zero, magnitude at most 1e7; `translate` within ±1e7 m |
@@ -194,8 +196,8 @@ pub use mesh::{
 };
 pub use overrides::FieldOverride;
 pub use parse::{
-    scene_tables, TableFields, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_LENGTH_M, MAX_SIGMA_T,
-    MAX_SPATIAL_NEIGHBORS, RESTIR_KEYS,
+    scene_tables, TableFields, BASELINE_KEYS, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_LENGTH_M,
+    MAX_SIGMA_T, MAX_SPATIAL_NEIGHBORS, RESTIR_KEYS,
 };
 pub use procedural::{daylight_sky, fbm_noise, procedural_cloud, sun_direction};
 pub use types::*;

@@ -570,6 +570,7 @@ pub struct Integrator {
     /// `[integrator] moment_map_size`, default 256).
     pub moment_map_size: u32,
     pub restir: RestirSettings,
+    pub baseline: BaselineSettings,
 }
 
 impl Default for Integrator {
@@ -581,6 +582,7 @@ impl Default for Integrator {
             box_samples: 16,
             moment_map_size: 256,
             restir: RestirSettings::default(),
+            baseline: BaselineSettings::default(),
         }
     }
 }
@@ -702,20 +704,52 @@ pub enum HistoryMode {
     Temporal,
 }
 
-/// How ReSTIR's paths end in a light (`nee`).
+/// How paths end in a light (`nee` of `[integrator.restir]` and `[integrator.baseline]`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum NeeMode {
-    /// `"split"` where the scene's lights are directional or point lights and an
-    /// environment (a sun and a sky), `"one"` otherwise.
+    /// Each integrator's measured choice: ReSTIR splits where the scene's lights are
+    /// directional or point lights and an environment (a sun and a sky); the baseline
+    /// splits at K = 1 where one delta light shares the scene with other lights.
     Auto,
     /// The paper's: each vertex samples one light, chosen by power, so a selected path
     /// is lit by the sun or by the sky and its colour is theirs.
     One,
     /// Each vertex adds every delta (directional, point) light to one sample of the
-    /// environment, so a path carries the mix of sun and sky light its vertex receives
-    /// (far less colour noise under a scalar target); only for scenes whose other
-    /// lights are the environment alone.
+    /// other lights: a path carries the mix of sun and sky light its vertex receives
+    /// (ReSTIR: far less colour noise under a scalar target; only for scenes whose other
+    /// lights are the environment alone), and no sample is spent choosing between them
+    /// (the baseline: half the per-sample variance under a sun and a sky).
     Split,
+}
+
+/// Where the baseline reads the density's values from (`density_fetch`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DensityFetch {
+    /// A storage buffer on CPU devices (lavapipe), the atlas image on GPUs.
+    Auto,
+    /// The 3D atlas image, by texelFetch.
+    Image,
+    /// A storage buffer of the atlas's slots (refused where it exceeds the device's
+    /// largest storage-buffer binding).
+    Buffer,
+}
+
+/// `[integrator.baseline]`: the settings of the baseline path tracer for grid media.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BaselineSettings {
+    /// How next-event estimation picks its lights (`nee`).
+    pub nee: NeeMode,
+    /// Where the density's values are read from (`density_fetch`).
+    pub density_fetch: DensityFetch,
+}
+
+impl Default for BaselineSettings {
+    fn default() -> Self {
+        Self {
+            nee: NeeMode::Auto,
+            density_fetch: DensityFetch::Auto,
+        }
+    }
 }
 
 /// Where ReSTIR's candidates include the path that sees straight through the medium (the

@@ -64,6 +64,10 @@ gpu_consts! {
     /// `AovUniforms`: the previous frame's camera and the light groups of what has no
     /// light record.
     pub const AOV_UNIFORMS: u32 = 38 => BINDING_AOV_UNIFORMS;
+    /// The density's slots as a storage buffer (`float density_texels[slot * 729 + texel]`,
+    /// each slot's 9^3 texels x fastest): where the device is a CPU (lavapipe), the
+    /// baseline reads the density from it instead of the atlas image (grid.glsl).
+    pub const GRID_DENSITY_TEXELS: u32 = 39 => BINDING_GRID_DENSITY_TEXELS;
 
     // The denoiser's own pipelines (src/denoise, shaders/denoise): per-pixel buffers.
     /// The noisy image (premultiplied RGB, A).

@@ -83,6 +83,9 @@ gpu_consts! {
     /// that a reused sample turns with a turning map (`env_reuse = "map"`;
     /// restir/path_value.glsl).
     pub const SC_ID_ENV_REUSE_MAP: u32 = 31;
+    /// The baseline reads the density from the storage buffer GRID_DENSITY_TEXELS
+    /// instead of the atlas image (grid.glsl): the plan's choice on CPU devices.
+    pub const SC_ID_DENSITY_BUFFER: u32 = 32;
 
     // -----------------------------------------------------------------------------------
     // Values of SC_ESTIMATOR (`shaders/box/crepuscular.comp`): the box-medium estimators

@@ -157,6 +157,31 @@ fn baseline_matches_the_cpu_delta_tracking_oracle() {
     }
 }
 
+/// Split next-event estimation (`[integrator.baseline] nee = "split"`: every delta light
+/// at every vertex plus one sample of the others) converges to the CPU oracle, which
+/// picks one light per vertex: a sun, a point light, a sky and a sphere light (so the
+/// sample of the others chooses between two), above a reflecting floor (the surface
+/// vertices' NEE), K = 1 at g = 0 and K = 3 at g = 0.8; same criteria as above.
+#[test]
+fn split_next_event_estimation_matches_the_cpu_oracle() {
+    let ctx = context();
+    let lights = "[[light]]\ntype = \"directional\"\ndirection = [0.5, -0.7, -0.4]\nirradiance = [3.0, 2.7, 2.4]\n\
+                  [[light]]\ntype = \"point\"\nposition = [1.4, 0.9, 0.6]\nintensity = 2.0\n\
+                  [[light]]\ntype = \"environment\"\nradiance = [0.2, 0.3, 0.45]\n\
+                  [[light]]\ntype = \"sphere\"\ncenter = [-1.3, 0.8, 0.9]\nradius = 0.2\nradiance = [40.0, 30.0, 20.0]\n\
+                  [[shape]]\ntype = \"quad\"\ncorner = [-1.6, -0.7, 1.6]\nedge_u = [3.2, 0.0, 0.0]\nedge_v = [0.0, 0.0, -3.2]\nalbedo = 0.5\n";
+    for (bounces, g) in [(1u32, 0.0f32), (3, 0.8)] {
+        let text = format!(
+            "{}[integrator.baseline]\nnee = \"split\"\n",
+            cloud_scene("[0.3, 0.5, 2.4]", 0.9, g, bounces, 16.0, lights, (16, 12))
+        );
+        let scene = scene(&text, "split.toml");
+        let plan = nimbus::plan::build(&scene, None).expect("plan");
+        assert!(plan.baseline().expect("the baseline").nee_split);
+        check_against_oracle(&ctx, &scene, 5, &format!("split K={bounces} g={g}"));
+    }
+}
+
 /// An emitting, absorbing cloud (the absorbed-emission convention: sigma_a Le) with a
 /// sun, K = 1 and K = 3: the baseline matches the CPU oracle (same criteria as above).
 #[test]

@@ -124,3 +124,56 @@ fn a_grid_padded_with_empty_bricks_renders_as_the_tight_grid() {
         );
     }
 }
+
+/// The baseline reads the density from the atlas image or from a storage buffer of its
+/// slots (`[integrator.baseline] density_fetch`; "auto" takes the buffer on lavapipe): the
+/// same values in the same arithmetic, so the same image and alpha to the bit, on a grid
+/// of mostly empty bricks (indirection, empty-brick skipping) with a hot voxel (the exact
+/// spans and the closed form, which read it too). The plan names the choice.
+#[test]
+fn the_baseline_reads_the_density_alike_from_its_atlas_image_and_its_buffer() {
+    let ctx = context();
+    let dir = scratch("grid_sparse", "density_fetch");
+    let cloud = procedural_cloud([20, 14, 18], 3);
+    let offset = [13u32, 22, 9];
+    let dims = [61u32, 45, 53];
+    let mut padded = VoxelGrid {
+        dims,
+        channels: 1,
+        data: vec![0.0; dims.iter().map(|&d| d as usize).product()],
+    };
+    for k in 0..cloud.dims[2] {
+        for j in 0..cloud.dims[1] {
+            for i in 0..cloud.dims[0] {
+                let (x, y, z) = (i + offset[0], j + offset[1], k + offset[2]);
+                padded.data[((z * dims[1] + y) * dims[0] + x) as usize] = cloud.get(i, j, k);
+            }
+        }
+    }
+    // One hot voxel: its super-voxel's spans are tracked exactly.
+    let hot = ((offset[2] + 9) * dims[1] + offset[1] + 7) * dims[0] + offset[0] + 10;
+    padded.data[hot as usize] = 400.0;
+    let grid = medium(&write_raw(&dir, "padded.raw", &padded), &padded, offset);
+    let render = |fetch: &str| {
+        let text = format!(
+            "{}[integrator.baseline]\ndensity_fetch = \"{fetch}\"\n",
+            scene_text(&grid, "baseline")
+        );
+        let scene = scene(&text, &format!("{fetch}.toml"));
+        let plan = nimbus::plan::build(&scene, None).expect("plan");
+        let row = plan
+            .decisions
+            .iter()
+            .find(|d| d.name.trim() == "SC_DENSITY_BUFFER")
+            .expect("an SC_DENSITY_BUFFER row");
+        assert!(row.reason.contains(fetch), "{}", row.reason);
+        render_checked(&ctx, &scene, None)
+    };
+    let image = render("image");
+    for fetch in ["buffer", "auto"] {
+        let other = render(fetch);
+        assert_eq!(image.image.data, other.image.data, "{fetch}: RGB");
+        assert_eq!(image.alpha, other.alpha, "{fetch}: alpha");
+    }
+    assert!(image.alpha[15 * 40 + 20] > 0.2, "the cloud is seen");
+}

@@ -84,7 +84,10 @@ const INTEGRATOR_KEYS: &[&str] = &[
     "box_samples",
     "moment_map_size",
     "restir",
+    "baseline",
 ];
+/// The fields of `[integrator.baseline]`.
+pub const BASELINE_KEYS: &[&str] = &["nee", "density_fetch"];
 /// The fields of `[integrator.restir]`.
 pub const RESTIR_KEYS: &[&str] = &[
     "candidates",
@@ -157,6 +160,7 @@ pub fn scene_tables() -> Vec<TableFields> {
     }
     tables.push(table("[integrator]", INTEGRATOR_KEYS));
     tables.push(table("[integrator.restir]", RESTIR_KEYS));
+    tables.push(table("[integrator.baseline]", BASELINE_KEYS));
     tables
 }
 
@@ -600,6 +604,39 @@ fn parse_integrator(source: &Source, table: &toml::Table) -> Result<Integrator> 
             Some(table) => parse_restir(source, table)?,
             None => defaults.restir,
         },
+        baseline: match f.opt_table("baseline")? {
+            Some(table) => parse_baseline(source, table)?,
+            None => defaults.baseline,
+        },
+    })
+}
+
+fn nee_choice(f: &Fields, default: NeeMode) -> Result<NeeMode> {
+    f.choice(
+        "nee",
+        Some(default),
+        &[
+            ("auto", NeeMode::Auto),
+            ("one", NeeMode::One),
+            ("split", NeeMode::Split),
+        ],
+    )
+}
+
+fn parse_baseline(source: &Source, table: &toml::Table) -> Result<BaselineSettings> {
+    let f = Fields::new(source, "[integrator.baseline]".into(), table, BASELINE_KEYS)?;
+    let d = BaselineSettings::default();
+    Ok(BaselineSettings {
+        nee: nee_choice(&f, d.nee)?,
+        density_fetch: f.choice(
+            "density_fetch",
+            Some(d.density_fetch),
+            &[
+                ("auto", DensityFetch::Auto),
+                ("image", DensityFetch::Image),
+                ("buffer", DensityFetch::Buffer),
+            ],
+        )?,
     })
 }
 
@@ -682,15 +719,7 @@ fn parse_restir(source: &Source, table: &toml::Table) -> Result<RestirSettings> 
             ],
         )?,
         sigma_star_floor: f.f32_in("sigma_star_floor", Some(d.sigma_star_floor), 0.0..=1.0)?,
-        nee: f.choice(
-            "nee",
-            Some(d.nee),
-            &[
-                ("auto", NeeMode::Auto),
-                ("one", NeeMode::One),
-                ("split", NeeMode::Split),
-            ],
-        )?,
+        nee: nee_choice(&f, d.nee)?,
         direct: f.choice(
             "direct",
             Some(d.direct),

@@ -236,6 +236,9 @@ env_reuse = "map"
 emission = "folded"
 temporal_history = "temporal"
 sigma_star_floor = 0.125
+[integrator.baseline]
+nee = "one"
+density_fetch = "image"
 "#;
     let scene_path = dir.write("scene.toml", text.as_bytes());
     let scene = load(&scene_path).unwrap_or_else(|e| panic!("{e:#}"));
@@ -450,6 +453,10 @@ sigma_star_floor = 0.125
                 sigma_star_floor: 0.125,
                 nee: NeeMode::Split,
                 direct: DirectMode::Escape,
+            },
+            baseline: BaselineSettings {
+                nee: NeeMode::One,
+                density_fetch: DensityFetch::Image,
             },
         }
     );

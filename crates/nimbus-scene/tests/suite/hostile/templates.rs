@@ -292,6 +292,12 @@ pub(super) fn templates() -> Vec<Template> {
             vec![Key("integrator"), Key("restir")],
             Some("[integrator.restir]"),
         ),
+        t(
+            "[integrator.baseline]",
+            &format!("{procedural}[integrator.baseline]\nnee = \"one\"\n"),
+            vec![Key("integrator"), Key("baseline")],
+            Some("[integrator.baseline]"),
+        ),
     ]
 }
 
