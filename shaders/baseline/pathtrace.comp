@@ -46,6 +46,11 @@ layout(constant_id = SC_ID_HAS_ENV_MAP) const bool SC_HAS_ENV_MAP = false;
 // Split next-event estimation: every delta light at every vertex, plus one sample of the
 // other lights (else one light per vertex, chosen by power).
 layout(constant_id = SC_ID_NEE_SPLIT) const bool SC_NEE_SPLIT = false;
+// With SC_NEE_SPLIT where the other lights are a constant environment alone: its NEE
+// direction at a vertex that scatters on is the path's next direction (both drawn from
+// the vertex's phase or cosine lobe), and the next segment's walk estimates the sky's
+// transmittance along it too (grid_collision_and_transmittance): one walk, not two.
+layout(constant_id = SC_ID_SKY_ALONG_PATH) const bool SC_SKY_ALONG_PATH = false;
 
 #include "film.glsl"
 
@@ -64,12 +69,26 @@ layout(push_constant) uniform PushBlock {
 // the media are disjoint, so the first collision is the earliest of independent first
 // collisions sampled in each. Returns FAR if none; `medium` is the box index, or
 // NO_INDEX for the grid.
-float sample_collision(vec3 o, vec3 d, float t_end, inout uint rng, out uint medium) {
+// With `sky`, the segment reaches infinity (t_end = FAR) and T_sky is also set to an
+// unbiased estimate of its transmittance through the grid and the boxes, from the same
+// walk (else it is 0).
+float sample_collision(vec3 o, vec3 d, float t_end, bool sky, inout uint rng, out uint medium,
+                       out float T_sky) {
     medium = NO_INDEX;
+    T_sky = 0.0;
     vec2 span = grid_span(o, d);
     float t0 = max(span.x, 0.0);
     float t1 = min(span.y, t_end);
-    float t_best = t1 > t0 ? grid_sample_collision(o, d, t0, t1, rng) : FAR;
+    float t_best;
+    if (SC_SKY_ALONG_PATH && sky) {
+        T_sky = 1.0;
+        t_best = t1 > t0 ? grid_collision_and_transmittance(o, d, t0, t1, rng, T_sky) : FAR;
+        if (SC_HAS_MEDIA) {
+            T_sky *= exp(-box_optical_depth(o, d, 0.0, FAR));
+        }
+    } else {
+        t_best = t1 > t0 ? grid_sample_collision(o, d, t0, t1, rng) : FAR;
+    }
     if (SC_HAS_MEDIA) {
         uint count = u_frame.box_media_count;
         for (uint m = 0u; m < count; ++m) {
@@ -177,8 +196,11 @@ vec3 sample_light(vec3 x, vec3 d, float g, vec3 n, bool on_surface, inout uint r
 // a sun and a sky then both reach every vertex, which removes the variance of choosing
 // between them (half the per-sample variance on the benchmark cloud; at g = 0.8 the sun
 // behind a back-scattering vertex had taken 57 % of the samples for 1 % of the light).
+//
+// With `sky_later` (SC_SKY_ALONG_PATH at a vertex the path leaves) the environment's term
+// is left to the next segment's walk (radiance()).
 vec3 next_event(vec3 x, vec3 d, float g, vec3 n, bool on_surface, vec3 weight, uint bounce,
-                inout uint rng) {
+                bool sky_later, inout uint rng) {
     vec3 L = vec3(0.0);
     if (SC_NEE_SPLIT) {
         uint count = u_frame.light_count;
@@ -197,6 +219,9 @@ vec3 next_event(vec3 x, vec3 d, float g, vec3 n, bool on_surface, vec3 weight, u
                 aov_add(aov_kind_nee(bounce), light_group(l), c);
             }
         }
+    }
+    if (SC_SKY_ALONG_PATH && sky_later) {
+        return L;
     }
     vec3 wi;
     float dist;
@@ -219,6 +244,11 @@ vec3 next_event(vec3 x, vec3 d, float g, vec3 n, bool on_surface, vec3 weight, u
 vec3 radiance(vec3 o, vec3 d, inout uint rng) {
     vec3 L = vec3(0.0);
     vec3 beta = vec3(1.0);
+    // SC_SKY_ALONG_PATH: the previous vertex's sky term, its weight (throughput x albedo x
+    // radiance: the phase or cosine over the direction's density is 1) waiting for this
+    // segment's transmittance, and that vertex's index.
+    vec3 sky_weight = vec3(0.0);
+    uint sky_vertex = 0u;
 
     for (uint bounce = 0u; bounce < SC_MAX_BOUNCES; ++bounce) {
         uint shape_index;
@@ -226,6 +256,8 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
         uint light_index;
         float t_light = nearest_sphere_light(0u, o, d, 0.0, t_surface, light_index);
         float t_end = min(t_surface, t_light);
+        // The sky is seen along d unless a shape or a sphere blocks it.
+        bool sky = SC_SKY_ALONG_PATH && bounce > 0u && t_end >= FAR;
         if (bounce == 0u && g_alpha_wanted) {
             // The film's alpha: the camera ray's closed-form transmittance through the box
             // media and the trilinear grid, 0 where it meets a surface or an emitter.
@@ -236,7 +268,13 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
 
         // Sample a real collision in the media before the segment's end.
         uint medium;
-        float t_collision = sample_collision(o, d, t_end, rng, medium);
+        float T_sky;
+        float t_collision = sample_collision(o, d, t_end, sky, rng, medium, T_sky);
+        if (sky) {
+            vec3 c = sky_weight * T_sky;
+            L += c;
+            aov_add(aov_kind_nee(sky_vertex), light_group(LIGHT_ENV), c);
+        }
 
         if (t_collision < FAR) {
             vec3 x = o + t_collision * d;
@@ -257,13 +295,16 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
                 L += c;
                 aov_add(aov_kind_emitted(bounce), AOV_GROUP_DEFAULT, c);
             }
-            L += next_event(x, d, g, vec3(0.0), false, beta * albedo_medium, bounce, rng);
-            if (bounce + 1u >= SC_MAX_BOUNCES) {
+            bool last = bounce + 1u >= SC_MAX_BOUNCES;
+            L += next_event(x, d, g, vec3(0.0), false, beta * albedo_medium, bounce, !last, rng);
+            if (last) {
                 break;
             }
             beta *= albedo_medium;
             o = x;
             d = sample_hg(d, g, vec2(rng_next(rng), rng_next(rng)));
+            sky_weight = beta * u_frame.env_radiance;
+            sky_vertex = bounce;
         } else if (t_light < t_surface) {
             // An emitting sphere: seen directly only by the camera segment.
             if (bounce == 0u) {
@@ -288,13 +329,16 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
             }
             vec3 n = shape_normal(s, x, d);
             vec3 x_off = offset_ray_origin(x, n);
-            L += next_event(x_off, d, 0.0, n, true, beta * albedo, bounce, rng);
-            if (bounce + 1u >= SC_MAX_BOUNCES) {
+            bool last = bounce + 1u >= SC_MAX_BOUNCES;
+            L += next_event(x_off, d, 0.0, n, true, beta * albedo, bounce, !last, rng);
+            if (last) {
                 break;
             }
             beta *= albedo;
             o = x_off;
             d = sample_cosine_hemisphere(n, vec2(rng_next(rng), rng_next(rng)));
+            sky_weight = beta * u_frame.env_radiance;
+            sky_vertex = bounce;
         } else {
             // Escaped: the environment, seen directly by the camera segment only.
             if (SC_HAS_ENV && bounce == 0u) {
@@ -304,8 +348,14 @@ vec3 radiance(vec3 o, vec3 d, inout uint rng) {
             }
             break;
         }
-        // Russian roulette from the fourth segment on, by the path's throughput.
+        // Russian roulette from the fourth segment on, by the path's throughput. The
+        // vertex's sky term is NEE, not path: where the path ends here, its shadow ray.
         if (bounce >= 3u && !russian_roulette(beta, rng)) {
+            if (SC_SKY_ALONG_PATH) {
+                vec3 c = sky_weight * shadow_transmittance(o, d, FAR, FAR, 0.0, NO_INDEX, rng);
+                L += c;
+                aov_add(aov_kind_nee(sky_vertex), light_group(LIGHT_ENV), c);
+            }
             break;
         }
     }

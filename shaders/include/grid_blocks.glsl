@@ -248,4 +248,69 @@ float grid_sample_collision(vec3 o, vec3 d, float t0, float t1, inout uint rng) 
     return FAR;
 }
 
+// Decomposition tracking's collision and residual ratio tracking's transmittance along one
+// ray, in one walk over [t0, t1): both take their residual tentative collisions from one
+// Poisson process of rate max - min per super-voxel (each estimator alone is then the one
+// above, so both stay unbiased; they are merely correlated), and the walk goes on past the
+// collision to t1 for the transmittance. Returns the collision's t in [t0, t1) or FAR
+// (the ray passes), and sets T. The baseline's split NEE uses it where the path's next
+// direction is also the sky's NEE direction (pathtrace.comp): one walk instead of two.
+float grid_collision_and_transmittance(vec3 o, vec3 d, float t0, float t1, inout uint rng, out float T) {
+    T = 1.0;
+    GridSuperDda it;
+    if (!grid_super_begin(o, d, t0, t1, it)) {
+        return FAR;
+    }
+    float t_hit = FAR;
+    float s0;
+    float s1;
+    vec4 bounds;
+    int steps = 0;
+    while (grid_super_next(it, s0, s1, bounds) && (T > 0.0 || t_hit == FAR)) {
+        if (!(bounds.y > 0.0) || !(s1 > s0)) {
+            continue;
+        }
+        float sigma_c = bounds.x;
+        float sigma_r = bounds.y - bounds.x;
+        if (SC_EXACT_SPANS && sigma_r * (s1 - s0) > float(GRID_EXACT_SPAN_STEPS)) {
+            float a = it.t_a + s0;
+            float b = it.t_a + s1;
+            if (t_hit == FAR) {
+                t_hit = grid_invert_optical_depth(o, d, a, b, sample_exponential(rng_next(rng), 1.0));
+            }
+            T *= exp(-grid_optical_depth(o, d, a, b));
+            continue;
+        }
+        // Domain: sigma_c (s1 - s0) >= 0.
+        T *= exp(-sigma_c * (s1 - s0));
+        // The control collision, while no collision has been found.
+        float s_control = (t_hit == FAR && sigma_c > 0.0) ? s0 + sample_exponential(rng_next(rng), sigma_c) : FAR;
+        if (sigma_r > 0.0) {
+            float s = s0;
+            for (;; ++steps) {
+                if (steps >= GRID_MAX_STEPS) {
+                    g_step_cap_hits += 1u;
+                    return t_hit;
+                }
+                // Tentative collision at rate sigma_r. Domain: sigma_r > 0.
+                s += sample_exponential(rng_next(rng), sigma_r);
+                if (s >= s1 || (T == 0.0 && t_hit < FAR)) {
+                    break;
+                }
+                COUNT(CTR_COLLISIONS, 1);
+                float r = (grid_sigma_index(it.p0 + it.dp * s) - sigma_c) / sigma_r;
+                T *= 1.0 - r;
+                // A real residual collision before the control one.
+                if (t_hit == FAR && s < s_control && rng_next(rng) < r) {
+                    t_hit = it.t_a + s;
+                }
+            }
+        }
+        if (t_hit == FAR && s_control < s1) {
+            t_hit = it.t_a + s_control;
+        }
+    }
+    return t_hit;
+}
+
 #endif

@@ -30,8 +30,9 @@ pub fn specialization(
     exact_spans: bool,
     two_level: bool,
     density_buffer: bool,
-) -> [(u32, SpecValue); 17] {
+) -> [(u32, SpecValue); 18] {
     [
+        (SC_ID_SKY_ALONG_PATH, SpecValue::Bool(plan.sky_along_path)),
         (SC_ID_DENSITY_BUFFER, SpecValue::Bool(density_buffer)),
         (SC_ID_EXACT_SPANS, SpecValue::Bool(exact_spans)),
         (SC_ID_TWO_LEVEL_BRICKS, SpecValue::Bool(two_level)),

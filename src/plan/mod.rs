@@ -154,6 +154,9 @@ pub struct BaselinePlan {
     /// Split next-event estimation (SC_NEE_SPLIT): every delta light at every vertex,
     /// plus one sample of the other lights.
     pub nee_split: bool,
+    /// With `nee_split`, where the other lights are a constant environment alone: its
+    /// NEE rides on the path's next segment (SC_SKY_ALONG_PATH).
+    pub sky_along_path: bool,
     /// Where the density is read from (SC_DENSITY_BUFFER): `Auto` is settled by the
     /// device when the pass is created.
     pub density_fetch: nimbus_scene::DensityFetch,

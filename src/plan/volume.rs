@@ -118,10 +118,12 @@ pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
             boxes,
         );
     }
-    let (nee_split, nee_decision) = baseline_nee(scene, integrator.max_bounces);
+    let (nee_split, sky_along_path, nee_decisions) =
+        baseline_nee(scene, integrator.max_bounces, has_env && env_map.is_none());
     let density_fetch = integrator.baseline.density_fetch;
     let baseline = BaselinePlan {
         nee_split,
+        sky_along_path,
         density_fetch,
         max_bounces: integrator.max_bounces,
         has_boxes: boxes > 0,
@@ -140,7 +142,7 @@ pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
         has_env_map: env_map.is_some(),
         pixel_jitter: scene.render.pixel_jitter,
     };
-    let decisions = vec![
+    let mut decisions = vec![
         Decision {
             name: "pass baseline path tracer",
             enabled: true,
@@ -160,7 +162,9 @@ pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
         super::meshes_decision(scene),
         area_lights_decision(scene),
         gobos_decision(scene),
-        nee_decision,
+    ];
+    decisions.extend(nee_decisions);
+    decisions.extend([
         Decision::new(
             "  SC_DENSITY_BUFFER",
             density_fetch == nimbus_scene::DensityFetch::Buffer,
@@ -209,7 +213,7 @@ pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
                 "no environment".into()
             },
         },
-    ];
+    ]);
     Ok((Integrator::Baseline(baseline), decisions))
 }
 
@@ -271,14 +275,20 @@ fn area_lights_decision(scene: &Scene) -> Decision {
 }
 
 /// The baseline's next-event estimation: split (every delta light at every vertex, plus
-/// one sample of the other lights) or one light per vertex by power, and the `--explain`
-/// row saying which and why. `"auto"` splits at K = 1 where one delta light shares the
-/// scene with other lights: measured on the benchmark cloud (sun + sky, lavapipe, per
-/// sample), split halves the variance at K = 1 (g = 0: 0.139 -> 0.073; g = 0.8: 0.050 ->
-/// 0.019) for 1.37x the time, 1.4x and 2.0x the efficiency; at K = 3 it cuts the variance
-/// by a third for 1.5x the time (efficiency 0.92x at g = 0, 1.05x at g = 0.8): no gain.
-/// Several delta lights (a shadow ray each at every vertex) were not measured.
-fn baseline_nee(scene: &Scene, max_bounces: u32) -> (bool, Decision) {
+/// one sample of the other lights) or one light per vertex by power; whether the split's
+/// sky rides on the path's next segment (SC_SKY_ALONG_PATH: the other lights are a
+/// constant environment alone); and the `--explain` rows. `"auto"` splits where one delta
+/// light shares the scene with other lights and either K = 1 or the sky rides along.
+/// Measured on the benchmark cloud (sun + constant sky, lavapipe, per-sample variance and
+/// time, efficiency against one light per vertex): at K = 1 split 1.29x (g = 0) and 1.91x
+/// (g = 0.8); at K = 3 split with its own sky shadow ray 1.00x and 1.06x, with the sky
+/// along the path 1.22x and 1.07x (docs/performance.md). Several delta lights (a shadow
+/// ray each at every vertex) were not measured.
+fn baseline_nee(
+    scene: &Scene,
+    max_bounces: u32,
+    constant_sky: bool,
+) -> (bool, bool, Vec<Decision>) {
     let delta = scene
         .lights
         .iter()
@@ -290,20 +300,24 @@ fn baseline_nee(scene: &Scene, max_bounces: u32) -> (bool, Decision) {
         .filter(|l| !matches!(l, Light::Directional { .. } | Light::Point { .. }))
         .count()
         + usize::from(scene.shapes.iter().any(|s| s.emits()));
+    // The split's other-light sample is a constant sky drawn from the vertex's own lobe,
+    // the path's next direction's distribution.
+    let sky_alone = constant_sky && other_lights_are_the_sky(scene);
     let mode = scene.integrator.baseline.nee;
     let split = match mode {
         nimbus_scene::NeeMode::One => false,
         nimbus_scene::NeeMode::Split => delta > 0 && delta + other > 1,
-        nimbus_scene::NeeMode::Auto => max_bounces == 1 && delta == 1 && other > 0,
+        nimbus_scene::NeeMode::Auto => delta == 1 && other > 0 && (max_bounces == 1 || sky_alone),
     };
+    let sky_along_path = split && sky_alone && max_bounces > 1;
     let reason = if split {
         format!(
             "every vertex adds its {delta} delta (directional, point) light(s), one shadow ray \
              each, to one sample of the {other} other light(s): no sample is spent choosing \
              between them{}",
             if mode == nimbus_scene::NeeMode::Auto {
-                " ([integrator.baseline] nee = \"auto\": K = 1 with one delta light, where \
-                 split measured 1.4-2x the efficiency)"
+                " ([integrator.baseline] nee = \"auto\": one delta light, and K = 1 or a \
+                 constant sky as the other light, where split measured 1.1-1.9x the efficiency)"
             } else {
                 ""
             }
@@ -319,13 +333,41 @@ fn baseline_nee(scene: &Scene, max_bounces: u32) -> (bool, Decision) {
             ),
             _ => format!(
                 "one light per vertex, chosen by power ([integrator.baseline] nee = \"auto\" \
-                 splits only at K = 1 with one delta light, where it measured faster at equal \
-                 error; here K = {max_bounces} with {delta} delta light(s); nee = \"split\" \
-                 asks for it)"
+                 splits only with one delta light, and at K = 1 or with a constant sky as the \
+                 other light, where it measured faster at equal error; here K = {max_bounces} \
+                 with {delta} delta light(s) and {other} other(s); nee = \"split\" asks for it)"
             ),
         }
     };
-    (split, Decision::new("  SC_NEE_SPLIT", split, reason))
+    let sky_reason = if sky_along_path {
+        "the constant sky's NEE direction is the path's next one (both drawn from the vertex's \
+         phase or cosine lobe): the next segment's walk samples its collision and estimates the \
+         sky's transmittance in one (1.22x the efficiency of a separate sky shadow ray at K = 3, \
+         g = 0)"
+            .to_string()
+    } else if split && sky_alone {
+        "K = 1: no next segment for the sky to ride on".to_string()
+    } else {
+        "only with split NEE whose other light is a constant sky".to_string()
+    };
+    (
+        split,
+        sky_along_path,
+        vec![
+            Decision::new("  SC_NEE_SPLIT", split, reason),
+            Decision::new("  SC_SKY_ALONG_PATH", sky_along_path, sky_reason),
+        ],
+    )
+}
+
+/// Whether the lights other than directional and point lights are environments alone
+/// (no sphere lights, no emitting shapes).
+fn other_lights_are_the_sky(scene: &Scene) -> bool {
+    !scene
+        .lights
+        .iter()
+        .any(|l| matches!(l, Light::Sphere { .. }))
+        && !scene.shapes.iter().any(|s| s.emits())
 }
 
 /// Whether split next-event estimation applies: delta (directional, point) lights and an
@@ -781,9 +823,11 @@ mod tests {
         assert!(matches!(integrator, Integrator::Baseline(_)));
     }
 
-    /// The baseline's `nee`: "auto" splits at K = 1 with one delta light among others
-    /// (a sun and a sky), not at K = 3 nor with the sun alone; "split" splits wherever a
-    /// delta light has company; "one" never. `--explain` names the choice.
+    /// The baseline's `nee`: "auto" splits with one delta light among others at K = 1, and
+    /// at any K where the other light is a constant sky (which then rides on the path's
+    /// next segment), not with a sphere light at K = 3, the sun alone or two delta lights;
+    /// "split" splits wherever a delta light has company; "one" never. `--explain` names
+    /// the choices.
     #[test]
     fn the_baseline_splits_next_event_estimation_where_it_measured_faster() {
         let plan = |lights: &str, bounces: u32, nee: &str| {
@@ -799,33 +843,48 @@ mod tests {
             let Integrator::Baseline(plan) = integrator else {
                 panic!("not the baseline")
             };
-            let row = decisions
-                .iter()
-                .find(|d| d.name.trim() == "SC_NEE_SPLIT")
-                .expect("an SC_NEE_SPLIT row");
-            assert_eq!(row.enabled, plan.nee_split);
-            (plan.nee_split, row.reason.clone())
+            let row = |name: &str| {
+                decisions
+                    .iter()
+                    .find(|d| d.name.trim() == name)
+                    .unwrap_or_else(|| panic!("no {name} row"))
+                    .clone()
+            };
+            assert_eq!(row("SC_NEE_SPLIT").enabled, plan.nee_split);
+            assert_eq!(row("SC_SKY_ALONG_PATH").enabled, plan.sky_along_path);
+            (
+                plan.nee_split,
+                plan.sky_along_path,
+                row("SC_NEE_SPLIT").reason,
+            )
         };
         let sun = "[[light]]\ntype = \"directional\"\ndirection = [0, -1, 0]\nirradiance = 3\n";
         let sky = "[[light]]\ntype = \"environment\"\nradiance = 0.3\n";
         let point = "[[light]]\ntype = \"point\"\nposition = [0, 2, 0]\nintensity = 3\n";
+        let bulb = "[[light]]\ntype = \"sphere\"\ncenter = [0, 3, 0]\nradius = 0.2\nradiance = 5\n";
         let sun_sky = format!("{sun}{sky}");
+        let sun_bulb = format!("{sun}{bulb}");
         let two_deltas_sky = format!("{sun}{point}{sky}");
         assert!(plan(&sun_sky, 1, "auto").0);
-        assert!(!plan(&sun_sky, 3, "auto").0);
+        assert!(!plan(&sun_sky, 1, "auto").1);
+        assert!(plan(&sun_sky, 3, "auto").0);
+        assert!(plan(&sun_sky, 3, "auto").1);
+        assert!(plan(&sun_bulb, 1, "auto").0);
+        assert!(!plan(&sun_bulb, 3, "auto").0);
         assert!(!plan(sun, 1, "auto").0);
         assert!(!plan(sky, 1, "auto").0);
         assert!(!plan(&two_deltas_sky, 1, "auto").0);
-        assert!(plan(&sun_sky, 3, "split").0);
-        assert!(plan(&two_deltas_sky, 3, "split").0);
+        assert!(plan(&two_deltas_sky, 3, "split").1);
+        assert!(plan(&sun_bulb, 3, "split").0);
+        assert!(!plan(&sun_bulb, 3, "split").1);
         assert!(!plan(sky, 3, "split").0);
-        assert!(!plan(&sun_sky, 1, "one").0);
-        let (_, why) = plan(&sun_sky, 3, "auto");
+        assert!(!plan(&sun_sky, 3, "one").0);
+        let (_, _, why) = plan(&sun_bulb, 3, "auto");
         assert!(
             why.contains("K = 3") && why.contains("nee = \"split\""),
             "{why}"
         );
-        let (_, why) = plan(&sun_sky, 1, "auto");
+        let (_, _, why) = plan(&sun_sky, 1, "auto");
         assert!(why.contains("1 delta") && why.contains("1 other"), "{why}");
     }
 }

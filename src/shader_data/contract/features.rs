@@ -86,6 +86,9 @@ gpu_consts! {
     /// The baseline reads the density from the storage buffer GRID_DENSITY_TEXELS
     /// instead of the atlas image (grid.glsl): the plan's choice on CPU devices.
     pub const SC_ID_DENSITY_BUFFER: u32 = 32;
+    /// The baseline's split NEE estimates a constant sky's transmittance along the path's
+    /// next segment, in that segment's walk (pathtrace.comp).
+    pub const SC_ID_SKY_ALONG_PATH: u32 = 33;
 
     // -----------------------------------------------------------------------------------
     // Values of SC_ESTIMATOR (`shaders/box/crepuscular.comp`): the box-medium estimators

@@ -193,6 +193,9 @@ albedo = 0.95
 [integrator]
 volume = "baseline"
 max_bounces = 3
+# The noise this test was made for (split NEE halves it, and the denoiser's gain on it).
+[integrator.baseline]
+nee = "one"
 "#;
 
 #[test]

@@ -182,6 +182,28 @@ fn split_next_event_estimation_matches_the_cpu_oracle() {
     }
 }
 
+/// Split NEE whose other light is a constant sky alone (the default at any K with one
+/// sun): the sky's NEE rides on the path's next segment, whose one walk samples the next
+/// collision and estimates the sky's transmittance (SC_SKY_ALONG_PATH), and where Russian
+/// roulette ends the path (from the fourth segment) the sky gets its own shadow ray. It
+/// converges to the CPU oracle with a sun and a sky above a reflecting floor, K = 3 at
+/// g = 0.8 and K = 6 at g = 0 (Russian roulette); same criteria as above.
+#[test]
+fn the_sky_along_the_path_matches_the_cpu_oracle() {
+    let ctx = context();
+    let lights = "[[light]]\ntype = \"directional\"\ndirection = [0.5, -0.7, -0.4]\nirradiance = [3.0, 2.7, 2.4]\n\
+                  [[light]]\ntype = \"environment\"\nradiance = [0.4, 0.6, 0.9]\n\
+                  [[shape]]\ntype = \"quad\"\ncorner = [-1.6, -0.7, 1.6]\nedge_u = [3.2, 0.0, 0.0]\nedge_v = [0.0, 0.0, -3.2]\nalbedo = 0.5\n";
+    for (bounces, g) in [(3u32, 0.8f32), (6, 0.0)] {
+        let text = cloud_scene("[0.3, 0.5, 2.4]", 0.9, g, bounces, 16.0, lights, (16, 12));
+        let scene = scene(&text, "sky-along.toml");
+        let plan = nimbus::plan::build(&scene, None).expect("plan");
+        let baseline = plan.baseline().expect("the baseline");
+        assert!(baseline.nee_split && baseline.sky_along_path);
+        check_against_oracle(&ctx, &scene, 5, &format!("sky along K={bounces} g={g}"));
+    }
+}
+
 /// An emitting, absorbing cloud (the absorbed-emission convention: sigma_a Le) with a
 /// sun, K = 1 and K = 3: the baseline matches the CPU oracle (same criteria as above).
 #[test]

@@ -37,6 +37,27 @@ fn medium(file: &str, g: &VoxelGrid, offset: [u32; 3]) -> String {
     )
 }
 
+/// `tight` at voxel offset (13, 22, 9) inside a 61x45x53 grid of zeros (mostly empty
+/// bricks), and that offset.
+fn padded_cloud(tight: &VoxelGrid) -> (VoxelGrid, [u32; 3]) {
+    let offset = [13u32, 22, 9];
+    let dims = [61u32, 45, 53];
+    let mut padded = VoxelGrid {
+        dims,
+        channels: 1,
+        data: vec![0.0; dims.iter().map(|&d| d as usize).product()],
+    };
+    for k in 0..tight.dims[2] {
+        for j in 0..tight.dims[1] {
+            for i in 0..tight.dims[0] {
+                let (x, y, z) = (i + offset[0], j + offset[1], k + offset[2]);
+                padded.data[((z * dims[1] + y) * dims[0] + x) as usize] = tight.get(i, j, k);
+            }
+        }
+    }
+    (padded, offset)
+}
+
 /// The scene around `medium`. ReSTIR renders without temporal reuse here: its frames are
 /// then independent, so the renders' standard errors are honest at 8 frames (with the
 /// default temporal limit of 20 they would be batch means of 84 frames).
@@ -78,21 +99,7 @@ fn a_grid_padded_with_empty_bricks_renders_as_the_tight_grid() {
     let ctx = context();
     let dir = scratch("grid_sparse", "padded");
     let tight = procedural_cloud([20, 14, 18], 3);
-    let offset = [13u32, 22, 9];
-    let dims = [61u32, 45, 53];
-    let mut padded = VoxelGrid {
-        dims,
-        channels: 1,
-        data: vec![0.0; dims.iter().map(|&d| d as usize).product()],
-    };
-    for k in 0..tight.dims[2] {
-        for j in 0..tight.dims[1] {
-            for i in 0..tight.dims[0] {
-                let (x, y, z) = (i + offset[0], j + offset[1], k + offset[2]);
-                padded.data[((z * dims[1] + y) * dims[0] + x) as usize] = tight.get(i, j, k);
-            }
-        }
-    }
+    let (padded, offset) = padded_cloud(&tight);
     let bricks = BrickGrid::from_dense(&padded).unwrap();
     let total: u32 = bricks.brick_dims.iter().product();
     assert!(
@@ -134,22 +141,8 @@ fn a_grid_padded_with_empty_bricks_renders_as_the_tight_grid() {
 fn the_baseline_reads_the_density_alike_from_its_atlas_image_and_its_buffer() {
     let ctx = context();
     let dir = scratch("grid_sparse", "density_fetch");
-    let cloud = procedural_cloud([20, 14, 18], 3);
-    let offset = [13u32, 22, 9];
-    let dims = [61u32, 45, 53];
-    let mut padded = VoxelGrid {
-        dims,
-        channels: 1,
-        data: vec![0.0; dims.iter().map(|&d| d as usize).product()],
-    };
-    for k in 0..cloud.dims[2] {
-        for j in 0..cloud.dims[1] {
-            for i in 0..cloud.dims[0] {
-                let (x, y, z) = (i + offset[0], j + offset[1], k + offset[2]);
-                padded.data[((z * dims[1] + y) * dims[0] + x) as usize] = cloud.get(i, j, k);
-            }
-        }
-    }
+    let (mut padded, offset) = padded_cloud(&procedural_cloud([20, 14, 18], 3));
+    let dims = padded.dims;
     // One hot voxel: its super-voxel's spans are tracked exactly.
     let hot = ((offset[2] + 9) * dims[1] + offset[1] + 7) * dims[0] + offset[0] + 10;
     padded.data[hot as usize] = 400.0;
