@@ -15,7 +15,8 @@
 #
 # --lent sizes the run for a lent GPU machine's device time (about 15 minutes, start-up
 # included; see docs/restir.md "Measuring on a GPU" for the steps): no test suite, the
-# per-pass profiles of the benchmark cloud at 1920x1080 (and its work counters at K = 3),
+# per-pass profiles of the benchmark cloud at 1920x1080 (its work counters at K = 3, and
+# the baseline with its density read from a storage buffer),
 # issue 15's per-frame equal-time study of ReSTIR against the baseline on the benchmark
 # clouds (g = 0 and 0.8, K = 1, 3, 7, 3 seeds; at 960x540, since the benchmark's 320x240
 # leaves a GPU idle) and what the ReSTIR levers buy at K = 3. --quick shrinks the full
@@ -308,6 +309,11 @@ for k in 1 3; do
     step "profile baseline k$k" profile "bench-baseline-hd-k$k" assets/scenes/bench/cloud-g0.toml "${hd[@]}" \
         --set "integrator.max_bounces=$k" --set integrator.volume=baseline
 done
+# The baseline's density read from a storage buffer instead of the atlas image (what
+# density_fetch = "auto" takes on CPU devices; unmeasured on GPUs, which keep the image).
+step "profile baseline buffer k3" profile "bench-baseline-buffer-hd-k3" assets/scenes/bench/cloud-g0.toml \
+    "${hd[@]}" --set "integrator.max_bounces=3" --set integrator.volume=baseline \
+    --set 'integrator.baseline.density_fetch="buffer"'
 # What a 1080p ReSTIR frame does per pixel (work counters, K = 3).
 step "counters restir k3" profile "counters-restir-hd-k3" assets/scenes/bench/cloud-g0.toml "${hd[@]}" \
     --set "integrator.max_bounces=3" --counters
