@@ -187,6 +187,12 @@ vec3 sample_light(vec3 x, vec3 d, float g, vec3 n, bool on_surface, inout uint r
     return s.L_over_pdf;
 }
 
+// One NEE term: `weight` x the vertex's scattering of light Li arriving along wi (cos / pi
+// on a surface, the HG phase of g about the travel direction d in a medium) x T.
+vec3 nee_term(vec3 weight, bool on_surface, float cos_i, vec3 d, float g, vec3 wi, vec3 Li, float T) {
+    return on_surface ? weight * INV_PI * cos_i * Li * T : weight * hg_phase(dot(wi, d), g) * Li * T;
+}
+
 // What next-event estimation adds at a scattering vertex x reached along d: light arriving
 // along wi times the vertex's scattering (`weight` x the HG phase of g in a medium, or
 // `weight` x cos / pi about the normal n on a surface, `weight` holding the path's
@@ -214,7 +220,7 @@ vec3 next_event(vec3 x, vec3 d, float g, vec3 n, bool on_surface, vec3 weight, u
             float cos_i = on_surface ? dot(n, wi) : 1.0;
             if (cos_i > 0.0 && any(greaterThan(Li, vec3(0.0)))) {
                 float T = shadow_transmittance(x, wi, dist, dist, 0.0, l, rng);
-                vec3 c = on_surface ? weight * INV_PI * cos_i * Li * T : weight * hg_phase(dot(wi, d), g) * Li * T;
+                vec3 c = nee_term(weight, on_surface, cos_i, d, g, wi, Li, T);
                 L += c;
                 aov_add(aov_kind_nee(bounce), light_group(l), c);
             }
@@ -231,7 +237,7 @@ vec3 next_event(vec3 x, vec3 d, float g, vec3 n, bool on_surface, vec3 weight, u
     float cos_i = on_surface ? dot(n, wi) : 1.0;
     if (cos_i > 0.0 && any(greaterThan(Li, vec3(0.0)))) {
         float T = shadow_transmittance(x, wi, dist, t_occlude, 0.0, target, rng);
-        vec3 c = on_surface ? weight * INV_PI * cos_i * Li * T : weight * hg_phase(dot(wi, d), g) * Li * T;
+        vec3 c = nee_term(weight, on_surface, cos_i, d, g, wi, Li, T);
         L += c;
         aov_add(aov_kind_nee(bounce), light_group(g_light_index), c);
     }

@@ -178,21 +178,34 @@ void grid_fetch_corners(sampler3D atlas, ivec3 b, ivec3 o, out float c[8]) {
     c[7] = texelFetch(atlas, b + ivec3(o.x, o.y, o.z), 0).r;
 }
 
-// The 8 values of dual cell `cell` of grid `s` (atlas `atlas`, bricks from `offset`): lower
-// corner clamp(cell), upper corner clamp(cell + 1) (equal where the clamp bites), both in the
-// slot of the lower corner's brick.
-void grid_cell_corners_at(sampler3D atlas, GridSpace s, uint offset, ivec3 cell, out float c[8]) {
+// The slot holding dual cell `cell` of grid `s` (bricks from `offset`), or NO_BRICK: its
+// lower corner clamp(cell) is texel `local` of the slot, its upper corners `o` further
+// (o = clamp(cell + 1) - clamp(cell): 1 per axis, 0 where the clamp bites), all in the
+// slot of the lower corner's brick. Counts a density fetch.
+uint grid_cell_slot(GridSpace s, uint offset, ivec3 cell, out ivec3 local, out ivec3 o) {
     COUNT(CTR_DENSITY, 1);
     ivec3 lo = clamp(cell, s.lattice_min, s.lattice_max);
-    ivec3 o = clamp(cell + 1, s.lattice_min, s.lattice_max) - lo;
-    uint slot = grid_slot(offset, s.brick_dims, lo >> 3);
+    o = clamp(cell + 1, s.lattice_min, s.lattice_max) - lo;
+    local = lo & 7;
+    return grid_slot(offset, s.brick_dims, lo >> 3);
+}
+
+void grid_zero_corners(out float c[8]) {
+    for (int i = 0; i < 8; ++i) {
+        c[i] = 0.0;
+    }
+}
+
+// The 8 values of dual cell `cell` of grid `s` (atlas `atlas`, bricks from `offset`).
+void grid_cell_corners_at(sampler3D atlas, GridSpace s, uint offset, ivec3 cell, out float c[8]) {
+    ivec3 local;
+    ivec3 o;
+    uint slot = grid_cell_slot(s, offset, cell, local, o);
     if (slot == NO_BRICK) {
-        for (int i = 0; i < 8; ++i) {
-            c[i] = 0.0;
-        }
+        grid_zero_corners(c);
         return;
     }
-    grid_fetch_corners(atlas, grid_slot_origin(slot, s.slots_x, s.slots_y) + (lo & 7), o, c);
+    grid_fetch_corners(atlas, grid_slot_origin(slot, s.slots_x, s.slots_y) + local, o, c);
 }
 
 #ifdef NIMBUS_DENSITY_BUFFER
@@ -205,26 +218,19 @@ layout(constant_id = SC_ID_DENSITY_BUFFER) const bool SC_DENSITY_BUFFER = false;
 layout(std430, set = 0, binding = BINDING_GRID_DENSITY_TEXELS) readonly buffer DensityTexelBlock {
     float density_texels[];
 };
-#else
-const bool SC_DENSITY_BUFFER = false;
 #endif
 
-// The same for the grid's own density u_density.
+// The same for the grid's own density u_density (or its buffer, SC_DENSITY_BUFFER).
 void grid_cell_corners(ivec3 cell, out float c[8]) {
 #ifdef NIMBUS_DENSITY_BUFFER
     if (SC_DENSITY_BUFFER) {
-        GridSpace s = u_grid.space;
-        COUNT(CTR_DENSITY, 1);
-        ivec3 lo = clamp(cell, s.lattice_min, s.lattice_max);
-        ivec3 o = clamp(cell + 1, s.lattice_min, s.lattice_max) - lo;
-        uint slot = grid_slot(s.bricks_offset, s.brick_dims, lo >> 3);
+        ivec3 t;
+        ivec3 o;
+        uint slot = grid_cell_slot(u_grid.space, u_grid.space.bricks_offset, cell, t, o);
         if (slot == NO_BRICK) {
-            for (int i = 0; i < 8; ++i) {
-                c[i] = 0.0;
-            }
+            grid_zero_corners(c);
             return;
         }
-        ivec3 t = lo & 7;
         int b = int(slot) * 729 + (t.z * 9 + t.y) * 9 + t.x;
         int ox = o.x;
         int oy = o.y * 9;
@@ -261,17 +267,14 @@ float grid_sigma_index_at(sampler3D atlas, uint offset, vec3 p) {
     return u_grid.density_scale * grid_trilinear(c, f);
 }
 
-// sigma_t of u_density at p-space point p.
+// sigma_t of the grid's own density at p-space point p.
 float grid_sigma_index(vec3 p) {
-    if (SC_DENSITY_BUFFER) {
-        ivec3 cell;
-        vec3 f;
-        grid_locate(u_grid.space, p, cell, f);
-        float c[8];
-        grid_cell_corners(cell, c);
-        return u_grid.density_scale * grid_trilinear(c, f);
-    }
-    return grid_sigma_index_at(u_density, u_grid.space.bricks_offset, p);
+    ivec3 cell;
+    vec3 f;
+    grid_locate(u_grid.space, p, cell, f);
+    float c[8];
+    grid_cell_corners(cell, c);
+    return u_grid.density_scale * grid_trilinear(c, f);
 }
 
 // sigma_t = density_scale * trilinear density at world x; 0 outside the closed box.
@@ -287,12 +290,9 @@ float grid_sigma_t_in(sampler3D atlas, vec3 x) {
     return grid_sigma_t_at(atlas, u_grid.space.bricks_offset, x);
 }
 
-// The same for the grid's own density u_density.
+// The same for the grid's own density.
 float grid_sigma_t(vec3 x) {
-    if (SC_DENSITY_BUFFER) {
-        return space_contains(u_grid.space, x) ? grid_sigma_index(space_to_index(u_grid.space, x)) : 0.0;
-    }
-    return grid_sigma_t_in(u_density, x);
+    return space_contains(u_grid.space, x) ? grid_sigma_index(space_to_index(u_grid.space, x)) : 0.0;
 }
 
 // (t_in, t_out) of the density's box along o + t d.

@@ -168,7 +168,7 @@ pub fn create(
         let bricks = upload_records(ctx, o, &grid.indirection()?, "grid bricks")?;
         let (density, density_texels) = if density_buffer {
             let buffer = upload_density_texels(ctx, o, &grid)?;
-            let image = objects_dummy_atlas(ctx, o)?;
+            let image = placeholder_atlas(ctx, o)?;
             (image, buffer)
         } else {
             let image = atlas_image(
@@ -439,7 +439,7 @@ fn upload_density_texels(
 }
 
 /// A 1-texel atlas bound where the density is read from its buffer.
-fn objects_dummy_atlas(ctx: &Context, o: &mut GpuObjects) -> Result<Handle<nimbus_gpu::Image>> {
+fn placeholder_atlas(ctx: &Context, o: &mut GpuObjects) -> Result<Handle<nimbus_gpu::Image>> {
     super::image_3d(
         ctx,
         o,

@@ -10,7 +10,8 @@ use nimbus_scene::bricks::shr;
 use nimbus_scene::{BrickTopology, GridSource, Scene};
 
 use super::{
-    has_density_frames, CrepuscularPlan, Integrator, RenderPlan, RestirPlan, MIN_AUTO_INDIRECT,
+    has_density_frames, BaselinePlan, CrepuscularPlan, Integrator, RenderPlan, RestirPlan,
+    MIN_AUTO_INDIRECT,
 };
 use crate::budget::{brick_bytes, density_slot_bound, grid_bytes, Binding, Footprint};
 use crate::shader_data::scene::GpuScene;
@@ -67,8 +68,10 @@ impl Footprint {
 
         match &plan.integrator {
             Integrator::Crepuscular(p) => crepuscular(scene, p, &mut f)?,
-            Integrator::Baseline(_) if has_density_frames(scene) => baseline_frames(scene, &mut f)?,
-            Integrator::Baseline(_) => baseline(scene, &mut f)?,
+            Integrator::Baseline(p) if has_density_frames(scene) => {
+                baseline_frames(scene, p, &mut f)?
+            }
+            Integrator::Baseline(p) => baseline(scene, p, &mut f)?,
             Integrator::Restir(p) => restir(scene, p, &mut f)?,
         }
         Ok(f)
@@ -111,20 +114,35 @@ fn crepuscular(scene: &Scene, plan: &CrepuscularPlan, f: &mut Footprint) -> Resu
     Ok(())
 }
 
-/// What the baseline pass allocates (see [`crate::budget`]).
-fn baseline(scene: &Scene, f: &mut Footprint) -> Result<()> {
+/// What the baseline pass allocates (see [`crate::budget`]). With `density_fetch =
+/// "buffer"` the density's slots are also one storage buffer (the atlas, then one texel,
+/// stays counted: an upper bound), which the device's storage-buffer range must hold;
+/// `"auto"` takes the buffer only where it fits.
+fn baseline(scene: &Scene, plan: &BaselinePlan, f: &mut Footprint) -> Result<()> {
     f.add_meshes(scene);
     f.add_emitters(scene);
     f.add_env_map(scene)?;
-    f.add_grid(scene)?;
+    let grid = f.add_grid(scene)?;
+    if let (Some(g), nimbus_scene::DensityFetch::Buffer) = (grid, plan.density_fetch) {
+        let slots = g.density_slots;
+        f.add(
+            format!(
+                "{}: [integrator.baseline] field `density_fetch` = \"buffer\" (the density's \
+                 {slots} slots as one storage buffer)",
+                scene.source.display()
+            ),
+            Binding::Storage,
+            slots.max(1) * nimbus_scene::bricks::SLOT_TEXELS as u64 * 4,
+        );
+    }
     Ok(())
 }
 
 /// What the passes allocate: every density grid's resources (see [`crate::budget`]).
-fn baseline_frames(scene: &Scene, f: &mut Footprint) -> Result<()> {
+fn baseline_frames(scene: &Scene, plan: &BaselinePlan, f: &mut Footprint) -> Result<()> {
     let count = super::animated_grid(scene).map_or(0, |(_, g)| g.frames.len());
     for index in 0..=count {
-        baseline(&super::scene_of_grid(scene, index), f)?;
+        baseline(&super::scene_of_grid(scene, index), plan, f)?;
     }
     Ok(())
 }

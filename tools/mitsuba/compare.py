@@ -32,6 +32,7 @@ Writes --out-dir/results.md, results.csv (every measurement) and check.csv.
 import argparse
 import csv
 import datetime
+import glob
 import hashlib
 import json
 import math
@@ -202,7 +203,6 @@ def ref_path(args, scene_file, k, g):
     if args.any_ref:
         # A cached reference of this configuration, whatever binary rendered it (they are
         # converged images of one scene; a new binary's need not be rendered again).
-        import glob
         found = sorted(glob.glob(os.path.join(args.work, "refs", "ref-k%d-g%s-*.exr" % (k, gname(g)))))
         if found:
             return found[-1]

@@ -93,3 +93,40 @@ fn oversized_buffers_are_refused_naming_the_field() {
     );
     crate::common::gpu::assert_no_validation_errors(&ctx);
 }
+
+/// `[integrator.baseline] density_fetch = "buffer"` puts the density's slots in one
+/// storage buffer: on a device whose storage-buffer range cannot hold them the render is
+/// refused by the footprint check (before any allocation), naming the scene file and the
+/// field; `"auto"` then keeps the atlas image and passes.
+#[test]
+fn a_density_buffer_beyond_the_storage_buffer_range_is_refused_naming_the_field() {
+    let ctx = context();
+    let mut info = ctx.info().clone();
+    // The cloud's density slots take about 12 MiB; everything else of this small image
+    // (the film, the sky map's 2 MiB of texels) fits 4 MiB.
+    info.max_storage_buffer_range = 4 << 20;
+    let footprint = |fetch: &str| {
+        let overrides = [
+            FieldOverride::new("render.width", 32),
+            FieldOverride::new("render.height", 24),
+            FieldOverride::new("integrator.volume", "baseline"),
+            FieldOverride::new("integrator.baseline.density_fetch", fetch),
+        ];
+        let scene = nimbus_scene::load_with(&asset("cloud.toml"), &overrides).unwrap();
+        let plan = plan::build(&scene, None).unwrap();
+        Footprint::of(&scene, &plan).unwrap()
+    };
+    let err = footprint("buffer")
+        .check(&info, u64::MAX)
+        .expect_err("a density buffer beyond the range was accepted")
+        .to_string();
+    assert!(
+        err.contains("cloud.toml")
+            && err.contains("[integrator.baseline] field `density_fetch`")
+            && err.contains("maxStorageBufferRange"),
+        "{err}"
+    );
+    footprint("auto")
+        .check(&info, u64::MAX)
+        .expect("auto keeps the atlas image");
+}

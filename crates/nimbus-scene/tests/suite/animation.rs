@@ -473,46 +473,21 @@ temperature = {t6}
         .collect();
     assert_eq!(emissions, [300, 300, 304, 304]);
 
-    let e = parse_err(
-        r#"
-[[medium]]
-type = "grid"
-bounds_min = [0, 0, 0]
-bounds_max = [1, 1, 1]
-density = { procedural = "cloud", dims = [2, 2, 2] }
-[[medium.frame]]
-frame = 1
-density = { procedural = "cloud", dims = [2, 2, 2] }
-temperature = { procedural = "cloud", dims = [2, 2, 2] }
-"#,
-    );
-    for part in [
-        "[[medium.frame]] #1",
-        "temperature",
-        "the medium has no `temperature`",
+    // A frame's grid the medium lacks (a constant albedo or emission is no grid).
+    let tiny = "{ procedural = \"cloud\", dims = [2, 2, 2] }";
+    for (medium_line, field, message) in [
+        ("", "temperature", "the medium has no `temperature`"),
+        ("albedo = 0.5", "albedo", "the medium has no `albedo` grid"),
+        ("", "emission", "the medium has no `emission`"),
     ] {
-        assert!(e.contains(part), "{part:?} missing from {e}");
-    }
-    let e = parse_err(
-        r#"
-[[medium]]
-type = "grid"
-bounds_min = [0, 0, 0]
-bounds_max = [1, 1, 1]
-density = { procedural = "cloud", dims = [2, 2, 2] }
-albedo = 0.5
-[[medium.frame]]
-frame = 1
-density = { procedural = "cloud", dims = [2, 2, 2] }
-albedo = { procedural = "cloud", dims = [2, 2, 2] }
-"#,
-    );
-    for part in [
-        "[[medium.frame]] #1",
-        "albedo",
-        "the medium has no `albedo` grid",
-    ] {
-        assert!(e.contains(part), "{part:?} missing from {e}");
+        let e = parse_err(&format!(
+            "[[medium]]\ntype = \"grid\"\nbounds_min = [0, 0, 0]\nbounds_max = [1, 1, 1]\n\
+             density = {tiny}\n{medium_line}\n[[medium.frame]]\nframe = 1\ndensity = {tiny}\n\
+             {field} = {tiny}\n"
+        ));
+        for part in ["[[medium.frame]] #1", field, message] {
+            assert!(e.contains(part), "{part:?} missing from {e}");
+        }
     }
 }
 
