@@ -370,6 +370,14 @@ struct ProfileArgs {
     /// specialized apart, so the timings of this run include the counting.
     #[arg(long)]
     counters: bool,
+    /// A cost diagnostic: every 8x8 workgroup of the path tracers (baseline,
+    /// crepuscular) traces the camera samples of its first pixel in all its invocations,
+    /// so the lanes of a SIMD row or warp never wait for a slower lane. The ratio of the
+    /// two profiles is what divergence costs on this device (the most a wavefront or
+    /// path-regenerating integrator could win); the work per lane is statistically the
+    /// scene's, the image is not.
+    #[arg(long)]
+    coherent_lanes: bool,
     #[command(flatten)]
     overrides: Overrides,
 }
@@ -512,6 +520,7 @@ fn profile_cmd(args: ProfileArgs) -> Result<()> {
             warmup_frames: args.warmup,
             counters: args.counters,
             skip_alpha: true,
+            coherent_lanes: args.coherent_lanes,
             ..Default::default()
         },
     )?;
@@ -521,7 +530,10 @@ fn profile_cmd(args: ProfileArgs) -> Result<()> {
             ctx.info().name
         );
     }
-    let report = profile::Report::new(&ctx, &scene, &result);
+    let report = profile::Report {
+        coherent_lanes: args.coherent_lanes,
+        ..profile::Report::new(&ctx, &scene, &result)
+    };
     print!("{}", report.table());
     if let Some(work) = &result.work {
         print!("{}", work.table());

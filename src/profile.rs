@@ -20,6 +20,8 @@ pub struct Report {
     pub passes: Vec<PassStats>,
     /// The work counters, when the render counted them.
     pub work: Option<crate::shader_data::counters::WorkCounts>,
+    /// Measured with `--coherent-lanes` (a diagnostic: not the scene's image).
+    pub coherent_lanes: bool,
 }
 
 impl Report {
@@ -33,6 +35,7 @@ impl Report {
             frames: result.frame_timings.len(),
             passes: summarize(&result.frame_timings),
             work: result.work.clone(),
+            coherent_lanes: false,
         }
     }
 
@@ -44,6 +47,14 @@ impl Report {
             "{} on {} ({}x{}, {} spp), {} measured frames",
             self.scene, self.device, self.width, self.height, self.spp, self.frames
         );
+        if self.coherent_lanes {
+            let _ = writeln!(
+                out,
+                "coherent lanes: every 8x8 workgroup of the baseline and crepuscular passes \
+                 traced its first pixel's samples (ReSTIR's passes as usual); divide a plain \
+                 profile's ms by these for the cost of divergence"
+            );
+        }
         let _ = writeln!(
             out,
             "{:<32} {:>10} {:>10} {:>10} {:>10}",
@@ -81,6 +92,7 @@ impl Report {
             "height": self.height,
             "spp": self.spp,
             "frames": self.frames,
+            "coherent_lanes": self.coherent_lanes,
             "passes": passes,
             "work": self.work.as_ref().map(|w| w.json()),
         });

@@ -409,6 +409,7 @@ pub(super) fn render(args: RenderArgs) -> Result<ExitCode> {
         interrupt: Some(Arc::clone(&interrupt)),
         counters: false,
         skip_alpha: false,
+        coherent_lanes: false,
     };
     let selection_words = |result: &RenderResult| match result.scene_frame {
         Some(f) => format!("frame {f}"),

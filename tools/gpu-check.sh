@@ -16,7 +16,7 @@
 # --lent sizes the run for a lent GPU machine's device time (about 15 minutes, start-up
 # included; see docs/restir.md "Measuring on a GPU" for the steps): no test suite, the
 # per-pass profiles of the benchmark cloud at 1920x1080 (its work counters at K = 3, and
-# the baseline with its density read from a storage buffer),
+# the baseline with its density read from a storage buffer and with coherent lanes),
 # issue 15's per-frame equal-time study of ReSTIR against the baseline on the benchmark
 # clouds (g = 0 and 0.8, K = 1, 3, 7, 3 seeds; at 960x540, since the benchmark's 320x240
 # leaves a GPU idle) and what the ReSTIR levers buy at K = 3. --quick shrinks the full
@@ -314,6 +314,15 @@ done
 step "profile baseline buffer k3" profile "bench-baseline-buffer-hd-k3" assets/scenes/bench/cloud-g0.toml \
     "${hd[@]}" --set "integrator.max_bounces=3" --set integrator.volume=baseline \
     --set 'integrator.baseline.density_fetch="buffer"'
+# What SIMD divergence costs the baseline on this device: every workgroup traces its first
+# pixel's paths in all its lanes (`--coherent-lanes`); the ratio to profile-bench-baseline-hd-k*
+# is the most a wavefront or path-regenerating baseline could win here (2.0-2.3x on
+# lavapipe, docs/performance.md "Where a lavapipe frame goes").
+for k in 1 3; do
+    step "profile baseline coherent k$k" profile "bench-baseline-coherent-hd-k$k" \
+        assets/scenes/bench/cloud-g0.toml "${hd[@]}" --set "integrator.max_bounces=$k" \
+        --set integrator.volume=baseline --coherent-lanes
+done
 # What a 1080p ReSTIR frame does per pixel (work counters, K = 3).
 step "counters restir k3" profile "counters-restir-hd-k3" assets/scenes/bench/cloud-g0.toml "${hd[@]}" \
     --set "integrator.max_bounces=3" --counters

@@ -129,6 +129,13 @@ float g_camera_transmittance = 0.0;
 // Whether the integrator computes g_camera_transmittance for the sample it traces now.
 bool g_alpha_wanted = SC_ALPHA;
 
+// A diagnostic (`nimbus profile --coherent-lanes`): every invocation of a workgroup takes
+// the camera samples (random stream and sub-pixel position) of the workgroup's first
+// pixel, so the lanes of a SIMD row or warp all trace the same paths and no loop waits for
+// its slowest lane. The frame then costs the same work per lane as the scene's without the
+// divergence; its image is not the scene's.
+layout(constant_id = SC_ID_COHERENT_LANES) const bool SC_COHERENT_LANES = false;
+
 // ---------------------------------------------------------------------------------------
 // The pixel loop of the path tracers (crepuscular, baseline): the frame's u_frame.spp
 // camera samples per pixel, taken by one dispatch or shared among several (each adds
@@ -173,10 +180,11 @@ void film_take_samples(uvec2 pixel, uint frame, uint sample_base, uint sample_co
         aov_geometry_pixel(pixel);
     }
     aov_frame_begin(index, sample_base);
+    uvec2 source = SC_COHERENT_LANES ? gl_WorkGroupID.xy * uvec2(GROUP_SIZE_X, GROUP_SIZE_Y) : pixel;
     for (uint s = 0u; s < sample_count; ++s) {
-        uint rng = rng_init(pixel, frame, sample_base + s, u_frame.seed);
+        uint rng = rng_init(source, frame, sample_base + s, u_frame.seed);
         aov_sample_begin();
-        vec2 px = vec2(pixel) + pixel_jitter(rng);
+        vec2 px = vec2(source) + pixel_jitter(rng);
         g_camera_transmittance = 0.0;
 #ifdef FILM_ALPHA_EVERY_SAMPLE
         g_alpha_wanted = SC_ALPHA;

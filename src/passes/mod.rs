@@ -180,6 +180,8 @@ pub struct Targets<'a> {
     /// Whether anything reads the film's alpha (else the passes leave the camera ray's
     /// transmittance out and every pixel reads as opaque).
     pub alpha: bool,
+    /// The coherent-lanes diagnostic ([`FilmSpec::coherent_lanes`]).
+    pub coherent_lanes: bool,
 }
 
 impl<'a> Targets<'a> {
@@ -190,6 +192,7 @@ impl<'a> Targets<'a> {
             counter_slot: self.counters.then_some(slot),
             alpha: self.alpha,
             aov: AovSpec::of(self.aov),
+            coherent_lanes: self.coherent_lanes,
         }
     }
 
@@ -284,6 +287,9 @@ pub struct FilmSpec {
     pub alpha: bool,
     /// The AOVs computed.
     pub aov: AovSpec,
+    /// Every workgroup traces its first pixel's samples in all its invocations
+    /// (`SC_COHERENT_LANES`, `nimbus profile --coherent-lanes`).
+    pub coherent_lanes: bool,
 }
 
 /// A pass of one pipeline dispatched once per frame, one invocation per pixel, with
@@ -479,6 +485,10 @@ pub fn pipeline_specialization(
         crate::shader_data::features::SC_ID_ALPHA,
         SpecValue::Bool(film.alpha),
     ));
+    all.push((
+        crate::shader_data::features::SC_ID_COHERENT_LANES,
+        SpecValue::Bool(film.coherent_lanes),
+    ));
     all.extend(crate::shader_data::counters::specialization(
         film.counter_slot,
     ));
@@ -524,6 +534,7 @@ impl PipelineContract {
             counter_slot: None,
             alpha: false,
             aov: AovSpec::default(),
+            coherent_lanes: false,
         };
         PipelineContract {
             name: name.to_owned(),

@@ -81,6 +81,10 @@ pub struct RenderOptions {
     /// Leave the film's alpha out (every pixel opaque): for renders whose alpha nobody
     /// reads (profiles, studies, benchmarks), which then pay nothing for it.
     pub skip_alpha: bool,
+    /// A cost diagnostic (`nimbus profile --coherent-lanes`): every workgroup of the path
+    /// tracers traces its first pixel's samples in all its invocations, so its lanes never
+    /// diverge. The image is not the scene's.
+    pub coherent_lanes: bool,
 }
 
 /// The result of rendering one image.
@@ -223,6 +227,7 @@ pub fn render_each(
             aov_uniforms,
             counters: opts.counters,
             alpha: !opts.skip_alpha,
+            coherent_lanes: opts.coherent_lanes,
         })
     })?;
     let result = (|| {
@@ -285,6 +290,7 @@ struct TargetHandles {
     aov_uniforms: Handle<Buffer>,
     counters: bool,
     alpha: bool,
+    coherent_lanes: bool,
 }
 
 impl TargetHandles {
@@ -303,6 +309,7 @@ impl TargetHandles {
             aov,
             counters: self.counters,
             alpha: self.alpha,
+            coherent_lanes: self.coherent_lanes,
         }
     }
 }

@@ -89,6 +89,11 @@ gpu_consts! {
     /// The baseline's split NEE estimates a constant sky's transmittance along the path's
     /// next segment, in that segment's walk (pathtrace.comp).
     pub const SC_ID_SKY_ALONG_PATH: u32 = 33;
+    /// The path tracers' pixel loop (film.glsl): every invocation of a workgroup takes
+    /// the camera samples of the workgroup's first pixel, so all its lanes trace the same
+    /// paths (`nimbus profile --coherent-lanes`: the cost of a frame without SIMD
+    /// divergence; the image is not the scene's).
+    pub const SC_ID_COHERENT_LANES: u32 = 34;
 
     // -----------------------------------------------------------------------------------
     // Values of SC_ESTIMATOR (`shaders/box/crepuscular.comp`): the box-medium estimators

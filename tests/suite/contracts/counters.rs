@@ -116,3 +116,49 @@ fn restir_counts_every_stage_it_runs() {
     assert!(r.counters["restir/initial"]["majorant"] > 1.0);
     assert!(r.counters["restir/shade"]["shadow_rays"] > 0.1);
 }
+
+#[test]
+fn coherent_lanes_trace_each_workgroups_first_pixel_in_all_of_its_pixels() {
+    // `nimbus profile --coherent-lanes` measures what divergence costs: every 8x8
+    // workgroup traces its first pixel's samples in all its invocations, so each block of
+    // the image holds that pixel's value, where the plain render's pixels differ (those
+    // that see the cloud: the sky around it is one constant).
+    let ctx = context();
+    let case = bench::CASES
+        .iter()
+        .find(|c| c.name == "baseline-k1")
+        .expect("case");
+    let scene = case.scene().expect("scene");
+    let plan = plan::build(&scene, None).expect("plan");
+    let plain = render(&ctx, &scene, &plan, &RenderOptions::default()).expect("plain");
+    let coherent = render(
+        &ctx,
+        &scene,
+        &plan,
+        &RenderOptions {
+            coherent_lanes: true,
+            ..Default::default()
+        },
+    )
+    .expect("coherent");
+    assert_no_validation_errors(&ctx);
+    let w = coherent.image.width as usize;
+    let h = coherent.image.height as usize;
+    let first =
+        |img: &nimbus::output::ImageRgb, x: usize, y: usize| img.data[(y & !7) * w + (x & !7)];
+    let mut plain_differs = 0;
+    for y in 0..h {
+        for x in 0..w {
+            assert_eq!(
+                coherent.image.data[y * w + x],
+                first(&coherent.image, x, y),
+                "pixel ({x}, {y}) is not its workgroup's first pixel"
+            );
+            plain_differs += usize::from(plain.image.data[y * w + x] != first(&plain.image, x, y));
+        }
+    }
+    assert!(
+        plain_differs > w * h / 8,
+        "the plain render's blocks are uniform ({plain_differs} pixels differ)"
+    );
+}
