@@ -213,11 +213,23 @@ void grid_cell_corners_at(sampler3D atlas, GridSpace s, uint offset, ivec3 cell,
 // after slot, each slot's 9^3 texels x fastest, and reads u_density's values from it where
 // SC_DENSITY_BUFFER: on lavapipe a texelFetch is a call into the sampler's code with its
 // bounds checks and per-lane level strides (a third of the baseline's time on the
-// benchmark cloud), a buffer load one gather.
+// benchmark cloud), a buffer load a loop over the lanes. Each texel holds a quad: its value
+// and its +x, +y and +x+y neighbours' in the slot (src/shader_data/sparse.rs,
+// slot_major_quads), so a trilinear lookup is two loads of 16 bytes, not eight of 4
+// (lavapipe runs one lane loop per load: eight cost half the benchmark's frame).
 layout(constant_id = SC_ID_DENSITY_BUFFER) const bool SC_DENSITY_BUFFER = false;
 layout(std430, set = 0, binding = BINDING_GRID_DENSITY_TEXELS) readonly buffer DensityTexelBlock {
-    float density_texels[];
+    vec4 density_quads[];
 };
+
+// The 4 corners (x fastest) of one z plane of a dual cell from the quad q of its lower
+// texel, the upper corners o further (o = 0 where the lattice clamp bites: the texel itself).
+void grid_quad_plane(vec4 q, ivec2 o, out float c0, out float c1, out float c2, out float c3) {
+    c0 = q.x;
+    c1 = o.x > 0 ? q.y : q.x;
+    c2 = o.y > 0 ? q.z : q.x;
+    c3 = o.x > 0 ? (o.y > 0 ? q.w : q.y) : (o.y > 0 ? q.z : q.x);
+}
 #endif
 
 // The same for the grid's own density u_density (or its buffer, SC_DENSITY_BUFFER).
@@ -232,17 +244,8 @@ void grid_cell_corners(ivec3 cell, out float c[8]) {
             return;
         }
         int b = int(slot) * 729 + (t.z * 9 + t.y) * 9 + t.x;
-        int ox = o.x;
-        int oy = o.y * 9;
-        int oz = o.z * 81;
-        c[0] = density_texels[b];
-        c[1] = density_texels[b + ox];
-        c[2] = density_texels[b + oy];
-        c[3] = density_texels[b + ox + oy];
-        c[4] = density_texels[b + oz];
-        c[5] = density_texels[b + ox + oz];
-        c[6] = density_texels[b + oy + oz];
-        c[7] = density_texels[b + ox + oy + oz];
+        grid_quad_plane(density_quads[b], o.xy, c[0], c[1], c[2], c[3]);
+        grid_quad_plane(density_quads[b + o.z * 81], o.xy, c[4], c[5], c[6], c[7]);
         return;
     }
 #endif

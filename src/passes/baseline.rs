@@ -376,8 +376,9 @@ fn density_in_buffer(
     let info = ctx.info();
     let layout = &grid.density_layout;
     let slots = u64::from(layout.first_slot) + layout.bricks.len() as u64;
-    let bytes = slots * nimbus_scene::bricks::SLOT_TEXELS as u64 * 4;
-    let fits = bytes <= u64::from(info.max_storage_buffer_range);
+    let bytes = crate::shader_data::sparse::density_buffer_bytes(slots);
+    let alloc = info.max_memory_allocation_size;
+    let fits = bytes <= u64::from(info.max_storage_buffer_range) && (alloc == 0 || bytes <= alloc);
     Ok(match plan.density_fetch {
         nimbus_scene::DensityFetch::Image => false,
         nimbus_scene::DensityFetch::Auto => info.device_type == vk::PhysicalDeviceType::CPU && fits,
@@ -398,42 +399,45 @@ fn density_in_buffer(
 }
 
 /// The density's slots as one storage buffer (slot after slot from slot 0, each slot's
-/// 9^3 texels x fastest, R32), uploaded a chunk of slots at a time so that the host never
-/// holds more than a chunk (the memory estimate counts the atlas's layers the same way).
+/// 9^3 texels x fastest, a quad of R32 per texel: [`SparseLayout::slot_major_quads`]),
+/// uploaded a chunk of slots at a time so that the host never holds more than a chunk (the
+/// memory estimate counts the atlas's layers the same way).
+///
+/// [`SparseLayout::slot_major_quads`]: crate::shader_data::sparse::SparseLayout::slot_major_quads
 fn upload_density_texels(
     ctx: &Context,
     o: &mut GpuObjects,
     grid: &GpuGrid,
 ) -> Result<Handle<Buffer>> {
-    use crate::shader_data::sparse::SparseLayout;
+    use crate::shader_data::sparse::{density_buffer_bytes, SparseLayout};
     use nimbus_scene::bricks::SLOT_TEXELS;
-    /// Slots per upload: 3 MB of texels.
-    const CHUNK: usize = 1024;
+    /// Slots per upload: 3 MB of quads.
+    const CHUNK: usize = 256;
     let layout = &grid.density_layout;
     let first = layout.first_slot as usize;
-    let slot_bytes = (SLOT_TEXELS * 4) as u64;
-    let bytes = ((first + layout.bricks.len()) as u64 * slot_bytes).max(4);
+    let slot_bytes = density_buffer_bytes(1);
+    let bytes = density_buffer_bytes((first + layout.bricks.len()) as u64);
     let buffer = o.add(ctx.create_buffer(
         &nimbus_gpu::BufferDesc::gpu_only(bytes, vk::BufferUsageFlags::STORAGE_BUFFER),
         "grid density texels",
     )?);
-    let mut texels = Vec::with_capacity(CHUNK * SLOT_TEXELS);
+    let mut quads = Vec::with_capacity(CHUNK * SLOT_TEXELS);
     // Slots before the grid's first belong to no brick here: zeros.
     for start in (0..first).step_by(CHUNK) {
         let n = CHUNK.min(first - start);
-        texels.clear();
-        texels.resize(n * SLOT_TEXELS, 0f32);
+        quads.clear();
+        quads.resize(n * SLOT_TEXELS, [0f32; 4]);
         ctx.upload_buffer(
             &o[buffer],
             start as u64 * slot_bytes,
-            bytemuck::cast_slice(&texels),
+            bytemuck::cast_slice(&quads),
         )?;
     }
     for (c, bricks) in layout.bricks.chunks(CHUNK).enumerate() {
-        texels.clear();
-        SparseLayout::slot_major_texels(&grid.density, bricks, 1.0, &mut texels);
+        quads.clear();
+        SparseLayout::slot_major_quads(&grid.density, bricks, 1.0, &mut quads);
         let offset = (first + c * CHUNK) as u64 * slot_bytes;
-        ctx.upload_buffer(&o[buffer], offset, bytemuck::cast_slice(&texels))?;
+        ctx.upload_buffer(&o[buffer], offset, bytemuck::cast_slice(&quads))?;
     }
     Ok(buffer)
 }

@@ -19,6 +19,14 @@ use nimbus_scene::BrickGrid;
 
 use super::GridSpaceGpu;
 
+/// Bytes per texel of the baseline's density buffer ([`SparseLayout::slot_major_quads`]).
+pub const DENSITY_QUAD_BYTES: u64 = 16;
+
+/// Bytes of the baseline's density buffer for `slots` slots (at least one quad).
+pub fn density_buffer_bytes(slots: u64) -> u64 {
+    (slots * SLOT_TEXELS as u64 * DENSITY_QUAD_BYTES).max(DENSITY_QUAD_BYTES)
+}
+
 /// Most slots along one axis of an atlas: 455 × 9 = 4095 texels.
 pub const MAX_ATLAS_SLOTS_PER_AXIS: u32 = 455;
 
@@ -162,6 +170,34 @@ impl SparseLayout {
     /// The first-channel values of `bricks` (consecutive slots of this layout), each
     /// slot's 9^3 values x fastest, times `scale`, appended to `out`: a chunk of the
     /// baseline's density buffer on CPU devices (grid.glsl).
+    /// The slots of `bricks` as the baseline's density buffer holds them (`grid_cell_corners`
+    /// in `shaders/include/grid.glsl`): per texel of a slot, x fastest, a quad of the texel
+    /// and its +x, +y and +x+y neighbours in the slot (clamped to the slot's last texel),
+    /// so that a trilinear lookup is two 16-byte loads ([`DENSITY_QUAD_BYTES`] per texel).
+    pub fn slot_major_quads(
+        grid: &BrickGrid,
+        bricks: &[IVec3],
+        scale: f32,
+        out: &mut Vec<[f32; 4]>,
+    ) {
+        let mut texels = Vec::with_capacity(SLOT_TEXELS);
+        let e = SLOT_EDGE as usize;
+        for b in bricks {
+            texels.clear();
+            Self::slot_major_texels(grid, std::slice::from_ref(b), scale, &mut texels);
+            let at = |x: usize, y: usize, z: usize| texels[(z * e + y) * e + x];
+            for z in 0..e {
+                for y in 0..e {
+                    let y1 = (y + 1).min(e - 1);
+                    for x in 0..e {
+                        let x1 = (x + 1).min(e - 1);
+                        out.push([at(x, y, z), at(x1, y, z), at(x, y1, z), at(x1, y1, z)]);
+                    }
+                }
+            }
+        }
+    }
+
     pub fn slot_major_texels(grid: &BrickGrid, bricks: &[IVec3], scale: f32, out: &mut Vec<f32>) {
         let mut texels = Vec::with_capacity(SLOT_TEXELS * grid.channels as usize);
         for b in bricks {
