@@ -27,10 +27,6 @@ use crate::shader_data::sparse::{
 pub enum Binding {
     Storage,
     Image3d([u32; 3]),
-    /// A storage buffer the pass allocates only where the device can bind it, falling back
-    /// to another resource elsewhere (the baseline's density buffer under `density_fetch =
-    /// "auto"`): counted in the total, refused nowhere.
-    StorageIfItFits,
 }
 
 /// One GPU allocation of a render.
@@ -316,9 +312,6 @@ impl Footprint {
     pub fn check(&self, info: &DeviceInfo, host_budget: u64) -> Result<()> {
         let mib = |b: u64| b as f64 / f64::from(1u32 << 20);
         for need in &self.device {
-            if need.binding == Binding::StorageIfItFits {
-                continue;
-            }
             let (limit, limit_name) = match need.binding {
                 Binding::Storage => (
                     u64::from(info.max_storage_buffer_range),
@@ -339,7 +332,6 @@ impl Footprint {
                     }
                     (u64::MAX, "")
                 }
-                Binding::StorageIfItFits => unreachable!("skipped above"),
             };
             if need.bytes > limit {
                 bail!(

@@ -210,7 +210,9 @@ void grid_cell_corners_at(sampler3D atlas, GridSpace s, uint offset, ivec3 cell,
 
 #ifdef NIMBUS_DENSITY_BUFFER
 // The includer (the baseline) also binds the density's slots as a storage buffer, slot
-// after slot, each slot's 9^3 texels x fastest, and reads u_density's values from it where
+// after slot, each slot's 10^3 texels from lattice point 8 b - 1 x fastest (the brick, its
+// high-side apron and a low-side one: every dual cell of a point of the brick's
+// super-voxel lies in the slot, grid_sigma_index_in_brick), and reads u_density's values from it where
 // SC_DENSITY_BUFFER: on lavapipe a texelFetch is a call into the sampler's code with its
 // bounds checks and per-lane level strides (a third of the baseline's time on the
 // benchmark cloud), a buffer load a loop over the lanes. Each texel holds a quad: its value
@@ -221,6 +223,11 @@ layout(constant_id = SC_ID_DENSITY_BUFFER) const bool SC_DENSITY_BUFFER = false;
 layout(std430, set = 0, binding = BINDING_GRID_DENSITY_TEXELS) readonly buffer DensityTexelBlock {
     vec4 density_quads[];
 };
+
+// The index of texel t (0..9 per axis) of slot `slot` in density_quads.
+int grid_density_quad(uint slot, ivec3 t) {
+    return int(slot) * 1000 + (t.z * 10 + t.y) * 10 + t.x;
+}
 
 // The 4 corners (x fastest) of one z plane of a dual cell from the quad q of its lower
 // texel, the upper corners o further (o = 0 where the lattice clamp bites: the texel itself).
@@ -243,9 +250,10 @@ void grid_cell_corners(ivec3 cell, out float c[8]) {
             grid_zero_corners(c);
             return;
         }
-        int b = int(slot) * 729 + (t.z * 9 + t.y) * 9 + t.x;
+        // Texel lo sits at lo & 7 + 1 in its brick's slot (which starts at 8 b - 1).
+        int b = grid_density_quad(slot, t + 1);
         grid_quad_plane(density_quads[b], o.xy, c[0], c[1], c[2], c[3]);
-        grid_quad_plane(density_quads[b + o.z * 81], o.xy, c[4], c[5], c[6], c[7]);
+        grid_quad_plane(density_quads[b + o.z * 100], o.xy, c[4], c[5], c[6], c[7]);
         return;
     }
 #endif
@@ -269,6 +277,30 @@ float grid_sigma_index_at(sampler3D atlas, uint offset, vec3 p) {
     grid_cell_corners_at(atlas, u_grid.space, offset, cell, c);
     return u_grid.density_scale * grid_trilinear(c, f);
 }
+
+#ifdef NIMBUS_DENSITY_BUFFER
+// sigma_t at p-space point p of the super-voxel of brick `brick`, whose slot is `slot`
+// (not NO_BRICK), from the density buffer (SC_DENSITY_BUFFER): the point's dual cell lies
+// in the brick's slot, so no brick-table lookup (on lavapipe a loop over the lanes; the
+// super-voxel walk looked the slot up once for its span). The same values as
+// grid_sigma_index.
+float grid_sigma_index_in_brick(vec3 p, ivec3 brick, uint slot) {
+    ivec3 cell;
+    vec3 f;
+    grid_locate(u_grid.space, p, cell, f);
+    COUNT(CTR_DENSITY, 1);
+    ivec3 lo = clamp(cell, u_grid.space.lattice_min, u_grid.space.lattice_max);
+    ivec3 o = clamp(cell + 1, u_grid.space.lattice_min, u_grid.space.lattice_max) - lo;
+    // p in [8 brick, 8 brick + 8] puts lo in [8 brick - 1, 8 brick + 7]: texels 0..8 of the
+    // slot (the clamp only guards against a point outside the super-voxel).
+    ivec3 t = clamp(lo - (brick * 8 - 1), ivec3(0), ivec3(8));
+    int b = grid_density_quad(slot, t);
+    float c[8];
+    grid_quad_plane(density_quads[b], o.xy, c[0], c[1], c[2], c[3]);
+    grid_quad_plane(density_quads[b + o.z * 100], o.xy, c[4], c[5], c[6], c[7]);
+    return u_grid.density_scale * grid_trilinear(c, f);
+}
+#endif
 
 // sigma_t of the grid's own density at p-space point p.
 float grid_sigma_index(vec3 p) {

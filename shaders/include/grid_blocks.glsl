@@ -29,6 +29,8 @@ struct GridSuperDda {
     float t_a;      // t at s = 0
     int f;          // block edge in voxels (>= 1)
     ivec3 count;    // blocks per axis
+    ivec3 brick;    // super-voxel walks: the brick of the span grid_super_next returned last
+    uint slot;      // ... and its slot (NO_BRICK where empty)
 };
 
 // Crossing of block `c` along one axis (f voxels each, last one ends at n).
@@ -45,6 +47,8 @@ bool grid_blocks_begin(vec3 o, vec3 d, float t0, float t1, int f, ivec3 count, o
     it.s = 0.0;
     it.f = max(f, 1);
     it.count = count;
+    it.brick = ivec3(0);
+    it.slot = NO_BRICK;
     // Empty, reversed or missed interval (also NaN): nothing to walk.
     if (!(it.len > 0.0)) {
         it.len = 0.0;
@@ -114,9 +118,22 @@ bool grid_super_next(inout GridSuperDda it, out float s0, out float s1, out vec4
     }
     uint slot = grid_slot(u_grid.space.bricks_offset, u_grid.space.brick_dims, brick);
     bounds = slot == NO_BRICK ? vec4(0.0) : super_voxels[slot];
+    it.brick = brick;
+    it.slot = slot;
     COUNT_STEP();
     COUNT(CTR_MAJORANT, 1);
     return true;
+}
+
+// sigma_t at p-space point p of the non-empty span a super-voxel walk returned last: from
+// the density buffer, the span's slot serves every lookup in it (grid_sigma_index_in_brick).
+float grid_sigma_index_in_span(vec3 p, GridSuperDda it) {
+#ifdef NIMBUS_DENSITY_BUFFER
+    if (SC_DENSITY_BUFFER) {
+        return grid_sigma_index_in_brick(p, it.brick, it.slot);
+    }
+#endif
+    return grid_sigma_index(p);
 }
 
 // A super-voxel span on which null-collision tracking would take more than this many
@@ -178,7 +195,7 @@ float grid_residual_ratio_tracking_scaled(vec3 o, vec3 d, float t0, float t1,
             }
             COUNT(CTR_COLLISIONS, 1);
             // Domain: sigma_r > 0.
-            T *= 1.0 - (grid_sigma_index(it.p0 + it.dp * s) - sigma_c) / sigma_r;
+            T *= 1.0 - (grid_sigma_index_in_span(it.p0 + it.dp * s, it) - sigma_c) / sigma_r;
         }
     }
     return T;
@@ -236,7 +253,7 @@ float grid_sample_collision(vec3 o, vec3 d, float t0, float t1, inout uint rng) 
                     break;
                 }
                 COUNT(CTR_COLLISIONS, 1);
-                if (rng_next(rng) * sigma_r < grid_sigma_index(it.p0 + it.dp * s) - sigma_c) {
+                if (rng_next(rng) * sigma_r < grid_sigma_index_in_span(it.p0 + it.dp * s, it) - sigma_c) {
                     return it.t_a + s;
                 }
             }
@@ -298,7 +315,7 @@ float grid_collision_and_transmittance(vec3 o, vec3 d, float t0, float t1, inout
                     break;
                 }
                 COUNT(CTR_COLLISIONS, 1);
-                float r = (grid_sigma_index(it.p0 + it.dp * s) - sigma_c) / sigma_r;
+                float r = (grid_sigma_index_in_span(it.p0 + it.dp * s, it) - sigma_c) / sigma_r;
                 T *= 1.0 - r;
                 // A real residual collision before the control one.
                 if (t_hit == FAR && s < s_control && rng_next(rng) < r) {

@@ -92,10 +92,17 @@ vec3 env_background_along(vec3 d, vec2 env_rot) {
     return SC_HAS_ENV_MAP ? env_background_rotated(d, env_rot) : u_frame.env_radiance;
 }
 
+// Some light of the scene is a sphere light (else nearest_sphere_light has none to find:
+// on lavapipe its loop read every light's record on every segment and shadow ray).
+layout(constant_id = SC_ID_HAS_SPHERE_LIGHTS) const bool SC_HAS_SPHERE_LIGHTS = true;
+
 // Nearest emitting sphere of the set at `base` along o + t d in (t_min, t_max): its
 // distance (FAR if none) and index.
 float nearest_sphere_light(uint base, vec3 o, vec3 d, float t_min, float t_max, out uint index) {
     index = NO_INDEX;
+    if (!SC_HAS_SPHERE_LIGHTS) {
+        return FAR;
+    }
     float t_hit = t_max;
     uint count = u_frame.light_count;
     for (uint l = 0u; l < count; ++l) {

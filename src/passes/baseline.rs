@@ -30,8 +30,12 @@ pub fn specialization(
     exact_spans: bool,
     two_level: bool,
     density_buffer: bool,
-) -> [(u32, SpecValue); 18] {
+) -> [(u32, SpecValue); 19] {
     [
+        (
+            SC_ID_HAS_SPHERE_LIGHTS,
+            SpecValue::Bool(plan.has_sphere_lights),
+        ),
         (SC_ID_SKY_ALONG_PATH, SpecValue::Bool(plan.sky_along_path)),
         (SC_ID_DENSITY_BUFFER, SpecValue::Bool(density_buffer)),
         (SC_ID_EXACT_SPANS, SpecValue::Bool(exact_spans)),
@@ -365,8 +369,8 @@ impl Pass for BaselinePass {
 /// Whether the pass reads the density from a storage buffer of its slots instead of the
 /// atlas image (`[integrator.baseline] density_fetch`): "auto" takes the buffer on CPU
 /// devices (lavapipe), where its loads are plain gathers and a texelFetch a call into the
-/// sampler's code, when the slots fit one buffer binding; "buffer" is refused where they
-/// do not.
+/// sampler's code, when the slots fit one buffer binding and `AUTO_DENSITY_BUFFER_MAX`
+/// (what the footprint counts); "buffer" is refused where they do not fit.
 fn density_in_buffer(
     ctx: &Context,
     plan: &BaselinePlan,
@@ -381,7 +385,11 @@ fn density_in_buffer(
     let fits = bytes <= u64::from(info.max_storage_buffer_range) && (alloc == 0 || bytes <= alloc);
     Ok(match plan.density_fetch {
         nimbus_scene::DensityFetch::Image => false,
-        nimbus_scene::DensityFetch::Auto => info.device_type == vk::PhysicalDeviceType::CPU && fits,
+        nimbus_scene::DensityFetch::Auto => {
+            info.device_type == vk::PhysicalDeviceType::CPU
+                && fits
+                && bytes <= crate::shader_data::sparse::AUTO_DENSITY_BUFFER_MAX
+        }
         nimbus_scene::DensityFetch::Buffer => {
             if !fits {
                 anyhow::bail!(
@@ -399,7 +407,7 @@ fn density_in_buffer(
 }
 
 /// The density's slots as one storage buffer (slot after slot from slot 0, each slot's
-/// 9^3 texels x fastest, a quad of R32 per texel: [`SparseLayout::slot_major_quads`]),
+/// 10^3 texels x fastest, a quad of R32 per texel: [`SparseLayout::slot_major_quads`]),
 /// uploaded a chunk of slots at a time so that the host never holds more than a chunk (the
 /// memory estimate counts the atlas's layers the same way).
 ///
@@ -409,9 +417,8 @@ fn upload_density_texels(
     o: &mut GpuObjects,
     grid: &GpuGrid,
 ) -> Result<Handle<Buffer>> {
-    use crate::shader_data::sparse::{density_buffer_bytes, SparseLayout};
-    use nimbus_scene::bricks::SLOT_TEXELS;
-    /// Slots per upload: 3 MB of quads.
+    use crate::shader_data::sparse::{density_buffer_bytes, SparseLayout, DENSITY_SLOT_TEXELS};
+    /// Slots per upload: 4 MB of quads.
     const CHUNK: usize = 256;
     let layout = &grid.density_layout;
     let first = layout.first_slot as usize;
@@ -421,12 +428,12 @@ fn upload_density_texels(
         &nimbus_gpu::BufferDesc::gpu_only(bytes, vk::BufferUsageFlags::STORAGE_BUFFER),
         "grid density texels",
     )?);
-    let mut quads = Vec::with_capacity(CHUNK * SLOT_TEXELS);
+    let mut quads = Vec::with_capacity(CHUNK * DENSITY_SLOT_TEXELS);
     // Slots before the grid's first belong to no brick here: zeros.
     for start in (0..first).step_by(CHUNK) {
         let n = CHUNK.min(first - start);
         quads.clear();
-        quads.resize(n * SLOT_TEXELS, [0f32; 4]);
+        quads.resize(n * DENSITY_SLOT_TEXELS, [0f32; 4]);
         ctx.upload_buffer(
             &o[buffer],
             start as u64 * slot_bytes,

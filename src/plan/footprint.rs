@@ -117,29 +117,32 @@ fn crepuscular(scene: &Scene, plan: &CrepuscularPlan, f: &mut Footprint) -> Resu
 /// What the baseline pass allocates (see [`crate::budget`]). With `density_fetch =
 /// "buffer"` the density's slots are also one storage buffer (the atlas, then one texel,
 /// stays counted: an upper bound), which the device's storage-buffer range must hold.
-/// `"auto"` takes the buffer on CPU devices where it fits one binding: counted wherever it
-/// could fit any (an upper bound on GPUs, which keep the image), refused nowhere.
+/// `"auto"` takes the buffer on CPU devices up to `AUTO_DENSITY_BUFFER_MAX`, which every
+/// device binds: counted up to that size (an upper bound on GPUs, which keep the image).
 fn baseline(scene: &Scene, plan: &BaselinePlan, f: &mut Footprint) -> Result<()> {
+    use crate::shader_data::sparse::{density_buffer_bytes, AUTO_DENSITY_BUFFER_MAX};
     f.add_meshes(scene);
     f.add_emitters(scene);
     f.add_env_map(scene)?;
     let grid = f.add_grid(scene)?;
     if let Some(g) = grid {
         let slots = g.density_slots.max(1);
-        let bytes = crate::shader_data::sparse::density_buffer_bytes(slots);
-        let what = |words: &str| {
-            format!(
-                "{}: [integrator.baseline] field `density_fetch` = \"{words}\" (the density's \
-                 {slots} slots as one storage buffer)",
-                scene.source.display()
-            )
+        let bytes = density_buffer_bytes(slots);
+        let counted = match plan.density_fetch {
+            nimbus_scene::DensityFetch::Buffer => Some("buffer"),
+            nimbus_scene::DensityFetch::Auto if bytes <= AUTO_DENSITY_BUFFER_MAX => Some("auto"),
+            _ => None,
         };
-        match plan.density_fetch {
-            nimbus_scene::DensityFetch::Buffer => f.add(what("buffer"), Binding::Storage, bytes),
-            nimbus_scene::DensityFetch::Auto if bytes <= u64::from(u32::MAX) => {
-                f.add(what("auto"), Binding::StorageIfItFits, bytes)
-            }
-            _ => {}
+        if let Some(words) = counted {
+            f.add(
+                format!(
+                    "{}: [integrator.baseline] field `density_fetch` = \"{words}\" (the \
+                     density's {slots} slots as one storage buffer)",
+                    scene.source.display()
+                ),
+                Binding::Storage,
+                bytes,
+            );
         }
     }
     Ok(())

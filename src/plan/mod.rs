@@ -146,6 +146,8 @@ pub struct BaselinePlan {
     pub has_meshes: bool,
     /// Some shapes emit (area lights: the emitter table is sampled).
     pub has_area_lights: bool,
+    /// Some light is a sphere light (SC_HAS_SPHERE_LIGHTS).
+    pub has_sphere_lights: bool,
     /// Some directional light has a gobo (SC_HAS_GOBOS).
     pub has_gobos: bool,
     pub has_env: bool,
@@ -238,6 +240,8 @@ pub struct RestirPlan {
     /// Some shapes emit: area lights in NEE, emission seen by camera rays
     /// (SC_HAS_AREA_LIGHTS).
     pub has_area_lights: bool,
+    /// Some light is a sphere light (SC_HAS_SPHERE_LIGHTS).
+    pub has_sphere_lights: bool,
     /// Some directional light has a gobo (SC_HAS_GOBOS).
     pub has_gobos: bool,
 }

@@ -21,10 +21,19 @@ use super::GridSpaceGpu;
 
 /// Bytes per texel of the baseline's density buffer ([`SparseLayout::slot_major_quads`]).
 pub const DENSITY_QUAD_BYTES: u64 = 16;
+/// Texels per axis of a slot of the baseline's density buffer: from `8b - 1` to `8b + 8`.
+pub const DENSITY_SLOT_EDGE: u32 = 10;
+/// Texels per slot of the baseline's density buffer.
+pub const DENSITY_SLOT_TEXELS: usize = 1000;
+
+/// The largest density buffer `density_fetch = "auto"` takes (on CPU devices): 128 MiB,
+/// the storage-buffer range every Vulkan device binds (lavapipe's too), so the footprint
+/// knows without a device whether "auto" allocates it.
+pub const AUTO_DENSITY_BUFFER_MAX: u64 = 1 << 27;
 
 /// Bytes of the baseline's density buffer for `slots` slots (at least one quad).
 pub fn density_buffer_bytes(slots: u64) -> u64 {
-    (slots * SLOT_TEXELS as u64 * DENSITY_QUAD_BYTES).max(DENSITY_QUAD_BYTES)
+    (slots * DENSITY_SLOT_TEXELS as u64 * DENSITY_QUAD_BYTES).max(DENSITY_QUAD_BYTES)
 }
 
 /// Most slots along one axis of an atlas: 455 × 9 = 4095 texels.
@@ -167,24 +176,39 @@ impl SparseLayout {
         upload_atlas(ctx, atlas, self.slots, &[(self, grid, scale)], format)
     }
 
-    /// The first-channel values of `bricks` (consecutive slots of this layout), each
-    /// slot's 9^3 values x fastest, times `scale`, appended to `out`: a chunk of the
-    /// baseline's density buffer on CPU devices (grid.glsl).
-    /// The slots of `bricks` as the baseline's density buffer holds them (`grid_cell_corners`
-    /// in `shaders/include/grid.glsl`): per texel of a slot, x fastest, a quad of the texel
-    /// and its +x, +y and +x+y neighbours in the slot (clamped to the slot's last texel),
-    /// so that a trilinear lookup is two 16-byte loads ([`DENSITY_QUAD_BYTES`] per texel).
+    /// The slots of `bricks` as the baseline's density buffer holds them (`grid.glsl`,
+    /// NIMBUS_DENSITY_BUFFER): per slot [`DENSITY_SLOT_EDGE`]³ texels from lattice point
+    /// `8b - 1` (the brick, its high-side apron and a low-side one, so that every dual cell
+    /// of a point of the brick's super-voxel lies in its slot), x fastest, each a quad of
+    /// the texel and its +x, +y and +x+y neighbours (clamped to the slot's last texel), so
+    /// that a trilinear lookup is two 16-byte loads ([`DENSITY_QUAD_BYTES`] per texel).
+    /// Values are the first channel's `get_clamped`, times `scale`: the atlas's values.
     pub fn slot_major_quads(
         grid: &BrickGrid,
         bricks: &[IVec3],
         scale: f32,
         out: &mut Vec<[f32; 4]>,
     ) {
-        let mut texels = Vec::with_capacity(SLOT_TEXELS);
-        let e = SLOT_EDGE as usize;
+        let e9 = SLOT_EDGE as usize;
+        let e = DENSITY_SLOT_EDGE as usize;
+        let mut nine = Vec::with_capacity(SLOT_TEXELS);
+        let mut texels = vec![0f32; e * e * e];
         for b in bricks {
-            texels.clear();
-            Self::slot_major_texels(grid, std::slice::from_ref(b), scale, &mut texels);
+            nine.clear();
+            Self::slot_major_texels(grid, std::slice::from_ref(b), scale, &mut nine);
+            let low = *b * 8 - IVec3::ONE;
+            for z in 0..e {
+                for y in 0..e {
+                    for x in 0..e {
+                        texels[(z * e + y) * e + x] = if x > 0 && y > 0 && z > 0 {
+                            nine[((z - 1) * e9 + y - 1) * e9 + x - 1]
+                        } else {
+                            let l = low + IVec3::new(x as i32, y as i32, z as i32);
+                            grid.get_clamped(l, 0) * scale
+                        };
+                    }
+                }
+            }
             let at = |x: usize, y: usize, z: usize| texels[(z * e + y) * e + x];
             for z in 0..e {
                 for y in 0..e {
@@ -198,6 +222,8 @@ impl SparseLayout {
         }
     }
 
+    /// The first-channel values of `bricks` (consecutive slots of this layout), each
+    /// slot's 9^3 values x fastest, times `scale`, appended to `out`.
     pub fn slot_major_texels(grid: &BrickGrid, bricks: &[IVec3], scale: f32, out: &mut Vec<f32>) {
         let mut texels = Vec::with_capacity(SLOT_TEXELS * grid.channels as usize);
         for b in bricks {

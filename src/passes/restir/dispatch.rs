@@ -16,8 +16,12 @@ pub fn specialization(
     plan: &RestirPlan,
     exact_spans: bool,
     two_level: bool,
-) -> [(u32, SpecValue); 24] {
+) -> [(u32, SpecValue); 25] {
     [
+        (
+            SC_ID_HAS_SPHERE_LIGHTS,
+            SpecValue::Bool(plan.has_sphere_lights),
+        ),
         (SC_ID_TWO_LEVEL_BRICKS, SpecValue::Bool(two_level)),
         (
             SC_ID_EXACT_SPANS,

@@ -94,6 +94,9 @@ gpu_consts! {
     /// paths (`nimbus profile --coherent-lanes`: the cost of a frame without SIMD
     /// divergence; the image is not the scene's).
     pub const SC_ID_COHERENT_LANES: u32 = 34;
+    /// Grid passes: some light is a sphere light (lights.glsl's nearest_sphere_light looks
+    /// for one on every segment and shadow ray; without any it is compiled out).
+    pub const SC_ID_HAS_SPHERE_LIGHTS: u32 = 35;
 
     // -----------------------------------------------------------------------------------
     // Values of SC_ESTIMATOR (`shaders/box/crepuscular.comp`): the box-medium estimators

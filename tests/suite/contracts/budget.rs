@@ -97,12 +97,12 @@ fn oversized_buffers_are_refused_naming_the_field() {
 /// `[integrator.baseline] density_fetch = "buffer"` puts the density's slots in one
 /// storage buffer: on a device whose storage-buffer range cannot hold them the render is
 /// refused by the footprint check (before any allocation), naming the scene file and the
-/// field; `"auto"` then keeps the atlas image and passes.
+/// field; `"auto"`, which takes the buffer only where every device binds it, passes.
 #[test]
 fn a_density_buffer_beyond_the_storage_buffer_range_is_refused_naming_the_field() {
     let ctx = context();
     let mut info = ctx.info().clone();
-    // The cloud's density slots take about 12 MiB; everything else of this small image
+    // The cloud's density slots take tens of MiB; everything else of this small image
     // (the film, the sky map's 2 MiB of texels) fits 4 MiB.
     info.max_storage_buffer_range = 4 << 20;
     let footprint = |fetch: &str| {
@@ -126,7 +126,10 @@ fn a_density_buffer_beyond_the_storage_buffer_range_is_refused_naming_the_field(
             && err.contains("maxStorageBufferRange"),
         "{err}"
     );
+    // "auto" takes the buffer only up to 128 MiB, the range every Vulkan device binds: it
+    // passes on a device with just that range.
+    info.max_storage_buffer_range = 1 << 27;
     footprint("auto")
         .check(&info, u64::MAX)
-        .expect("auto keeps the atlas image");
+        .expect("auto takes a buffer every device binds");
 }
