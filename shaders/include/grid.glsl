@@ -237,6 +237,14 @@ void grid_quad_plane(vec4 q, ivec2 o, out float c0, out float c1, out float c2, 
     c2 = o.y > 0 ? q.z : q.x;
     c3 = o.x > 0 ? (o.y > 0 ? q.w : q.y) : (o.y > 0 ? q.z : q.x);
 }
+
+// The 8 values (x fastest) of the dual cell whose lower corner is texel t of slot `slot`,
+// its upper corners o further (grid_quad_plane): two quad loads.
+void grid_buffer_corners(uint slot, ivec3 t, ivec3 o, out float c[8]) {
+    int b = grid_density_quad(slot, t);
+    grid_quad_plane(density_quads[b], o.xy, c[0], c[1], c[2], c[3]);
+    grid_quad_plane(density_quads[b + o.z * 100], o.xy, c[4], c[5], c[6], c[7]);
+}
 #endif
 
 // The same for the grid's own density u_density (or its buffer, SC_DENSITY_BUFFER).
@@ -250,10 +258,8 @@ void grid_cell_corners(ivec3 cell, out float c[8]) {
             grid_zero_corners(c);
             return;
         }
-        // Texel lo sits at lo & 7 + 1 in its brick's slot (which starts at 8 b - 1).
-        int b = grid_density_quad(slot, t + 1);
-        grid_quad_plane(density_quads[b], o.xy, c[0], c[1], c[2], c[3]);
-        grid_quad_plane(density_quads[b + o.z * 100], o.xy, c[4], c[5], c[6], c[7]);
+        // Texel lo sits at (lo & 7) + 1 in its brick's slot (which starts at 8 b - 1).
+        grid_buffer_corners(slot, t + 1, o, c);
         return;
     }
 #endif
@@ -294,10 +300,8 @@ float grid_sigma_index_in_brick(vec3 p, ivec3 brick, uint slot) {
     // p in [8 brick, 8 brick + 8] puts lo in [8 brick - 1, 8 brick + 7]: texels 0..8 of the
     // slot (the clamp only guards against a point outside the super-voxel).
     ivec3 t = clamp(lo - (brick * 8 - 1), ivec3(0), ivec3(8));
-    int b = grid_density_quad(slot, t);
     float c[8];
-    grid_quad_plane(density_quads[b], o.xy, c[0], c[1], c[2], c[3]);
-    grid_quad_plane(density_quads[b + o.z * 100], o.xy, c[4], c[5], c[6], c[7]);
+    grid_buffer_corners(slot, t, o, c);
     return u_grid.density_scale * grid_trilinear(c, f);
 }
 #endif

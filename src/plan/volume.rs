@@ -222,11 +222,7 @@ pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
 
 /// The `SC_HAS_SPHERE_LIGHTS` row of both grid integrators.
 fn sphere_lights_decision(scene: &Scene) -> Decision {
-    let spheres = scene
-        .lights
-        .iter()
-        .filter(|l| matches!(l, Light::Sphere { .. }))
-        .count();
+    let spheres = sphere_light_count(scene);
     if spheres == 0 {
         return Decision::new(
             "  SC_HAS_SPHERE_LIGHTS",
@@ -386,7 +382,16 @@ fn baseline_nee(
 
 /// Whether some light is a sphere light (camera rays and shadow rays look for one).
 fn has_sphere_lights(scene: &Scene) -> bool {
-    sphere_lights_decision(scene).enabled
+    sphere_light_count(scene) > 0
+}
+
+/// The scene's sphere lights.
+fn sphere_light_count(scene: &Scene) -> usize {
+    scene
+        .lights
+        .iter()
+        .filter(|l| matches!(l, Light::Sphere { .. }))
+        .count()
 }
 
 /// Whether the lights other than directional and point lights are environments alone
