@@ -368,8 +368,8 @@ impl Pass for BaselinePass {
 
 /// Whether the pass reads the density from a storage buffer of its slots instead of the
 /// atlas image (`[integrator.baseline] density_fetch`): "auto" takes the buffer on CPU
-/// devices (lavapipe), where its loads are plain gathers and a texelFetch a call into the
-/// sampler's code, when the slots fit one buffer binding and `AUTO_DENSITY_BUFFER_MAX`
+/// devices (lavapipe), where a trilinear lookup from it is two 16-byte loads and a
+/// texelFetch a call into the sampler's code, when the slots fit one buffer binding and `AUTO_DENSITY_BUFFER_MAX`
 /// (what the footprint counts); "buffer" is refused where they do not fit.
 fn density_in_buffer(
     ctx: &Context,
