@@ -10,6 +10,15 @@
 #define LEVEL_PRIMARY 0u
 #define LEVEL_INDIRECT 1u
 
+// sigma_t* of texel t (0..8 per axis) of slot `slot` (not NO_BRICK), whose first atlas
+// texel is `origin`: from the slot-major buffer where SC_PC_BUFFER, else the atlas.
+float pc_texel(uint slot, ivec3 origin, ivec3 t) {
+    if (SC_PC_BUFFER) {
+        return pc_texels[int(slot) * 729 + (t.z * 9 + t.y) * 9 + t.x];
+    }
+    return texelFetch(u_pc, origin + t, 0).r;
+}
+
 // Walks [0, t_end) from o along d through level `level` until the optical depth reaches
 // tau_target. Returns the collision distance (FAR if the ray leaves first), sigma_t* there
 // and tau = the optical depth walked (tau_target at a collision, the total otherwise).
@@ -45,14 +54,16 @@ float pc_track(uint level, vec3 o, vec3 d, float t_end, float tau_target, out fl
         if ((cell >> 3) != brick_at) {
             brick_at = cell >> 3;
             slot = grid_slot(L.bricks_offset, L.brick_dims, brick_at);
-            origin = grid_slot_origin(slot, L.slots_x, L.slots_y);
+            if (!SC_PC_BUFFER) {
+                origin = grid_slot_origin(slot, L.slots_x, L.slots_y);
+            }
         }
         if (slot == NO_BRICK) {
             grid_blocks_skip_brick(it);
             continue;
         }
         grid_blocks_next(it, s0, s1, index);
-        float sigma = texelFetch(u_pc, origin + (cell & 7), 0).r;
+        float sigma = pc_texel(slot, origin, cell & 7);
         COUNT(CTR_MAJORANT, 1);
         float dtau = sigma * (s1 - s0);
         if (sigma > 0.0 && tau + dtau >= tau_target) {
@@ -88,7 +99,8 @@ float pc_sigma_star_at(uint level, vec3 x) {
     if (slot == NO_BRICK) {
         return 0.0;
     }
-    return texelFetch(u_pc, grid_slot_origin(slot, L.slots_x, L.slots_y) + (cell & 7), 0).r;
+    ivec3 origin = SC_PC_BUFFER ? ivec3(0) : grid_slot_origin(slot, L.slots_x, L.slots_y);
+    return pc_texel(slot, origin, cell & 7);
 }
 
 #endif

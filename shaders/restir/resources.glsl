@@ -75,6 +75,14 @@ layout(set = 0, binding = BINDING_VELOCITY) uniform sampler3D u_velocity;
 // Atlas of the conservative piecewise-constant sigma_t* (scaled, R32F, texelFetch) of both
 // tracking levels.
 layout(set = 0, binding = BINDING_PC_GRID) uniform sampler3D u_pc;
+// The same texels slot after slot, each slot's 9^3 x fastest (src/shader_data/sparse.rs,
+// upload_slot_major), read instead of u_pc where SC_PC_BUFFER: on lavapipe a texelFetch is
+// a call into the sampler's code, a buffer load one loop over the lanes (regular tracking
+// fetches a sigma_t* at every block it crosses). One float where the atlas is read.
+layout(constant_id = SC_ID_PC_BUFFER) const bool SC_PC_BUFFER = false;
+layout(std430, set = 0, binding = BINDING_PC_TEXELS) readonly buffer PcTexelBlock {
+    float pc_texels[];
+};
 layout(std430, set = 0, binding = BINDING_RESERVOIRS) buffer ReservoirBlock {
     uint reservoirs[];
 };

@@ -6,7 +6,7 @@ use std::collections::HashSet;
 
 use anyhow::Result;
 use glam::IVec3;
-use nimbus_scene::bricks::shr;
+use nimbus_scene::bricks::{shr, SLOT_TEXELS};
 use nimbus_scene::{BrickTopology, GridSource, Scene};
 
 use super::{
@@ -293,6 +293,30 @@ fn restir(scene: &Scene, p: &RestirPlan, f: &mut Footprint) -> Result<()> {
         }
         cells += gf.density.cells() + level_topology(&gf.density, mip_reuse, false).cells();
     }
+    // Tracking reads the piecewise-constant levels from a slot-major buffer the atlas's
+    // size with `pc_fetch = "buffer"` (which the device's storage-buffer range must hold),
+    // and with "auto" on CPU devices up to AUTO_DENSITY_BUFFER_MAX, which every device
+    // binds: counted up to that size (an upper bound on GPUs, which keep the image alone).
+    let pc_bytes = atlas_bytes(pc, r32)?;
+    let counted = match p.settings.pc_fetch {
+        nimbus_scene::DensityFetch::Buffer => Some("buffer"),
+        nimbus_scene::DensityFetch::Auto
+            if pc_bytes <= crate::shader_data::sparse::AUTO_DENSITY_BUFFER_MAX =>
+        {
+            Some("auto")
+        }
+        _ => None,
+    };
+    if let Some(words) = counted {
+        f.add(
+            format!(
+                "{file}: [integrator.restir] field `pc_fetch` = \"{words}\" (the \
+                 piecewise-constant levels, {pc} slots, as one storage buffer)"
+            ),
+            Binding::Storage,
+            pc_bytes,
+        );
+    }
     f.add(
         format!("{table} (brick indirection of the derived levels)"),
         Binding::Storage,
@@ -308,6 +332,9 @@ fn restir(scene: &Scene, p: &RestirPlan, f: &mut Footprint) -> Result<()> {
         );
         f.host_peak += grid_bytes(vd, 12 + 8);
     }
-    f.host_peak += kept + building + cells * 4 + 2 * layer_bytes(pc.max(reuse).max(nee), r32)?;
+    // Uploads: two atlas layers, and a chunk of the slot-major levels.
+    let chunk = (crate::shader_data::sparse::SLOT_MAJOR_CHUNK_SLOTS * SLOT_TEXELS * 4) as u64;
+    f.host_peak +=
+        kept + building + cells * 4 + 2 * layer_bytes(pc.max(reuse).max(nee), r32)? + chunk;
     Ok(())
 }

@@ -706,6 +706,30 @@ fn restir_plan(
             },
         ),
         on(
+            "  SC_PC_BUFFER",
+            s.pc_fetch == nimbus_scene::DensityFetch::Buffer,
+            match s.pc_fetch {
+                nimbus_scene::DensityFetch::Auto => {
+                    "[integrator.restir] pc_fetch = \"auto\": regular tracking reads sigma_t* \
+                     from a slot-major storage buffer of the piecewise-constant levels on a CPU \
+                     device where it takes at most 128 MiB (lavapipe: a texelFetch is a call \
+                     into the sampler's code, a buffer load one loop over the lanes), from \
+                     their atlas image on a GPU"
+                        .into()
+                }
+                nimbus_scene::DensityFetch::Image => {
+                    "[integrator.restir] pc_fetch = \"image\": the levels' atlas image, by \
+                     texelFetch"
+                        .into()
+                }
+                nimbus_scene::DensityFetch::Buffer => {
+                    "[integrator.restir] pc_fetch = \"buffer\": a slot-major storage buffer of \
+                     the piecewise-constant levels (9^3 floats per slot)"
+                        .into()
+                }
+            },
+        ),
+        on(
             "  SC_HAS_MEDIA (boxes)",
             plan.has_boxes,
             format!(

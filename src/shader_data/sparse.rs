@@ -287,6 +287,48 @@ fn layer_texels(
     }
 }
 
+/// Bytes of a slot-major R32 buffer of `slots` slots ([`upload_slot_major`]; at least one
+/// texel, so that a buffer can always be bound).
+pub fn slot_major_bytes(slots: u64) -> u64 {
+    (slots * SLOT_TEXELS as u64 * 4).max(4)
+}
+
+/// Slots per upload of [`upload_slot_major`] (1.5 MB): the host never holds more than a
+/// chunk.
+pub const SLOT_MAJOR_CHUNK_SLOTS: usize = 512;
+
+/// Uploads the slot texels of `parts` (first channel, R32) into `buffer` slot after slot
+/// from slot 0, each slot's 9³ texels x fastest (`float pc_texels[slot * 729 + texel]`,
+/// the ReSTIR passes' piecewise-constant levels on CPU devices): the atlas's values
+/// without its image addressing. Slots no part holds keep what the buffer held.
+pub fn upload_slot_major(
+    ctx: &Context,
+    buffer: &nimbus_gpu::Buffer,
+    parts: &[AtlasPart],
+) -> Result<()> {
+    const CHUNK: usize = SLOT_MAJOR_CHUNK_SLOTS;
+    let mut texels = Vec::with_capacity(SLOT_TEXELS * 3);
+    let mut out: Vec<f32> = Vec::with_capacity(CHUNK * SLOT_TEXELS);
+    for (layout, grid, scale) in parts {
+        let ch = grid.channels as usize;
+        for (c, bricks) in layout.bricks.chunks(CHUNK).enumerate() {
+            out.clear();
+            for b in bricks {
+                texels.clear();
+                grid.slot_texels(*b, *scale, &mut texels);
+                out.extend(texels.chunks_exact(ch).map(|v| v[0]));
+            }
+            let slot = u64::from(layout.first_slot) + (c * CHUNK) as u64;
+            ctx.upload_buffer(
+                buffer,
+                slot * SLOT_TEXELS as u64 * 4,
+                bytemuck::cast_slice(&out),
+            )?;
+        }
+    }
+    Ok(())
+}
+
 /// Uploads the slot texels of `parts` into `atlas` (`slots` per axis, `format`), one layer
 /// of slots at a time; slots no part holds are 0.
 pub fn upload_atlas(

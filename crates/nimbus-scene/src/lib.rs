@@ -96,6 +96,7 @@
 //! | restir `spatial_max_history` | [0, 1025] (0: spatial reuse on every pixel) |
 //! | restir `nee` | `"auto"`, `"one"`, `"split"` (only with delta lights and an environment alone besides) |
 //! | restir `direct` | `"each_walk"`, `"escape"` |
+//! | restir `pc_fetch` | `"auto"`, `"image"`, `"buffer"` (refused where the buffer exceeds the device's storage-buffer range) |
 //! | baseline `nee` | `"auto"`, `"one"`, `"split"` |
 //! | baseline `density_fetch` | `"auto"`, `"image"`, `"buffer"` |
 //! | grid `procedural` | `"cloud"`, `"cumulus"` (not allowed for `velocity`) |

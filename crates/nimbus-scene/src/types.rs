@@ -722,7 +722,8 @@ pub enum NeeMode {
     Split,
 }
 
-/// Where the baseline reads the density's values from (`density_fetch`).
+/// Where the baseline reads the density's values from (`density_fetch`), and ReSTIR's
+/// tracking its piecewise-constant levels (`pc_fetch`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum DensityFetch {
     /// A storage buffer on CPU devices (lavapipe), the atlas image on GPUs.
@@ -814,6 +815,9 @@ pub struct RestirSettings {
     pub nee: NeeMode,
     /// How candidates include the camera ray's end (`direct`).
     pub direct: DirectMode,
+    /// Where regular tracking reads the piecewise-constant levels from (`pc_fetch`): the
+    /// same choices as the baseline's `density_fetch`.
+    pub pc_fetch: DensityFetch,
 }
 
 /// The defaults are what measured best at equal GPU time on the benchmark scenes
@@ -845,6 +849,7 @@ impl Default for RestirSettings {
             sigma_star_floor: 0.0,
             nee: NeeMode::Auto,
             direct: DirectMode::EachWalk,
+            pc_fetch: DensityFetch::Auto,
         }
     }
 }

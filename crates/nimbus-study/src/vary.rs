@@ -195,6 +195,14 @@ pub(super) fn apply(scene: &mut Scene, key: &str, value: &str) -> Result<Option<
                 _ => bail!("{key}: unknown direct candidate {value:?}; valid: each_walk, escape"),
             };
         }
+        "pc_fetch" => {
+            scene.integrator.restir.pc_fetch = match value {
+                "auto" => nimbus_scene::DensityFetch::Auto,
+                "image" => nimbus_scene::DensityFetch::Image,
+                "buffer" => nimbus_scene::DensityFetch::Buffer,
+                _ => bail!("{key}: unknown place {value:?}; valid: auto, image, buffer"),
+            };
+        }
         "sigma_star_floor" => {
             scene.integrator.restir.sigma_star_floor = match value.parse::<f32>() {
                 Ok(f) if (0.0..=1.0).contains(&f) => f,
@@ -497,6 +505,7 @@ mod tests {
             ("sigma_star_floor", "0.25"),
             ("nee", "one"),
             ("direct", "escape"),
+            ("pc_fetch", "image"),
         ];
         assert_eq!(values.len(), keys().len());
         let mut s = scene();
@@ -525,6 +534,7 @@ mod tests {
         assert!(r.final_ratio_tracking);
         assert_eq!(r.nee, nimbus_scene::NeeMode::One);
         assert_eq!(r.direct, nimbus_scene::DirectMode::Escape);
+        assert_eq!(r.pc_fetch, nimbus_scene::DensityFetch::Image);
         assert_eq!(r.env_reuse, nimbus_scene::EnvReuse::Map);
         assert_eq!(
             (r.spatial_shift, r.spatial_max_history),

@@ -11,13 +11,16 @@ use crate::shader_data::features::*;
 /// The specialization constants of the ReSTIR shaders for a plan; `exact_spans`: some
 /// super-voxel of some density frame is hot for final ratio tracking
 /// ([`crate::shader_data::scene::needs_exact_spans`]).
-/// `two_level`: some brick indirection section is two-level.
+/// `two_level`: some brick indirection section is two-level. `pc_buffer`: tracking reads
+/// the piecewise-constant levels from their buffer ([`super::resources::pc_in_buffer`]).
 pub fn specialization(
     plan: &RestirPlan,
     exact_spans: bool,
     two_level: bool,
-) -> [(u32, SpecValue); 25] {
+    pc_buffer: bool,
+) -> [(u32, SpecValue); 26] {
     [
+        (SC_ID_PC_BUFFER, SpecValue::Bool(pc_buffer)),
         (
             SC_ID_HAS_SPHERE_LIGHTS,
             SpecValue::Bool(plan.has_sphere_lights),

@@ -32,7 +32,7 @@ use self::velocity::{velocity_texels, velocity_uvw};
 use self::volumes::{grid_level, march_step, Volumes};
 use super::{image_groups, scene_grid, FrameConstants, Pass, Targets};
 use crate::plan::RestirPlan;
-use crate::shader_data::sparse::{upload_atlas, TexelFormat};
+use crate::shader_data::sparse::{upload_atlas, upload_slot_major, TexelFormat};
 use crate::shader_data::{
     non_empty, shape_records, BaselineUniformsGpu, FrameUniforms, GpuGrid, LightGpu, LightSet,
     MeshBuffers, RecordCounts, RestirPush, RestirUniformsGpu,
@@ -53,6 +53,8 @@ pub struct RestirPass {
     /// `prepare`): the frame's spatial rounds run only then.
     spatial_camera_moves: bool,
     spatial_now: bool,
+    /// Tracking reads the piecewise-constant levels from `res.pc_texels` (SC_PC_BUFFER).
+    pc_buffer: bool,
     constants: FrameConstants,
     grid: GridMedium,
     volumes: Volumes,
@@ -220,6 +222,12 @@ impl RestirPass {
             ..RestirUniformsGpu::default()
         };
         let meshes = MeshBuffers::build(scene);
+        let pc_buffer = resources::pc_in_buffer(
+            ctx.info(),
+            plan.settings.pc_fetch,
+            volumes.sizes.pc,
+            &scene.source,
+        )?;
         let inputs = Inputs {
             grid: &grid_gpu,
             shapes: &shapes,
@@ -235,13 +243,14 @@ impl RestirPass {
             march_format: volumes.format,
             sizes: volumes.sizes,
             animated,
+            pc_buffer,
         };
         let exact_spans =
             volumes.needs_exact_spans(&grid_gpu.p_to_world, FINAL_RATIO_MAJORANT_SCALE);
         // The density is the finest grid: its section is two-level if any is.
         let two_level =
             first.density_layout.indirection.two_level || grid_gpu.two_level_bricks()?;
-        let spec = specialization(plan, exact_spans, two_level);
+        let spec = specialization(plan, exact_spans, two_level, pc_buffer);
         let (objects, res) =
             GpuObjects::build(ctx, |o| Resources::create(ctx, o, &spec, &inputs, targets))?;
         Ok(RestirPass {
@@ -250,6 +259,7 @@ impl RestirPass {
             settings: schedule_settings(plan, candidates_per_dispatch),
             spatial_camera_moves: plan.spatial_camera_moves,
             spatial_now: true,
+            pc_buffer,
             constants: FrameConstants {
                 env_radiance: grid_gpu.env_radiance,
                 env_size: grid_gpu.uniforms.env_size,
@@ -379,6 +389,16 @@ impl RestirPass {
             ],
             r32,
         )?;
+        if self.pc_buffer {
+            upload_slot_major(
+                ctx,
+                &o[r.pc_texels],
+                &[
+                    (&cur.pc_primary_layout, &c.pc_primary, scale),
+                    (&cur.pc_indirect_layout, &c.pc_indirect, scale),
+                ],
+            )?;
+        }
         upload_atlas(
             ctx,
             &o[r.march_reuse],

@@ -13,7 +13,9 @@ use super::volumes::{AtlasSizes, DerivedVolume};
 use crate::passes::{
     compute_pipeline, image_3d, upload_env_map, upload_params, upload_records, StaticGrids, Targets,
 };
-use crate::shader_data::sparse::{atlas_dims, upload_atlas, TexelFormat};
+use crate::shader_data::sparse::{
+    atlas_dims, slot_major_bytes, upload_atlas, upload_slot_major, TexelFormat,
+};
 use crate::shader_data::{
     bindings, non_empty, BaselineUniformsGpu, BoxMediumGpu, FrameUniforms, GpuGrid, MeshBuffers,
     RestirPush, RestirUniformsGpu, ShapeGpu,
@@ -45,6 +47,9 @@ pub struct Resources {
     /// does not change.
     pub density_prev: Handle<Image>,
     pub march_reuse_prev: Handle<Image>,
+    /// The piecewise-constant levels slot-major, where tracking reads them from a buffer
+    /// (`Inputs::pc_buffer`); else one texel.
+    pub pc_texels: Handle<Buffer>,
 }
 
 /// What [`Resources::create`] uploads.
@@ -67,6 +72,48 @@ pub struct Inputs<'a> {
     pub sizes: AtlasSizes,
     /// Density frames change: the previous frame gets atlases of its own.
     pub animated: bool,
+    /// Regular tracking reads the piecewise-constant levels from a storage buffer
+    /// (SC_PC_BUFFER, [`pc_in_buffer`]).
+    pub pc_buffer: bool,
+}
+
+/// Whether regular tracking reads the piecewise-constant levels from a slot-major
+/// storage buffer instead of their atlas image (`[integrator.restir] pc_fetch`): "auto"
+/// takes the buffer on CPU devices (lavapipe, where a texelFetch is a call into the
+/// sampler's code and a buffer load one loop over the lanes) where the buffer, the size
+/// of the atlas, takes at most `AUTO_DENSITY_BUFFER_MAX` (which every device binds; the
+/// footprint counts it up to that size); "buffer" is refused where it does not fit.
+pub fn pc_in_buffer(
+    info: &nimbus_gpu::DeviceInfo,
+    fetch: nimbus_scene::DensityFetch,
+    pc_slots: [u32; 3],
+    source: &std::path::Path,
+) -> Result<bool> {
+    use crate::shader_data::sparse::{slot_major_bytes, AUTO_DENSITY_BUFFER_MAX};
+    let bytes = slot_major_bytes(slot_count(pc_slots) as u64);
+    let alloc = info.max_memory_allocation_size;
+    let fits = bytes <= u64::from(info.max_storage_buffer_range) && (alloc == 0 || bytes <= alloc);
+    Ok(match fetch {
+        nimbus_scene::DensityFetch::Image => false,
+        nimbus_scene::DensityFetch::Auto => {
+            info.device_type == vk::PhysicalDeviceType::CPU
+                && fits
+                && bytes <= AUTO_DENSITY_BUFFER_MAX
+        }
+        nimbus_scene::DensityFetch::Buffer => {
+            if !fits {
+                anyhow::bail!(
+                    "{}: [integrator.restir] field `pc_fetch` = \"buffer\": the \
+                     piecewise-constant levels take {bytes} bytes as a buffer, more than {} \
+                     allows in one storage buffer ({} bytes); use \"image\" or \"auto\"",
+                    source.display(),
+                    info.name,
+                    info.max_storage_buffer_range
+                );
+            }
+            true
+        }
+    })
 }
 
 /// The descriptor layout all four stages share.
@@ -89,6 +136,7 @@ fn layout() -> Vec<BindingDesc> {
         BindingDesc::sampled_image(bindings::MARCH_NEE),
         BindingDesc::sampled_image(bindings::VELOCITY),
         BindingDesc::sampled_image(bindings::PC_GRID),
+        BindingDesc::storage_buffer(bindings::PC_TEXELS),
         BindingDesc::storage_buffer(bindings::SUPER_VOXELS),
         BindingDesc::storage_buffer(bindings::GRID_BRICKS),
         BindingDesc::storage_buffer(bindings::RESERVOIRS),
@@ -116,7 +164,7 @@ fn spirv_of(stage: Stage) -> &'static [u8] {
 /// The four stages' pipelines as the pass creates them (without a device; see
 /// [`crate::passes::PipelineContract`]).
 pub fn pipeline_contracts(plan: &crate::plan::RestirPlan) -> Vec<crate::passes::PipelineContract> {
-    let specialization = super::specialization(plan, false, false);
+    let specialization = super::specialization(plan, false, false, false);
     Stage::ALL
         .into_iter()
         .map(|stage| {
@@ -166,6 +214,7 @@ impl Resources {
             march_format,
             sizes,
             animated,
+            pc_buffer,
         } = *inputs;
         let layout = layout();
         let mut pipelines = Vec::with_capacity(4);
@@ -241,6 +290,28 @@ impl Resources {
             ],
             r32,
         )?;
+        let pc_texels = o.add(ctx.create_buffer(
+            &BufferDesc::gpu_only(
+                if pc_buffer {
+                    slot_major_bytes(slot_count(sizes.pc) as u64)
+                } else {
+                    4
+                },
+                vk::BufferUsageFlags::STORAGE_BUFFER,
+            ),
+            "piecewise-constant levels (slot-major)",
+        )?);
+        if pc_buffer {
+            ctx.fill_buffer(&o[pc_texels], 0)?;
+            upload_slot_major(
+                ctx,
+                &o[pc_texels],
+                &[
+                    (&first.pc_primary_layout, &g.pc_primary, scale),
+                    (&first.pc_indirect_layout, &g.pc_indirect, scale),
+                ],
+            )?;
+        }
         let march_reuse = atlas(ctx, o, sizes.march_reuse, march_format, "march (reuse)")?;
         upload_atlas(
             ctx,
@@ -339,6 +410,7 @@ impl Resources {
                     image(bindings::MARCH_NEE, march_nee, linear),
                     image(bindings::VELOCITY, velocity, linear),
                     image(bindings::PC_GRID, pc, nearest),
+                    buffer(bindings::PC_TEXELS, pc_texels),
                     buffer(bindings::SUPER_VOXELS, super_voxels),
                     buffer(bindings::GRID_BRICKS, bricks),
                     buffer(bindings::RESERVOIRS, reservoirs),
@@ -374,6 +446,7 @@ impl Resources {
             march_nee,
             density_prev,
             march_reuse_prev,
+            pc_texels,
         })
     }
 }

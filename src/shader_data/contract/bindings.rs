@@ -68,6 +68,10 @@ gpu_consts! {
     /// each slot's 9^3 texels x fastest): where the device is a CPU (lavapipe), the
     /// baseline reads the density from it instead of the atlas image (grid.glsl).
     pub const GRID_DENSITY_TEXELS: u32 = 39 => BINDING_GRID_DENSITY_TEXELS;
+    /// The ReSTIR passes' piecewise-constant levels as a storage buffer (`float
+    /// pc_texels[slot * 729 + texel]`, each slot's 9^3 texels x fastest): where the device
+    /// is a CPU, regular tracking reads them from it instead of the PC_GRID atlas.
+    pub const PC_TEXELS: u32 = 40 => BINDING_PC_TEXELS;
 
     // The denoiser's own pipelines (src/denoise, shaders/denoise): per-pixel buffers.
     /// The noisy image (premultiplied RGB, A).

@@ -97,6 +97,10 @@ gpu_consts! {
     /// Grid passes: some light is a sphere light (lights.glsl's nearest_sphere_light looks
     /// for one on every segment and shadow ray; without any it is compiled out).
     pub const SC_ID_HAS_SPHERE_LIGHTS: u32 = 35;
+    /// ReSTIR passes: regular tracking reads the piecewise-constant levels from a
+    /// slot-major storage buffer instead of their atlas image (CPU devices, where a
+    /// texelFetch is a call into the sampler's code; pc_tracking.glsl).
+    pub const SC_ID_PC_BUFFER: u32 = 36;
 
     // -----------------------------------------------------------------------------------
     // Values of SC_ESTIMATOR (`shaders/box/crepuscular.comp`): the box-medium estimators

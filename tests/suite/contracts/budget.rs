@@ -133,3 +133,53 @@ fn a_density_buffer_beyond_the_storage_buffer_range_is_refused_naming_the_field(
         .check(&info, u64::MAX)
         .expect("auto takes a buffer every device binds");
 }
+
+/// The same for ReSTIR's piecewise-constant levels (`[integrator.restir] pc_fetch`): a
+/// buffer beyond the device's storage-buffer range is refused before any allocation,
+/// naming the file and the field; "auto" takes it only where every device binds it.
+#[test]
+fn a_piecewise_constant_buffer_beyond_the_storage_buffer_range_is_refused_naming_the_field() {
+    let ctx = context();
+    let mut info = ctx.info().clone();
+    let footprint = |fetch: &str| {
+        let overrides = [
+            FieldOverride::new("render.width", 32),
+            FieldOverride::new("render.height", 24),
+            FieldOverride::new("render.spp", 1),
+            FieldOverride::new("integrator.volume", "restir"),
+            FieldOverride::new("integrator.restir.pc_fetch", fetch),
+        ];
+        let scene = nimbus_scene::load_with(&asset("cloud.toml"), &overrides).unwrap();
+        let plan = plan::build(&scene, None).unwrap();
+        Footprint::of(&scene, &plan).unwrap()
+    };
+    let bytes = |f: &Footprint| {
+        f.device
+            .iter()
+            .find(|i| i.what.contains("field `pc_fetch`"))
+            .map(|i| i.bytes)
+    };
+    let buffer = footprint("buffer");
+    let pc = bytes(&buffer).expect("the buffer is counted");
+    assert_eq!(
+        bytes(&footprint("image")),
+        None,
+        "\"image\" allocates no buffer"
+    );
+    // A range just below the levels' buffer (everything else of this small image fits it).
+    info.max_storage_buffer_range = u32::try_from(pc - 4).unwrap();
+    let err = buffer
+        .check(&info, u64::MAX)
+        .expect_err("a buffer beyond the range was accepted")
+        .to_string();
+    assert!(
+        err.contains("cloud.toml")
+            && err.contains("[integrator.restir] field `pc_fetch`")
+            && err.contains("maxStorageBufferRange"),
+        "{err}"
+    );
+    info.max_storage_buffer_range = 1 << 27;
+    footprint("auto")
+        .check(&info, u64::MAX)
+        .expect("auto takes a buffer every device binds");
+}

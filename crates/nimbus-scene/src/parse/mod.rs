@@ -111,6 +111,7 @@ pub const RESTIR_KEYS: &[&str] = &[
     "sigma_star_floor",
     "nee",
     "direct",
+    "pc_fetch",
 ];
 
 /// One table of the scene format and every field the parser accepts in it.
@@ -726,6 +727,15 @@ fn parse_restir(source: &Source, table: &toml::Table) -> Result<RestirSettings> 
             &[
                 ("each_walk", DirectMode::EachWalk),
                 ("escape", DirectMode::Escape),
+            ],
+        )?,
+        pc_fetch: f.choice(
+            "pc_fetch",
+            Some(d.pc_fetch),
+            &[
+                ("auto", DensityFetch::Auto),
+                ("image", DensityFetch::Image),
+                ("buffer", DensityFetch::Buffer),
             ],
         )?,
     })

@@ -230,6 +230,7 @@ mip_reuse = 0
 final_transmittance = "ratio"
 nee = "split"
 direct = "escape"
+pc_fetch = "buffer"
 mis = "pairwise"
 spatial_shift = "optical_depth"
 env_reuse = "map"
@@ -453,6 +454,7 @@ density_fetch = "image"
                 sigma_star_floor: 0.125,
                 nee: NeeMode::Split,
                 direct: DirectMode::Escape,
+                pc_fetch: DensityFetch::Buffer,
             },
             baseline: BaselineSettings {
                 nee: NeeMode::One,
