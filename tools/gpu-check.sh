@@ -16,7 +16,8 @@
 # --lent sizes the run for a lent GPU machine's device time (about 15 minutes, start-up
 # included; see docs/restir.md "Measuring on a GPU" for the steps): no test suite, the
 # per-pass profiles of the benchmark cloud at 1920x1080 (its work counters at K = 3, and
-# the baseline with its density read from a storage buffer and with coherent lanes),
+# the baseline with its density read from a storage buffer and with coherent lanes,
+# ReSTIR's tracking with its sigma* read from a buffer),
 # issue 15's per-frame equal-time study of ReSTIR against the baseline on the benchmark
 # clouds (g = 0 and 0.8, K = 1, 3, 7, 3 seeds; at 960x540, since the benchmark's 320x240
 # leaves a GPU idle) and what the ReSTIR levers buy at K = 3. --quick shrinks the full
@@ -314,6 +315,11 @@ done
 step "profile baseline buffer k3" profile "bench-baseline-buffer-hd-k3" assets/scenes/bench/cloud-g0.toml \
     "${hd[@]}" --set "integrator.max_bounces=3" --set integrator.volume=baseline \
     --set 'integrator.baseline.density_fetch="buffer"'
+# ReSTIR's regular tracking reading sigma* from a storage buffer instead of the atlas
+# image (what pc_fetch = "auto" takes on CPU devices: 0.93x a K = 1 frame on lavapipe;
+# unmeasured on GPUs, which keep the image); the ratio to profile-bench-restir-hd-k1.
+step "profile restir pc buffer k1" profile "bench-restir-pc-buffer-hd-k1" assets/scenes/bench/cloud-g0.toml \
+    "${hd[@]}" --set "integrator.max_bounces=1" --set 'integrator.restir.pc_fetch="buffer"'
 # What SIMD divergence costs the baseline on this device: every workgroup traces its first
 # pixel's paths in all its lanes (`--coherent-lanes`); the ratio to profile-bench-baseline-hd-k*
 # is the most a wavefront or path-regenerating baseline could win here (2.0-2.3x on
