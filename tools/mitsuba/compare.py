@@ -328,6 +328,20 @@ def gmean(xs):
     return math.exp(sum(math.log(x) for x in xs) / len(xs))
 
 
+def means_by_samples(rs):
+    """One row per sample count of `rs`, its frame ms, seconds and nRMSE the means over
+    the runs (seeds) with that count (compare_box.py's tables too)."""
+    out = []
+    for n in sorted({r["samples"] for r in rs}):
+        sel = [r for r in rs if r["samples"] == n]
+        mean = dict(sel[0])
+        for key in ("median_frame_ms", "seconds", "nrmse"):
+            if mean[key] != "":
+                mean[key] = sum(r[key] for r in sel) / len(sel)
+        out.append(mean)
+    return out
+
+
 def summarize(rows, seeds):
     """Per table row: Nimbus integrator x config. Efficiency per renderer = geometric mean
     over its sample counts; the ratio per seed, then over seeds."""
@@ -346,15 +360,7 @@ def summarize(rows, seeds):
                 ratios.append(gmean(a) / gmean(b))
 
         def levels(rs, fmt):
-            out = []
-            for n in sorted({r["samples"] for r in rs}):
-                sel = [r for r in rs if r["samples"] == n]
-                mean = dict(sel[0])
-                for key in ("median_frame_ms", "seconds", "nrmse"):
-                    if mean[key] != "":
-                        mean[key] = sum(r[key] for r in sel) / len(sel)
-                out.append(fmt(mean, mean["seconds"], mean["nrmse"]))
-            return out
+            return [fmt(m, m["seconds"], m["nrmse"]) for m in means_by_samples(rs)]
 
         # Contention-robust variant: each run timed at its renderer's fastest seconds per
         # sample over all runs of this row (the machine is shared; the fastest run is the

@@ -208,15 +208,7 @@ def summarize(args, rows):
                     ratios.append(C.gmean(a) / C.gmean(b))
 
             def levels(rs, fmt):
-                out = []
-                for n in sorted({r["samples"] for r in rs}):
-                    sel = [r for r in rs if r["samples"] == n]
-                    mean = dict(sel[0])
-                    for key in ("median_frame_ms", "seconds", "nrmse"):
-                        if mean[key] != "":
-                            mean[key] = sum(r[key] for r in sel) / len(sel)
-                    out.append((fmt(mean), mean["nrmse"]))
-                return out
+                return [(fmt(m), m["nrmse"]) for m in C.means_by_samples(rs)]
 
             table.append({
                 "config": "%s K%d" % (est.upper(), k),
