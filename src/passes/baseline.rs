@@ -367,43 +367,24 @@ impl Pass for BaselinePass {
 }
 
 /// Whether the pass reads the density from a storage buffer of its slots instead of the
-/// atlas image (`[integrator.baseline] density_fetch`): "auto" takes the buffer on CPU
-/// devices (lavapipe), where a trilinear lookup from it is two 16-byte loads and a
-/// texelFetch a call into the sampler's code, when the slots fit one buffer binding and `AUTO_DENSITY_BUFFER_MAX`
-/// (what the footprint counts); "buffer" is refused where they do not fit.
+/// atlas image (`[integrator.baseline] density_fetch`, [`super::volume_in_buffer`]): on
+/// lavapipe a trilinear lookup from it is two 16-byte loads, from the atlas a texelFetch.
 fn density_in_buffer(
     ctx: &Context,
     plan: &BaselinePlan,
     grid: &GpuGrid,
     scene: &Scene,
 ) -> Result<bool> {
-    let info = ctx.info();
     let layout = &grid.density_layout;
     let slots = u64::from(layout.first_slot) + layout.bricks.len() as u64;
-    let bytes = crate::shader_data::sparse::density_buffer_bytes(slots);
-    let alloc = info.max_memory_allocation_size;
-    let fits = bytes <= u64::from(info.max_storage_buffer_range) && (alloc == 0 || bytes <= alloc);
-    Ok(match plan.density_fetch {
-        nimbus_scene::DensityFetch::Image => false,
-        nimbus_scene::DensityFetch::Auto => {
-            info.device_type == vk::PhysicalDeviceType::CPU
-                && fits
-                && bytes <= crate::shader_data::sparse::AUTO_DENSITY_BUFFER_MAX
-        }
-        nimbus_scene::DensityFetch::Buffer => {
-            if !fits {
-                anyhow::bail!(
-                    "{}: [integrator.baseline] field `density_fetch` = \"buffer\": the density's \
-                     {slots} slots take {bytes} bytes, more than {} allows in one storage buffer \
-                     ({} bytes); use \"image\" or \"auto\"",
-                    scene.source.display(),
-                    info.name,
-                    info.max_storage_buffer_range
-                );
-            }
-            true
-        }
-    })
+    super::volume_in_buffer(
+        ctx.info(),
+        plan.density_fetch,
+        crate::shader_data::sparse::density_buffer_bytes(slots),
+        &scene.source,
+        "[integrator.baseline] field `density_fetch`",
+        &format!("the density's {slots} slots"),
+    )
 }
 
 /// The density's slots as one storage buffer (slot after slot from slot 0, each slot's

@@ -556,6 +556,45 @@ pub fn pipeline_contracts(plan: &RenderPlan) -> Vec<PipelineContract> {
     }
 }
 
+/// Whether a pass reads a volume from a storage buffer of `bytes` instead of its atlas
+/// image, by the scene's `fetch` (`[integrator.baseline] density_fetch`, `[integrator.restir]
+/// pc_fetch`): "auto" takes the buffer on CPU devices (lavapipe, where a texelFetch is a
+/// call into the sampler's code and a buffer load one loop over the lanes) where it fits
+/// one binding and `AUTO_DENSITY_BUFFER_MAX` (which every device binds, so the footprint
+/// knows without a device what it allocates); "buffer" is refused where it does not fit,
+/// naming `source`, `field` and `what` the buffer holds.
+pub fn volume_in_buffer(
+    info: &nimbus_gpu::DeviceInfo,
+    fetch: nimbus_scene::DensityFetch,
+    bytes: u64,
+    source: &std::path::Path,
+    field: &str,
+    what: &str,
+) -> Result<bool> {
+    let alloc = info.max_memory_allocation_size;
+    let fits = bytes <= u64::from(info.max_storage_buffer_range) && (alloc == 0 || bytes <= alloc);
+    Ok(match fetch {
+        nimbus_scene::DensityFetch::Image => false,
+        nimbus_scene::DensityFetch::Auto => {
+            info.device_type == vk::PhysicalDeviceType::CPU
+                && fits
+                && bytes <= crate::shader_data::sparse::AUTO_DENSITY_BUFFER_MAX
+        }
+        nimbus_scene::DensityFetch::Buffer => {
+            if !fits {
+                anyhow::bail!(
+                    "{}: {field} = \"buffer\": {what} take {bytes} bytes, more than {} allows \
+                     in one storage buffer ({} bytes); use \"image\" or \"auto\"",
+                    source.display(),
+                    info.name,
+                    info.max_storage_buffer_range
+                );
+            }
+            true
+        }
+    })
+}
+
 /// A GPU-only storage buffer holding `records`, owned by `objects`.
 pub fn upload_records<T: bytemuck::Pod>(
     ctx: &Context,

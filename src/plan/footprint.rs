@@ -120,7 +120,7 @@ fn crepuscular(scene: &Scene, plan: &CrepuscularPlan, f: &mut Footprint) -> Resu
 /// `"auto"` takes the buffer on CPU devices up to `AUTO_DENSITY_BUFFER_MAX`, which every
 /// device binds: counted up to that size (an upper bound on GPUs, which keep the image).
 fn baseline(scene: &Scene, plan: &BaselinePlan, f: &mut Footprint) -> Result<()> {
-    use crate::shader_data::sparse::{density_buffer_bytes, AUTO_DENSITY_BUFFER_MAX};
+    use crate::shader_data::sparse::density_buffer_bytes;
     f.add_meshes(scene);
     f.add_emitters(scene);
     f.add_env_map(scene)?;
@@ -128,12 +128,7 @@ fn baseline(scene: &Scene, plan: &BaselinePlan, f: &mut Footprint) -> Result<()>
     if let Some(g) = grid {
         let slots = g.density_slots.max(1);
         let bytes = density_buffer_bytes(slots);
-        let counted = match plan.density_fetch {
-            nimbus_scene::DensityFetch::Buffer => Some("buffer"),
-            nimbus_scene::DensityFetch::Auto if bytes <= AUTO_DENSITY_BUFFER_MAX => Some("auto"),
-            _ => None,
-        };
-        if let Some(words) = counted {
+        if let Some(words) = buffer_counted(plan.density_fetch, bytes) {
             f.add(
                 format!(
                     "{}: [integrator.baseline] field `density_fetch` = \"{words}\" (the \
@@ -146,6 +141,22 @@ fn baseline(scene: &Scene, plan: &BaselinePlan, f: &mut Footprint) -> Result<()>
         }
     }
     Ok(())
+}
+
+/// Whether a storage buffer of `bytes` that `fetch` may take
+/// ([`crate::passes::volume_in_buffer`]) is counted, and the setting's word: always for
+/// "buffer", for "auto" up to `AUTO_DENSITY_BUFFER_MAX` (the size every device binds,
+/// taken on CPU devices: an upper bound on GPUs, which keep the image).
+fn buffer_counted(fetch: nimbus_scene::DensityFetch, bytes: u64) -> Option<&'static str> {
+    match fetch {
+        nimbus_scene::DensityFetch::Buffer => Some("buffer"),
+        nimbus_scene::DensityFetch::Auto
+            if bytes <= crate::shader_data::sparse::AUTO_DENSITY_BUFFER_MAX =>
+        {
+            Some("auto")
+        }
+        _ => None,
+    }
 }
 
 /// What the passes allocate: every density grid's resources (see [`crate::budget`]).
@@ -298,16 +309,7 @@ fn restir(scene: &Scene, p: &RestirPlan, f: &mut Footprint) -> Result<()> {
     // and with "auto" on CPU devices up to AUTO_DENSITY_BUFFER_MAX, which every device
     // binds: counted up to that size (an upper bound on GPUs, which keep the image alone).
     let pc_bytes = atlas_bytes(pc, r32)?;
-    let counted = match p.settings.pc_fetch {
-        nimbus_scene::DensityFetch::Buffer => Some("buffer"),
-        nimbus_scene::DensityFetch::Auto
-            if pc_bytes <= crate::shader_data::sparse::AUTO_DENSITY_BUFFER_MAX =>
-        {
-            Some("auto")
-        }
-        _ => None,
-    };
-    if let Some(words) = counted {
+    if let Some(words) = buffer_counted(p.settings.pc_fetch, pc_bytes) {
         f.add(
             format!(
                 "{file}: [integrator.restir] field `pc_fetch` = \"{words}\" (the \

@@ -78,42 +78,22 @@ pub struct Inputs<'a> {
 }
 
 /// Whether regular tracking reads the piecewise-constant levels from a slot-major
-/// storage buffer instead of their atlas image (`[integrator.restir] pc_fetch`): "auto"
-/// takes the buffer on CPU devices (lavapipe, where a texelFetch is a call into the
-/// sampler's code and a buffer load one loop over the lanes) where the buffer, the size
-/// of the atlas, takes at most `AUTO_DENSITY_BUFFER_MAX` (which every device binds; the
-/// footprint counts it up to that size); "buffer" is refused where it does not fit.
+/// storage buffer the size of their atlas instead of the atlas image (`[integrator.restir]
+/// pc_fetch`, [`crate::passes::volume_in_buffer`]).
 pub fn pc_in_buffer(
     info: &nimbus_gpu::DeviceInfo,
     fetch: nimbus_scene::DensityFetch,
     pc_slots: [u32; 3],
     source: &std::path::Path,
 ) -> Result<bool> {
-    use crate::shader_data::sparse::{slot_major_bytes, AUTO_DENSITY_BUFFER_MAX};
-    let bytes = slot_major_bytes(slot_count(pc_slots) as u64);
-    let alloc = info.max_memory_allocation_size;
-    let fits = bytes <= u64::from(info.max_storage_buffer_range) && (alloc == 0 || bytes <= alloc);
-    Ok(match fetch {
-        nimbus_scene::DensityFetch::Image => false,
-        nimbus_scene::DensityFetch::Auto => {
-            info.device_type == vk::PhysicalDeviceType::CPU
-                && fits
-                && bytes <= AUTO_DENSITY_BUFFER_MAX
-        }
-        nimbus_scene::DensityFetch::Buffer => {
-            if !fits {
-                anyhow::bail!(
-                    "{}: [integrator.restir] field `pc_fetch` = \"buffer\": the \
-                     piecewise-constant levels take {bytes} bytes as a buffer, more than {} \
-                     allows in one storage buffer ({} bytes); use \"image\" or \"auto\"",
-                    source.display(),
-                    info.name,
-                    info.max_storage_buffer_range
-                );
-            }
-            true
-        }
-    })
+    crate::passes::volume_in_buffer(
+        info,
+        fetch,
+        slot_major_bytes(slot_count(pc_slots) as u64),
+        source,
+        "[integrator.restir] field `pc_fetch`",
+        "the piecewise-constant levels",
+    )
 }
 
 /// The descriptor layout all four stages share.

@@ -94,6 +94,18 @@ fn oversized_buffers_are_refused_naming_the_field() {
     crate::common::gpu::assert_no_validation_errors(&ctx);
 }
 
+/// The footprint of `cloud.toml` at 32x24 with `overrides`.
+fn small_cloud_footprint(overrides: &[FieldOverride]) -> Footprint {
+    let mut all = vec![
+        FieldOverride::new("render.width", 32),
+        FieldOverride::new("render.height", 24),
+    ];
+    all.extend_from_slice(overrides);
+    let scene = nimbus_scene::load_with(&asset("cloud.toml"), &all).unwrap();
+    let plan = plan::build(&scene, None).unwrap();
+    Footprint::of(&scene, &plan).unwrap()
+}
+
 /// `[integrator.baseline] density_fetch = "buffer"` puts the density's slots in one
 /// storage buffer: on a device whose storage-buffer range cannot hold them the render is
 /// refused by the footprint check (before any allocation), naming the scene file and the
@@ -106,15 +118,10 @@ fn a_density_buffer_beyond_the_storage_buffer_range_is_refused_naming_the_field(
     // (the film, the sky map's 2 MiB of texels) fits 4 MiB.
     info.max_storage_buffer_range = 4 << 20;
     let footprint = |fetch: &str| {
-        let overrides = [
-            FieldOverride::new("render.width", 32),
-            FieldOverride::new("render.height", 24),
+        small_cloud_footprint(&[
             FieldOverride::new("integrator.volume", "baseline"),
             FieldOverride::new("integrator.baseline.density_fetch", fetch),
-        ];
-        let scene = nimbus_scene::load_with(&asset("cloud.toml"), &overrides).unwrap();
-        let plan = plan::build(&scene, None).unwrap();
-        Footprint::of(&scene, &plan).unwrap()
+        ])
     };
     let err = footprint("buffer")
         .check(&info, u64::MAX)
@@ -142,16 +149,11 @@ fn a_piecewise_constant_buffer_beyond_the_storage_buffer_range_is_refused_naming
     let ctx = context();
     let mut info = ctx.info().clone();
     let footprint = |fetch: &str| {
-        let overrides = [
-            FieldOverride::new("render.width", 32),
-            FieldOverride::new("render.height", 24),
+        small_cloud_footprint(&[
             FieldOverride::new("render.spp", 1),
             FieldOverride::new("integrator.volume", "restir"),
             FieldOverride::new("integrator.restir.pc_fetch", fetch),
-        ];
-        let scene = nimbus_scene::load_with(&asset("cloud.toml"), &overrides).unwrap();
-        let plan = plan::build(&scene, None).unwrap();
-        Footprint::of(&scene, &plan).unwrap()
+        ])
     };
     let bytes = |f: &Footprint| {
         f.device
