@@ -18,6 +18,9 @@ pub struct Report {
     pub spp: u32,
     pub frames: usize,
     pub passes: Vec<PassStats>,
+    /// Each measured frame's GPU milliseconds (its top-level scopes), in order: a median
+    /// hides a frame that alternates between two costs, which this shows.
+    pub frame_ms: Vec<f64>,
     /// The work counters, when the render counted them.
     pub work: Option<crate::shader_data::counters::WorkCounts>,
     /// Measured with `--coherent-lanes` (a diagnostic: not the scene's image).
@@ -34,6 +37,11 @@ impl Report {
             spp: scene.render.spp,
             frames: result.frame_timings.len(),
             passes: summarize(&result.frame_timings),
+            frame_ms: result
+                .frame_timings
+                .iter()
+                .map(|f| f.iter().map(|s| s.duration_ms()).sum())
+                .collect(),
             work: result.work.clone(),
             coherent_lanes: false,
         }
@@ -67,6 +75,11 @@ impl Report {
                 p.label, p.median_ms, p.min_ms, p.max_ms, p.mean_ms
             );
         }
+        let _ = write!(out, "frame ms in order:");
+        for ms in &self.frame_ms {
+            let _ = write!(out, " {ms:.3}");
+        }
+        let _ = writeln!(out);
         out
     }
 
@@ -94,6 +107,7 @@ impl Report {
             "frames": self.frames,
             "coherent_lanes": self.coherent_lanes,
             "passes": passes,
+            "frame_ms": self.frame_ms,
             "work": self.work.as_ref().map(|w| w.json()),
         });
         Ok(serde_json::to_string_pretty(&doc)?)

@@ -81,7 +81,8 @@ void film_flush_counters() {
         g_step_cap_hits = 0u;
     }
     // The work counters, 64 bits each (a carry into the high word where the low one
-    // wraps): a 1080p frame's steps overflow 32 bits.
+    // wraps): a 1080p frame's steps overflow 32 bits; then each counter's largest value
+    // in one invocation (32 bits).
     if (SC_COUNTERS) {
         for (uint c = 0u; c < uint(COUNTER_COUNT); ++c) {
             uint n = g_counters[c];
@@ -91,6 +92,10 @@ void film_flush_counters() {
                 if (before + n < before) {
                     atomicAdd(stats[at + 1u], 1u);
                 }
+                // The longest invocation: on a GPU a dispatch lasts as long as its slowest
+                // lane, which the sums above average away.
+                atomicMax(stats[STAT_COUNT + 2u * uint(COUNTER_COUNT * COUNTER_SLOTS) +
+                                SC_COUNTER_SLOT * uint(COUNTER_COUNT) + c], n);
             }
             g_counters[c] = 0u;
         }

@@ -4,7 +4,10 @@
 //! and `nimbus bench` compares them with a stored baseline.
 //!
 //! The counters live in the stats buffer after its [`STAT_COUNT`] words: per slot,
-//! [`COUNTER_COUNT`] counters of two u32 each (low word first). A pipeline counts only when
+//! [`COUNTER_COUNT`] counters of two u32 each (low word first); after every slot's sums,
+//! per slot, each counter's largest value in one invocation (one u32 each: on a GPU a
+//! dispatch lasts as long as its slowest lane, which the sums average away; a runaway
+//! walk in one lane in a million shows there and nowhere else). A pipeline counts only when
 //! it is specialized with `SC_COUNTERS` (see [`specialization`]); otherwise the counting
 //! code compiles out and the words stay 0.
 
@@ -45,8 +48,14 @@ pub const NAMES: [(&str, &str); COUNTER_COUNT as usize] = [
     ("bvh_nodes", "mesh BVH nodes visited"),
 ];
 
-/// u32 words of the stats buffer: the fixed stats, then the counters of every slot.
-pub const STATS_WORDS: usize = STAT_COUNT + 2 * (COUNTER_COUNT * COUNTER_SLOTS) as usize;
+/// u32 words of the stats buffer: the fixed stats, the counters' sums of every slot, then
+/// their per-invocation maxima.
+pub const STATS_WORDS: usize = STAT_COUNT + 3 * (COUNTER_COUNT * COUNTER_SLOTS) as usize;
+
+/// The stats word of slot `slot`'s largest per-invocation value of counter `c`.
+fn longest_word(slot: usize, c: usize) -> usize {
+    STAT_COUNT + 2 * (COUNTER_COUNT * COUNTER_SLOTS) as usize + slot * COUNTER_COUNT as usize + c
+}
 
 /// The specialization constants that make a pipeline count into pass slot `slot`, or
 /// none when the render does not count.
@@ -70,6 +79,9 @@ pub struct SlotCounts {
     /// The pass stage that counted (`baseline`, `restir/initial`, ...).
     pub label: String,
     pub counts: [u64; COUNTER_COUNT as usize],
+    /// Each counter's largest value in one invocation (`samples`: the most camera samples
+    /// one invocation took).
+    pub longest: [u64; COUNTER_COUNT as usize],
 }
 
 impl SlotCounts {
@@ -111,15 +123,18 @@ impl WorkCounts {
             .take(COUNTER_SLOTS as usize)
             .map(|(slot, label)| {
                 let mut counts = [0u64; COUNTER_COUNT as usize];
+                let mut longest = [0u64; COUNTER_COUNT as usize];
                 for (c, count) in counts.iter_mut().enumerate() {
                     let at = STAT_COUNT + 2 * (slot * COUNTER_COUNT as usize + c);
                     let lo = stats.get(at).copied().unwrap_or(0);
                     let hi = stats.get(at + 1).copied().unwrap_or(0);
                     *count = u64::from(lo) | (u64::from(hi) << 32);
+                    longest[c] = u64::from(stats.get(longest_word(slot, c)).copied().unwrap_or(0));
                 }
                 SlotCounts {
                     label: (*label).to_string(),
                     counts,
+                    longest,
                 }
             })
             .collect();
@@ -155,6 +170,20 @@ impl WorkCounts {
             }
             let _ = writeln!(out, " {:>12}", s.get("samples"));
         }
+        // The tail: what the busiest invocation did (at 1 spp, one path), which decides a
+        // GPU dispatch's time where the mean per sample is small.
+        let _ = write!(out, "{:<22}", "longest invocation");
+        for (name, _) in NAMES.iter().skip(1) {
+            let _ = write!(out, " {:>12}", name);
+        }
+        let _ = writeln!(out, " {:>12}", "samples");
+        for s in &self.slots {
+            let _ = write!(out, "{:<22}", s.label);
+            for v in s.longest.iter().skip(1) {
+                let _ = write!(out, " {:>12}", v);
+            }
+            let _ = writeln!(out, " {:>12}", s.longest[0]);
+        }
         let _ = writeln!(
             out,
             "dispatches per frame: {:.2} ({} over {} frame(s))",
@@ -173,11 +202,18 @@ impl WorkCounts {
             .map(|s| {
                 let mut totals = serde_json::Map::new();
                 let mut per = serde_json::Map::new();
+                let mut longest = serde_json::Map::new();
                 for (i, (name, _)) in NAMES.iter().enumerate() {
                     totals.insert((*name).into(), s.counts[i].into());
                     per.insert((*name).into(), s.per_sample(name).into());
+                    longest.insert((*name).into(), s.longest[i].into());
                 }
-                serde_json::json!({ "stage": s.label, "totals": totals, "per_sample": per })
+                serde_json::json!({
+                    "stage": s.label,
+                    "totals": totals,
+                    "per_sample": per,
+                    "longest_invocation": longest,
+                })
             })
             .collect();
         serde_json::json!({
@@ -213,5 +249,27 @@ mod tests {
         );
         assert_eq!(w.slot("a").map(|s| s.per_sample("density")), Some(0.0));
         assert_eq!(w.dispatches_per_frame(), 2.0);
+    }
+
+    #[test]
+    fn the_longest_invocation_is_read_after_every_slot_sum() {
+        let mut stats = vec![0u32; STATS_WORDS];
+        // Slot 2's longest collisions (counter 4): after the 2 x 8 x 4 words of sums.
+        let at = STAT_COUNT + 2 * (COUNTER_COUNT * COUNTER_SLOTS) as usize + 2 * 8 + 4;
+        // Slot 3 (the last of 4) follows it.
+        assert_eq!(at, STATS_WORDS - 2 * COUNTER_COUNT as usize + 4);
+        stats[at] = 65_535;
+        let w = WorkCounts::from_stats(&stats, &["a", "b", "c"], 1, 1);
+        assert_eq!(w.slot("c").map(|s| s.longest[4]), Some(65_535));
+        assert_eq!(w.slot("c").map(|s| s.get("collisions")), Some(0));
+        assert_eq!(w.slot("b").map(|s| s.longest[4]), Some(0));
+        let table = w.table();
+        assert!(table.contains("longest invocation"), "{table}");
+        assert!(table.contains("65535"), "{table}");
+        let json = w.json();
+        assert_eq!(
+            json["stages"][2]["longest_invocation"]["collisions"],
+            65_535
+        );
     }
 }

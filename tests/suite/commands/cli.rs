@@ -124,6 +124,21 @@ fn profile_reports_the_crepuscular_pass_from_timestamps() {
         pass["max_ms"].as_f64().unwrap(),
     );
     assert!(min > 0.0 && min <= median && median <= max, "{pass}");
+    // Each measured frame's time in order, within the frame pass's range.
+    let frame_ms = report["frame_ms"].as_array().expect("frame_ms");
+    assert_eq!(frame_ms.len(), 3, "{report}");
+    let frame = passes
+        .iter()
+        .find(|p| p["pass"] == "frame")
+        .expect("frame pass in the report");
+    for ms in frame_ms.iter().map(|v| v.as_f64().unwrap()) {
+        assert!(
+            ms >= frame["min_ms"].as_f64().unwrap() - 1e-9
+                && ms <= frame["max_ms"].as_f64().unwrap() + 1e-9,
+            "{ms} outside {frame}"
+        );
+    }
+    assert!(stdout.contains("frame ms in order:"), "{stdout}");
 
     let trace: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&trace).unwrap()).expect("trace JSON");

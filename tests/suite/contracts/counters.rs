@@ -92,6 +92,27 @@ fn counters_are_deterministic_see_the_work_and_leave_the_image_alone() {
     assert!(plain.work.is_none());
     assert_eq!(plain.image.data, counted.image.data);
     assert_eq!(plain.alpha, counted.alpha);
+
+    // The longest invocation (a GPU dispatch's time where lanes diverge): one pixel's
+    // samples (every frame), at least the mean invocation's work and at most all of it.
+    let work = counted.work.expect("counted work");
+    let slot = work.slot("baseline").expect("baseline slot");
+    let spp = u64::from(scene.render.spp);
+    assert_eq!(slot.longest[0], spp, "the most samples one invocation took");
+    let invocations = slot.get("samples") / spp;
+    for (i, (name, _)) in nimbus::shader_data::counters::NAMES
+        .iter()
+        .enumerate()
+        .skip(1)
+    {
+        let total = slot.counts[i];
+        assert!(
+            slot.longest[i] * invocations >= total && slot.longest[i] <= total,
+            "{name}: longest invocation {} against {total} over {invocations} invocations",
+            slot.longest[i]
+        );
+    }
+    assert!(slot.longest[1] > 0, "{:?}", slot.longest);
 }
 
 #[test]
