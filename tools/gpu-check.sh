@@ -3,7 +3,7 @@
 # timings, and the equal-time studies of both papers (error against a converged
 # reference versus GPU milliseconds, several seeds with their spread).
 #
-#   tools/gpu-check.sh [--quick | --lent | --motion | --gallery] [--no-tests] [OUT_DIR]
+#   tools/gpu-check.sh [--quick | --lent | --motion | --gallery | --baseline-ab] [--no-tests] [OUT_DIR]
 #
 # OUT_DIR (default gpu-check-<date>) receives devices.txt, tests.txt (the whole test
 # suite on this machine's default device, validation layers on), profile-*.txt, one
@@ -45,6 +45,16 @@
 # named pictures (cumulus-baseline, smoke-fog, ...), `denoise` and `study-cumulus` /
 # `study-explosion` / `study-smoke`.
 #
+# --baseline-ab (about 2 minutes on an H200; run it first in a lent session) asks why the
+# baseline's 1-spp 1080p frame measured 12.3 ms at ac4f19f against 2.17 ms at d97c1f1
+# (docs/performance.md, "The baseline on an H200 after split NEE"): the baseline at K = 1
+# and 3 with nee = auto (split, the sky along the path) against nee = one (both compiled
+# out) and with the density from the buffer, at 1920x1080 and 960x540, twice in
+# alternation (a state of the machine shows as a change between rounds, code as a change
+# between configurations), each frame's ms in order, the longest invocation's counters,
+# and the GPU's clocks sampled by nvidia-smi throughout (clocks.csv) where it exists.
+# NIMBUS_AB_SMOKE=1 shrinks it into a lavapipe test of the script.
+#
 # NIMBUS_MOTION_HD=1 makes --motion the 1080p run issue 26 asks for (about 5 minutes on
 # an H200): the motion benchmarks' per-frame profiles at 1920x1080 (K = 1 and 3, ReSTIR
 # and the 1-spp baseline) and the moving camera's equal-time study at 1080p (2 seeds).
@@ -61,6 +71,7 @@ while [[ "${1:-}" == --* ]]; do
         --lent) mode=lent; tests=0 ;;
         --motion) mode=motion; tests=0 ;;
         --gallery) mode=gallery; tests=0 ;;
+        --baseline-ab) mode=ab; tests=0 ;;
         --no-tests) tests=0 ;;
         *) echo "unknown option $1" >&2; exit 2 ;;
     esac
@@ -114,7 +125,7 @@ case $mode in
         bounces_list="1 3 7"
         spp_list=1,2,4,8,16,32
         ;;
-    full | gallery)
+    full | gallery | ab)
         size=(--width 640 --height 480)
         hd=(--width 1920 --height 1080)
         frames=16
@@ -129,6 +140,56 @@ esac
 cache=(--cache-dir "$out/references")
 
 nimbus devices | tee "$out/devices.txt"
+
+if [[ $mode == ab ]]; then
+    if command -v nvidia-smi >/dev/null; then
+        nvidia-smi --query-gpu=timestamp,clocks.sm,clocks.mem,clocks.max.sm,power.draw,temperature.gpu,utilization.gpu,clocks_throttle_reasons.active \
+            --format=csv -lms 200 >"$out/clocks.csv" 2>&1 &
+        smi=$!
+        trap 'kill $smi 2>/dev/null || true' EXIT
+    fi
+    ab_sizes=("1920 1080" "960 540")
+    ab_frames=(--frames 16 --warmup 4)
+    if [[ -n ${NIMBUS_AB_SMOKE:-} ]]; then
+        ab_sizes=("48 27" "32 18")
+        ab_frames=(--frames 2 --warmup 1)
+    fi
+    c=assets/scenes/bench/cloud-g0.toml
+    # NAME ARGS...: one baseline profile of the benchmark cloud, cut after 60 s.
+    ab_profile() {
+        local name=$1
+        shift
+        step "profile $name" timeout 60 "$NIMBUS_BIN" profile "$c" "${ab_frames[@]}" \
+            --set integrator.volume=baseline "$@" >"$out/profile-$name.txt" 2>&1
+    }
+    for round in 1 2; do
+        for wh in "${ab_sizes[@]}"; do
+            read -r w h <<<"$wh"
+            for k in 3 1; do
+                for nee in auto one; do
+                    ab_profile "r$round-${w}x$h-k$k-$nee" --width "$w" --height "$h" \
+                        --set "integrator.max_bounces=$k" --set "integrator.baseline.nee=\"$nee\""
+                done
+            done
+        done
+    done
+    read -r w h <<<"${ab_sizes[0]}"
+    for nee in auto one; do
+        ab_profile "counters-${w}x$h-k3-$nee" --width "$w" --height "$h" --counters \
+            --set integrator.max_bounces=3 --set "integrator.baseline.nee=\"$nee\""
+    done
+    ab_profile "${w}x$h-k3-auto-buffer" --width "$w" --height "$h" --set integrator.max_bounces=3 \
+        --set 'integrator.baseline.density_fetch="buffer"'
+    step bench "$NIMBUS_BIN" bench --baseline "$root/assets/bench/baseline.json" --json "$out/bench.json" \
+        >"$out/bench.txt" 2>&1
+    # One line per profile: median, min and max frame ms, and the frames in order.
+    for f in "$out"/profile-*.txt; do
+        printf '%-44s %s\n' "$(basename "$f" .txt)" \
+            "$(awk '$1 == "frame" && $2 != "ms" {print $2, $3, $4} /^frame ms in order:/ {sub(/^frame ms in order: /, ""); print "|", $0}' "$f" | tr '\n' ' ')"
+    done | tee "$out/summary.txt"
+    echo "wrote $out"
+    exit 0
+fi
 
 if [[ $mode == motion ]]; then
     [[ -f target/bench/sky-sun.exr ]] || nimbus make-sky target/bench/sky-sun.exr
