@@ -103,6 +103,12 @@ void grid_blocks_skip_brick(inout GridSuperDda it) {
     grid_dda_skip_brick(it.p0, it.dp, it.f, ivec3(0), it.count - 1, it.step_dir, it.len, it.cell, it.s_next, it.s);
 }
 
+// The same past the aligned (2^shift)^3 blocks holding its current block.
+void grid_blocks_skip_aligned(inout GridSuperDda it, int shift) {
+    grid_dda_skip_block(shift, it.p0, it.dp, it.f, ivec3(0), it.count - 1, it.step_dir, it.len, it.cell, it.s_next,
+                        it.s);
+}
+
 // Super-voxel walk (blocks of 8, one per brick) over [t0, t1]; false if empty.
 bool grid_super_begin(vec3 o, vec3 d, float t0, float t1, out GridSuperDda it) {
     return grid_blocks_begin(o, d, t0, t1, 8, ivec3(u_grid.space.brick_dims), it);

@@ -26,14 +26,15 @@ float grid_cell_crossing(float x0, float dx, int c, int f, int c_min, int c_max,
     return FAR;
 }
 
-// Moves a walk past the brick of 8^3 cells holding its current cell (a brick whose values
-// are all 0): to where the ray leaves the brick's cells, recomputing each axis's cell
-// there. The walk is at parameter s (its span ends at len: s = len ends it), in cell
-// `cell`, stepping step_dir (+-1 per axis), and leaves the cell along each axis at s_next.
-void grid_dda_skip_brick(vec3 x0, vec3 dx, int f, ivec3 c_min, ivec3 c_max, ivec3 step_dir, float len,
-                         inout ivec3 cell, inout vec3 s_next, inout float s) {
-    ivec3 first = max((cell >> 3) * 8, c_min);
-    ivec3 last = min((cell >> 3) * 8 + 7, c_max);
+// Moves a walk past the aligned block of (2^shift)^3 cells holding its current cell (a
+// block whose values are all 0; shift 3: a brick): to where the ray leaves the block's
+// cells, recomputing each axis's cell there. The walk is at parameter s (its span ends at
+// len: s = len ends it), in cell `cell`, stepping step_dir (+-1 per axis), and leaves the
+// cell along each axis at s_next.
+void grid_dda_skip_block(int shift, vec3 x0, vec3 dx, int f, ivec3 c_min, ivec3 c_max, ivec3 step_dir,
+                         float len, inout ivec3 cell, inout vec3 s_next, inout float s) {
+    ivec3 first = max((cell >> shift) << shift, c_min);
+    ivec3 last = min(((cell >> shift) << shift) + ((1 << shift) - 1), c_max);
     // Where each axis leaves the brick's range of cells.
     vec3 s_exit;
     for (int a = 0; a < 3; ++a) {
@@ -61,6 +62,12 @@ void grid_dda_skip_brick(vec3 x0, vec3 dx, int f, ivec3 c_min, ivec3 c_max, ivec
     if (cell[e] < c_min[e] || cell[e] > c_max[e]) {
         s = len;
     }
+}
+
+// The same past the brick of 8^3 cells holding the current cell.
+void grid_dda_skip_brick(vec3 x0, vec3 dx, int f, ivec3 c_min, ivec3 c_max, ivec3 step_dir, float len,
+                         inout ivec3 cell, inout vec3 s_next, inout float s) {
+    grid_dda_skip_block(3, x0, dx, f, c_min, c_max, step_dir, len, cell, s_next, s);
 }
 
 #endif

@@ -19,11 +19,30 @@ float pc_texel(uint slot, ivec3 origin, ivec3 t) {
     return texelFetch(u_pc, origin + t, 0).r;
 }
 
+// Whether the voxel at `local` (0..7 per axis) of slot `slot` lies in one of its brick's
+// 2^3 blocks of 4^3 voxels that is empty throughout, from the occupancy mask in the
+// slot's apron (texel (8, 0, 0), bit x + 2y + 4z of the block, an exact integer as a
+// float: src/shader_data/sparse.rs, write_occupancy). `mask` caches it per brick (~0u
+// until read).
+bool pc_empty_block(uint slot, ivec3 origin, ivec3 local, inout uint mask) {
+    if (mask == ~0u) {
+        mask = uint(pc_texel(slot, origin, ivec3(8, 0, 0)));
+        COUNT(CTR_MAJORANT, 1);
+    }
+    ivec3 q = local >> 2;
+    return (mask & (1u << uint(q.x + 2 * q.y + 4 * q.z))) == 0u;
+}
+
 // Walks [0, t_end) from o along d through level `level` until the optical depth reaches
 // tau_target. Returns the collision distance (FAR if the ray leaves first), sigma_t* there
 // and tau = the optical depth walked (tau_target at a collision, the total otherwise).
 // Blocks are the level's voxels (2^mip density voxels per edge); empty bricks of the level
-// (sigma_t* = 0 throughout) are crossed in one step.
+// (sigma_t* = 0 throughout) are crossed in one step, and so are a brick's empty blocks of
+// 4^3 voxels (pc_empty_block): a cloud's bricks on its edge are mostly empty (57 % of the
+// voxels the benchmark cloud's candidates visited held 0; 13 % fewer steps at K = 1).
+// Crossing zeros adds nothing to tau, and a crossing is the same formula either way, so
+// skipping changes no result. Both skips are one call: a second inlined skip made
+// lavapipe's loop 20 % slower.
 float pc_track(uint level, vec3 o, vec3 d, float t_end, float tau_target, out float sigma_star, out float tau) {
     // An if, not ?: — glslang's ?: on two block members stores a value of the
     // block's struct type into the local one, which the SPIR-V optimiser rejects.
@@ -47,6 +66,8 @@ float pc_track(uint level, vec3 o, vec3 d, float t_end, float tau_target, out fl
     ivec3 brick_at = ivec3(-1);
     uint slot = NO_BRICK;
     ivec3 origin = ivec3(0);
+    // The brick's occupancy mask, read at its first empty voxel (pc_empty_block).
+    uint mask = ~0u;
     while (it.s < it.len && steps < GRID_MAX_STEPS) {
         ++steps;
         COUNT_STEP();
@@ -57,14 +78,21 @@ float pc_track(uint level, vec3 o, vec3 d, float t_end, float tau_target, out fl
             if (!SC_PC_BUFFER) {
                 origin = grid_slot_origin(slot, L.slots_x, L.slots_y);
             }
+            mask = ~0u;
         }
-        if (slot == NO_BRICK) {
-            grid_blocks_skip_brick(it);
+        // One skip for an empty brick (shift 3) or an empty block of it.
+        int shift = 3;
+        float sigma = 0.0;
+        if (slot != NO_BRICK) {
+            sigma = pc_texel(slot, origin, cell & 7);
+            COUNT(CTR_MAJORANT, 1);
+            shift = sigma > 0.0 || !pc_empty_block(slot, origin, cell & 7, mask) ? 0 : 2;
+        }
+        if (shift > 0) {
+            grid_blocks_skip_aligned(it, shift);
             continue;
         }
         grid_blocks_next(it, s0, s1, index);
-        float sigma = pc_texel(slot, origin, cell & 7);
-        COUNT(CTR_MAJORANT, 1);
         float dtau = sigma * (s1 - s0);
         if (sigma > 0.0 && tau + dtau >= tau_target) {
             sigma_star = sigma;

@@ -120,6 +120,53 @@ pub struct SparseLayout {
     pub brick_dims: [u32; 3],
     /// Slots per axis of the atlas.
     pub slots: [u32; 3],
+    /// Each slot's high-x apron holds the occupancy of its brick instead of the neighbour's
+    /// values ([`write_occupancy`]): the piecewise-constant levels, which are read without
+    /// interpolation and skip empty blocks inside a brick.
+    pub occupancy: bool,
+}
+
+/// Writes the occupancy of a slot's brick (`texels`: the slot's 9³ values, x fastest, one
+/// channel) into its high-x apron, which a piecewise-constant read never takes (it reads
+/// the brick's own voxels, texels 0..8 per axis): texel (8, 0, 0) becomes the mask of the
+/// brick's 2³ blocks of 4³ voxels, bit x + 2y + 4z set where any voxel of block (x, y, z)
+/// is > 0 (or NaN, which validation refuses before). An integer below 256 is an exact
+/// float, so the image and the buffer hold it alike. `pc_track`
+/// (shaders/restir/pc_tracking.glsl) crosses empty blocks in one step.
+pub fn write_occupancy(texels: &mut [f32]) {
+    let e = SLOT_EDGE as usize;
+    debug_assert_eq!(texels.len(), SLOT_TEXELS);
+    let mut mask = 0u32;
+    for z in 0..8 {
+        for y in 0..8 {
+            for x in 0..8 {
+                let v = texels[(z * e + y) * e + x];
+                if v > 0.0 || v.is_nan() {
+                    mask |= 1 << ((x >> 2) + 2 * (y >> 2) + 4 * (z >> 2));
+                }
+            }
+        }
+    }
+    texels[8] = mask as f32;
+}
+
+/// A slot's values of `grid`'s brick `b` (first channel, times `scale`) as `layout`
+/// holds them: with its occupancy where the layout keeps one.
+fn layout_slot_values(
+    layout: &SparseLayout,
+    grid: &BrickGrid,
+    b: IVec3,
+    scale: f32,
+    scratch: &mut Vec<f32>,
+    out: &mut Vec<f32>,
+) {
+    scratch.clear();
+    grid.slot_texels(b, scale, scratch);
+    let start = out.len();
+    out.extend(scratch.iter().step_by(grid.channels as usize));
+    if layout.occupancy {
+        write_occupancy(&mut out[start..]);
+    }
 }
 
 impl SparseLayout {
@@ -155,6 +202,19 @@ impl SparseLayout {
             indirection,
             brick_dims: grid.brick_dims,
             slots,
+            occupancy: false,
+        })
+    }
+
+    /// The same layout with each slot's occupancy in its apron ([`write_occupancy`]): for
+    /// one-channel grids read without interpolation.
+    pub fn with_occupancy(self, grid: &BrickGrid) -> Result<SparseLayout> {
+        if grid.channels != 1 {
+            bail!("internal: occupancy aprons are for one-channel grids");
+        }
+        Ok(SparseLayout {
+            occupancy: true,
+            ..self
         })
     }
 
@@ -270,13 +330,19 @@ fn layer_texels(
             let slot = ((z as usize * sy + y) * sx + x) as u32;
             let found = parts.iter().find_map(|(layout, grid, scale)| {
                 let i = slot.checked_sub(layout.first_slot)? as usize;
-                layout.bricks.get(i).map(|b| (*b, *grid, *scale))
+                layout
+                    .bricks
+                    .get(i)
+                    .map(|b| (*b, *grid, *scale, layout.occupancy))
             });
-            let Some((b, grid, scale)) = found else {
+            let Some((b, grid, scale, occupancy)) = found else {
                 continue;
             };
             texels.clear();
             grid.slot_texels(b, scale, &mut texels);
+            if occupancy {
+                write_occupancy(&mut texels);
+            }
             let ch = grid.channels as usize;
             for (n, v) in texels.chunks_exact(ch).enumerate() {
                 let (i, j, k) = (n % e, (n / e) % e, n / (e * e));
@@ -310,13 +376,10 @@ pub fn upload_slot_major(
     let mut texels = Vec::with_capacity(SLOT_TEXELS * 3);
     let mut out: Vec<f32> = Vec::with_capacity(CHUNK * SLOT_TEXELS);
     for (layout, grid, scale) in parts {
-        let ch = grid.channels as usize;
         for (c, bricks) in layout.bricks.chunks(CHUNK).enumerate() {
             out.clear();
             for b in bricks {
-                texels.clear();
-                grid.slot_texels(*b, *scale, &mut texels);
-                out.extend(texels.chunks_exact(ch).map(|v| v[0]));
+                layout_slot_values(layout, grid, *b, *scale, &mut texels, &mut out);
             }
             let slot = u64::from(layout.first_slot) + (c * CHUNK) as u64;
             ctx.upload_buffer(
@@ -515,6 +578,42 @@ pub fn slot_bound(topo: &nimbus_scene::BrickTopology, all_neighbours: bool) -> u
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_occupancy_apron_masks_the_bricks_nonempty_blocks_of_4_cubed() {
+        let e = SLOT_EDGE as usize;
+        let at = |x: usize, y: usize, z: usize| (z * e + y) * e + x;
+        let mut texels = vec![0f32; SLOT_TEXELS];
+        // The high-x apron's neighbour values are not occupancy.
+        for z in 0..e {
+            for y in 0..e {
+                texels[at(8, y, z)] = 7.0;
+            }
+        }
+        write_occupancy(&mut texels);
+        assert_eq!(texels[at(8, 0, 0)], 0.0, "an empty brick masks nothing");
+        // One voxel in block (1, 0, 1) (bit 1 + 4 = 5), one in block (0, 1, 0) (bit 2), a
+        // negative value (not > 0) in block (1, 1, 1).
+        texels[at(5, 3, 4)] = 0.25;
+        texels[at(0, 7, 0)] = 1e-30;
+        texels[at(7, 7, 7)] = -1.0;
+        write_occupancy(&mut texels);
+        assert_eq!(texels[at(8, 0, 0)], ((1u32 << 5) | (1 << 2)) as f32);
+        // Nothing else moved: the brick's voxels and the rest of the apron.
+        assert_eq!(texels[at(5, 3, 4)], 0.25);
+        assert_eq!(texels[at(8, 1, 0)], 7.0);
+        assert_eq!(texels[at(8, 0, 1)], 7.0);
+        // Every block occupied: all 8 bits, an exact float.
+        for z in (0..8).step_by(4) {
+            for y in (0..8).step_by(4) {
+                for x in (0..8).step_by(4) {
+                    texels[at(x + 3, y, z + 1)] = 2.0;
+                }
+            }
+        }
+        write_occupancy(&mut texels);
+        assert_eq!(texels[at(8, 0, 0)] as u32, 255);
+    }
 
     #[test]
     fn atlas_slots_hold_every_slot_in_power_of_two_rows() {

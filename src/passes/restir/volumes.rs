@@ -165,18 +165,21 @@ impl DerivedVolume {
                 0,
                 sizes.density,
             )?,
+            // Regular tracking skips their empty blocks (pc_track).
             pc_primary_layout: SparseLayout::new_at(
                 &g.pc_primary,
                 g.pc_primary.bricks.clone(),
                 0,
                 sizes.pc,
-            )?,
+            )?
+            .with_occupancy(&g.pc_primary)?,
             pc_indirect_layout: SparseLayout::new_at(
                 &g.pc_indirect,
                 g.pc_indirect.bricks.clone(),
                 primary_count,
                 sizes.pc,
-            )?,
+            )?
+            .with_occupancy(&g.pc_indirect)?,
             march_reuse_layout: SparseLayout::new_at(
                 &g.march_reuse,
                 g.march_reuse_bricks.clone(),
