@@ -53,7 +53,10 @@
 # alternation (a state of the machine shows as a change between rounds, code as a change
 # between configurations), each frame's ms in order, the longest invocation's counters,
 # and the GPU's clocks sampled by nvidia-smi throughout (clocks.csv) where it exists.
-# NIMBUS_AB_SMOKE=1 shrinks it into a lavapipe test of the script.
+# NIMBUS_AB_OLD=<an older nimbus binary> (say f012198's, built with `git worktree add
+# /tmp/old f012198 && cargo build --release` there, and carried) adds its 1-spp frame to
+# every round, with the scene's own settings. NIMBUS_AB_SMOKE=1 shrinks it into a
+# lavapipe test of the script.
 #
 # NIMBUS_MOTION_HD=1 makes --motion the 1080p run issue 26 asks for (about 5 minutes on
 # an H200): the motion benchmarks' per-frame profiles at 1920x1080 (K = 1 and 3, ReSTIR
@@ -156,10 +159,11 @@ if [[ $mode == ab ]]; then
     fi
     c=assets/scenes/bench/cloud-g0.toml
     # NAME ARGS...: one baseline profile of the benchmark cloud, cut after 60 s.
+    ab_bin=$NIMBUS_BIN
     ab_profile() {
         local name=$1
         shift
-        step "profile $name" timeout 60 "$NIMBUS_BIN" profile "$c" "${ab_frames[@]}" \
+        step "profile $name" timeout 60 "$ab_bin" profile "$c" "${ab_frames[@]}" \
             --set integrator.volume=baseline "$@" >"$out/profile-$name.txt" 2>&1
     }
     for round in 1 2; do
@@ -170,6 +174,11 @@ if [[ $mode == ab ]]; then
                     ab_profile "r$round-${w}x$h-k$k-$nee" --width "$w" --height "$h" \
                         --set "integrator.max_bounces=$k" --set "integrator.baseline.nee=\"$nee\""
                 done
+                if [[ -n ${NIMBUS_AB_OLD:-} ]]; then
+                    ab_bin=$NIMBUS_AB_OLD
+                    ab_profile "r$round-${w}x$h-k$k-old" --width "$w" --height "$h" --set "integrator.max_bounces=$k"
+                    ab_bin=$NIMBUS_BIN
+                fi
             done
         done
     done
