@@ -208,38 +208,41 @@ vec3 nee_term(vec3 weight, bool on_surface, float cos_i, vec3 d, float g, vec3 w
 vec3 next_event(vec3 x, vec3 d, float g, vec3 n, bool on_surface, vec3 weight, uint bounce,
                 bool sky_later, inout uint rng) {
     vec3 L = vec3(0.0);
-    if (SC_NEE_SPLIT) {
-        uint count = u_frame.light_count;
-        for (uint l = 0u; l < count; ++l) {
-            if (!light_is_delta(0u, l)) {
+    // One shadow walk call for every term: the delta lights (j < count, with SC_NEE_SPLIT)
+    // then the sampled light (j = count), in that order, so the random numbers are drawn
+    // as before. A GPU compiler inlines every call: two call sites were two copies of the
+    // whole transmittance walk in the path loop.
+    uint count = SC_NEE_SPLIT ? u_frame.light_count : 0u;
+    bool sampled = !(SC_SKY_ALONG_PATH && sky_later);
+    for (uint j = 0u; j <= count; ++j) {
+        vec3 wi;
+        float dist;
+        float t_occlude;
+        uint target;
+        uint group;
+        vec3 Li;
+        if (j < count) {
+            if (!light_is_delta(0u, j)) {
                 continue;
             }
-            vec3 wi;
-            float dist;
-            vec3 Li = light_eval(0u, u_frame.env_rotation, l, vec3(0.0, 1.0, 0.0), 0u, vec3(0.0), x, wi, dist);
-            float cos_i = on_surface ? dot(n, wi) : 1.0;
-            if (cos_i > 0.0 && any(greaterThan(Li, vec3(0.0)))) {
-                float T = shadow_transmittance(x, wi, dist, dist, 0.0, l, rng);
-                vec3 c = nee_term(weight, on_surface, cos_i, d, g, wi, Li, T);
-                L += c;
-                aov_add(aov_kind_nee(bounce), light_group(l), c);
+            Li = light_eval(0u, u_frame.env_rotation, j, vec3(0.0, 1.0, 0.0), 0u, vec3(0.0), x, wi, dist);
+            t_occlude = dist;
+            target = j;
+            group = light_group(j);
+        } else {
+            if (!sampled) {
+                break;
             }
+            Li = sample_light(x, d, g, n, on_surface, rng, wi, dist, t_occlude, target);
+            group = light_group(g_light_index);
         }
-    }
-    if (SC_SKY_ALONG_PATH && sky_later) {
-        return L;
-    }
-    vec3 wi;
-    float dist;
-    float t_occlude;
-    uint target;
-    vec3 Li = sample_light(x, d, g, n, on_surface, rng, wi, dist, t_occlude, target);
-    float cos_i = on_surface ? dot(n, wi) : 1.0;
-    if (cos_i > 0.0 && any(greaterThan(Li, vec3(0.0)))) {
-        float T = shadow_transmittance(x, wi, dist, t_occlude, 0.0, target, rng);
-        vec3 c = nee_term(weight, on_surface, cos_i, d, g, wi, Li, T);
-        L += c;
-        aov_add(aov_kind_nee(bounce), light_group(g_light_index), c);
+        float cos_i = on_surface ? dot(n, wi) : 1.0;
+        if (cos_i > 0.0 && any(greaterThan(Li, vec3(0.0)))) {
+            float T = shadow_transmittance(x, wi, dist, t_occlude, 0.0, target, rng);
+            vec3 c = nee_term(weight, on_surface, cos_i, d, g, wi, Li, T);
+            L += c;
+            aov_add(aov_kind_nee(bounce), group, c);
+        }
     }
     return L;
 }
