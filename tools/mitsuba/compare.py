@@ -238,6 +238,40 @@ def step_refs(args, scene_file):
     return refs
 
 
+def agreement_row(config, ref, ref_err, info, imgs, spp_each):
+    """Mitsuba against a Nimbus reference: `imgs` are independent Mitsuba renders
+    (seeds) of `spp_each` samples per pixel, `ref` / `ref_err` the reference's mean and per-pixel standard error, `info`
+    its render info. Returns the agreement table's row and Mitsuba's mean image."""
+    n = len(imgs)
+    mean = imgs.mean(0)
+    var_m = imgs.var(0, ddof=1) / n  # per-pixel variance of the mean
+    mse = float(np.mean((mean - ref) ** 2))
+    expected = float(np.mean(var_m) + np.mean(ref_err ** 2))
+    # Standard error of the relative difference of the means, from both images' noise.
+    se_mean = math.sqrt(expected / ref.size) / ref.mean()
+    r = {"config": config, "ref_spp": info["samples"], "ref_rel_error": info["rel_rms_stderr"],
+         "mitsuba_spp": n * spp_each, "ref_mean": float(ref.mean()), "mitsuba_mean": float(mean.mean()),
+         "mean_rel_diff": float(mean.mean() / ref.mean() - 1), "mean_rel_diff_se": se_mean,
+         "mse_over_noise": mse / expected}
+    for c, name in enumerate("RGB"):
+        r["rel_diff_" + name] = float(mean[..., c].mean() / ref[..., c].mean() - 1)
+    log("agreement %s: means %.5f (Nimbus) %.5f (Mitsuba), rel diff %+.4f +- %.4f, MSE / noise %.3f"
+        % (config, r["ref_mean"], r["mitsuba_mean"], r["mean_rel_diff"], se_mean, r["mse_over_noise"]))
+    return r, mean
+
+
+def agreement_table(agreement, ref_header):
+    """The markdown lines of the agreement table (rows of agreement_row); `ref_header`
+    names the reference's column."""
+    L = ["| config | %s | ref rel error | Mitsuba spp | Nimbus mean | Mitsuba mean | rel diff (+- 1 se) | R / G / B rel diff | MSE / noise |" % ref_header,
+         "|---|---|---|---|---|---|---|---|---|"]
+    for r in agreement:
+        L.append("| %s | %d | %.4f | %d | %.5f | %.5f | %+.5f (+- %.5f) | %+.5f / %+.5f / %+.5f | %.3f |" % (
+            r["config"], r["ref_spp"], r["ref_rel_error"], r["mitsuba_spp"], r["ref_mean"], r["mitsuba_mean"],
+            r["mean_rel_diff"], r["mean_rel_diff_se"], r["rel_diff_R"], r["rel_diff_G"], r["rel_diff_B"], r["mse_over_noise"]))
+    return L
+
+
 def step_agreement(args, refs):
     rows = []
     chunk = min(args.check_spp, 256)
@@ -250,20 +284,7 @@ def step_agreement(args, refs):
         else:
             imgs = np.stack([mitsuba_render(args.vol, k, g, chunk, 5000 + i)[0] for i in range(n)])
             np.save(cache, imgs)
-        mean = imgs.mean(0)
-        var_m = imgs.var(0, ddof=1) / n  # per-pixel variance of the mean
-        mse = float(np.mean((mean - ref) ** 2))
-        expected = float(np.mean(var_m) + np.mean(ref_err ** 2))
-        # Standard error of the relative difference of the means, from both images' noise.
-        se_mean = math.sqrt(float(np.mean(var_m) + np.mean(ref_err ** 2)) / ref.size) / ref.mean()
-        r = {"config": cfg_name(k, g), "ref_spp": info["samples"], "ref_rel_error": info["rel_rms_stderr"],
-             "mitsuba_spp": n * chunk, "ref_mean": float(ref.mean()), "mitsuba_mean": float(mean.mean()),
-             "mean_rel_diff": float(mean.mean() / ref.mean() - 1), "mean_rel_diff_se": se_mean,
-             "mse_over_noise": mse / expected}
-        for c, name in enumerate("RGB"):
-            r["rel_diff_" + name] = float(mean[..., c].mean() / ref[..., c].mean() - 1)
-        log("agreement %s: means %.5f (Nimbus) %.5f (Mitsuba), rel diff %+.4f +- %.4f, MSE / noise %.3f"
-            % (r["config"], r["ref_mean"], r["mitsuba_mean"], r["mean_rel_diff"], se_mean, r["mse_over_noise"]))
+        r, _ = agreement_row(cfg_name(k, g), ref, ref_err, info, imgs, chunk)
         rows.append(r)
     return rows
 
@@ -401,12 +422,7 @@ def markdown(args, meta, file_check, agreement, table):
     L.append("")
     L.append("## References and agreement")
     L.append("")
-    L.append("| config | reference spp | ref rel error | Mitsuba spp | Nimbus mean | Mitsuba mean | rel diff (+- 1 se) | R / G / B rel diff | MSE / noise |")
-    L.append("|---|---|---|---|---|---|---|---|---|")
-    for r in agreement:
-        L.append("| %s | %d | %.4f | %d | %.5f | %.5f | %+.5f (+- %.5f) | %+.5f / %+.5f / %+.5f | %.3f |" % (
-            r["config"], r["ref_spp"], r["ref_rel_error"], r["mitsuba_spp"], r["ref_mean"], r["mitsuba_mean"],
-            r["mean_rel_diff"], r["mean_rel_diff_se"], r["rel_diff_R"], r["rel_diff_G"], r["rel_diff_B"], r["mse_over_noise"]))
+    L += agreement_table(agreement, "reference spp")
     L.append("")
     L.append("MSE / noise: the per-pixel MSE between Mitsuba's image and the reference over what the two images' "
              "variances explain; 1 = the same image up to noise.")

@@ -126,19 +126,7 @@ def step_agreement(args, refs):
     for k in args.ks:
         ref, ref_err, info = refs[k]
         imgs = np.stack([mitsuba_render(args, k, chunk, 5000 + i)[0] for i in range(n)])
-        mean = imgs.mean(0)
-        var_m = imgs.var(0, ddof=1) / n
-        mse = float(np.mean((mean - ref) ** 2))
-        expected = float(np.mean(var_m) + np.mean(ref_err ** 2))
-        se_mean = math.sqrt(expected / ref.size) / ref.mean()
-        r = {"config": "K%d" % k, "ref_spp": info["samples"], "ref_rel_error": info["rel_rms_stderr"],
-             "mitsuba_spp": n * chunk, "ref_mean": float(ref.mean()), "mitsuba_mean": float(mean.mean()),
-             "mean_rel_diff": float(mean.mean() / ref.mean() - 1), "mean_rel_diff_se": se_mean,
-             "mse_over_noise": mse / expected}
-        for c, name in enumerate("RGB"):
-            r["rel_diff_" + name] = float(mean[..., c].mean() / ref[..., c].mean() - 1)
-        C.log("agreement K%d: means %.5f (Nimbus) %.5f (Mitsuba), rel diff %+.4f +- %.4f, MSE / noise %.3f"
-              % (k, r["ref_mean"], r["mitsuba_mean"], r["mean_rel_diff"], se_mean, r["mse_over_noise"]))
+        r, mean = C.agreement_row("K%d" % k, ref, ref_err, info, imgs, chunk)
         np.save(os.path.join(args.work, "refs-box", "mitsuba-k%d-%dspp.npy" % (k, n * chunk)), mean)
         rows.append(r)
     return rows
@@ -234,12 +222,7 @@ def markdown(args, meta, agreement, table):
     L.append("")
     L.append("## Reference and agreement")
     L.append("")
-    L.append("| K | reference spp (Nimbus MCWVDS) | ref rel error | Mitsuba spp | Nimbus mean | Mitsuba mean | rel diff (+- 1 se) | R / G / B rel diff | MSE / noise |")
-    L.append("|---|---|---|---|---|---|---|---|---|")
-    for r in agreement:
-        L.append("| %s | %d | %.4f | %d | %.5f | %.5f | %+.5f (+- %.5f) | %+.4f / %+.4f / %+.4f | %.3f |" % (
-            r["config"], r["ref_spp"], r["ref_rel_error"], r["mitsuba_spp"], r["ref_mean"], r["mitsuba_mean"],
-            r["mean_rel_diff"], r["mean_rel_diff_se"], r["rel_diff_R"], r["rel_diff_G"], r["rel_diff_B"], r["mse_over_noise"]))
+    L += C.agreement_table(agreement, "reference spp (Nimbus MCWVDS)")
     L.append("")
     L.append("## Efficiency")
     L.append("")
