@@ -106,6 +106,23 @@ fn small_cloud_footprint(overrides: &[FieldOverride]) -> Footprint {
     Footprint::of(&scene, &plan).unwrap()
 }
 
+/// Checks that `footprint` is refused on `info` for a storage buffer beyond its range,
+/// naming the scene file and `field` (`[table] field `name``).
+fn assert_refused_for_the_buffer_range(
+    footprint: &Footprint,
+    info: &nimbus_gpu::DeviceInfo,
+    field: &str,
+) {
+    let err = footprint
+        .check(info, u64::MAX)
+        .expect_err("a buffer beyond the range was accepted")
+        .to_string();
+    assert!(
+        err.contains("cloud.toml") && err.contains(field) && err.contains("maxStorageBufferRange"),
+        "{err}"
+    );
+}
+
 /// `[integrator.baseline] density_fetch = "buffer"` puts the density's slots in one
 /// storage buffer: on a device whose storage-buffer range cannot hold them the render is
 /// refused by the footprint check (before any allocation), naming the scene file and the
@@ -123,15 +140,10 @@ fn a_density_buffer_beyond_the_storage_buffer_range_is_refused_naming_the_field(
             FieldOverride::new("integrator.baseline.density_fetch", fetch),
         ])
     };
-    let err = footprint("buffer")
-        .check(&info, u64::MAX)
-        .expect_err("a density buffer beyond the range was accepted")
-        .to_string();
-    assert!(
-        err.contains("cloud.toml")
-            && err.contains("[integrator.baseline] field `density_fetch`")
-            && err.contains("maxStorageBufferRange"),
-        "{err}"
+    assert_refused_for_the_buffer_range(
+        &footprint("buffer"),
+        &info,
+        "[integrator.baseline] field `density_fetch`",
     );
     // "auto" takes the buffer only up to 128 MiB, the range every Vulkan device binds: it
     // passes on a device with just that range.
@@ -170,16 +182,7 @@ fn a_piecewise_constant_buffer_beyond_the_storage_buffer_range_is_refused_naming
     );
     // A range just below the levels' buffer (everything else of this small image fits it).
     info.max_storage_buffer_range = u32::try_from(pc - 4).unwrap();
-    let err = buffer
-        .check(&info, u64::MAX)
-        .expect_err("a buffer beyond the range was accepted")
-        .to_string();
-    assert!(
-        err.contains("cloud.toml")
-            && err.contains("[integrator.restir] field `pc_fetch`")
-            && err.contains("maxStorageBufferRange"),
-        "{err}"
-    );
+    assert_refused_for_the_buffer_range(&buffer, &info, "[integrator.restir] field `pc_fetch`");
     info.max_storage_buffer_range = 1 << 27;
     footprint("auto")
         .check(&info, u64::MAX)
