@@ -539,19 +539,7 @@ fn profile_cmd(args: ProfileArgs) -> Result<()> {
         print!("{}", work.table());
     }
     // A timing of a wrong image is no timing: say so as `render` does.
-    if result.step_cap_hits > 0 {
-        eprintln!(
-            "warning: {} walk(s) through the grid stopped at the step limit (their samples are \
-             biased, and each ran GRID_MAX_STEPS iterations: the times above include them)",
-            result.step_cap_hits
-        );
-    }
-    if result.non_finite_samples > 0 {
-        eprintln!(
-            "warning: {} sample(s) were not finite and were dropped",
-            result.non_finite_samples
-        );
-    }
+    result.warnings().iter().for_each(|w| eprintln!("{w}"));
     if let Some(path) = &args.json {
         std::fs::write(path, report.json()?)
             .with_context(|| format!("--json: writing {}", path.display()))?;

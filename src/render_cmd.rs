@@ -489,21 +489,10 @@ pub(super) fn render(args: RenderArgs) -> Result<ExitCode> {
         }
         None => eprintln!("rendered the frames, {memory}"),
     }
-    if result.non_finite_samples > 0 {
-        eprintln!(
-            "warning: {} sample(s) were not finite and were dropped",
-            result.non_finite_samples
-        );
-    }
     for note in &result.notes {
         eprintln!("note: {note}");
     }
-    if result.step_cap_hits > 0 {
-        eprintln!(
-            "warning: {} walk(s) through the grid stopped at the step limit; their samples are biased",
-            result.step_cap_hits
-        );
-    }
+    result.warnings().iter().for_each(|w| eprintln!("{w}"));
     writer.destroy(&ctx);
     report_validation(&ctx)?;
     if result.stop == StopReason::Interrupted {

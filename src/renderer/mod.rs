@@ -146,6 +146,25 @@ pub struct RenderResult {
 }
 
 impl RenderResult {
+    /// What a command must say about this result besides the image: dropped non-finite
+    /// samples and walks cut at the step limit (biased samples), one line each.
+    pub fn warnings(&self) -> Vec<String> {
+        let mut out = Vec::new();
+        if self.non_finite_samples > 0 {
+            out.push(format!(
+                "warning: {} sample(s) were not finite and were dropped",
+                self.non_finite_samples
+            ));
+        }
+        if self.step_cap_hits > 0 {
+            out.push(format!(
+                "warning: {} walk(s) through the grid stopped at the step limit; their samples are biased",
+                self.step_cap_hits
+            ));
+        }
+        out
+    }
+
     /// GPU milliseconds of the image's measured frames (0 without timestamps).
     pub fn gpu_ms(&self) -> f64 {
         self.frame_timings
