@@ -163,14 +163,21 @@ void restir_main() {
             float t_end = min(t_sphere, surface.t);
             uint level = i == 1u ? LEVEL_PRIMARY : LEVEL_INDIRECT;
             float sigma_star_unused;
-            if (SC_DIRECT_EACH_WALK && i == 1u) {
+            // Regular tracking: an exponential optical depth through sigma_t*. The camera
+            // segment's walk goes on to the segment's end where the direct candidate needs
+            // its whole tau* (one walk, not two).
+            bool direct_here = SC_DIRECT_EACH_WALK && i == 1u;
+            float tau_target = sample_exponential(rng_next(rng), 1.0);
+            float sigma_star;
+            float tau;
+            float tau_all;
+            float z = pc_track_through(level, x, w, t_end, tau_target, direct_here, sigma_star, tau, tau_all);
+            if (direct_here) {
                 // The direct candidate of the camera segment with probability 1 (the path
                 // is fixed by the walk's sub-pixel position): target L T*, T* of the whole
                 // segment through the piecewise-constant grid and the boxes, so w = p_hat.
                 // The paper adds it only when the walk escapes (p = T*), a rare event
                 // with weight L T / T* behind dense media.
-                float tau_all;
-                pc_track(level, x, w, t_end, FAR, sigma_star_unused, tau_all);
                 if (SC_HAS_MEDIA) {
                     tau_all += box_optical_depth(x, w, 0.0, t_end);
                 }
@@ -183,11 +190,6 @@ void restir_main() {
                 add_candidate(at, r, rng, p_hat, p_hat, 0u,
                               jitter_bits | (sphere == NO_INDEX ? (LIGHT_ENV << 8u) : (sphere << 8u)), vec3(0.0), 0u);
             }
-            // Regular tracking: an exponential optical depth through sigma_t*.
-            float tau_target = sample_exponential(rng_next(rng), 1.0);
-            float sigma_star;
-            float tau;
-            float z = pc_track(level, x, w, t_end, tau_target, sigma_star, tau);
             // The box media: independent first collisions at their sigma_t; the earliest of
             // all wins (the media are disjoint, so the walk tracks their summed majorant).
             uint box = NO_INDEX;

@@ -36,6 +36,9 @@ bool pc_empty_block(uint slot, ivec3 origin, ivec3 local, inout uint mask) {
 // Walks [0, t_end) from o along d through level `level` until the optical depth reaches
 // tau_target. Returns the collision distance (FAR if the ray leaves first), sigma_t* there
 // and tau = the optical depth walked (tau_target at a collision, the total otherwise).
+// `through`: the walk goes on past the collision to t_end, and tau_all is the optical depth
+// of all of [0, t_end) (the initial pass's direct candidate needs it of the same segment
+// whose collision it samples: one walk instead of two); else tau_all = tau.
 // Blocks are the level's voxels (2^mip density voxels per edge); empty bricks of the level
 // (sigma_t* = 0 throughout) are crossed in one step, and so are a brick's empty blocks of
 // 4^3 voxels (pc_empty_block): a cloud's bricks on its edge are mostly empty (57 % of the
@@ -43,7 +46,8 @@ bool pc_empty_block(uint slot, ivec3 origin, ivec3 local, inout uint mask) {
 // Crossing zeros adds nothing to tau, and a crossing is the same formula either way, so
 // skipping changes no result. Both skips are one call: a second inlined skip made
 // lavapipe's loop 20 % slower.
-float pc_track(uint level, vec3 o, vec3 d, float t_end, float tau_target, out float sigma_star, out float tau) {
+float pc_track_through(uint level, vec3 o, vec3 d, float t_end, float tau_target, bool through, out float sigma_star,
+                       out float tau, out float tau_all) {
     // An if, not ?: — glslang's ?: on two block members stores a value of the
     // block's struct type into the local one, which the SPIR-V optimiser rejects.
     GridLevel L;
@@ -54,6 +58,9 @@ float pc_track(uint level, vec3 o, vec3 d, float t_end, float tau_target, out fl
     }
     sigma_star = 0.0;
     tau = 0.0;
+    tau_all = 0.0;
+    // The collision, once found by a walk `through`.
+    float z_hit = FAR;
     GridSuperDda it;
     if (!grid_blocks_begin(o, d, 0.0, t_end, int(L.factor), L.lattice_max + 1, it)) {
         return FAR;
@@ -94,16 +101,29 @@ float pc_track(uint level, vec3 o, vec3 d, float t_end, float tau_target, out fl
         }
         grid_blocks_next(it, s0, s1, index);
         float dtau = sigma * (s1 - s0);
-        if (sigma > 0.0 && tau + dtau >= tau_target) {
+        if (z_hit >= FAR && sigma > 0.0 && tau_all + dtau >= tau_target) {
             sigma_star = sigma;
             // Domain: sigma > 0; the result lies in [s0, s1].
-            float s = min(s0 + (tau_target - tau) / sigma, s1);
+            z_hit = it.t_a + min(s0 + (tau_target - tau_all) / sigma, s1);
             tau = tau_target;
-            return it.t_a + s;
+            if (!through) {
+                tau_all = tau_target;
+                return z_hit;
+            }
+            // The walk goes on for tau_all alone (z_hit < FAR: no second collision).
         }
-        tau += dtau;
+        tau_all += dtau;
     }
-    return FAR;
+    if (z_hit >= FAR) {
+        tau = tau_all;
+    }
+    return z_hit;
+}
+
+// pc_track_through without going on: a walk to the collision (or t_end) alone.
+float pc_track(uint level, vec3 o, vec3 d, float t_end, float tau_target, out float sigma_star, out float tau) {
+    float tau_all;
+    return pc_track_through(level, o, d, t_end, tau_target, false, sigma_star, tau, tau_all);
 }
 
 // sigma_t* of level `level` (the conservative piecewise-constant grid pc_track walks) at
