@@ -195,6 +195,10 @@ pub struct RestirPlan {
     pub temporal: bool,
     /// Q: the previous frame's M is clamped to Q·M.
     pub temporal_limit: u32,
+    /// Q on the frames whose camera moved or whose density frame changed: the smaller of
+    /// `temporal_limit` and `temporal_limit_moving` (`temporal_limit` where neither the
+    /// camera nor the density ever moves).
+    pub temporal_limit_moving: u32,
     pub spatial_neighbors: u32,
     pub spatial_radius_px: f32,
     /// Spatial reuse only on frames whose camera moved since the previous frame
@@ -632,6 +636,10 @@ pub fn effective_scene(scene: &Scene, plan: &RenderPlan) -> Scene {
             if !spatial_on(p) {
                 // Without spatial reuse its settings are read by nothing.
                 i.restir = volume::without_spatial(&i.restir);
+            }
+            if scene.camera.keyframes.is_empty() && !p.animated_density {
+                // Neither the camera nor the density moves: no moving frame's limit.
+                i.restir.temporal_limit_moving = defaults.restir.temporal_limit_moving;
             }
         }
     }

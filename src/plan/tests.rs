@@ -83,6 +83,43 @@ fn grid_scenes_name_what_the_baseline_does_not_take() {
         (r.settings.candidates, r.temporal_limit, r.spatial_neighbors),
         (4, 20, 0)
     );
+    // A camera that never moves over a still density takes Q alone (whatever the moving
+    // frames' Q says); one with keyframes the smaller of the two on its moving frames,
+    // and --explain says so.
+    assert_eq!(r.temporal_limit_moving, 20);
+    let q_moving = |keys: bool, q: u32, q_moving: u32| {
+        let camera = if keys {
+            "[[camera.keyframe]]\nframe = 0\nposition = [0, 0, 30]\nlook_at = [0, 0, 0]\n\
+             [[camera.keyframe]]\nframe = 4\nposition = [1, 0, 30]\nlook_at = [0, 0, 0]\n"
+        } else {
+            ""
+        };
+        let body = format!(
+            "[render]\nframes = 8\n{camera}{}[integrator.restir]\ntemporal_limit = {q}\n\
+             temporal_limit_moving = {q_moving}\n",
+            grid(0)
+        );
+        let scene = nimbus_scene::parse_str(&text(&body, "restir"), Path::new("grid.toml"))
+            .expect("parses");
+        let plan = build(&scene, None).unwrap();
+        let r = plan.restir().unwrap();
+        let temporal = plan
+            .decisions
+            .iter()
+            .find(|d| d.name == "pass restir temporal")
+            .map(|d| d.reason.clone())
+            .unwrap();
+        (
+            r.temporal_limit,
+            r.temporal_limit_moving,
+            r.settings.temporal_limit_moving,
+            temporal.contains("on frames whose camera or density moved"),
+        )
+    };
+    assert_eq!(q_moving(false, 20, 3), (20, 20, 2, false));
+    assert_eq!(q_moving(false, 20, 5), q_moving(false, 20, 3));
+    assert_eq!(q_moving(true, 20, 3), (20, 3, 3, true));
+    assert_eq!(q_moving(true, 2, 3), (2, 2, 3, false));
     let e = err(&format!("{}{}", grid(0), grid(1)), "restir");
     assert!(
         e.contains("[[medium]] #2") && e.contains("Volumetric ReSTIR"),

@@ -479,6 +479,11 @@ fn restir_plan(
         settings: s.clone(),
         temporal: s.temporal,
         temporal_limit: s.temporal_limit,
+        temporal_limit_moving: if scene.camera.keyframes.is_empty() && grid.frames.is_empty() {
+            s.temporal_limit
+        } else {
+            s.temporal_limit.min(s.temporal_limit_moving)
+        },
         // spatial_when = "camera_moves" under a camera that never moves: no spatial pass.
         spatial_neighbors: if s.spatial_when == nimbus_scene::SpatialWhen::CameraMoves
             && scene.camera.keyframes.is_empty()
@@ -530,6 +535,12 @@ fn restir_plan(
     if !spatial {
         plan.settings = without_spatial(s);
     }
+    if scene.camera.keyframes.is_empty() && !plan.animated_density {
+        // Read by nothing where neither the camera nor the density moves: one plan
+        // whatever it says.
+        plan.settings.temporal_limit_moving =
+            nimbus_scene::RestirSettings::default().temporal_limit_moving;
+    }
     let on = |name: &'static str, enabled: bool, reason: String| Decision {
         name,
         enabled,
@@ -557,13 +568,21 @@ fn restir_plan(
                 "[integrator.restir] temporal = false".into()
             } else if frames > 1 {
                 format!(
-                    "from the second frame: reprojection of x1{}, Q = {}, history = the {} output",
+                    "from the second frame: reprojection of x1{}, Q = {}{}, history = the {} output",
                     if plan.has_velocity {
                         " through the velocity field"
                     } else {
                         ""
                     },
                     plan.temporal_limit,
+                    if plan.temporal_limit_moving != plan.temporal_limit {
+                        format!(
+                            " (Q = {} on frames whose camera or density moved: temporal_limit_moving)",
+                            plan.temporal_limit_moving
+                        )
+                    } else {
+                        String::new()
+                    },
                     if plan.history_before_spatial {
                         "temporal"
                     } else {

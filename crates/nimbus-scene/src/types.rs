@@ -772,6 +772,11 @@ pub struct RestirSettings {
     pub candidates: u32,
     pub temporal: bool,
     pub temporal_limit: u32,
+    /// Q on the frames whose camera moved or whose density frame changed
+    /// (`temporal_limit_moving`): the temporal limit there is the smaller of this and
+    /// `temporal_limit`. Motion leaves the history's targets further from this frame's,
+    /// and a shorter history measured better there.
+    pub temporal_limit_moving: u32,
     pub spatial_neighbors: u32,
     /// Pixels; `None` (`"auto"`, the default): 10 px at 1920 pixels wide, in proportion
     /// to the width (the paper's angular radius), at least [`MIN_AUTO_SPATIAL_RADIUS_PX`].
@@ -831,6 +836,7 @@ impl Default for RestirSettings {
             candidates: 4,
             temporal: true,
             temporal_limit: 20,
+            temporal_limit_moving: 2,
             spatial_neighbors: 3,
             spatial_radius_px: None,
             spatial_when: SpatialWhen::CameraMoves,

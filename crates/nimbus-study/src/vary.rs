@@ -97,6 +97,9 @@ pub(super) fn apply(scene: &mut Scene, key: &str, value: &str) -> Result<Option<
         "temporal_limit" => {
             scene.integrator.restir.temporal_limit = parse_count(key, value, 1024)?;
         }
+        "temporal_limit_moving" => {
+            scene.integrator.restir.temporal_limit_moving = parse_count(key, value, 1024)?;
+        }
         "spatial_neighbors" => {
             scene.integrator.restir.spatial_neighbors =
                 parse_range(key, value, 0, nimbus_scene::MAX_SPATIAL_NEIGHBORS)?;
@@ -487,6 +490,7 @@ mod tests {
             ("candidates", "8"),
             ("temporal", "false"),
             ("temporal_limit", "20"),
+            ("temporal_limit_moving", "3"),
             ("spatial_neighbors", "0"),
             ("spatial_radius_px", "2.5"),
             ("spatial_rounds", "2"),
@@ -523,6 +527,7 @@ mod tests {
             ),
             (8, false, 20, 0)
         );
+        assert_eq!(r.temporal_limit_moving, 3);
         assert_eq!((r.spatial_radius_px, r.spatial_rounds), (Some(2.5), 2));
         assert_eq!(r.spatial_when, nimbus_scene::SpatialWhen::Always);
         assert!(r.fold_emission);

@@ -53,6 +53,9 @@ pub struct RestirPass {
     /// `prepare`): the frame's spatial rounds run only then.
     spatial_camera_moves: bool,
     spatial_now: bool,
+    /// Q on frames whose camera and density did not move, and on frames where either did
+    /// (`temporal_limit`, `temporal_limit_moving`): `prepare` uploads the frame's.
+    temporal_limits: [u32; 2],
     /// Tracking reads the piecewise-constant levels from `res.pc_texels` (SC_PC_BUFFER).
     pc_buffer: bool,
     constants: FrameConstants,
@@ -259,6 +262,7 @@ impl RestirPass {
             settings: schedule_settings(plan, candidates_per_dispatch),
             spatial_camera_moves: plan.spatial_camera_moves,
             spatial_now: true,
+            temporal_limits: [plan.temporal_limit, plan.temporal_limit_moving],
             pc_buffer,
             constants: FrameConstants {
                 env_radiance: grid_gpu.env_radiance,
@@ -484,10 +488,15 @@ impl Pass for RestirPass {
             self.prev_uploaded = Some(prev);
         }
         self.upload_density(ctx, scene_frame, prev_frame)?;
-        // spatial_when = "camera_moves": spatial reuse on frames whose camera moved (a
-        // choice made per frame from the cameras alone, never from the samples).
-        self.spatial_now =
-            !self.spatial_camera_moves || scene.camera.frame_at(scene_frame) != camera;
+        // spatial_when = "camera_moves": spatial reuse on frames whose camera moved; and
+        // Q = temporal_limit_moving where the camera or the density moved (choices made
+        // per frame from the two frames' cameras and density frames alone, never from the
+        // samples, so the estimator stays unbiased).
+        let camera_moved = scene.camera.frame_at(scene_frame) != camera;
+        let density_moved =
+            self.grid.density_index_at(scene_frame) != self.grid.density_index_at(prev_frame);
+        self.spatial_now = !self.spatial_camera_moves || camera_moved;
+        let temporal_limit = self.temporal_limits[usize::from(camera_moved || density_moved)];
         // Whether the previous frame's target function is this frame's: the same camera,
         // light set and density (a static scene, or a held frame of an animation).
         let same = scene.camera.frame_at(scene_frame) == camera
@@ -509,9 +518,11 @@ impl Pass for RestirPass {
         };
         if flag != self.restir_uniforms.history_static
             || confidence != self.restir_uniforms.history_confidence
+            || temporal_limit != self.restir_uniforms.temporal_limit
         {
             self.restir_uniforms.history_static = flag;
             self.restir_uniforms.history_confidence = confidence;
+            self.restir_uniforms.temporal_limit = temporal_limit;
             ctx.upload_buffer(
                 &self.objects[self.res.restir_uniforms],
                 0,

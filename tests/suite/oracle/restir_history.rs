@@ -222,6 +222,87 @@ fn a_moving_camera_keeps_each_frames_mean() {
     assert_no_validation_errors(&ctx);
 }
 
+/// `temporal_limit_moving`: Q is the moving frames' where the camera moved or the density
+/// frame changed, and `temporal_limit` on the others, chosen per frame. Below, the camera
+/// (or the density) moves on frames 1-6 and holds still on frame 7, so (Q, Q moving) =
+/// (20, 2) renders frame 6 as (2, 20) does (Q = 2 on every frame, the smaller of the two),
+/// and frame 7 unlike it (its last frame takes Q = 20 against 2); (20, 20) renders frame 6
+/// otherwise.
+#[test]
+fn the_moving_frames_temporal_limit_applies_where_the_camera_or_the_density_moved() {
+    let ctx = context();
+    let lights =
+        "[[light]]\ntype = \"directional\"\ndirection = [0.6, -0.5, -0.6]\nirradiance = 4.0\n\
+         [[light]]\ntype = \"environment\"\nradiance = [0.25, 0.35, 0.55]\n\
+         [integrator]\nmax_bounces = 2\n";
+    let medium = |frames: bool| {
+        let cloud = |seed: u32| {
+            format!("{{ procedural = \"cloud\", dims = [32, 20, 32], noise_seed = {seed} }}")
+        };
+        let mut m = format!(
+            "[[medium]]\ntype = \"grid\"\nbounds_min = [-1.0, -0.6, -1.0]\nbounds_max = [1.0, 0.6, 1.0]\n\
+             density = {}\ndensity_scale = 12.0\nalbedo = 0.9\n",
+            cloud(7)
+        );
+        if frames {
+            for f in 1..=6 {
+                m += &format!(
+                    "[[medium.frame]]\nframe = {f}\ndensity = {}\n",
+                    cloud(7 + f)
+                );
+            }
+        }
+        m
+    };
+    let moving_camera = format!(
+        "[camera]\nhorizontal_fov_deg = 55\n\
+         [[camera.keyframe]]\nframe = 0\nposition = [0.0, 0.3, 2.6]\nlook_at = [0.0, 0.0, 0.0]\n\
+         [[camera.keyframe]]\nframe = 6\nposition = [0.5, 0.3, 1.5]\nlook_at = [0.0, 0.0, 0.0]\n\
+         {lights}{}",
+        medium(false)
+    );
+    let moving_density = format!(
+        "[camera]\nhorizontal_fov_deg = 55\nposition = [0.0, 0.3, 2.6]\nlook_at = [0.0, 0.0, 0.0]\n\
+         {lights}{}",
+        medium(true)
+    );
+    for (label, body) in [("camera", moving_camera), ("density", moving_density)] {
+        let with = |q: u32, q_moving: u32| {
+            scene(
+                &format!(
+                    "[render]\nwidth = 16\nheight = 12\nframes = 8\n{body}\
+                     [integrator.restir]\ntemporal_limit = {q}\ntemporal_limit_moving = {q_moving}\n"
+                ),
+                "q-moving.toml",
+            )
+        };
+        let (short_moving, short, long) = (with(20, 2), with(2, 20), with(20, 20));
+        let plan = plan::build(&short_moving, None).expect("plan");
+        let p = plan.restir().expect("a ReSTIR plan");
+        assert_eq!(
+            (p.temporal_limit, p.temporal_limit_moving),
+            (20, 2),
+            "{label}"
+        );
+        let frame6 = |s: &Scene| frame_image(&ctx, s, 6, 6, 3);
+        let a = frame6(&short_moving);
+        assert!(
+            a.data == frame6(&short).data,
+            "{label}: frames 1-6 moved, Q = 2 on each"
+        );
+        assert!(
+            rmse(&a, &frame6(&long)) > 0.0,
+            "{label}: Q = 20 renders frame 6 otherwise"
+        );
+        let frame7 = |s: &Scene| frame_image(&ctx, s, 7, 7, 3);
+        assert!(
+            rmse(&frame7(&short_moving), &frame7(&short)) > 0.0,
+            "{label}: frame 7 held still, Q = 20 there against 2"
+        );
+    }
+    assert_no_validation_errors(&ctx);
+}
+
 /// Camera, sun and density changing together (issue 26): the camera dollies and turns,
 /// the sun turns by 30°, and the density is swapped for another cloud at frames 3 and 5.
 /// ReSTIR's defaults (temporal reuse with its confidence weights, spatial reuse on the

@@ -93,6 +93,7 @@ pub const RESTIR_KEYS: &[&str] = &[
     "candidates",
     "temporal",
     "temporal_limit",
+    "temporal_limit_moving",
     "spatial_neighbors",
     "spatial_radius_px",
     "spatial_when",
@@ -648,6 +649,11 @@ fn parse_restir(source: &Source, table: &toml::Table) -> Result<RestirSettings> 
         candidates: f.u32_in("candidates", Some(d.candidates), 1..=4096)?,
         temporal: f.opt_bool("temporal")?.unwrap_or(d.temporal),
         temporal_limit: f.u32_in("temporal_limit", Some(d.temporal_limit), 1..=1024)?,
+        temporal_limit_moving: f.u32_in(
+            "temporal_limit_moving",
+            Some(d.temporal_limit_moving),
+            1..=1024,
+        )?,
         spatial_neighbors: f.u32_in(
             "spatial_neighbors",
             Some(d.spatial_neighbors),

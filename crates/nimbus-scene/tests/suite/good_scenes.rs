@@ -27,6 +27,7 @@ fn minimal_scene_gets_every_default() {
     assert_eq!(restir.candidates, 4);
     assert!(restir.temporal);
     assert_eq!(restir.temporal_limit, 20);
+    assert_eq!(restir.temporal_limit_moving, 2);
     assert_eq!(restir.spatial_neighbors, 3);
     assert_eq!(restir.spatial_when, SpatialWhen::CameraMoves);
     assert_eq!(restir.temporal_history, HistoryMode::Temporal);
@@ -218,6 +219,7 @@ box_samples = 48
 candidates = 16
 temporal = false
 temporal_limit = 20
+temporal_limit_moving = 6
 spatial_neighbors = 5
 spatial_radius_px = 30.5
 spatial_when = "always"
@@ -436,6 +438,7 @@ density_fetch = "image"
                 candidates: 16,
                 temporal: false,
                 temporal_limit: 20,
+                temporal_limit_moving: 6,
                 spatial_neighbors: 5,
                 spatial_radius_px: Some(30.5),
                 spatial_when: SpatialWhen::Always,
