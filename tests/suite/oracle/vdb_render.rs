@@ -274,7 +274,12 @@ fn a_vdb_inside_a_fog_box_renders_as_the_grid_of_the_summed_density() {
             &scene(&scene_text(&summed, volume), "summed.toml"),
             None,
         );
-        assert_alike(&format!("{volume}: vdb in fog vs summed grid"), &two, &one);
+        assert_alike(
+            &format!("{volume}: vdb in fog vs summed grid"),
+            &two,
+            &one,
+            volume == "restir",
+        );
     }
 }
 
@@ -403,30 +408,51 @@ fn a_grid_spread_over_thousands_of_voxels_renders_as_its_near_voxels_slow() {
 }
 
 /// Both integrators render the vdb medium `vdb` as its raw twin `raw` within noise, and
-/// the medium is seen in the middle of the frame (it differs from the sky, 0.2, there).
+/// the medium is seen in the middle of the frame: there its pixels depart from the sky
+/// (0.2, which both integrators render exactly where no medium is seen) by more than 0.01
+/// on average. (One pixel is not enough: the tile's centre pixel converges to 0.203, and
+/// a test of it against 0.02 passed or failed with the seed's noise.)
 fn renders_like_its_twin(ctx: &nimbus_gpu::Context, name: &str, vdb: &str, raw: &str) {
     for volume in ["baseline", "restir"] {
         let a = render_checked(ctx, &scene(&scene_text(vdb, volume), "vdb.toml"), None);
         let b = render_checked(ctx, &scene(&scene_text(raw, volume), "raw.toml"), None);
-        let centre = a.image.data[15 * 40 + 20];
+        let middle: Vec<f32> = (8..22)
+            .flat_map(|y| (10..30).map(move |x| y * 40 + x))
+            .map(|i| (a.image.data[i][0] - 0.2).abs())
+            .collect();
+        let departure = middle.iter().sum::<f32>() / middle.len() as f32;
         assert!(
-            (centre[0] - 0.2).abs() > 0.02,
-            "{name} {volume}: the medium is seen, {centre:?}"
+            departure > 0.01,
+            "{name} {volume}: the medium is seen, its middle departs from the sky by {departure}"
         );
-        assert_alike(&format!("{name} {volume}: vdb vs raw"), &a, &b);
+        assert_alike(
+            &format!("{name} {volume}: vdb vs raw"),
+            &a,
+            &b,
+            volume == "restir",
+        );
     }
 }
 
 /// Two renders agree within noise: every channel's mean within 4 combined standard
-/// errors (+0.5 %), and at most 2 % of the pixel channels beyond 4.5.
-fn assert_alike(label: &str, a: &RenderResult, b: &RenderResult) {
+/// errors (+0.5 %), and at most 2 % of the pixel channels beyond 4.5 (6 % for ReSTIR,
+/// `restir`: its 8 frames are correlated, fewer than the two batches of 4·(Q + 1) frames
+/// its standard error needs, so the per-pixel errors are underestimates: the fog scene
+/// below measured 1.3-2.8 % of its channels beyond 4.5 over seeds 5-10, at aa55e87 as
+/// after it, where the baseline has none).
+fn assert_alike(label: &str, a: &RenderResult, b: &RenderResult, restir: bool) {
     let (a, b) = ((&a.image, &a.std_error), (&b.image, &b.std_error));
     assert_means_agree(label, a, b, 4.0, 0.005);
     let beyond = channels_beyond(a, b, 4.5);
     let channels = 3 * a.0.data.len();
     println!("  {label}: {beyond} of {channels} channels beyond 4.5 SE");
+    let allowed = if restir {
+        channels * 6 / 100
+    } else {
+        channels / 50
+    };
     assert!(
-        beyond * 50 <= channels,
-        "{label}: {beyond} channels beyond 4.5 SE"
+        beyond <= allowed,
+        "{label}: {beyond} channels beyond 4.5 SE (at most {allowed})"
     );
 }
