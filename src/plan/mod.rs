@@ -637,13 +637,20 @@ pub fn effective_scene(scene: &Scene, plan: &RenderPlan) -> Scene {
                 // Without spatial reuse its settings are read by nothing.
                 i.restir = volume::without_spatial(&i.restir);
             }
-            if scene.camera.keyframes.is_empty() && !p.animated_density {
+            if !has_moving_frames(scene, p.animated_density) {
                 // Neither the camera nor the density moves: no moving frame's limit.
                 i.restir.temporal_limit_moving = defaults.restir.temporal_limit_moving;
             }
         }
     }
     s
+}
+
+/// Whether some frame of `scene` moves its camera or, with `animated_density`, changes
+/// its density frame: where ReSTIR's `temporal_limit_moving` applies (the pass decides
+/// frame by frame; without such a frame the setting is read by nothing).
+pub(crate) fn has_moving_frames(scene: &Scene, animated_density: bool) -> bool {
+    !scene.camera.keyframes.is_empty() || animated_density
 }
 
 /// Whether a ReSTIR plan runs spatial reuse.

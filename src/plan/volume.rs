@@ -479,10 +479,10 @@ fn restir_plan(
         settings: s.clone(),
         temporal: s.temporal,
         temporal_limit: s.temporal_limit,
-        temporal_limit_moving: if scene.camera.keyframes.is_empty() && grid.frames.is_empty() {
-            s.temporal_limit
-        } else {
+        temporal_limit_moving: if super::has_moving_frames(scene, !grid.frames.is_empty()) {
             s.temporal_limit.min(s.temporal_limit_moving)
+        } else {
+            s.temporal_limit
         },
         // spatial_when = "camera_moves" under a camera that never moves: no spatial pass.
         spatial_neighbors: if s.spatial_when == nimbus_scene::SpatialWhen::CameraMoves
@@ -535,7 +535,7 @@ fn restir_plan(
     if !spatial {
         plan.settings = without_spatial(s);
     }
-    if scene.camera.keyframes.is_empty() && !plan.animated_density {
+    if !super::has_moving_frames(scene, plan.animated_density) {
         // Read by nothing where neither the camera nor the density moves: one plan
         // whatever it says.
         plan.settings.temporal_limit_moving =
