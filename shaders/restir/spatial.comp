@@ -37,6 +37,17 @@ void restir_main() {
     if (u_restir.spatial_max_m > 0.0 && cand_M[0] >= u_restir.spatial_max_m) {
         neighbors = 0u;
     }
+    // The camera feature of this pixel's centre ray (neighbour test and depth anchors).
+    bool features = SC_SPATIAL_FEATURES && neighbors > 0u;
+    uint end_here = NO_INDEX;
+    float entry_here = FAR;
+    float t_here = 0.0;
+    if (features) {
+        t_here = camera_feature(pixel, SET_CURRENT, end_here, entry_here);
+        if (u_restir.spatial_anchor != 0u && entry_here < FAR) {
+            cand_anchor[0] = entry_here;
+        }
+    }
     float radius = u_restir.spatial_radius;
     // Random rotation of the sequence for this pixel, frame and round.
     float r0 = rng_next(rng);
@@ -50,7 +61,24 @@ void restir_main() {
             q.y >= int(u_frame.height)) {
             continue;
         }
+        float anchor_q = cand_anchor[0];
+        if (features) {
+            // A deterministic test of the two pixels' centre rays (never of the samples),
+            // so the combination stays unbiased: the neighbour is left out where its ray
+            // ends on something else or sees a different T~.
+            uint end_q;
+            float entry_q;
+            float t_q = camera_feature(uvec2(q), SET_CURRENT, end_q, entry_q);
+            float tol = u_restir.spatial_feature_tolerance;
+            if (tol > 0.0 && (end_q != end_here || camera_t_change(t_here, t_q) >= tol)) {
+                continue;
+            }
+            if (u_restir.spatial_anchor != 0u && entry_here < FAR && entry_q < FAR) {
+                anchor_q = entry_q;
+            }
+        }
         candidate_set(n, res_at(u_push.src, uvec2(q)), uvec2(q), SET_CURRENT);
+        cand_anchor[n] = anchor_q;
         ++n;
     }
     Reservoir s;

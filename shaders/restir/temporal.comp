@@ -16,36 +16,6 @@
 #extension GL_GOOGLE_include_directive : require
 #include "combine.glsl"
 
-// The sub-pixel centre's jitter code (offset 127.5 / 256 per axis).
-#define JITTER_CODE_CENTRE 0x7f7fu
-// Floor of the transmittance a relative change is measured against: below it a camera ray
-// is opaque enough that changes of T~ are not changes of what the pixel shows.
-#define HISTORY_T_FLOOR 0.001
-// The relative change of the camera ray's T~ at which the history's confidence is 0
-// (linear from 1 at no change).
-#define HISTORY_T_TOLERANCE 0.1
-
-// The optical depth through the conservative grid at which a camera ray counts as having
-// entered the medium (its depth anchor).
-#define ANCHOR_TAU 1e-3
-
-// T~ of the camera ray through the centre of `pixel` in a frame's set up to its first
-// opaque end, what ends it (a shape: its index; an emitting sphere: 0x10000 + its index
-// in the set; nothing: NO_INDEX) and where it enters the medium (FAR if it does not): the
-// first point past optical depth ANCHOR_TAU through this frame's conservative grid.
-float camera_feature(uvec2 pixel, uint set, out uint end, out float entry) {
-    CameraRay r = camera_ray(pixel, JITTER_CODE_CENTRE, set);
-    uint sphere;
-    float t_end = nearest_sphere_light(light_base(set), r.o, r.d, 1e-6, FAR, sphere);
-    SurfacePoint s = surface_along(r.o, r.d, t_end);
-    end = s.shape != NO_INDEX ? s.shape : (sphere != NO_INDEX ? 0x10000u + sphere : NO_INDEX);
-    t_end = min(t_end, s.t);
-    float sigma_star;
-    float tau;
-    entry = pc_track(LEVEL_PRIMARY, r.o, r.d, t_end, ANCHOR_TAU, sigma_star, tau);
-    return reuse_transmittance(set, r.o, r.d, t_end);
-}
-
 // The confidence in the previous frame's pixel q_prev as this frame's `pixel`: 0 where the
 // camera rays end on different things, else falling linearly with the relative change of
 // their T~ (0 at HISTORY_T_TOLERANCE). Sets both candidates' depth anchors to where their
@@ -64,9 +34,7 @@ float camera_confidence(uvec2 pixel, uvec2 q_prev) {
         cand_anchor[0] = entry_cur;
         cand_anchor[1] = entry_prev;
     }
-    // Domain: the denominator >= HISTORY_T_FLOOR > 0.
-    float change = abs(t_cur - t_prev) / max(max(t_cur, t_prev), HISTORY_T_FLOOR);
-    return clamp(1.0 - change / HISTORY_T_TOLERANCE, 0.0, 1.0);
+    return clamp(1.0 - camera_t_change(t_cur, t_prev) / HISTORY_T_TOLERANCE, 0.0, 1.0);
 }
 
 void restir_main();

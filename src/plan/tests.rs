@@ -161,6 +161,59 @@ fn grid_scenes_name_what_the_baseline_does_not_take() {
         .contains("[on ] pass baseline path tracer"));
 }
 
+/// Spatial reuse's neighbour test and depth anchors reach the plan where spatial reuse
+/// runs, and --explain names them; without spatial reuse they are the defaults (the plan
+/// is the same whatever they say).
+#[test]
+fn the_neighbour_test_and_depth_anchors_follow_spatial_reuse() {
+    let grid = "[[medium]]\ntype = \"grid\"\nbounds_min = [0, 0, 0]\nbounds_max = [1, 1, 1]\n\
+                density = { procedural = \"cloud\", dims = [4, 4, 4] }\n[integrator]\nvolume = \"restir\"\n";
+    let plan_of = |restir: &str| {
+        let scene = nimbus_scene::parse_str(
+            &format!(
+                "[camera]\nposition = [0, 0, 30]\nlook_at = [0, 0, 0]\n{grid}[integrator.restir]\n{restir}\n"
+            ),
+            Path::new("grid.toml"),
+        )
+        .expect("parses");
+        let plan = build(&scene, None).unwrap();
+        (plan.clone(), plan.explain(&scene))
+    };
+    let keys = "spatial_feature_tolerance = 0.25\nspatial_anchor = true\n";
+    let (on, explain) = plan_of(&format!("spatial_when = \"always\"\n{keys}"));
+    let r = on.restir().unwrap();
+    assert_eq!(
+        (
+            r.settings.spatial_feature_tolerance,
+            r.settings.spatial_anchor
+        ),
+        (0.25, true)
+    );
+    assert!(
+        explain.contains("whose T~ differs by 0.25 or more")
+            && explain.contains("past where each pixel's centre ray enters the medium"),
+        "{explain}"
+    );
+    let (plain, explain) = plan_of("spatial_when = \"always\"\n");
+    assert!(!explain.contains("T~ differs") && !explain.contains("centre ray enters"));
+    let r = plain.restir().unwrap();
+    assert_eq!(
+        (
+            r.settings.spatial_feature_tolerance,
+            r.settings.spatial_anchor
+        ),
+        (0.0, false)
+    );
+    // A still camera plans no spatial pass (spatial_when = "camera_moves"): the keys are
+    // read by nothing, and the plan is the one without them.
+    let (off, _) = plan_of(keys);
+    let (default, _) = plan_of("");
+    assert_eq!(
+        format!("{:?}", effective_plan(&off)),
+        format!("{:?}", effective_plan(&default))
+    );
+}
+
 /// The baseline takes a velocity grid (it only guides ReSTIR's reprojection: issue 24,
 /// it was refused as "animated density") and density frames (one pass per grid,
 /// `passes::baseline_frames`).

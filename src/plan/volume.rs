@@ -598,7 +598,7 @@ fn restir_plan(
             spatial,
             if spatial {
                 format!(
-                    "{}{} round(s) of {} neighbours within {} px{}, {} MIS, x_1 shifted by its {}, T~ marched on mip {}, {} reuse",
+                    "{}{} round(s) of {} neighbours within {} px{}{}, {} MIS, x_1 shifted by its {}{}, T~ marched on mip {}, {} reuse",
                     if plan.spatial_camera_moves {
                         "on frames whose camera moved: "
                     } else {
@@ -615,6 +615,14 @@ fn restir_plan(
                     } else {
                         String::new()
                     },
+                    if s.spatial_feature_tolerance > 0.0 {
+                        format!(
+                            ", leaving out neighbours whose centre ray ends elsewhere or whose T~ differs by {} or more",
+                            s.spatial_feature_tolerance
+                        )
+                    } else {
+                        String::new()
+                    },
                     if plan.pairwise_mis { "pairwise" } else { "Talbot" },
                     if plan.spatial_tau_shift {
                         "optical depth"
@@ -622,6 +630,11 @@ fn restir_plan(
                         "distance (spatial_shift = \"optical_depth\" needs the grid to be the only medium)"
                     } else {
                         "distance"
+                    },
+                    if s.spatial_anchor {
+                        " past where each pixel's centre ray enters the medium"
+                    } else {
+                        ""
                     },
                     mip_text(asked_levels.reuse, plan.levels.levels.reuse),
                     if plan.vertex_reuse {
@@ -818,6 +831,8 @@ pub(super) fn without_spatial(
         spatial_when: d.spatial_when,
         spatial_shift: d.spatial_shift,
         spatial_max_history: d.spatial_max_history,
+        spatial_feature_tolerance: d.spatial_feature_tolerance,
+        spatial_anchor: d.spatial_anchor,
         ..settings.clone()
     }
 }

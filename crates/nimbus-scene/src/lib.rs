@@ -95,6 +95,7 @@
 //! | restir `env_reuse` | `"map"`, `"world"` |
 //! | restir `emission` | `"separate"`, `"folded"` (folded only takes effect with split NEE) |
 //! | restir `spatial_max_history` | [0, 1025] (0: spatial reuse on every pixel) |
+//! | restir `spatial_feature_tolerance` | [0, 1] (0: every neighbour is combined) |
 //! | restir `nee` | `"auto"`, `"one"`, `"split"` (only with delta lights and an environment alone besides) |
 //! | restir `direct` | `"each_walk"`, `"escape"` |
 //! | restir `pc_fetch` | `"auto"`, `"image"`, `"buffer"` (refused where the buffer exceeds the device's storage-buffer range) |

@@ -809,6 +809,14 @@ pub struct RestirSettings {
     /// this many times `candidates` (the history was dropped or is short: first frames,
     /// disocclusions, changed light); 0: on every pixel (`spatial_max_history`).
     pub spatial_max_history: f32,
+    /// Spatial reuse leaves out a neighbour whose centre camera ray ends on another
+    /// shape or emitting sphere, or whose ray-marched T~ differs from the pixel's by this
+    /// relative change or more (a deterministic test of the two pixels, so unbiased);
+    /// 0: every neighbour is combined (`spatial_feature_tolerance`, in [0, 1]).
+    pub spatial_feature_tolerance: f32,
+    /// Spatial reuse moves x_1 between pixels by its depth past where each pixel's
+    /// centre ray enters the medium, as temporal reuse does (`spatial_anchor`).
+    pub spatial_anchor: bool,
     /// What the next frame reuses temporally (`temporal_history`).
     pub temporal_history: HistoryMode,
     /// σ* of candidate generation is at least this fraction of the largest density in
@@ -851,6 +859,8 @@ impl Default for RestirSettings {
             env_reuse: EnvReuse::World,
             fold_emission: false,
             spatial_max_history: 0.0,
+            spatial_feature_tolerance: 0.0,
+            spatial_anchor: false,
             temporal_history: HistoryMode::Temporal,
             sigma_star_floor: 0.0,
             nee: NeeMode::Auto,

@@ -134,6 +134,13 @@ pub(super) fn apply(scene: &mut Scene, key: &str, value: &str) -> Result<Option<
                 _ => bail!("{key}: {value:?} is not a number in [0, 1025]"),
             };
         }
+        "spatial_feature_tolerance" => {
+            scene.integrator.restir.spatial_feature_tolerance = match value.parse::<f32>() {
+                Ok(r) if (0.0..=1.0).contains(&r) => r,
+                _ => bail!("{key}: {value:?} is not a number in [0, 1]"),
+            };
+        }
+        "spatial_anchor" => scene.integrator.restir.spatial_anchor = parse_bool(key, value)?,
         "reuse" => {
             scene.integrator.restir.reuse = match value {
                 "direction" => nimbus_scene::ReuseMode::Direction,
@@ -505,6 +512,8 @@ mod tests {
             ("spatial_when", "always"),
             ("emission", "folded"),
             ("spatial_max_history", "8"),
+            ("spatial_feature_tolerance", "0.3"),
+            ("spatial_anchor", "true"),
             ("temporal_history", "temporal"),
             ("sigma_star_floor", "0.25"),
             ("nee", "one"),
@@ -545,6 +554,7 @@ mod tests {
             (r.spatial_shift, r.spatial_max_history),
             (nimbus_scene::SpatialShift::OpticalDepth, 8.0)
         );
+        assert_eq!((r.spatial_feature_tolerance, r.spatial_anchor), (0.3, true));
         for (key, value) in [
             ("temporal", "yes"),
             ("reuse", "path"),
@@ -553,6 +563,8 @@ mod tests {
             ("mis", "balance"),
             ("temporal_history", "both"),
             ("sigma_star_floor", "1.5"),
+            ("spatial_feature_tolerance", "2"),
+            ("spatial_anchor", "1.5"),
             ("nee", "all"),
             ("direct", "never"),
         ] {

@@ -18,7 +18,7 @@ pub fn specialization(
     exact_spans: bool,
     two_level: bool,
     pc_buffer: bool,
-) -> [(u32, SpecValue); 26] {
+) -> [(u32, SpecValue); 27] {
     [
         (SC_ID_PC_BUFFER, SpecValue::Bool(pc_buffer)),
         (
@@ -53,6 +53,12 @@ pub fn specialization(
         (
             SC_ID_SPATIAL_TAU_SHIFT,
             SpecValue::Bool(plan.spatial_tau_shift),
+        ),
+        (
+            SC_ID_SPATIAL_FEATURES,
+            SpecValue::Bool(
+                plan.settings.spatial_feature_tolerance > 0.0 || plan.settings.spatial_anchor,
+            ),
         ),
         (SC_ID_FOLD_EMISSION, SpecValue::Bool(plan.fold_emission)),
         (SC_ID_ENV_REUSE_MAP, SpecValue::Bool(plan.env_reuse_map)),

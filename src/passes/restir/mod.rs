@@ -222,6 +222,8 @@ impl RestirPass {
             velocity_uvw_y: velocity_uvw[1],
             velocity_uvw_z: velocity_uvw[2],
             history_confidence: 1.0,
+            spatial_feature_tolerance: plan.settings.spatial_feature_tolerance,
+            spatial_anchor: u32::from(plan.settings.spatial_anchor),
             ..RestirUniformsGpu::default()
         };
         let meshes = MeshBuffers::build(scene);

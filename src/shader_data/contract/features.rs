@@ -101,6 +101,10 @@ gpu_consts! {
     /// slot-major storage buffer instead of their atlas image (CPU devices, where a
     /// texelFetch is a call into the sampler's code; pc_tracking.glsl).
     pub const SC_ID_PC_BUFFER: u32 = 36;
+    /// ReSTIR's spatial pass traces the camera rays through the pixels' centres to test
+    /// its neighbours or anchor their depths (`spatial_feature_tolerance`,
+    /// `spatial_anchor`; restir/spatial.comp). Off, the pass carries none of that code.
+    pub const SC_ID_SPATIAL_FEATURES: u32 = 37;
 
     // -----------------------------------------------------------------------------------
     // Values of SC_ESTIMATOR (`shaders/box/crepuscular.comp`): the box-medium estimators

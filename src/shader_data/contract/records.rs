@@ -421,7 +421,7 @@ gpu_records! {
     }
 
     /// Settings of the ReSTIR passes (std430 storage buffer, see film.glsl for why not a
-    /// uniform buffer). 320 bytes.
+    /// uniform buffer). 336 bytes.
     #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
     struct RestirUniformsGpu as RestirUniforms [std430] {
         /// The piecewise-constant levels of camera and scattered rays (u_pc).
@@ -465,6 +465,14 @@ gpu_records! {
         velocity_uvw_x: [f32; 4],
         velocity_uvw_y: [f32; 4],
         velocity_uvw_z: [f32; 4],
+        /// Spatial reuse rejects a neighbour whose centre camera ray ends elsewhere or
+        /// whose T~ differs from the pixel's by this relative change or more (0: none).
+        spatial_feature_tolerance: f32,
+        /// 1: spatial reuse anchors each pixel's ray where its centre ray enters the
+        /// medium (CameraRay.anchor), as temporal reuse does.
+        spatial_anchor: u32,
+        _pad0: u32,
+        _pad1: u32,
     }
 
     /// Push constants of every dispatch of the denoiser (src/denoise, shaders/denoise).

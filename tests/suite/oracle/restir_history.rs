@@ -212,9 +212,15 @@ fn a_moving_camera_keeps_each_frames_mean() {
     // (the camera's motion drops it).
     let spatial = "[integrator.restir]\nspatial_neighbors = 3\nspatial_radius_px = 4\nspatial_when = \"always\"\n\
                    spatial_shift = \"optical_depth\"\nspatial_max_history = 8\n";
+    let anchored = "[integrator.restir]\nspatial_neighbors = 3\nspatial_radius_px = 4\nspatial_when = \"always\"\n\
+                    spatial_anchor = true\nspatial_feature_tolerance = 0.3\n";
     for (label, extra) in [
         ("defaults", ""),
         ("temporal + short-history spatial", spatial),
+        (
+            "temporal + spatial with depth anchors and the neighbour test",
+            anchored,
+        ),
     ] {
         let s = scene(&format!("{animated}{extra}"), "dolly.toml");
         assert_frame6_mean(&ctx, &s, expected, label);

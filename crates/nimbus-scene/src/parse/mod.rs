@@ -108,6 +108,8 @@ pub const RESTIR_KEYS: &[&str] = &[
     "env_reuse",
     "emission",
     "spatial_max_history",
+    "spatial_feature_tolerance",
+    "spatial_anchor",
     "temporal_history",
     "sigma_star_floor",
     "nee",
@@ -704,6 +706,12 @@ fn parse_restir(source: &Source, table: &toml::Table) -> Result<RestirSettings> 
             Some(d.spatial_max_history),
             0.0..=1025.0,
         )?,
+        spatial_feature_tolerance: f.f32_in(
+            "spatial_feature_tolerance",
+            Some(d.spatial_feature_tolerance),
+            0.0..=1.0,
+        )?,
+        spatial_anchor: f.opt_bool("spatial_anchor")?.unwrap_or(d.spatial_anchor),
         spatial_shift: f.choice(
             "spatial_shift",
             Some(d.spatial_shift),

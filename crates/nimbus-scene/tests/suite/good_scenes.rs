@@ -225,6 +225,8 @@ spatial_radius_px = 30.5
 spatial_when = "always"
 spatial_rounds = 2
 spatial_max_history = 2.5
+spatial_feature_tolerance = 0.25
+spatial_anchor = true
 reuse = "vertex"
 mip_candidates = 2
 mip_indirect = 3
@@ -453,6 +455,8 @@ density_fetch = "image"
                 env_reuse: EnvReuse::Map,
                 fold_emission: true,
                 spatial_max_history: 2.5,
+                spatial_feature_tolerance: 0.25,
+                spatial_anchor: true,
                 temporal_history: HistoryMode::Temporal,
                 sigma_star_floor: 0.125,
                 nee: NeeMode::Split,

@@ -423,12 +423,18 @@ const VERTEX: Case = Case {
 const LEVERS: Case = Case {
     label: "temporal + 2 spatial rounds, pairwise MIS, optical-depth shift, pre-spatial history, sigma* floor",
     restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 2\nspatial_neighbors = 4\nspatial_when = \"always\"\nspatial_radius_px = 10\n\
-             mis = \"pairwise\"\nspatial_shift = \"optical_depth\"\ntemporal_history = \"temporal\"\nsigma_star_floor = 0.25",
+             mis = \"pairwise\"\nspatial_shift = \"optical_depth\"\ntemporal_history = \"temporal\"\nsigma_star_floor = 0.25\n\
+             spatial_anchor = true\nspatial_feature_tolerance = 0.3",
 };
 const FOLDED: Case = Case {
     label: "temporal + spatial, emission folded into the split-NEE candidates",
     restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 1\nspatial_neighbors = 3\nspatial_when = \"always\"\n\
              spatial_radius_px = 10\nemission = \"folded\"",
+};
+const ANCHORED: Case = Case {
+    label: "temporal + spatial, depth anchors, neighbours tested by their camera rays",
+    restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 1\nspatial_neighbors = 3\nspatial_when = \"always\"\nspatial_radius_px = 10\n\
+             spatial_anchor = true\nspatial_feature_tolerance = 0.3",
 };
 const TAU_SHIFT: Case = Case {
     label: "temporal + spatial, x_1 shifted by its optical depth",

@@ -6,7 +6,7 @@
 use super::*;
 
 /// Single scattering (K = 1): no reuse, temporal only, spatial only, both, and both with
-/// pairwise MIS converge to the baseline (criteria in the module docs).
+/// pairwise MIS, the optical-depth shift, or depth anchors and the neighbour test converge to the baseline (criteria in the module docs).
 #[test]
 fn single_scattering_matches_the_baseline_slow() {
     check_cases(
@@ -14,13 +14,16 @@ fn single_scattering_matches_the_baseline_slow() {
             bounces: 1,
             ..Cloud::default()
         },
-        &[NO_REUSE, TEMPORAL, SPATIAL, BOTH, PAIRWISE, TAU_SHIFT],
+        &[
+            NO_REUSE, TEMPORAL, SPATIAL, BOTH, PAIRWISE, TAU_SHIFT, ANCHORED,
+        ],
         "K=1",
     );
 }
 
 /// Multiple scattering (K = 3): no reuse, both reuses, both with vertex reuse, and the
-/// levers together (two rounds of pairwise MIS, the pre-spatial history, a σ* floor)
+/// levers together (two rounds of pairwise MIS, the pre-spatial history, a σ* floor,
+/// depth anchors and the neighbour test)
 /// converge to the baseline (criteria in the module docs). Temporal-only and
 /// spatial-only reuse are checked apart at K = 1 (single_scattering_matches_the_baseline_slow);
 /// here they were left out for CI time (the root suite had grown to 26 minutes on two
