@@ -27,7 +27,7 @@ mod volume;
 use std::fmt::Write as _;
 
 use anyhow::Result;
-use nimbus_scene::{BoxEstimator, GridMedium, Medium, RestirSettings, Scene};
+use nimbus_scene::{BoxEstimator, GridMedium, Light, Medium, RestirSettings, Scene};
 
 use crate::shader_data::features;
 
@@ -637,7 +637,7 @@ pub fn effective_scene(scene: &Scene, plan: &RenderPlan) -> Scene {
                 // Without spatial reuse its settings are read by nothing.
                 i.restir = volume::without_spatial(&i.restir);
             }
-            if !has_moving_frames(scene, p.animated_density) {
+            if !has_moving_frames(scene, p.animated_density, p.env_reuse_map) {
                 // Neither the camera nor the density moves: no moving frame's limit.
                 i.restir.temporal_limit_moving = defaults.restir.temporal_limit_moving;
             }
@@ -646,11 +646,32 @@ pub fn effective_scene(scene: &Scene, plan: &RenderPlan) -> Scene {
     s
 }
 
-/// Whether some frame of `scene` moves its camera or, with `animated_density`, changes
-/// its density frame: where ReSTIR's `temporal_limit_moving` applies (the pass decides
-/// frame by frame; without such a frame the setting is read by nothing).
-pub(crate) fn has_moving_frames(scene: &Scene, animated_density: bool) -> bool {
-    !scene.camera.keyframes.is_empty() || animated_density
+/// Whether some frame of `scene` moves its camera, changes its density frame (with
+/// `animated_density`) or turns its environment map (with `map_reuse`: reused
+/// environment samples turn with the map, `env_reuse = "map"`): where ReSTIR's
+/// `temporal_limit_moving` applies (the pass decides frame by frame, by
+/// [`env_map_rotation`] for the map; without such a frame the setting is read by
+/// nothing).
+pub(crate) fn has_moving_frames(scene: &Scene, animated_density: bool, map_reuse: bool) -> bool {
+    let map_turns = scene.lights.iter().enumerate().any(|(i, l)| {
+        matches!(l, Light::Environment { file: Some(_), .. })
+            && scene.light_keyframes.get(i).is_some_and(|k| !k.is_empty())
+    });
+    !scene.camera.keyframes.is_empty() || animated_density || (map_reuse && map_turns)
+}
+
+/// The turn (degrees) of the environment map among `lights` (one scene frame's), if
+/// there is a map: a frame whose turn differs from the previous frame's moved the
+/// samples that `env_reuse = "map"` keeps.
+pub(crate) fn env_map_rotation(lights: &[Light]) -> Option<f32> {
+    lights.iter().find_map(|l| match l {
+        Light::Environment {
+            file: Some(_),
+            rotation_deg,
+            ..
+        } => Some(*rotation_deg),
+        _ => None,
+    })
 }
 
 /// Whether a ReSTIR plan runs spatial reuse.

@@ -479,7 +479,11 @@ fn restir_plan(
         settings: s.clone(),
         temporal: s.temporal,
         temporal_limit: s.temporal_limit,
-        temporal_limit_moving: if super::has_moving_frames(scene, !grid.frames.is_empty()) {
+        temporal_limit_moving: if super::has_moving_frames(
+            scene,
+            !grid.frames.is_empty(),
+            s.env_reuse == nimbus_scene::EnvReuse::Map && has_env_map,
+        ) {
             s.temporal_limit.min(s.temporal_limit_moving)
         } else {
             s.temporal_limit
@@ -535,7 +539,7 @@ fn restir_plan(
     if !spatial {
         plan.settings = without_spatial(s);
     }
-    if !super::has_moving_frames(scene, plan.animated_density) {
+    if !super::has_moving_frames(scene, plan.animated_density, plan.env_reuse_map) {
         // Read by nothing where neither the camera nor the density moves: one plan
         // whatever it says.
         plan.settings.temporal_limit_moving =
@@ -577,8 +581,13 @@ fn restir_plan(
                     plan.temporal_limit,
                     if plan.temporal_limit_moving != plan.temporal_limit {
                         format!(
-                            " (Q = {} on frames whose camera or density moved: temporal_limit_moving)",
-                            plan.temporal_limit_moving
+                            " (Q = {} on frames whose camera or density moved{}: temporal_limit_moving)",
+                            plan.temporal_limit_moving,
+                            if plan.env_reuse_map {
+                                " or whose environment map turned (env_reuse = \"map\")"
+                            } else {
+                                ""
+                            }
                         )
                     } else {
                         String::new()

@@ -772,8 +772,8 @@ pub struct RestirSettings {
     pub candidates: u32,
     pub temporal: bool,
     pub temporal_limit: u32,
-    /// Q on the frames whose camera moved or whose density frame changed
-    /// (`temporal_limit_moving`): the temporal limit there is the smaller of this and
+    /// Q on the frames whose camera moved, whose density frame changed or (under
+    /// `env_reuse = "map"`) whose environment map turned (`temporal_limit_moving`): the temporal limit there is the smaller of this and
     /// `temporal_limit`. Motion leaves the history's targets further from this frame's,
     /// and a shorter history measured better there.
     pub temporal_limit_moving: u32,
@@ -856,7 +856,7 @@ impl Default for RestirSettings {
             final_ratio_tracking: false,
             mis: MisMode::Talbot,
             spatial_shift: SpatialShift::Distance,
-            env_reuse: EnvReuse::World,
+            env_reuse: EnvReuse::Map,
             fold_emission: false,
             spatial_max_history: 0.0,
             spatial_feature_tolerance: 0.0,

@@ -508,7 +508,7 @@ mod tests {
             ("final_transmittance", "ratio"),
             ("mis", "pairwise"),
             ("spatial_shift", "optical_depth"),
-            ("env_reuse", "map"),
+            ("env_reuse", "world"),
             ("spatial_when", "always"),
             ("emission", "folded"),
             ("spatial_max_history", "8"),
@@ -549,7 +549,7 @@ mod tests {
         assert_eq!(r.nee, nimbus_scene::NeeMode::One);
         assert_eq!(r.direct, nimbus_scene::DirectMode::Escape);
         assert_eq!(r.pc_fetch, nimbus_scene::DensityFetch::Image);
-        assert_eq!(r.env_reuse, nimbus_scene::EnvReuse::Map);
+        assert_eq!(r.env_reuse, nimbus_scene::EnvReuse::World);
         assert_eq!(
             (r.spatial_shift, r.spatial_max_history),
             (nimbus_scene::SpatialShift::OpticalDepth, 8.0)

@@ -53,9 +53,12 @@ pub struct RestirPass {
     /// `prepare`): the frame's spatial rounds run only then.
     spatial_camera_moves: bool,
     spatial_now: bool,
-    /// Q on frames whose camera and density did not move, and on frames where either did
-    /// (`temporal_limit`, `temporal_limit_moving`): `prepare` uploads the frame's.
+    /// Q on frames whose camera, density and (under map reuse) environment map did not
+    /// move, and on frames where one did (`temporal_limit`, `temporal_limit_moving`):
+    /// `prepare` uploads the frame's.
     temporal_limits: [u32; 2],
+    /// `env_reuse = "map"` with a map: a turn of the map is a moving frame's.
+    env_reuse_map: bool,
     /// Tracking reads the piecewise-constant levels from `res.pc_texels` (SC_PC_BUFFER).
     pc_buffer: bool,
     constants: FrameConstants,
@@ -265,6 +268,7 @@ impl RestirPass {
             spatial_camera_moves: plan.spatial_camera_moves,
             spatial_now: true,
             temporal_limits: [plan.temporal_limit, plan.temporal_limit_moving],
+            env_reuse_map: plan.env_reuse_map,
             pc_buffer,
             constants: FrameConstants {
                 env_radiance: grid_gpu.env_radiance,
@@ -497,8 +501,16 @@ impl Pass for RestirPass {
         let camera_moved = scene.camera.frame_at(scene_frame) != camera;
         let density_moved =
             self.grid.density_index_at(scene_frame) != self.grid.density_index_at(prev_frame);
+        // With env_reuse = "map" a turning map turns every reused environment sample: the
+        // history's paths are shifted paths whose targets drift frame after frame, as
+        // under a moving camera (docs/restir.md, "Q in motion").
+        let map_turned = self.env_reuse_map
+            && scene.lights_animated()
+            && crate::plan::env_map_rotation(&scene.lights_at(scene_frame))
+                != crate::plan::env_map_rotation(&scene.lights_at(prev_frame));
         self.spatial_now = !self.spatial_camera_moves || camera_moved;
-        let temporal_limit = self.temporal_limits[usize::from(camera_moved || density_moved)];
+        let temporal_limit =
+            self.temporal_limits[usize::from(camera_moved || density_moved || map_turned)];
         // Whether the previous frame's target function is this frame's: the same camera,
         // light set and density (a static scene, or a held frame of an animation).
         let same = scene.camera.frame_at(scene_frame) == camera

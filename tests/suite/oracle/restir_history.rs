@@ -228,8 +228,9 @@ fn a_moving_camera_keeps_each_frames_mean() {
     assert_no_validation_errors(&ctx);
 }
 
-/// `temporal_limit_moving`: Q is the moving frames' where the camera moved or the density
-/// frame changed, and `temporal_limit` on the others, chosen per frame. Below, the camera
+/// `temporal_limit_moving`: Q is the moving frames' where the camera moved, the density
+/// frame changed or (with `env_reuse = "map"`) the environment map turned, and
+/// `temporal_limit` on the others, chosen per frame. Below, the camera
 /// (or the density) moves on frames 1-6 and holds still on frame 7, so (Q, Q moving) =
 /// (20, 2) renders frame 6 as (2, 20) does (Q = 2 on every frame, the smaller of the two),
 /// and frame 7 unlike it (its last frame takes Q = 20 against 2); (20, 20) renders frame 6
@@ -272,12 +273,35 @@ fn the_moving_frames_temporal_limit_applies_where_the_camera_or_the_density_move
          {lights}{}",
         medium(true)
     );
-    for (label, body) in [("camera", moving_camera), ("density", moving_density)] {
+    // An environment map turning 5° a frame over frames 0-6 under env_reuse = "map", whose
+    // reused samples turn with it (with "world" its turn is a light's change alone).
+    let map = scratch("restir_history", "turning-map").join("sky.exr");
+    let (w, h) = (32, 16);
+    let sun = nimbus_scene::sun_direction(35f32.to_radians(), 50f32.to_radians());
+    let texels = nimbus_scene::daylight_sky(w, h, sun, 8f64.to_radians(), 3.0);
+    exr::prelude::write_rgb_file(&map, w, h, |x, y| {
+        let [r, g, b] = texels[y * w + x];
+        (r, g, b)
+    })
+    .unwrap();
+    let turning_map = format!(
+        "[camera]\nhorizontal_fov_deg = 55\nposition = [0.0, 0.3, 2.6]\nlook_at = [0.0, 0.0, 0.0]\n\
+         [[light]]\ntype = \"environment\"\nfile = \"{}\"\n\
+         [[light.keyframe]]\nframe = 0\nrotation_deg = 0\n[[light.keyframe]]\nframe = 6\nrotation_deg = 30\n\
+         [integrator]\nmax_bounces = 2\n{}",
+        map.display(),
+        medium(false)
+    );
+    for (label, body, extra) in [
+        ("camera", moving_camera, ""),
+        ("density", moving_density, ""),
+        ("map", turning_map.clone(), "env_reuse = \"map\"\n"),
+    ] {
         let with = |q: u32, q_moving: u32| {
             scene(
                 &format!(
                     "[render]\nwidth = 16\nheight = 12\nframes = 8\n{body}\
-                     [integrator.restir]\ntemporal_limit = {q}\ntemporal_limit_moving = {q_moving}\n"
+                     [integrator.restir]\ntemporal_limit = {q}\ntemporal_limit_moving = {q_moving}\n{extra}"
                 ),
                 "q-moving.toml",
             )
@@ -306,6 +330,17 @@ fn the_moving_frames_temporal_limit_applies_where_the_camera_or_the_density_move
             "{label}: frame 7 held still, Q = 20 there against 2"
         );
     }
+    // Under env_reuse = "world" a turning map is no moving frame: Q = 20 throughout.
+    let world = scene(
+        &format!(
+            "[render]\nwidth = 16\nheight = 12\nframes = 8\n{turning_map}\
+             [integrator.restir]\ntemporal_limit = 20\ntemporal_limit_moving = 2\nenv_reuse = \"world\"\n"
+        ),
+        "q-moving.toml",
+    );
+    let plan = plan::build(&world, None).expect("plan");
+    let p = plan.restir().expect("a ReSTIR plan");
+    assert_eq!((p.temporal_limit, p.temporal_limit_moving), (20, 20));
     assert_no_validation_errors(&ctx);
 }
 

@@ -237,7 +237,7 @@ direct = "escape"
 pc_fetch = "buffer"
 mis = "pairwise"
 spatial_shift = "optical_depth"
-env_reuse = "map"
+env_reuse = "world"
 emission = "folded"
 temporal_history = "temporal"
 sigma_star_floor = 0.125
@@ -452,7 +452,7 @@ density_fetch = "image"
                 final_ratio_tracking: true,
                 mis: MisMode::Pairwise,
                 spatial_shift: SpatialShift::OpticalDepth,
-                env_reuse: EnvReuse::Map,
+                env_reuse: EnvReuse::World,
                 fold_emission: true,
                 spatial_max_history: 2.5,
                 spatial_feature_tolerance: 0.25,
