@@ -16,9 +16,10 @@
 //! 0 for a map that is the same all around (a constant radiance, a sky that varies with
 //! height only), 1 once a small sun has moved off its own place. That is the change
 //! the history sees when its samples keep their world directions (`env_reuse =
-//! "world"`, the default). With `env_reuse = "map"` they turn with the map, a small
+//! "world"`). With `env_reuse = "map"` (the default) they turn with the map, a small
 //! sun's samples stay on it, and the pass gives no table: the turn counts like a
-//! directional light's, 1 at [`LIGHT_TURN_RADIANS`].
+//! directional light's, 1 at [`LIGHT_TURN_RADIANS`] (and the frame takes
+//! `temporal_limit_moving`, `RestirPass::prepare`).
 
 use glam::Vec3;
 use nimbus_scene::{EnvMap, Light};
