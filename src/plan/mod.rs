@@ -195,9 +195,10 @@ pub struct RestirPlan {
     pub temporal: bool,
     /// Q: the previous frame's M is clamped to Q·M.
     pub temporal_limit: u32,
-    /// Q on the frames whose camera moved or whose density frame changed: the smaller of
-    /// `temporal_limit` and `temporal_limit_moving` (`temporal_limit` where neither the
-    /// camera nor the density ever moves).
+    /// Q on the frames whose camera moved, whose density frame changed or (under
+    /// `env_reuse = "map"`) whose environment map turned: the smaller of `temporal_limit`
+    /// and `temporal_limit_moving` (`temporal_limit` where no frame does
+    /// ([`has_moving_frames`])).
     pub temporal_limit_moving: u32,
     pub spatial_neighbors: u32,
     pub spatial_radius_px: f32,
@@ -638,7 +639,8 @@ pub fn effective_scene(scene: &Scene, plan: &RenderPlan) -> Scene {
                 i.restir = volume::without_spatial(&i.restir);
             }
             if !has_moving_frames(scene, p.animated_density, p.env_reuse_map) {
-                // Neither the camera nor the density moves: no moving frame's limit.
+                // No frame moves (camera, density, a map under map reuse): no moving
+                // frame's limit.
                 i.restir.temporal_limit_moving = defaults.restir.temporal_limit_moving;
             }
         }

@@ -465,6 +465,7 @@ fn restir_plan(
     }
     let asked_levels = AskedLevels::of(s);
     let k = scene.integrator.max_bounces;
+    let env_reuse_map = s.env_reuse == nimbus_scene::EnvReuse::Map && has_env_map;
     let mut plan = RestirPlan {
         max_bounces: k,
         has_emission: grid.emission.is_some() || grid.temperature.is_some(),
@@ -482,7 +483,7 @@ fn restir_plan(
         temporal_limit_moving: if super::has_moving_frames(
             scene,
             !grid.frames.is_empty(),
-            s.env_reuse == nimbus_scene::EnvReuse::Map && has_env_map,
+            env_reuse_map,
         ) {
             s.temporal_limit.min(s.temporal_limit_moving)
         } else {
@@ -510,7 +511,7 @@ fn restir_plan(
             && boxes == 0,
         // Set below, once split NEE is known.
         fold_emission: false,
-        env_reuse_map: s.env_reuse == nimbus_scene::EnvReuse::Map && has_env_map,
+        env_reuse_map,
         history_before_spatial: s.temporal_history == nimbus_scene::HistoryMode::Temporal,
         direct_each_walk: s.direct == nimbus_scene::DirectMode::EachWalk,
         nee_split: match s.nee {
@@ -540,8 +541,8 @@ fn restir_plan(
         plan.settings = without_spatial(s);
     }
     if !super::has_moving_frames(scene, plan.animated_density, plan.env_reuse_map) {
-        // Read by nothing where neither the camera nor the density moves: one plan
-        // whatever it says.
+        // Read by nothing where no frame moves (camera, density, a map under map reuse):
+        // one plan whatever it says.
         plan.settings.temporal_limit_moving =
             nimbus_scene::RestirSettings::default().temporal_limit_moving;
     }
@@ -640,7 +641,9 @@ fn restir_plan(
                     } else {
                         "distance"
                     },
-                    if s.spatial_anchor {
+                    // (The optical-depth shift places a medium x_1 itself; anchors move
+                    // only the other paths.)
+                    if s.spatial_anchor && !plan.spatial_tau_shift {
                         " past where each pixel's centre ray enters the medium"
                     } else {
                         ""

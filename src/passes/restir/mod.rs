@@ -495,41 +495,43 @@ impl Pass for RestirPass {
         }
         self.upload_density(ctx, scene_frame, prev_frame)?;
         // spatial_when = "camera_moves": spatial reuse on frames whose camera moved; and
-        // Q = temporal_limit_moving where the camera or the density moved (choices made
-        // per frame from the two frames' cameras and density frames alone, never from the
-        // samples, so the estimator stays unbiased).
+        // Q = temporal_limit_moving where the camera, the density or (under map reuse) the
+        // environment map moved (choices made per frame from the two frames alone, never
+        // from the samples, so the estimator stays unbiased).
         let camera_moved = scene.camera.frame_at(scene_frame) != camera;
         let density_moved =
             self.grid.density_index_at(scene_frame) != self.grid.density_index_at(prev_frame);
+        // The two frames' lights where they are animated (else every frame's are the
+        // scene's own).
+        let lights = scene
+            .lights_animated()
+            .then(|| (scene.lights_at(prev_frame), scene.lights_at(scene_frame)));
         // With env_reuse = "map" a turning map turns every reused environment sample: the
         // history's paths are shifted paths whose targets drift frame after frame, as
-        // under a moving camera (docs/restir.md, "Q in motion").
+        // under a moving camera (docs/restir.md, "A turning sky under map reuse").
         let map_turned = self.env_reuse_map
-            && scene.lights_animated()
-            && crate::plan::env_map_rotation(&scene.lights_at(scene_frame))
-                != crate::plan::env_map_rotation(&scene.lights_at(prev_frame));
+            && lights.as_ref().is_some_and(|(prev, cur)| {
+                crate::plan::env_map_rotation(prev) != crate::plan::env_map_rotation(cur)
+            });
         self.spatial_now = !self.spatial_camera_moves || camera_moved;
         let temporal_limit =
             self.temporal_limits[usize::from(camera_moved || density_moved || map_turned)];
         // Whether the previous frame's target function is this frame's: the same camera,
         // light set and density (a static scene, or a held frame of an animation).
-        let same = scene.camera.frame_at(scene_frame) == camera
-            && (!scene.lights_animated()
-                || scene.lights_at(scene_frame) == scene.lights_at(prev_frame))
-            && self.grid.density_index_at(scene_frame) == self.grid.density_index_at(prev_frame);
+        let same = !camera_moved
+            && !density_moved
+            && lights.as_ref().is_none_or(|(prev, cur)| prev == cur);
         let flag = u32::from(same);
         // The lights' confidence in the previous frame (1 when they did not change).
-        let confidence = if scene.lights_animated() {
+        let confidence = lights.as_ref().map_or(1.0, |(prev, cur)| {
             history::light_confidence(
-                &scene.lights_at(prev_frame),
-                &scene.lights_at(scene_frame),
+                prev,
+                cur,
                 (self.grid.bounds_min + self.grid.bounds_max) * 0.5,
                 self.env_irradiance(scene),
                 self.env_change.as_ref(),
             )
-        } else {
-            1.0
-        };
+        });
         if flag != self.restir_uniforms.history_static
             || confidence != self.restir_uniforms.history_confidence
             || temporal_limit != self.restir_uniforms.temporal_limit
