@@ -11,6 +11,12 @@
 // Per candidate the target p_hat is F with T* on the walked segments and T~ on the NEE
 // segment, so the T* in p_hat and in the walk's pdf p cancel in w = p_hat / p (eq. 24-25);
 // both are carried as RGB products: Fhat (target so far) and beta = Fhat / p.
+// With SC_CANDIDATE_DELTA (candidate_tracking = "delta", the default) the walks are the
+// baseline's decomposition tracking on the exact density instead: a vertex's density is
+// sigma_t T, and the target takes the exact T on the walked segments, so w needs no T at
+// all and a candidate's weight carries no tracking ratio (sigma_s/sigma* T/T*, the
+// heavy tail of regular tracking). The selected path's walked T is computed once per
+// dispatch (walked_transmittance), the only T a reservoir needs.
 // Writes slot u_push.dst.
 
 #extension GL_GOOGLE_include_directive : require
@@ -20,6 +26,9 @@
 // candidates is selected.
 float walk_z[SC_MAX_BOUNCES + 1u];
 uint walk_omega[SC_MAX_BOUNCES + 1u];
+// Whether this dispatch selected a candidate (under delta tracking its target still lacks
+// the walked T).
+bool selected_here = false;
 
 // Stream candidate (w, p_hat) for the path of the first `kp` walk vertices into r (the
 // reservoir at `at`), copying the walk's vertices there when it is selected.
@@ -42,6 +51,7 @@ void add_candidate(uint at, inout Reservoir r, inout uint rng, float w, float p_
     c.light_point = light_point;
     c.light_dir = light_dir;
     if (res_update(r, c, w, rng)) {
+        selected_here = true;
         for (uint i = 1u; i <= kp; ++i) {
             res_store_vertex(at, i, walk_z[i - 1u], walk_omega[i - 1u]);
         }
@@ -120,6 +130,47 @@ void add_nee_candidate(uint at, inout Reservoir r, inout uint rng, vec3 x, Surfa
                   ls.point, dir_code);
 }
 
+// The transmittance T (closed form through the trilinear grid, and the boxes) along the
+// walked segments of the path stored at `at` from camera ray `cam`: the part of its target
+// that delta-tracked candidates leave out.
+float walked_transmittance(uint at, Reservoir r, CameraRay cam) {
+    uint kp = res_vertices(r);
+    float tau = 0.0;
+    if (kp == 0u) {
+        float t_end;
+        camera_end(SET_CURRENT, cam.o, cam.d, t_end);
+        tau = grid_optical_depth(cam.o, cam.d, 0.0, t_end);
+        if (SC_HAS_MEDIA) {
+            tau += box_optical_depth(cam.o, cam.d, 0.0, t_end);
+        }
+        return exp(-min(tau, MARCH_MAX_TAU));
+    }
+    vec3 x = cam.o;
+    vec3 w = cam.d;
+    for (uint i = 1u; i <= kp; ++i) {
+        float z = res_z(at, i);
+        if (i >= 2u) {
+            w = oct_decode(res_omega(at, i - 1u));
+        }
+        if (SC_HAS_SHAPES && z < 0.0) {
+            SurfacePoint surface = surface_along(x, w, FAR);
+            z = surface.t;
+            tau += grid_optical_depth(x, w, 0.0, z);
+            if (SC_HAS_MEDIA) {
+                tau += box_optical_depth(x, w, 0.0, z);
+            }
+            x = surface.x;
+            continue;
+        }
+        tau += grid_optical_depth(x, w, 0.0, z);
+        if (SC_HAS_MEDIA) {
+            tau += box_optical_depth(x, w, 0.0, z);
+        }
+        x += z * w;
+    }
+    return exp(-min(tau, MARCH_MAX_TAU));
+}
+
 void restir_main();
 
 // The stage, then its counters into the stats buffer.
@@ -163,15 +214,24 @@ void restir_main() {
             float t_end = min(t_sphere, surface.t);
             uint level = i == 1u ? LEVEL_PRIMARY : LEVEL_INDIRECT;
             float sigma_star_unused;
-            // Regular tracking: an exponential optical depth through sigma_t*. The camera
-            // segment's walk goes on to the segment's end where the direct candidate needs
-            // its whole tau* (one walk, not two).
             bool direct_here = SC_DIRECT_EACH_WALK && i == 1u;
-            float tau_target = sample_exponential(rng_next(rng), 1.0);
-            float sigma_star;
-            float tau;
-            float tau_all;
-            float z = pc_track_through(level, x, w, t_end, tau_target, direct_here, sigma_star, tau, tau_all);
+            float sigma_star = 0.0;
+            float tau = 0.0;
+            float tau_all = 0.0;
+            float z;
+            if (SC_CANDIDATE_DELTA) {
+                // The baseline's decomposition tracking on the exact density: the collision's
+                // density is sigma_t(z) T(0, z), whose T is the target's own, so neither
+                // Fhat nor beta carries it (walked_transmittance adds it to the selected
+                // path's target). The plan never sets SC_DIRECT_EACH_WALK with it.
+                z = grid_sample_collision(x, w, 0.0, t_end, rng);
+            } else {
+                // Regular tracking: an exponential optical depth through sigma_t*. The
+                // camera segment's walk goes on to the segment's end where the direct
+                // candidate needs its whole tau* (one walk, not two).
+                float tau_target = sample_exponential(rng_next(rng), 1.0);
+                z = pc_track_through(level, x, w, t_end, tau_target, direct_here, sigma_star, tau, tau_all);
+            }
             if (direct_here) {
                 // The direct candidate of the camera segment with probability 1 (the path
                 // is fixed by the walk's sub-pixel position): target L T*, T* of the whole
@@ -215,14 +275,20 @@ void restir_main() {
                     // The grid's tau* up to the box's collision.
                     z = z_box;
                     sigma_star = media[box].sigma_t;
-                    pc_track(level, x, w, z, FAR, sigma_star_unused, tau);
+                    if (!SC_CANDIDATE_DELTA) {
+                        pc_track(level, x, w, z, FAR, sigma_star_unused, tau);
+                    }
                 }
-                // tau* of the whole walked span: the grid's and the boxes'.
-                tau += box_optical_depth(x, w, 0.0, min(z, t_end));
+                // tau* of the whole walked span: the grid's and the boxes' (regular tracking;
+                // delta tracking leaves the walked T to walked_transmittance).
+                if (!SC_CANDIDATE_DELTA) {
+                    tau += box_optical_depth(x, w, 0.0, min(z, t_end));
+                }
             }
             if (z >= FAR) {
-                // Reached the segment's end with probability T* = exp(-tau). Domain: tau >= 0.
-                float T_star = exp(-tau);
+                // Reached the segment's end with probability T* = exp(-tau) (delta tracking:
+                // T, left out of both). Domain: tau >= 0.
+                float T_star = SC_CANDIDATE_DELTA ? 1.0 : exp(-tau);
                 if (i == 1u && !SC_DIRECT_EACH_WALK) {
                     // The direct candidate of the camera segment (p = T*, p_hat = L T*, so
                     // w = L); later segments reach lights through NEE only.
@@ -282,11 +348,15 @@ void restir_main() {
             }
             // The density of a collision at z among all media is the summed majorant there:
             // the grid's sigma_t* (pc_track's where the grid won, looked up where a box did)
-            // plus the box's sigma_t.
-            float sigma_star_total = box != NO_INDEX ? vm.sigma_t_box + pc_sigma_star_at(level, x)
-                                                     : sigma_star + vm.sigma_t_box;
-            // p *= sigma_t* T*, Fhat *= T*. Domain: sigma_star_total > 0 at a collision.
-            Fhat *= exp(-tau);
+            // plus the box's sigma_t; under delta tracking the grid's sigma_t itself.
+            float sigma_star_total = SC_CANDIDATE_DELTA ? sigma_t_grid + vm.sigma_t_box
+                                     : box != NO_INDEX  ? vm.sigma_t_box + pc_sigma_star_at(level, x)
+                                                        : sigma_star + vm.sigma_t_box;
+            // p *= sigma_t* T*, Fhat *= T* (delta tracking: T in neither). Domain:
+            // sigma_star_total > 0 at a collision.
+            if (!SC_CANDIDATE_DELTA) {
+                Fhat *= exp(-tau);
+            }
             beta /= sigma_star_total;
 
             vec3 emitted = vec3(0.0);
@@ -334,6 +404,11 @@ void restir_main() {
                 break;
             }
         }
+    }
+    if (SC_CANDIDATE_DELTA && selected_here && res_valid(r)) {
+        // The walked segments' transmittance of the selected path, left out of every
+        // candidate's target (it cancels in w = p_hat / p).
+        r.p_hat *= walked_transmittance(at, r, camera_ray(pixel, res_jitter(r), SET_CURRENT));
     }
     r.M = float(m1);
     if (!res_valid(r)) {

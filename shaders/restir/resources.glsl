@@ -42,6 +42,8 @@ layout(constant_id = SC_ID_FOLD_EMISSION) const bool SC_FOLD_EMISSION = false;
 layout(constant_id = SC_ID_ENV_REUSE_MAP) const bool SC_ENV_REUSE_MAP = false;
 layout(constant_id = SC_ID_NEE_SPLIT) const bool SC_NEE_SPLIT = false;
 layout(constant_id = SC_ID_DIRECT_EACH_WALK) const bool SC_DIRECT_EACH_WALK = false;
+// Candidates by decomposition tracking on the exact density (restir/initial.comp).
+layout(constant_id = SC_ID_CANDIDATE_DELTA) const bool SC_CANDIDATE_DELTA = false;
 // Opaque shapes beside the grid: paths may have surface vertices (restir/path_surfaces.glsl).
 layout(constant_id = SC_ID_HAS_SHAPES) const bool SC_HAS_SHAPES = false;
 // Homogeneous box media beside the grid (restir/vertex_media.glsl).

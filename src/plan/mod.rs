@@ -232,8 +232,12 @@ pub struct RestirPlan {
     /// environment sample at each vertex.
     pub nee_split: bool,
     /// Every walk adds the camera ray's end as a candidate (`direct = "each_walk"`), not
-    /// only walks that escape (the paper's).
+    /// only walks that escape (the paper's). Regular tracking only.
     pub direct_each_walk: bool,
+    /// Candidates by decomposition tracking on the exact density (`candidate_tracking =
+    /// "delta"`, SC_CANDIDATE_DELTA), else by regular tracking through the
+    /// piecewise-constant grid.
+    pub candidate_delta: bool,
     /// Opaque shapes beside the grid: paths get surface vertices (SC_HAS_SHAPES).
     pub has_shapes: bool,
     /// Some shapes are triangle meshes (SC_HAS_MESHES).

@@ -513,7 +513,9 @@ fn restir_plan(
         fold_emission: false,
         env_reuse_map,
         history_before_spatial: s.temporal_history == nimbus_scene::HistoryMode::Temporal,
-        direct_each_walk: s.direct == nimbus_scene::DirectMode::EachWalk,
+        direct_each_walk: s.direct == nimbus_scene::DirectMode::EachWalk
+            && s.candidate_tracking == nimbus_scene::CandidateTracking::Regular,
+        candidate_delta: s.candidate_tracking == nimbus_scene::CandidateTracking::Delta,
         nee_split: match s.nee {
             nimbus_scene::NeeMode::One => false,
             nimbus_scene::NeeMode::Split => true,
@@ -737,9 +739,28 @@ fn restir_plan(
             },
         ),
         on(
+            "  SC_CANDIDATE_DELTA",
+            plan.candidate_delta,
+            if plan.candidate_delta {
+                "[integrator.restir] candidate_tracking = \"delta\": the candidates' walks find \
+                 their vertices by the baseline's decomposition tracking on the exact density \
+                 (density sigma_t T, the target's own: no tracking ratio in a candidate's \
+                 weight); the selected path's walked T is computed once, in closed form"
+                    .into()
+            } else {
+                "[integrator.restir] candidate_tracking = \"regular\": regular tracking through \
+                 the conservative piecewise-constant grid (the paper's)"
+                    .into()
+            },
+        ),
+        on(
             "  SC_DIRECT_EACH_WALK",
             plan.direct_each_walk,
-            if plan.direct_each_walk {
+            if plan.candidate_delta {
+                "delta-tracked walks add what the camera ray sees where they escape, with \
+                 weight L exactly ([integrator.restir] direct applies to regular tracking)"
+                    .into()
+            } else if plan.direct_each_walk {
                 "every walk adds what its camera ray sees behind the medium as a candidate \
                  (target L T* of the whole camera segment)"
                     .into()

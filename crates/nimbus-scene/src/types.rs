@@ -766,6 +766,20 @@ pub enum DirectMode {
     Escape,
 }
 
+/// How ReSTIR's initial candidates find their medium vertices (`candidate_tracking`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CandidateTracking {
+    /// The baseline's free-flight sampling: decomposition tracking on the exact density
+    /// (residual delta tracking per super-voxel). A vertex's density is σ_t(z)·T(z), the
+    /// target's own, so a candidate carries no tracking ratio; the walked transmittance T
+    /// of the selected path alone is computed (closed form), once per dispatch.
+    Delta,
+    /// The paper's (sec. 4.1): regular tracking through the conservative piecewise-constant
+    /// grid at `mip_candidates` / `mip_indirect`, each candidate weighted by
+    /// (σ_s/σ*)·(T*/T) relative to its target (heavier tails; cheaper per walk).
+    Regular,
+}
+
 /// `[integrator.restir]`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RestirSettings {
@@ -826,8 +840,11 @@ pub struct RestirSettings {
     pub sigma_star_floor: f32,
     /// How paths end in a light (`nee`).
     pub nee: NeeMode,
-    /// How candidates include the camera ray's end (`direct`).
+    /// How candidates include the camera ray's end (`direct`; regular tracking only:
+    /// delta-tracked walks add it where they escape, with weight L exactly).
     pub direct: DirectMode,
+    /// How the candidates' walks find their medium vertices (`candidate_tracking`).
+    pub candidate_tracking: CandidateTracking,
     /// Where regular tracking reads the piecewise-constant levels from (`pc_fetch`): the
     /// same choices as the baseline's `density_fetch`.
     pub pc_fetch: DensityFetch,
@@ -835,9 +852,10 @@ pub struct RestirSettings {
 
 /// The defaults are what measured best at equal GPU time on the benchmark scenes
 /// (docs/restir.md): Q = 20 with the pre-spatial history, no spatial reuse, and the mip
-/// levels and next-event estimation chosen from the scene. The paper's algorithm is
-/// `temporal_limit = 4`, `spatial_neighbors = 3`, `temporal_history = "spatial"`,
-/// `mip_indirect = 2`, `mip_reuse = 1`, `nee = "one"`, `direct = "escape"`.
+/// levels and next-event estimation chosen from the scene, candidates by delta tracking.
+/// The paper's algorithm is `temporal_limit = 4`, `spatial_neighbors = 3`,
+/// `temporal_history = "spatial"`, `mip_indirect = 2`, `mip_reuse = 1`, `nee = "one"`,
+/// `direct = "escape"`, `candidate_tracking = "regular"`.
 impl Default for RestirSettings {
     fn default() -> Self {
         Self {
@@ -865,6 +883,7 @@ impl Default for RestirSettings {
             sigma_star_floor: 0.0,
             nee: NeeMode::Auto,
             direct: DirectMode::EachWalk,
+            candidate_tracking: CandidateTracking::Delta,
             pc_fetch: DensityFetch::Auto,
         }
     }

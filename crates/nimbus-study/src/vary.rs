@@ -205,6 +205,13 @@ pub(super) fn apply(scene: &mut Scene, key: &str, value: &str) -> Result<Option<
                 _ => bail!("{key}: unknown direct candidate {value:?}; valid: each_walk, escape"),
             };
         }
+        "candidate_tracking" => {
+            scene.integrator.restir.candidate_tracking = match value {
+                "delta" => nimbus_scene::CandidateTracking::Delta,
+                "regular" => nimbus_scene::CandidateTracking::Regular,
+                _ => bail!("{key}: unknown tracking {value:?}; valid: delta, regular"),
+            };
+        }
         "pc_fetch" => {
             scene.integrator.restir.pc_fetch = match value {
                 "auto" => nimbus_scene::DensityFetch::Auto,
@@ -518,6 +525,7 @@ mod tests {
             ("sigma_star_floor", "0.25"),
             ("nee", "one"),
             ("direct", "escape"),
+            ("candidate_tracking", "regular"),
             ("pc_fetch", "image"),
         ];
         assert_eq!(values.len(), keys().len());
@@ -548,6 +556,10 @@ mod tests {
         assert!(r.final_ratio_tracking);
         assert_eq!(r.nee, nimbus_scene::NeeMode::One);
         assert_eq!(r.direct, nimbus_scene::DirectMode::Escape);
+        assert_eq!(
+            r.candidate_tracking,
+            nimbus_scene::CandidateTracking::Regular
+        );
         assert_eq!(r.pc_fetch, nimbus_scene::DensityFetch::Image);
         assert_eq!(r.env_reuse, nimbus_scene::EnvReuse::World);
         assert_eq!(
@@ -567,6 +579,7 @@ mod tests {
             ("spatial_anchor", "1.5"),
             ("nee", "all"),
             ("direct", "never"),
+            ("candidate_tracking", "ratio"),
         ] {
             assert!(apply(&mut s, key, value).is_err(), "{key}={value}");
         }

@@ -18,7 +18,7 @@ pub fn specialization(
     exact_spans: bool,
     two_level: bool,
     pc_buffer: bool,
-) -> [(u32, SpecValue); 27] {
+) -> [(u32, SpecValue); 28] {
     [
         (SC_ID_PC_BUFFER, SpecValue::Bool(pc_buffer)),
         (
@@ -28,7 +28,9 @@ pub fn specialization(
         (SC_ID_TWO_LEVEL_BRICKS, SpecValue::Bool(two_level)),
         (
             SC_ID_EXACT_SPANS,
-            SpecValue::Bool(plan.settings.final_ratio_tracking && exact_spans),
+            SpecValue::Bool(
+                (plan.settings.final_ratio_tracking || plan.candidate_delta) && exact_spans,
+            ),
         ),
         (SC_ID_HAS_AREA_LIGHTS, SpecValue::Bool(plan.has_area_lights)),
         (SC_ID_HAS_GOBOS, SpecValue::Bool(plan.has_gobos)),
@@ -67,6 +69,7 @@ pub fn specialization(
             SC_ID_DIRECT_EACH_WALK,
             SpecValue::Bool(plan.direct_each_walk),
         ),
+        (SC_ID_CANDIDATE_DELTA, SpecValue::Bool(plan.candidate_delta)),
     ]
 }
 
@@ -83,6 +86,12 @@ pub struct CandidateCost {
     pub boxes: u32,
     /// Primitives in the emitter table (an area-light sample binary-searches it).
     pub emitters: u32,
+    /// Super-voxels a ray may cross (decomposition tracking's walk, `candidate_tracking =
+    /// "delta"`).
+    pub super_voxels: u32,
+    /// Dual cells a ray may cross (the closed-form transmittance of the selected path's
+    /// segments, once per dispatch under delta tracking).
+    pub dual_cells: u32,
 }
 
 pub fn schedule_settings(plan: &RestirPlan, candidates_per_dispatch: u32) -> ScheduleSettings {
@@ -122,9 +131,17 @@ pub fn candidates_per_dispatch(
     } else {
         0
     };
-    let per_candidate =
-        segment(cost.pc_blocks[0]) + direct + (k - 1) * segment(cost.pc_blocks[1]) + k;
-    let fit = (u64::from(budget / 2) / per_candidate.max(1)).max(1);
+    // Decomposition tracking: the super-voxels and the residual collisions in them (as
+    // the baseline counts them), then, once per dispatch, the selected path's segments
+    // through the dual cells.
+    let (walks, fixed) = if plan.candidate_delta {
+        let walk = cost.super_voxels + GRID_EXACT_SPAN_STEPS;
+        ([walk, walk], k * u64::from(cost.dual_cells))
+    } else {
+        (cost.pc_blocks, 0)
+    };
+    let per_candidate = segment(walks[0]) + direct + (k - 1) * segment(walks[1]) + k;
+    let fit = (u64::from(budget / 2).saturating_sub(fixed) / per_candidate.max(1)).max(1);
     u32::try_from(fit)
         .unwrap_or(u32::MAX)
         .min(plan.settings.candidates)
@@ -155,8 +172,11 @@ mod tests {
             mesh_rays: 0,
             boxes: 0,
             emitters: 0,
+            super_voxels: 40,
+            dual_cells: 2000,
         };
         let budget = 65_535;
+        p.candidate_delta = false;
         p.direct_each_walk = false;
         let escape = candidates_per_dispatch(Some(budget), &p, &cost);
         p.direct_each_walk = true;
@@ -170,5 +190,45 @@ mod tests {
             "{each} x {per}"
         );
         assert_eq!(candidates_per_dispatch(None, &p, &cost), 4096);
+    }
+
+    /// Delta-tracked candidates count their super-voxels and residual collisions, and
+    /// the dispatch's one closed-form walk of the selected path, against the budget.
+    #[test]
+    fn delta_tracked_candidates_count_their_walks_against_the_loop_budget() {
+        let path = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/assets/scenes/cloud-restir.toml"
+        );
+        let scene = crate::load_scene(Some(std::path::Path::new(path)), &[]).unwrap();
+        let plan = crate::plan::build(&scene, None).unwrap();
+        let mut p = plan.restir().unwrap().clone();
+        p.settings.candidates = 4096;
+        p.max_bounces = 3;
+        p.candidate_delta = true;
+        p.direct_each_walk = false;
+        let cost = CandidateCost {
+            pc_blocks: [10, 10],
+            march_steps: 300,
+            lights: 2,
+            mesh_rays: 0,
+            boxes: 0,
+            emitters: 0,
+            super_voxels: 40,
+            dual_cells: 3000,
+        };
+        let budget = 65_535;
+        let delta = candidates_per_dispatch(Some(budget), &p, &cost);
+        let segment = |blocks: u64| blocks + 300 + 6 + 64;
+        let per = 3 * segment(40 + 64) + 3;
+        assert!(delta >= 1);
+        assert!(
+            u64::from(delta) * per + 3 * 3000 <= u64::from(budget / 2),
+            "{delta} x {per}"
+        );
+        // More than the piecewise-constant walks' 10 blocks would allow: the tracking's
+        // own walk counts, not the levels'.
+        p.candidate_delta = false;
+        assert!(candidates_per_dispatch(Some(budget), &p, &cost) > delta);
     }
 }

@@ -178,6 +178,11 @@ impl RestirPass {
                 mesh_rays: crate::passes::mesh_ray_cost(scene),
                 boxes: boxes.len() as u32,
                 emitters: grid_gpu.emitters.len() as u32,
+                super_voxels: density.brick_dims.iter().sum::<u32>() + 3,
+                dual_cells: {
+                    let d = (density.lattice_max - density.lattice_min + 1).max(glam::IVec3::ONE);
+                    (d.x + d.y + d.z) as u32 + 3
+                },
             },
         );
         let restir_uniforms = RestirUniformsGpu {

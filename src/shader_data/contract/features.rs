@@ -105,6 +105,10 @@ gpu_consts! {
     /// its neighbours or anchor their depths (`spatial_feature_tolerance`,
     /// `spatial_anchor`; restir/spatial.comp). Off, the pass carries none of that code.
     pub const SC_ID_SPATIAL_FEATURES: u32 = 37;
+    /// ReSTIR's initial pass finds its candidates' medium vertices by the baseline's
+    /// decomposition tracking on the exact density, not by regular tracking through the
+    /// piecewise-constant grid (`candidate_tracking`; restir/initial.comp).
+    pub const SC_ID_CANDIDATE_DELTA: u32 = 38;
 
     // -----------------------------------------------------------------------------------
     // Values of SC_ESTIMATOR (`shaders/box/crepuscular.comp`): the box-medium estimators

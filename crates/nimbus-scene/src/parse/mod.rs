@@ -114,6 +114,7 @@ pub const RESTIR_KEYS: &[&str] = &[
     "sigma_star_floor",
     "nee",
     "direct",
+    "candidate_tracking",
     "pc_fetch",
 ];
 
@@ -741,6 +742,14 @@ fn parse_restir(source: &Source, table: &toml::Table) -> Result<RestirSettings> 
             &[
                 ("each_walk", DirectMode::EachWalk),
                 ("escape", DirectMode::Escape),
+            ],
+        )?,
+        candidate_tracking: f.choice(
+            "candidate_tracking",
+            Some(d.candidate_tracking),
+            &[
+                ("delta", CandidateTracking::Delta),
+                ("regular", CandidateTracking::Regular),
             ],
         )?,
         pc_fetch: f.choice(

@@ -33,6 +33,7 @@ fn minimal_scene_gets_every_default() {
     assert_eq!(restir.temporal_history, HistoryMode::Temporal);
     assert_eq!(restir.nee, NeeMode::Auto);
     assert_eq!(restir.direct, DirectMode::EachWalk);
+    assert_eq!(restir.candidate_tracking, CandidateTracking::Delta);
     assert_eq!(restir.spatial_radius_px, None);
     assert_eq!(restir.spatial_rounds, 1);
     assert_eq!(restir.reuse, ReuseMode::Direction);
@@ -234,6 +235,7 @@ mip_reuse = 0
 final_transmittance = "ratio"
 nee = "split"
 direct = "escape"
+candidate_tracking = "regular"
 pc_fetch = "buffer"
 mis = "pairwise"
 spatial_shift = "optical_depth"
@@ -461,6 +463,7 @@ density_fetch = "image"
                 sigma_star_floor: 0.125,
                 nee: NeeMode::Split,
                 direct: DirectMode::Escape,
+                candidate_tracking: CandidateTracking::Regular,
                 pc_fetch: DensityFetch::Buffer,
             },
             baseline: BaselineSettings {

@@ -415,15 +415,16 @@ pub(crate) const BOTH: Case = Case {
     restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 1\nspatial_neighbors = 3\nspatial_when = \"always\"\nspatial_radius_px = 10",
 };
 const VERTEX: Case = Case {
-    label: "temporal + spatial, vertex reuse, one light per vertex, direct paths of escaping walks",
+    label: "temporal + spatial, vertex reuse, one light per vertex, regular tracking, direct paths of escaping walks",
     restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 1\nspatial_neighbors = 3\nspatial_when = \"always\"\nspatial_radius_px = 10\nreuse = \"vertex\"\n\
-             nee = \"one\"\ndirect = \"escape\"",
+             nee = \"one\"\ncandidate_tracking = \"regular\"\ndirect = \"escape\"",
 };
 
 const LEVERS: Case = Case {
-    label: "temporal + 2 spatial rounds, pairwise MIS, optical-depth shift, pre-spatial history, sigma* floor",
+    label: "temporal + 2 spatial rounds, pairwise MIS, optical-depth shift, pre-spatial history, regular tracking with a sigma* floor",
     restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 2\nspatial_neighbors = 4\nspatial_when = \"always\"\nspatial_radius_px = 10\n\
-             mis = \"pairwise\"\nspatial_shift = \"optical_depth\"\ntemporal_history = \"temporal\"\nsigma_star_floor = 0.25\n\
+             mis = \"pairwise\"\nspatial_shift = \"optical_depth\"\ntemporal_history = \"temporal\"\n\
+             candidate_tracking = \"regular\"\nsigma_star_floor = 0.25\n\
              spatial_anchor = true\nspatial_feature_tolerance = 0.3",
 };
 const FOLDED: Case = Case {
@@ -442,9 +443,9 @@ const TAU_SHIFT: Case = Case {
              spatial_shift = \"optical_depth\"",
 };
 pub(crate) const PAIRWISE: Case = Case {
-    label: "temporal + spatial, pairwise MIS, one light per vertex",
+    label: "temporal + spatial, pairwise MIS, one light per vertex, regular tracking",
     restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 1\nspatial_neighbors = 3\nspatial_when = \"always\"\nspatial_radius_px = 10\nmis = \"pairwise\"\n\
-             nee = \"one\"",
+             nee = \"one\"\ncandidate_tracking = \"regular\"",
 };
 
 /// Renders the baseline reference of `base` once, then every case against it; prints

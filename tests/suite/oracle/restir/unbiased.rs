@@ -6,7 +6,9 @@
 use super::*;
 
 /// Single scattering (K = 1): no reuse, temporal only, spatial only, both, and both with
-/// pairwise MIS, the optical-depth shift, or depth anchors and the neighbour test converge to the baseline (criteria in the module docs).
+/// pairwise MIS (candidates by regular tracking), the optical-depth shift, or depth anchors
+/// and the neighbour test converge to the baseline (criteria in the module docs). The
+/// others' candidates are delta-tracked (the default).
 #[test]
 fn single_scattering_matches_the_baseline_slow() {
     check_cases(
@@ -21,9 +23,9 @@ fn single_scattering_matches_the_baseline_slow() {
     );
 }
 
-/// Multiple scattering (K = 3): no reuse, both reuses, both with vertex reuse, and the
-/// levers together (two rounds of pairwise MIS, the pre-spatial history, a σ* floor,
-/// depth anchors and the neighbour test)
+/// Multiple scattering (K = 3): no reuse, both reuses (delta-tracked candidates), both with
+/// vertex reuse, and the levers together (two rounds of pairwise MIS, the pre-spatial
+/// history, a σ* floor, depth anchors and the neighbour test; these two by regular tracking)
 /// converge to the baseline (criteria in the module docs). Temporal-only and
 /// spatial-only reuse are checked apart at K = 1 (single_scattering_matches_the_baseline_slow);
 /// here they were left out for CI time (the root suite had grown to 26 minutes on two
