@@ -558,12 +558,22 @@ fn restir_plan(
             "pass restir initial",
             true,
             format!(
-                "grid medium #{}: M = {} random walks per pixel, regular tracking on mip {} for camera rays and {} for scattered ones, \
+                "grid medium #{}: M = {} random walks per pixel, {}, \
                  K = {k}, {lights} analytic light(s); {} bytes of reservoir per pixel and slot, {} slots",
                 index + 1,
                 s.candidates,
-                mip_text(Some(asked_levels.candidates), plan.levels.levels.candidates),
-                mip_text(asked_levels.indirect, plan.levels.levels.indirect),
+                if plan.candidate_delta {
+                    format!(
+                        "delta tracking on the exact density, NEE marched on mip {}",
+                        mip_text(asked_levels.indirect, plan.levels.levels.indirect)
+                    )
+                } else {
+                    format!(
+                        "regular tracking on mip {} for camera rays and {} for scattered ones",
+                        mip_text(Some(asked_levels.candidates), plan.levels.levels.candidates),
+                        mip_text(asked_levels.indirect, plan.levels.levels.indirect)
+                    )
+                },
                 crate::shader_data::reservoir_bytes(k),
                 plan.reservoir_slots()
             ),

@@ -96,9 +96,17 @@ def write_file_scene(work, vol):
     return path
 
 
+# Nimbus's integrators as the rows name them: "restir-fresh" is ReSTIR without temporal
+# reuse (fresh candidates every frame, so the frames of a still are independent: the
+# still mode docs/performance.md measures).
+RESTIR_ROWS = {"restir": "ReSTIR", "restir-fresh": "ReSTIR, temporal = false,"}
+
+
 def nimbus_sets(k, g, volume):
-    return ["--set", "integrator.max_bounces=%d" % k, "--set", "medium.1.g=%g" % g,
-            "--set", 'integrator.volume="%s"' % volume]
+    sets = ["--set", "integrator.max_bounces=%d" % k, "--set", "medium.1.g=%g" % g]
+    if volume == "restir-fresh":
+        return sets + ["--set", 'integrator.volume="restir"', "--set", "integrator.restir.temporal=false"]
+    return sets + ["--set", 'integrator.volume="%s"' % volume]
 
 
 def run(cmd, log_path=None):
@@ -338,7 +346,8 @@ def step_measure(args, scene_file, refs):
                 if i < len(mi_levels):
                     mitsuba_one(k, g, mi_levels[i], seed)
                 if (k, g) == (3, 0.0) and i < len(rs_levels):
-                    nimbus_one(k, g, "restir", rs_levels[i], 1, seed)
+                    for mode in args.restir:
+                        nimbus_one(k, g, mode, rs_levels[i], 1, seed)
     return rows
 
 
@@ -367,7 +376,7 @@ def summarize(rows, seeds):
     """Per table row: Nimbus integrator x config. Efficiency per renderer = geometric mean
     over its sample counts; the ratio per seed, then over seeds."""
     table = []
-    keys = [("baseline", k, g) for k, g in CONFIGS] + [("restir", 3, 0.0)]
+    keys = [("baseline", k, g) for k, g in CONFIGS] + [(mode, 3, 0.0) for mode in RESTIR_ROWS]
     for integ, k, g in keys:
         nb = [r for r in rows if r["renderer"] == "nimbus" and r["integrator"] == integ and r["k"] == k and r["g"] == g]
         mi = [r for r in rows if r["renderer"] == "mitsuba" and r["k"] == k and r["g"] == g]
@@ -395,7 +404,7 @@ def summarize(rows, seeds):
 
         table.append({
             "ratio_best": eff_nb / eff_mi, "best_ms_per_sample": (1000 * best_nb, 1000 * best_mi),
-            "config": "%s %s" % ("baseline" if integ == "baseline" else "ReSTIR", cfg_name(k, g)),
+            "config": "%s %s" % (RESTIR_ROWS.get(integ, integ), cfg_name(k, g)),
             "nimbus": levels(nb, lambda r, s, e: ("%dx%d: %.0f ms/fr, %.2f s" % (r["frames"], r["spp"], r["median_frame_ms"], s), e)),
             "mitsuba": levels(mi, lambda r, s, e: ("%d spp: %.2f s" % (r["spp"], s), e)),
             "ratio": gmean(ratios), "ratio_min": min(ratios), "ratio_max": max(ratios), "ratios": ratios,
@@ -518,6 +527,10 @@ def main():
     ap.add_argument("--nimbus-frames", default="16,64", help="baseline frame counts")
     ap.add_argument("--nimbus-spp", type=int, default=16)
     ap.add_argument("--restir-frames", default="64,256", help="ReSTIR frame counts (1 spp)")
+    ap.add_argument("--restir", nargs="+", default=list(RESTIR_ROWS), choices=list(RESTIR_ROWS),
+                    help="ReSTIR rows (K = 3, g = 0): its defaults, and without temporal reuse")
+    ap.add_argument("--configs", nargs="+", default=["%d:%g" % c for c in CONFIGS], metavar="K:G",
+                    help="the configurations (max_bounces:g) to compare, e.g. 3:0")
     ap.add_argument("--mitsuba-spp", default="64,256")
     ap.add_argument("--stop-after", choices=["refs", "agreement"], help="stop after this step")
     ap.add_argument("--any-ref", action="store_true",
@@ -530,6 +543,10 @@ def main():
     args.nimbus = os.path.abspath(args.nimbus)
     args.ref_nimbus = os.path.abspath(args.ref_nimbus or args.nimbus)
     SCENE_SRC = os.path.abspath(args.scene)
+    try:
+        CONFIGS[:] = [(int(c.split(":")[0]), float(c.split(":")[1])) for c in args.configs]
+    except (IndexError, ValueError):
+        sys.exit("compare.py: --configs takes K:G pairs such as 3:0, got %s" % " ".join(args.configs))
 
     if args.report_only:
         return report_only(args)
