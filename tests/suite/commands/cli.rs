@@ -581,7 +581,7 @@ fn explain_shows_the_mip_levels_restir_uses() {
     ]);
     let stdout = text(&fixed.stdout);
     assert!(fixed.status.success(), "{}", text(&fixed.stderr));
-    assert!(stdout.contains("2 for scattered ones"), "{stdout}");
+    assert!(stdout.contains("NEE marched on mip 2,"), "{stdout}");
     assert!(
         !stdout.contains("(auto)") && !stdout.contains("ReSTIR chose mip"),
         "{stdout}"
