@@ -371,7 +371,8 @@ profile() {
 paper=(--set integrator.restir.temporal_limit=4 --set integrator.restir.spatial_neighbors=3
     --set integrator.restir.spatial_when=always
     --set integrator.restir.temporal_history=spatial --set integrator.restir.mip_indirect=2
-    --set integrator.restir.mip_reuse=1 --set integrator.restir.nee=one)
+    --set integrator.restir.mip_reuse=1 --set integrator.restir.nee=one
+    --set 'integrator.restir.candidate_tracking="regular"' --set 'integrator.restir.direct="escape"')
 for k in 1 3; do
     step "profile restir k$k" profile "bench-restir-hd-k$k" assets/scenes/bench/cloud-g0.toml "${hd[@]}" \
         --set "integrator.max_bounces=$k"
@@ -385,11 +386,12 @@ done
 step "profile baseline buffer k3" profile "bench-baseline-buffer-hd-k3" assets/scenes/bench/cloud-g0.toml \
     "${hd[@]}" --set "integrator.max_bounces=3" --set integrator.volume=baseline \
     --set 'integrator.baseline.density_fetch="buffer"'
-# ReSTIR's candidates by the paper's regular tracking through the piecewise-constant grid
-# instead of delta tracking (the default since 1ea79f1: 1.24x the frame on lavapipe for
-# 1.45x less per-frame MSE at K = 3); the ratio to profile-bench-restir-hd-k3.
-step "profile restir regular k3" profile "bench-restir-regular-hd-k3" assets/scenes/bench/cloud-g0.toml \
-    "${hd[@]}" --set "integrator.max_bounces=3" --set 'integrator.restir.candidate_tracking="regular"'
+# ReSTIR's candidates by delta tracking on the exact density instead of regular tracking
+# through the piecewise-constant grid (which candidate_tracking = "auto" keeps on this
+# static, smooth cloud; lavapipe: 1.27x the frame for 0.91x the per-frame MSE at K = 3,
+# docs/restir.md "Candidates by delta tracking"); the ratio to profile-bench-restir-hd-k3.
+step "profile restir delta k3" profile "bench-restir-delta-hd-k3" assets/scenes/bench/cloud-g0.toml \
+    "${hd[@]}" --set "integrator.max_bounces=3" --set 'integrator.restir.candidate_tracking="delta"'
 # ReSTIR's regular tracking reading sigma* from a storage buffer instead of the atlas
 # image (what pc_fetch = "auto" takes on CPU devices: 0.93x a K = 1 frame on lavapipe;
 # unmeasured on GPUs, which keep the image); the ratio to profile-bench-restir-hd-k1.
@@ -446,8 +448,8 @@ done
 # sky (sky-g06) is the paper's Fig. 4 (top).
 case $mode in
     quick) motion=(sun-g0); motion_k=1; motion_vary=() ;;
-    # About a minute on an H200: the moving camera at g = 0, candidates by delta tracking
-    # (the default) against regular tracking, never measured on a GPU.
+    # About a minute on an H200: the moving camera at g = 0, candidates by delta and by
+    # regular tracking (what "auto" keeps there), never compared on a GPU.
     lent) motion=(camera-g0); motion_k=3; motion_vary=(--vary candidate_tracking=delta,regular) ;;
     full) motion=(camera-g0 sun-g0 sky-g06 camera-g08); motion_k=3
         motion_vary=(--vary temporal_limit_moving=2,20 --vary candidate_tracking=delta,regular) ;;

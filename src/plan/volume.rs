@@ -4,6 +4,7 @@
 use anyhow::{bail, Result};
 use nimbus_scene::{Light, Medium, Scene};
 
+use super::levels::CANDIDATE_DELTA_MARCH_ERROR;
 use super::{
     AskedLevels, BaselinePlan, Decision, Integrator, LevelChoice, RestirPlan, MAX_BOX_MEDIA,
 };
@@ -404,6 +405,73 @@ fn other_lights_are_the_sky(scene: &Scene) -> bool {
         && !scene.shapes.iter().any(|s| s.emits())
 }
 
+/// Whether the candidates' walks use delta tracking (`candidate_tracking`; `"auto"`:
+/// where each frame leans on its candidates, temporal reuse off or a density that changes
+/// from frame to frame, or where the candidates' level misses the field, its march error
+/// above [`CANDIDATE_DELTA_MARCH_ERROR`]).
+fn candidate_delta(
+    s: &nimbus_scene::RestirSettings,
+    animated_density: bool,
+    levels: &LevelChoice,
+) -> bool {
+    match s.candidate_tracking {
+        nimbus_scene::CandidateTracking::Delta => true,
+        nimbus_scene::CandidateTracking::Regular => false,
+        nimbus_scene::CandidateTracking::Auto => {
+            !s.temporal
+                || animated_density
+                || candidates_march_error(levels).is_some_and(|e| e > CANDIDATE_DELTA_MARCH_ERROR)
+        }
+    }
+}
+
+/// What `--explain` says of the candidates' tracking.
+fn tracking_reason(s: &nimbus_scene::RestirSettings, plan: &RestirPlan) -> String {
+    let what = if plan.candidate_delta {
+        "the candidates' walks find their vertices by the baseline's decomposition tracking on \
+         the exact density (density sigma_t T, the target's own: no tracking ratio in a \
+         candidate's weight); the selected path's walked T is computed once, in closed form"
+    } else {
+        "regular tracking through the conservative piecewise-constant grid (the paper's)"
+    };
+    let why = match s.candidate_tracking {
+        nimbus_scene::CandidateTracking::Delta => "candidate_tracking = \"delta\"".to_string(),
+        nimbus_scene::CandidateTracking::Regular => "candidate_tracking = \"regular\"".to_string(),
+        nimbus_scene::CandidateTracking::Auto => {
+            let error = candidates_march_error(&plan.levels)
+                .map(|e| format!("{e:.3}"))
+                .unwrap_or_else(|| "unmeasured".into());
+            let cause = if !s.temporal {
+                "temporal reuse is off, so every frame stands on its candidates".to_string()
+            } else if plan.animated_density {
+                "the density changes from frame to frame, so the history is weak".to_string()
+            } else if plan.candidate_delta {
+                format!(
+                    "mip {} of the candidates misses the field (march error {error} > \
+                     {CANDIDATE_DELTA_MARCH_ERROR})",
+                    plan.levels.levels.candidates
+                )
+            } else {
+                format!(
+                    "a static density under temporal reuse, and mip {} of the candidates fits \
+                     the field (march error {error} <= {CANDIDATE_DELTA_MARCH_ERROR})",
+                    plan.levels.levels.candidates
+                )
+            };
+            format!("candidate_tracking = \"auto\": {cause}")
+        }
+    };
+    format!("[integrator.restir] {why}: {what}")
+}
+
+/// The march error of the candidates' level (the camera segments' regular tracking),
+/// where the plan measured the errors.
+fn candidates_march_error(levels: &LevelChoice) -> Option<f64> {
+    let errors = levels.march_errors.as_ref()?;
+    let at = (levels.levels.candidates as usize).min(errors.len().checked_sub(1)?);
+    Some(errors[at])
+}
+
 /// Whether split next-event estimation applies: delta (directional, point) lights and an
 /// environment, and no other lights (sphere lights, emitting shapes).
 fn nee_split_applies(scene: &Scene) -> bool {
@@ -513,9 +581,9 @@ fn restir_plan(
         fold_emission: false,
         env_reuse_map,
         history_before_spatial: s.temporal_history == nimbus_scene::HistoryMode::Temporal,
-        direct_each_walk: s.direct == nimbus_scene::DirectMode::EachWalk
-            && s.candidate_tracking == nimbus_scene::CandidateTracking::Regular,
-        candidate_delta: s.candidate_tracking == nimbus_scene::CandidateTracking::Delta,
+        // Set below, once the levels are known.
+        direct_each_walk: false,
+        candidate_delta: false,
         nee_split: match s.nee {
             nimbus_scene::NeeMode::One => false,
             nimbus_scene::NeeMode::Split => true,
@@ -532,6 +600,8 @@ fn restir_plan(
         has_sphere_lights: has_sphere_lights(scene),
         has_gobos: gobo_count(scene) > 0,
     };
+    plan.candidate_delta = candidate_delta(s, plan.animated_density, &plan.levels);
+    plan.direct_each_walk = s.direct == nimbus_scene::DirectMode::EachWalk && !plan.candidate_delta;
     // Folded emission needs the environment's sampler at every vertex (q > 0 wherever it
     // draws): split NEE, or the environment as the only light; and emission.
     let env_only = matches!(scene.lights.as_slice(), [Light::Environment { .. }])
@@ -751,17 +821,7 @@ fn restir_plan(
         on(
             "  SC_CANDIDATE_DELTA",
             plan.candidate_delta,
-            if plan.candidate_delta {
-                "[integrator.restir] candidate_tracking = \"delta\": the candidates' walks find \
-                 their vertices by the baseline's decomposition tracking on the exact density \
-                 (density sigma_t T, the target's own: no tracking ratio in a candidate's \
-                 weight); the selected path's walked T is computed once, in closed form"
-                    .into()
-            } else {
-                "[integrator.restir] candidate_tracking = \"regular\": regular tracking through \
-                 the conservative piecewise-constant grid (the paper's)"
-                    .into()
-            },
+            tracking_reason(s, &plan),
         ),
         on(
             "  SC_DIRECT_EACH_WALK",
@@ -938,6 +998,60 @@ mod tests {
              [integrator]\nvolume = \"{volume}\"\n"
         );
         nimbus_scene::parse_str(&text, Path::new("spp.toml")).unwrap()
+    }
+
+    /// `candidate_tracking = "auto"`: delta tracking where the candidates' level misses
+    /// the field (the test cloud's voxel-scale noise at mip 1), where temporal reuse is
+    /// off, and where the density is animated; regular tracking on the smooth benchmark
+    /// cumulus under temporal reuse; "delta" and "regular" as asked. `--explain` says why.
+    #[test]
+    fn auto_candidate_tracking_follows_the_content_and_the_history() {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+        use nimbus_scene::FieldOverride;
+        let plan = |file: &str, overrides: &[FieldOverride]| {
+            let scene = crate::load_scene(Some(&root.join(file)), overrides).unwrap();
+            match build(&scene).unwrap().0 {
+                Integrator::Restir(p) => (p.candidate_delta, p.direct_each_walk, scene),
+                _ => panic!("{file}: not ReSTIR"),
+            }
+        };
+        let noisy = "assets/scenes/cloud-restir.toml";
+        let smooth = "assets/scenes/bench/cloud-g0.toml";
+        assert!(plan(noisy, &[]).0);
+        let (delta, each_walk, scene) = plan(smooth, &[]);
+        assert!(!delta && each_walk);
+        let restir = match build(&scene).unwrap().0 {
+            Integrator::Restir(p) => p,
+            _ => unreachable!(),
+        };
+        let why = tracking_reason(&restir.settings, &restir);
+        assert!(why.contains("fits the field (march error 0.030"), "{why}");
+        assert!(
+            plan(
+                smooth,
+                &[FieldOverride::new("integrator.restir.temporal", false)]
+            )
+            .0
+        );
+        assert!(plan("assets/scenes/plume-anim.toml", &[]).0);
+        let (delta, each_walk, _) = plan(
+            smooth,
+            &[FieldOverride::new(
+                "integrator.restir.candidate_tracking",
+                "delta",
+            )],
+        );
+        assert!(delta && !each_walk);
+        assert!(
+            !plan(
+                noisy,
+                &[FieldOverride::new(
+                    "integrator.restir.candidate_tracking",
+                    "regular"
+                )]
+            )
+            .0
+        );
     }
 
     /// ReSTIR draws one path per pixel per frame: spp > 1 would be ignored, so it is

@@ -98,7 +98,7 @@
 //! | restir `spatial_feature_tolerance` | [0, 1] (0: every neighbour is combined) |
 //! | restir `nee` | `"auto"`, `"one"`, `"split"` (only with delta lights and an environment alone besides) |
 //! | restir `direct` | `"each_walk"`, `"escape"` |
-//! | restir `candidate_tracking` | `"delta"`, `"regular"` |
+//! | restir `candidate_tracking` | `"auto"`, `"delta"`, `"regular"` |
 //! | restir `pc_fetch` | `"auto"`, `"image"`, `"buffer"` (refused where the buffer exceeds the device's storage-buffer range) |
 //! | baseline `nee` | `"auto"`, `"one"`, `"split"` |
 //! | baseline `density_fetch` | `"auto"`, `"image"`, `"buffer"` |

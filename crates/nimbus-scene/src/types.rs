@@ -769,6 +769,11 @@ pub enum DirectMode {
 /// How ReSTIR's initial candidates find their medium vertices (`candidate_tracking`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum CandidateTracking {
+    /// Chosen by the plan: `Delta` where each frame leans on its candidates (temporal
+    /// reuse off, or a density that changes from frame to frame) or where the candidates'
+    /// coarse level misses the field (its marched optical depth error above
+    /// 0.1), `Regular` otherwise (docs/restir.md, "Candidates by delta tracking").
+    Auto,
     /// The baseline's free-flight sampling: decomposition tracking on the exact density
     /// (residual delta tracking per super-voxel). A vertex's density is σ_t(z)·T(z), the
     /// target's own, so a candidate carries no tracking ratio; the walked transmittance T
@@ -852,7 +857,7 @@ pub struct RestirSettings {
 
 /// The defaults are what measured best at equal GPU time on the benchmark scenes
 /// (docs/restir.md): Q = 20 with the pre-spatial history, no spatial reuse, and the mip
-/// levels and next-event estimation chosen from the scene, candidates by delta tracking.
+/// levels, next-event estimation and the candidates' tracking chosen from the scene.
 /// The paper's algorithm is `temporal_limit = 4`, `spatial_neighbors = 3`,
 /// `temporal_history = "spatial"`, `mip_indirect = 2`, `mip_reuse = 1`, `nee = "one"`,
 /// `direct = "escape"`, `candidate_tracking = "regular"`.
@@ -883,7 +888,7 @@ impl Default for RestirSettings {
             sigma_star_floor: 0.0,
             nee: NeeMode::Auto,
             direct: DirectMode::EachWalk,
-            candidate_tracking: CandidateTracking::Delta,
+            candidate_tracking: CandidateTracking::Auto,
             pc_fetch: DensityFetch::Auto,
         }
     }

@@ -207,9 +207,10 @@ pub(super) fn apply(scene: &mut Scene, key: &str, value: &str) -> Result<Option<
         }
         "candidate_tracking" => {
             scene.integrator.restir.candidate_tracking = match value {
+                "auto" => nimbus_scene::CandidateTracking::Auto,
                 "delta" => nimbus_scene::CandidateTracking::Delta,
                 "regular" => nimbus_scene::CandidateTracking::Regular,
-                _ => bail!("{key}: unknown tracking {value:?}; valid: delta, regular"),
+                _ => bail!("{key}: unknown tracking {value:?}; valid: auto, delta, regular"),
             };
         }
         "pc_fetch" => {

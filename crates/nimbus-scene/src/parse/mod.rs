@@ -748,6 +748,7 @@ fn parse_restir(source: &Source, table: &toml::Table) -> Result<RestirSettings> 
             "candidate_tracking",
             Some(d.candidate_tracking),
             &[
+                ("auto", CandidateTracking::Auto),
                 ("delta", CandidateTracking::Delta),
                 ("regular", CandidateTracking::Regular),
             ],

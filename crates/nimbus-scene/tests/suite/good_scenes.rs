@@ -33,7 +33,7 @@ fn minimal_scene_gets_every_default() {
     assert_eq!(restir.temporal_history, HistoryMode::Temporal);
     assert_eq!(restir.nee, NeeMode::Auto);
     assert_eq!(restir.direct, DirectMode::EachWalk);
-    assert_eq!(restir.candidate_tracking, CandidateTracking::Delta);
+    assert_eq!(restir.candidate_tracking, CandidateTracking::Auto);
     assert_eq!(restir.spatial_radius_px, None);
     assert_eq!(restir.spatial_rounds, 1);
     assert_eq!(restir.reuse, ReuseMode::Direction);
