@@ -403,12 +403,14 @@ const NO_REUSE: Case = Case {
     restir: "temporal = false\nspatial_rounds = 0",
 };
 const TEMPORAL: Case = Case {
-    label: "temporal only",
-    restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 0",
+    label: "temporal only, delta-tracked candidates",
+    restir:
+        "temporal = true\ntemporal_limit = 4\nspatial_rounds = 0\ncandidate_tracking = \"delta\"",
 };
 const SPATIAL: Case = Case {
-    label: "spatial only",
-    restir: "temporal = false\nspatial_rounds = 1\nspatial_neighbors = 3\nspatial_when = \"always\"\nspatial_radius_px = 10",
+    label: "spatial only, delta-tracked candidates",
+    restir: "temporal = false\nspatial_rounds = 1\nspatial_neighbors = 3\nspatial_when = \"always\"\nspatial_radius_px = 10\n\
+             candidate_tracking = \"delta\"",
 };
 pub(crate) const BOTH: Case = Case {
     label: "temporal + spatial",

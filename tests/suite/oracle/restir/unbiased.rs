@@ -7,8 +7,9 @@ use super::*;
 
 /// Single scattering (K = 1): no reuse, temporal only, spatial only, both, and both with
 /// pairwise MIS (candidates by regular tracking), the optical-depth shift, or depth anchors
-/// and the neighbour test converge to the baseline (criteria in the module docs). The
-/// others' candidates are delta-tracked (the default).
+/// and the neighbour test converge to the baseline (criteria in the module docs).
+/// Temporal only and spatial only ask for delta-tracked candidates; the others take what
+/// `candidate_tracking = "auto"` chooses for this cloud.
 #[test]
 fn single_scattering_matches_the_baseline_slow() {
     check_cases(

@@ -389,6 +389,19 @@ fn out_of_range_values_are_rejected() {
     assert_contains(&error, &["field `mip_reuse`", "\"coarse\" is not \"auto\""]);
     let error = parse_err("[integrator.restir]\nmip_reuse = 1.5\n");
     assert_contains(&error, &["field `mip_reuse`", "an integer or \"auto\""]);
+    let error = parse_err("[integrator.restir]\ncandidate_tracking = \"ratio\"\n");
+    assert_contains(
+        &error,
+        &[
+            SCENE,
+            "[integrator.restir]",
+            "field `candidate_tracking`",
+            "\"ratio\"",
+            "\"auto\"",
+            "\"delta\"",
+            "\"regular\"",
+        ],
+    );
     let error =
         parse_err("[[light]]\ntype = \"point\"\nposition = [0, 0, 0]\nintensity = [1, -1, 1]\n");
     assert_contains(&error, &["field `intensity`", ">= 0"]);
