@@ -130,6 +130,15 @@ void add_nee_candidate(uint at, inout Reservoir r, inout uint rng, vec3 x, Surfa
                   ls.point, dir_code);
 }
 
+// The optical depth of [0, t) along o + t d through the grid (closed form) and the boxes.
+float walked_depth(vec3 o, vec3 d, float t) {
+    float tau = grid_optical_depth(o, d, 0.0, t);
+    if (SC_HAS_MEDIA) {
+        tau += box_optical_depth(o, d, 0.0, t);
+    }
+    return tau;
+}
+
 // The transmittance T (closed form through the trilinear grid, and the boxes) along the
 // walked segments of the path stored at `at` from camera ray `cam`: the part of its target
 // that delta-tracked candidates leave out.
@@ -139,12 +148,10 @@ float walked_transmittance(uint at, Reservoir r, CameraRay cam) {
     if (kp == 0u) {
         float t_end;
         camera_end(SET_CURRENT, cam.o, cam.d, t_end);
-        tau = grid_optical_depth(cam.o, cam.d, 0.0, t_end);
-        if (SC_HAS_MEDIA) {
-            tau += box_optical_depth(cam.o, cam.d, 0.0, t_end);
-        }
-        return exp(-min(tau, MARCH_MAX_TAU));
+        tau = walked_depth(cam.o, cam.d, t_end);
     }
+    // The segments as path_value rebuilds them: x_i = x_{i-1} + z_i omega_{i-1}, a
+    // negative z a surface vertex where the ray meets a shape.
     vec3 x = cam.o;
     vec3 w = cam.d;
     for (uint i = 1u; i <= kp; ++i) {
@@ -154,18 +161,11 @@ float walked_transmittance(uint at, Reservoir r, CameraRay cam) {
         }
         if (SC_HAS_SHAPES && z < 0.0) {
             SurfacePoint surface = surface_along(x, w, FAR);
-            z = surface.t;
-            tau += grid_optical_depth(x, w, 0.0, z);
-            if (SC_HAS_MEDIA) {
-                tau += box_optical_depth(x, w, 0.0, z);
-            }
+            tau += walked_depth(x, w, surface.t);
             x = surface.x;
             continue;
         }
-        tau += grid_optical_depth(x, w, 0.0, z);
-        if (SC_HAS_MEDIA) {
-            tau += box_optical_depth(x, w, 0.0, z);
-        }
+        tau += walked_depth(x, w, z);
         x += z * w;
     }
     return exp(-min(tau, MARCH_MAX_TAU));

@@ -150,12 +150,11 @@ pub fn candidates_per_dispatch(
 #[cfg(test)]
 mod tests {
     use super::{candidates_per_dispatch, CandidateCost};
+    use crate::plan::RestirPlan;
 
-    /// Every walk's direct candidate walks the camera segment a second time, which the
-    /// split of M over dispatches must count: lavapipe silently ends the loops of an
-    /// invocation past its budget, which would drop candidates and darken the image.
-    #[test]
-    fn the_direct_candidates_walk_counts_against_the_loop_budget() {
+    /// The shipped cloud's ReSTIR plan at K = 3 with M = 4096 candidates (more than any
+    /// budget fits in one dispatch).
+    fn plan_k3_m4096() -> RestirPlan {
         let path = concat!(
             env!("CARGO_MANIFEST_DIR"),
             "/assets/scenes/cloud-restir.toml"
@@ -165,6 +164,15 @@ mod tests {
         let mut p = plan.restir().unwrap().clone();
         p.settings.candidates = 4096;
         p.max_bounces = 3;
+        p
+    }
+
+    /// Every walk's direct candidate walks the camera segment a second time, which the
+    /// split of M over dispatches must count: lavapipe silently ends the loops of an
+    /// invocation past its budget, which would drop candidates and darken the image.
+    #[test]
+    fn the_direct_candidates_walk_counts_against_the_loop_budget() {
+        let mut p = plan_k3_m4096();
         let cost = CandidateCost {
             pc_blocks: [2000, 100],
             march_steps: 300,
@@ -196,15 +204,7 @@ mod tests {
     /// the dispatch's one closed-form walk of the selected path, against the budget.
     #[test]
     fn delta_tracked_candidates_count_their_walks_against_the_loop_budget() {
-        let path = concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/assets/scenes/cloud-restir.toml"
-        );
-        let scene = crate::load_scene(Some(std::path::Path::new(path)), &[]).unwrap();
-        let plan = crate::plan::build(&scene, None).unwrap();
-        let mut p = plan.restir().unwrap().clone();
-        p.settings.candidates = 4096;
-        p.max_bounces = 3;
+        let mut p = plan_k3_m4096();
         p.candidate_delta = true;
         p.direct_each_walk = false;
         let cost = CandidateCost {
