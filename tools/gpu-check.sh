@@ -29,7 +29,8 @@
 # (assets/scenes/bench/motion) not measured yet, most wanted first: the rotating HDR sky,
 # the explosions under the orbiting camera with emission separate and folded, the moving
 # camera at K = 7, the animated plume (written first by the make_plume example: set
-# NIMBUS_MAKE_PLUME to its binary, target/release/examples/make_plume by default), the
+# NIMBUS_MAKE_PLUME to its binary, target/release/examples/make_plume by default; at K = 3
+# with spatial reuse on its density's frames and without), the
 # moving sun at K = 1 and 7. Each study is cut at its own time limit so that a slow one
 # leaves the others their time; steps.txt says which finished.
 #
@@ -252,7 +253,8 @@ if [[ $mode == motion ]]; then
     motion_study camera-g0-k7 90 $m/camera-g0.toml 7
     if [[ -x $plume_bin && ( -z ${NIMBUS_MOTION_ONLY:-} || " $NIMBUS_MOTION_ONLY " == *" plume-k"* ) ]]; then
         step "make plume" "$plume_bin" "$out/plume" 64 96 >"$out/make-plume.log" 2>&1
-        motion_study plume-k3 120 "$out/plume/plume-motion-64.toml" 3
+        motion_study plume-k3 170 "$out/plume/plume-motion-64.toml" 3 \
+            --vary spatial_when=camera_moves,camera_or_density
         motion_study plume-k1 100 "$out/plume/plume-motion-64.toml" 1
     fi
     motion_study sun-g0-k1 60 $m/sun-g0.toml 1

@@ -202,9 +202,10 @@ pub struct RestirPlan {
     pub temporal_limit_moving: u32,
     pub spatial_neighbors: u32,
     pub spatial_radius_px: f32,
-    /// Spatial reuse only on frames whose camera moved since the previous frame
-    /// (`spatial_when = "camera_moves"`).
-    pub spatial_camera_moves: bool,
+    /// On which frames spatial reuse runs: every frame, or only those whose camera (and
+    /// with `"camera_or_density"` also whose density frame) differs from the previous
+    /// frame's.
+    pub spatial_when: nimbus_scene::SpatialWhen,
     pub spatial_rounds: u32,
     /// Vertex reuse instead of direction reuse.
     pub vertex_reuse: bool,
@@ -694,7 +695,7 @@ pub fn effective_plan(plan: &RenderPlan) -> RenderPlan {
             r.spatial_neighbors = 0;
             r.spatial_rounds = 0;
             r.spatial_radius_px = 0.0;
-            r.spatial_camera_moves = false;
+            r.spatial_when = nimbus_scene::SpatialWhen::Always;
             r.spatial_tau_shift = false;
             r.spatial_max_history = 0.0;
         }

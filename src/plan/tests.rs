@@ -236,3 +236,46 @@ fn the_baseline_takes_a_velocity_grid_and_density_frames() {
         format!("[[medium.frame]]\nframe = 1\ndensity = {{ file = \"{dir}/plume-f1.vol\" }}\n");
     build(&parse(&text(&frames)), None).expect("density frames");
 }
+
+/// `spatial_when = "camera_or_density"` (the default) plans the spatial pass where the
+/// density has frames under a still camera (the animated plume, where the history is weak)
+/// and explains the trigger; `"camera_moves"` plans none there; neither plans one for a
+/// static scene under a still camera.
+#[test]
+fn spatial_reuse_follows_the_density_frames_under_camera_or_density() {
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/volumes");
+    let text = |frames: &str, when: &str| {
+        format!(
+            "[render]\nframes = 2\n[camera]\nposition = [0, 0, 3]\nlook_at = [0, 0, 0]\n\
+             [[light]]\ntype = \"environment\"\nradiance = 1\n\
+             [[medium]]\ntype = \"grid\"\nbounds_min = [-0.5, -0.5, -0.5]\nbounds_max = [0.5, 0.5, 0.5]\n\
+             density = {{ file = \"{dir}/plume-f0.vol\" }}\n{frames}\
+             [integrator.restir]\nspatial_neighbors = 3\n{when}"
+        )
+    };
+    let frames =
+        format!("[[medium.frame]]\nframe = 1\ndensity = {{ file = \"{dir}/plume-f1.vol\" }}\n");
+    let plan = |frames: &str, when: &str| {
+        let scene =
+            nimbus_scene::parse_str(&text(frames, when), Path::new("plan.toml")).expect("parses");
+        let plan = build(&scene, None).expect("plan");
+        let explain = plan.explain(&scene);
+        (spatial_on(plan.restir().expect("ReSTIR")), explain)
+    };
+    let (on, explain) = plan(&frames, "");
+    assert!(on, "{explain}");
+    assert!(
+        explain.contains("on frames whose camera or density frame changed"),
+        "{explain}"
+    );
+    let (on, explain) = plan("", "");
+    assert!(!on, "{explain}");
+    assert!(
+        explain.contains("neither the camera nor the density moves"),
+        "{explain}"
+    );
+    let (on, explain) = plan(&frames, "spatial_when = \"camera_moves\"\n");
+    assert!(!on, "{explain}");
+    assert!(plan(&frames, "spatial_when = \"always\"\n").0);
+    assert!(plan("", "spatial_when = \"always\"\n").0);
+}

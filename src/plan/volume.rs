@@ -426,6 +426,18 @@ fn candidate_delta(
 }
 
 /// What `--explain` says of the candidates' tracking.
+/// Whether `spatial_when` leaves every frame of `scene` without spatial reuse: its trigger
+/// (the camera's motion, or with `"camera_or_density"` also a change of density frame)
+/// never fires.
+fn spatial_never(when: nimbus_scene::SpatialWhen, scene: &Scene, animated_density: bool) -> bool {
+    let camera_still = scene.camera.keyframes.is_empty();
+    match when {
+        nimbus_scene::SpatialWhen::Always => false,
+        nimbus_scene::SpatialWhen::CameraMoves => camera_still,
+        nimbus_scene::SpatialWhen::CameraOrDensity => camera_still && !animated_density,
+    }
+}
+
 fn tracking_reason(s: &nimbus_scene::RestirSettings, plan: &RestirPlan) -> String {
     let what = if plan.candidate_delta {
         "the candidates' walks find their vertices by the baseline's decomposition tracking on \
@@ -557,10 +569,10 @@ fn restir_plan(
         } else {
             s.temporal_limit
         },
-        // spatial_when = "camera_moves" under a camera that never moves: no spatial pass.
-        spatial_neighbors: if s.spatial_when == nimbus_scene::SpatialWhen::CameraMoves
-            && scene.camera.keyframes.is_empty()
-        {
+        // spatial_when = "camera_moves" under a camera that never moves, or
+        // "camera_or_density" where neither the camera nor the density moves: no spatial
+        // pass.
+        spatial_neighbors: if spatial_never(s.spatial_when, scene, !grid.frames.is_empty()) {
             0
         } else {
             s.spatial_neighbors
@@ -568,7 +580,7 @@ fn restir_plan(
         spatial_radius_px: s
             .spatial_radius_px
             .unwrap_or_else(|| nimbus_scene::auto_spatial_radius_px(scene.render.width)),
-        spatial_camera_moves: s.spatial_when == nimbus_scene::SpatialWhen::CameraMoves,
+        spatial_when: s.spatial_when,
         spatial_rounds: s.spatial_rounds,
         vertex_reuse: s.reuse == nimbus_scene::ReuseMode::Vertex,
         levels: LevelChoice::of(scene, index, grid, asked_levels)?,
@@ -691,10 +703,11 @@ fn restir_plan(
             if spatial {
                 format!(
                     "{}{} round(s) of {} neighbours within {} px{}{}, {} MIS, x_1 shifted by its {}{}, T~ marched on mip {}, {} reuse",
-                    if plan.spatial_camera_moves {
-                        "on frames whose camera moved: "
-                    } else {
-                        ""
+                    match plan.spatial_when {
+                        nimbus_scene::SpatialWhen::Always => "",
+                        nimbus_scene::SpatialWhen::CameraMoves => "on frames whose camera moved: ",
+                        nimbus_scene::SpatialWhen::CameraOrDensity =>
+                            "on frames whose camera or density frame changed: ",
                     },
                     plan.spatial_rounds,
                     plan.spatial_neighbors,
@@ -739,10 +752,17 @@ fn restir_plan(
                 )
             } else if s.spatial_neighbors > 0
                 && s.spatial_rounds > 0
-                && plan.spatial_camera_moves
+                && plan.spatial_when == nimbus_scene::SpatialWhen::CameraMoves
             {
                 "spatial_when = \"camera_moves\" and the camera does not move (it pays where the \
                  temporal history is weak, docs/restir.md)"
+                    .into()
+            } else if s.spatial_neighbors > 0
+                && s.spatial_rounds > 0
+                && plan.spatial_when == nimbus_scene::SpatialWhen::CameraOrDensity
+            {
+                "spatial_when = \"camera_or_density\" and neither the camera nor the density \
+                 moves (it pays where the temporal history is weak, docs/restir.md)"
                     .into()
             } else {
                 "spatial_neighbors or spatial_rounds is 0".into()

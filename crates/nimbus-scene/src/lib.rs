@@ -84,7 +84,7 @@
 //! | restir `temporal_limit_moving` | 1..=1024 (Q where the camera or the density moved: the smaller of it and `temporal_limit`) |
 //! | restir `spatial_neighbors` | 0..=16 ([`MAX_SPATIAL_NEIGHBORS`]) |
 //! | restir `spatial_radius_px` | [0, 16384], or `"auto"` |
-//! | restir `spatial_when` | `"always"`, `"camera_moves"` |
+//! | restir `spatial_when` | `"always"`, `"camera_moves"`, `"camera_or_density"` |
 //! | restir `spatial_rounds` | 0..=16 |
 //! | restir `mip_candidates` | 0..=16 |
 //! | restir `mip_indirect`, `mip_reuse` | 0..=16, or `"auto"` |

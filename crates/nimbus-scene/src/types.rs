@@ -667,6 +667,10 @@ pub enum SpatialWhen {
     /// Frames whose camera differs from the previous frame's: where the temporal history
     /// is weak (measured: docs/restir.md, "Spatial reuse in motion").
     CameraMoves,
+    /// Frames whose camera or density frame differs from the previous frame's: the
+    /// history is weak under both (measured on the animated plume: docs/restir.md,
+    /// "Spatial reuse where the density changes").
+    CameraOrDensity,
 }
 
 /// How ReSTIR's spatial reuse moves a path's first vertex x_1 to another pixel's camera
@@ -870,7 +874,7 @@ impl Default for RestirSettings {
             temporal_limit_moving: 2,
             spatial_neighbors: 3,
             spatial_radius_px: None,
-            spatial_when: SpatialWhen::CameraMoves,
+            spatial_when: SpatialWhen::CameraOrDensity,
             spatial_rounds: 1,
             reuse: ReuseMode::Direction,
             mip_candidates: 1,

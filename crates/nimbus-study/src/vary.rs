@@ -115,7 +115,10 @@ pub(super) fn apply(scene: &mut Scene, key: &str, value: &str) -> Result<Option<
             scene.integrator.restir.spatial_when = match value {
                 "always" => nimbus_scene::SpatialWhen::Always,
                 "camera_moves" => nimbus_scene::SpatialWhen::CameraMoves,
-                _ => bail!("{key}: unknown choice {value:?}; valid: always, camera_moves"),
+                "camera_or_density" => nimbus_scene::SpatialWhen::CameraOrDensity,
+                _ => bail!(
+                    "{key}: unknown choice {value:?}; valid: always, camera_moves, camera_or_density"
+                ),
             };
         }
         "spatial_rounds" => {
@@ -581,8 +584,19 @@ mod tests {
             ("nee", "all"),
             ("direct", "never"),
             ("candidate_tracking", "ratio"),
+            ("spatial_when", "density_moves"),
         ] {
             assert!(apply(&mut s, key, value).is_err(), "{key}={value}");
+        }
+        for (value, when) in [
+            ("camera_moves", nimbus_scene::SpatialWhen::CameraMoves),
+            (
+                "camera_or_density",
+                nimbus_scene::SpatialWhen::CameraOrDensity,
+            ),
+        ] {
+            apply(&mut s, "spatial_when", value).unwrap();
+            assert_eq!(s.integrator.restir.spatial_when, when);
         }
     }
 

@@ -49,9 +49,9 @@ pub struct RestirPass {
     objects: GpuObjects,
     res: Resources,
     settings: ScheduleSettings,
-    /// `spatial_when = "camera_moves"`, and whether this frame's camera moved (set by
-    /// `prepare`): the frame's spatial rounds run only then.
-    spatial_camera_moves: bool,
+    /// `spatial_when`, and whether its trigger fired on this frame (set by `prepare`):
+    /// the frame's spatial rounds run only then.
+    spatial_when: nimbus_scene::SpatialWhen,
     spatial_now: bool,
     /// Q on frames whose camera, density and (under map reuse) environment map did not
     /// move, and on frames where one did (`temporal_limit`, `temporal_limit_moving`):
@@ -270,7 +270,7 @@ impl RestirPass {
             objects,
             res,
             settings: schedule_settings(plan, candidates_per_dispatch),
-            spatial_camera_moves: plan.spatial_camera_moves,
+            spatial_when: plan.spatial_when,
             spatial_now: true,
             temporal_limits: [plan.temporal_limit, plan.temporal_limit_moving],
             env_reuse_map: plan.env_reuse_map,
@@ -518,7 +518,11 @@ impl Pass for RestirPass {
             && lights.as_ref().is_some_and(|(prev, cur)| {
                 crate::plan::env_map_rotation(prev) != crate::plan::env_map_rotation(cur)
             });
-        self.spatial_now = !self.spatial_camera_moves || camera_moved;
+        self.spatial_now = match self.spatial_when {
+            nimbus_scene::SpatialWhen::Always => true,
+            nimbus_scene::SpatialWhen::CameraMoves => camera_moved,
+            nimbus_scene::SpatialWhen::CameraOrDensity => camera_moved || density_moved,
+        };
         let temporal_limit =
             self.temporal_limits[usize::from(camera_moved || density_moved || map_turned)];
         // Whether the previous frame's target function is this frame's: the same camera,

@@ -207,7 +207,7 @@ fn a_moving_camera_keeps_each_frames_mean() {
             .expect("render")
             .image,
     );
-    // The defaults (temporal reuse, and spatial reuse on the frames whose camera moved),
+    // The defaults (temporal reuse, and spatial reuse on the frames whose camera or density moved),
     // and spatial reuse by the optical-depth shift on the pixels whose history is short
     // (the camera's motion drops it).
     let spatial = "[integrator.restir]\nspatial_neighbors = 3\nspatial_radius_px = 4\nspatial_when = \"always\"\n\
@@ -344,10 +344,73 @@ fn the_moving_frames_temporal_limit_applies_where_the_camera_or_the_density_move
     assert_no_validation_errors(&ctx);
 }
 
+/// `spatial_when`, chosen per frame from the two frames alone: under a still camera, the
+/// default `"camera_or_density"` runs spatial reuse on the frames whose density frame
+/// changed (frames 1-3 below) and not where it holds (frame 4), `"camera_moves"` on
+/// none, `"always"` on all. Without temporal reuse a frame's image is its own candidates
+/// and, where the frame runs it, its spatial reuse: so frame 1 renders as `"always"`
+/// renders it and unlike `"camera_moves"`, and frames 0 and 4 the other way round.
+#[test]
+fn camera_or_density_runs_spatial_reuse_on_the_frames_whose_density_changed() {
+    let ctx = context();
+    let cloud = |seed: u32| {
+        format!("{{ procedural = \"cloud\", dims = [32, 20, 32], noise_seed = {seed} }}")
+    };
+    let mut body = format!(
+        "[render]\nwidth = 16\nheight = 12\nframes = 6\n\
+         [camera]\nhorizontal_fov_deg = 55\nposition = [0.0, 0.3, 2.6]\nlook_at = [0.0, 0.0, 0.0]\n\
+         [[light]]\ntype = \"directional\"\ndirection = [0.6, -0.5, -0.6]\nirradiance = 4.0\n\
+         [[light]]\ntype = \"environment\"\nradiance = [0.25, 0.35, 0.55]\n\
+         [integrator]\nmax_bounces = 2\n\
+         [[medium]]\ntype = \"grid\"\nbounds_min = [-1.0, -0.6, -1.0]\nbounds_max = [1.0, 0.6, 1.0]\n\
+         density = {}\ndensity_scale = 12.0\nalbedo = 0.9\n",
+        cloud(7)
+    );
+    for f in 1..=3 {
+        body += &format!(
+            "[[medium.frame]]\nframe = {f}\ndensity = {}\n",
+            cloud(7 + f)
+        );
+    }
+    let with = |when: &str| {
+        scene(
+            &format!(
+                "{body}[integrator.restir]\ntemporal = false\nspatial_neighbors = 3\n\
+                 spatial_radius_px = 4\n{when}"
+            ),
+            "spatial-when.toml",
+        )
+    };
+    let (default, camera, always) = (
+        with(""),
+        with("spatial_when = \"camera_moves\"\n"),
+        with("spatial_when = \"always\"\n"),
+    );
+    let frame = |s: &Scene, f: u32| frame_image(&ctx, s, f, f, 5);
+    for (f, spatial) in [(0, false), (1, true), (4, false)] {
+        let d = frame(&default, f);
+        let (same, other) = if spatial {
+            (&always, &camera)
+        } else {
+            (&camera, &always)
+        };
+        assert!(
+            d.data == frame(same, f).data,
+            "frame {f}: spatial reuse {}",
+            if spatial { "runs" } else { "does not run" }
+        );
+        assert!(
+            rmse(&d, &frame(other, f)) > 0.0,
+            "frame {f}: spatial reuse changes the image"
+        );
+    }
+    assert_no_validation_errors(&ctx);
+}
+
 /// Camera, sun and density changing together (issue 26): the camera dollies and turns,
 /// the sun turns by 30°, and the density is swapped for another cloud at frames 3 and 5.
 /// ReSTIR's defaults (temporal reuse with its confidence weights, spatial reuse on the
-/// frames whose camera moved) keep frame 6's mean over 12 seeds at the baseline's
+/// frames whose camera or density moved) keep frame 6's mean over 12 seeds at the baseline's
 /// converged mean of frame 6's static scene: nothing of the old frames' density, light
 /// or view biases it.
 #[test]

@@ -673,6 +673,7 @@ fn parse_restir(source: &Source, table: &toml::Table) -> Result<RestirSettings> 
             &[
                 ("always", SpatialWhen::Always),
                 ("camera_moves", SpatialWhen::CameraMoves),
+                ("camera_or_density", SpatialWhen::CameraOrDensity),
             ],
         )?,
         spatial_rounds: f.u32_in("spatial_rounds", Some(d.spatial_rounds), 0..=16)?,

@@ -29,7 +29,7 @@ fn minimal_scene_gets_every_default() {
     assert_eq!(restir.temporal_limit, 20);
     assert_eq!(restir.temporal_limit_moving, 2);
     assert_eq!(restir.spatial_neighbors, 3);
-    assert_eq!(restir.spatial_when, SpatialWhen::CameraMoves);
+    assert_eq!(restir.spatial_when, SpatialWhen::CameraOrDensity);
     assert_eq!(restir.temporal_history, HistoryMode::Temporal);
     assert_eq!(restir.nee, NeeMode::Auto);
     assert_eq!(restir.direct, DirectMode::EachWalk);
