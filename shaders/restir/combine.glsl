@@ -76,7 +76,7 @@ float path_tau(uint at, Reservoir r, CameraRay owner, out float sigma_star) {
 
 // The target of the path stored at `at` (header r, owner ray `owner`, tau_1 `tau1` and
 // sigma* `sigma_own` from path_tau) on camera ray `ray` (same = ray is the owner's own):
-// luminance of path_value, per unit of tau_1 under the optical-depth shift. `anchor` is
+// target_scalar of path_value, per unit of tau_1 under the optical-depth shift. `anchor` is
 // the ray's anchor that places x_1 there (for store_combined); `sigma_here` the sigma*
 // that converts the result back to the z_1 measure (1 without the shift).
 float shifted_target(uint at, Reservoir r, CameraRay ray, CameraRay owner, bool same, float tau1, float sigma_own,
@@ -98,7 +98,7 @@ float shifted_target(uint at, Reservoir r, CameraRay ray, CameraRay owner, bool 
             ray.anchor = anchor;
         }
     }
-    float p = luminance(path_value(at, r, ray, owner, MODE_TARGET, rng));
+    float p = target_scalar(path_value(at, r, ray, owner, MODE_TARGET, rng));
     // Domain: sigma_here > 0 (checked above, or 1).
     return p / sigma_here;
 }

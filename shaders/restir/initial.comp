@@ -126,7 +126,7 @@ void add_nee_candidate(uint at, inout Reservoir r, inout uint rng, vec3 x, Surfa
         Fs += ls.pdf * emitted;
         bs += emitted;
     }
-    add_candidate(at, r, rng, luminance(beta * bs), luminance(Fhat * Fs), kp, jitter_bits | (ls.index << 8u),
+    add_candidate(at, r, rng, target_scalar(beta * bs), target_scalar(Fhat * Fs), kp, jitter_bits | (ls.index << 8u),
                   ls.point, dir_code);
 }
 
@@ -246,7 +246,7 @@ void restir_main() {
                 // T* floored as the marches' T~ is (e^-64, a normal float), so p_hat > 0
                 // wherever L > 0: the target must cover every path F does not vanish on.
                 // Domain: tau_all >= 0.
-                float p_hat = luminance(L * exp(-min(tau_all, MARCH_MAX_TAU)));
+                float p_hat = target_scalar(L * exp(-min(tau_all, MARCH_MAX_TAU)));
                 add_candidate(at, r, rng, p_hat, p_hat, 0u,
                               jitter_bits | (sphere == NO_INDEX ? (LIGHT_ENV << 8u) : (sphere << 8u)), vec3(0.0), 0u);
             }
@@ -294,7 +294,7 @@ void restir_main() {
                     // w = L); later segments reach lights through NEE only.
                     float t_seen;
                     vec3 L = camera_end(SET_CURRENT, x, w, t_seen);
-                    add_candidate(at, r, rng, luminance(L), luminance(L * T_star), 0u,
+                    add_candidate(at, r, rng, target_scalar(L), target_scalar(L * T_star), 0u,
                                   jitter_bits | (sphere == NO_INDEX ? (LIGHT_ENV << 8u) : (sphere << 8u)), vec3(0.0), 0u);
                 }
                 if (surface.shape == NO_INDEX) {
@@ -365,7 +365,7 @@ void restir_main() {
                 // own, or folded into the NEE candidate below.
                 emitted = (vec3(1.0) - albedo) * sigma_t_grid * grid_emission(x);
                 if (!SC_FOLD_EMISSION) {
-                    add_candidate(at, r, rng, luminance(beta * emitted), luminance(Fhat * emitted), i,
+                    add_candidate(at, r, rng, target_scalar(beta * emitted), target_scalar(Fhat * emitted), i,
                                   jitter_bits | INFO_EMISSION, vec3(0.0), 0u);
                 }
             }

@@ -8,7 +8,7 @@
 #include "path_surfaces.glsl"
 
 // Split next-event estimation (SC_NEE_SPLIT). The paper's paths end in ONE light, picked by
-// power at each vertex, so under the scalar (luminance) target a pixel's selected path is
+// power at each vertex, so under a scalar target a pixel's selected path is
 // lit either by the sun or by the sky and carries that light's colour: colour noise that
 // no amount of reuse removes (on the benchmark cloud it was 88 % of the per-frame MSE).
 // Split NEE ends a path in one sample omega of the environment, drawn with density q, and

@@ -44,6 +44,8 @@ layout(constant_id = SC_ID_NEE_SPLIT) const bool SC_NEE_SPLIT = false;
 layout(constant_id = SC_ID_DIRECT_EACH_WALK) const bool SC_DIRECT_EACH_WALK = false;
 // Candidates by decomposition tracking on the exact density (restir/initial.comp).
 layout(constant_id = SC_ID_CANDIDATE_DELTA) const bool SC_CANDIDATE_DELTA = false;
+// How the target function makes a scalar of a path's RGB contribution (SC_TARGET_*).
+layout(constant_id = SC_ID_TARGET_SCALAR) const uint SC_TARGET_SCALAR = SC_TARGET_LUMINANCE;
 // Opaque shapes beside the grid: paths may have surface vertices (restir/path_surfaces.glsl).
 layout(constant_id = SC_ID_HAS_SHAPES) const bool SC_HAS_SHAPES = false;
 // Homogeneous box media beside the grid (restir/vertex_media.glsl).

@@ -12,6 +12,22 @@ float luminance(vec3 c) {
     return dot(c, vec3(0.2126, 0.7152, 0.0722));
 }
 
+// The target function's scalar of an RGB contribution (`target`, SC_TARGET_SCALAR):
+// luminance (the paper's), the channels' sum or their maximum. Each is positive exactly
+// where some channel is (non-negative colours) and positively homogeneous, so a
+// candidate's weight p_hat / p is the scalar of its RGB weight, and every estimate stays
+// unbiased. Sum and max keep each channel's f_c / p_hat at most 1, where luminance lets a
+// blue-lit path weigh up to 1 / 0.0722.
+float target_scalar(vec3 c) {
+    if (SC_TARGET_SCALAR == SC_TARGET_SUM) {
+        return c.r + c.g + c.b;
+    }
+    if (SC_TARGET_SCALAR == SC_TARGET_MAX) {
+        return max(c.r, max(c.g, c.b));
+    }
+    return luminance(c);
+}
+
 // Homogeneous box media beside the grid (SC_HAS_MEDIA). They are disjoint from each other
 // and may overlap the grid, where the extinctions add; their transmittance is the closed
 // form everywhere (targets, NEE and final shading alike), and a box is its own

@@ -641,7 +641,8 @@ fn restir_plan(
             true,
             format!(
                 "grid medium #{}: M = {} random walks per pixel, {}, \
-                 K = {k}, {lights} analytic light(s); {} bytes of reservoir per pixel and slot, {} slots",
+                 K = {k}, {lights} analytic light(s), target = {} of the path's RGB; {} bytes of \
+                 reservoir per pixel and slot, {} slots",
                 index + 1,
                 s.candidates,
                 if plan.candidate_delta {
@@ -655,6 +656,11 @@ fn restir_plan(
                         mip_text(Some(asked_levels.candidates), plan.levels.levels.candidates),
                         mip_text(asked_levels.indirect, plan.levels.levels.indirect)
                     )
+                },
+                match s.target {
+                    nimbus_scene::TargetScalar::Luminance => "luminance",
+                    nimbus_scene::TargetScalar::Sum => "sum",
+                    nimbus_scene::TargetScalar::Max => "max",
                 },
                 crate::shader_data::reservoir_bytes(k),
                 plan.reservoir_slots()

@@ -99,6 +99,7 @@
 //! | restir `nee` | `"auto"`, `"one"`, `"split"` (only with delta lights and an environment alone besides) |
 //! | restir `direct` | `"each_walk"`, `"escape"` |
 //! | restir `candidate_tracking` | `"auto"`, `"delta"`, `"regular"` |
+//! | restir `target` | `"luminance"`, `"sum"`, `"max"` |
 //! | restir `pc_fetch` | `"auto"`, `"image"`, `"buffer"` (refused where the buffer exceeds the device's storage-buffer range) |
 //! | baseline `nee` | `"auto"`, `"one"`, `"split"` |
 //! | baseline `density_fetch` | `"auto"`, `"image"`, `"buffer"` |

@@ -789,6 +789,20 @@ pub enum CandidateTracking {
     Regular,
 }
 
+/// How ReSTIR's target function p̂ makes a scalar of a path's RGB contribution (`target`).
+/// Any positive, positively homogeneous function of the channels keeps every estimate
+/// unbiased; they differ in which paths a pixel selects where the light has hues.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TargetScalar {
+    /// Rec. 709 luminance (the paper's): blue carries 7 % of the weight, so a path lit in
+    /// blue alone is selected rarely and weighted up to 14x.
+    Luminance,
+    /// r + g + b: every channel's contribution over p̂ stays at most 1.
+    Sum,
+    /// max(r, g, b): as `Sum`, at most 1 per channel, and the brightest channel decides.
+    Max,
+}
+
 /// `[integrator.restir]`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RestirSettings {
@@ -857,14 +871,17 @@ pub struct RestirSettings {
     /// Where regular tracking reads the piecewise-constant levels from (`pc_fetch`): the
     /// same choices as the baseline's `density_fetch`.
     pub pc_fetch: DensityFetch,
+    /// The target function's scalar of a path's RGB contribution (`target`).
+    pub target: TargetScalar,
 }
 
 /// The defaults are what measured best at equal GPU time on the benchmark scenes
-/// (docs/restir.md): Q = 20 with the pre-spatial history, no spatial reuse, and the mip
+/// (docs/restir.md): Q = 20 with the pre-spatial history, spatial reuse on the frames
+/// whose camera or density moved, and the mip
 /// levels, next-event estimation and the candidates' tracking chosen from the scene.
 /// The paper's algorithm is `temporal_limit = 4`, `spatial_neighbors = 3`,
 /// `temporal_history = "spatial"`, `mip_indirect = 2`, `mip_reuse = 1`, `nee = "one"`,
-/// `direct = "escape"`, `candidate_tracking = "regular"`.
+/// `direct = "escape"`, `candidate_tracking = "regular"`, `target = "luminance"`.
 impl Default for RestirSettings {
     fn default() -> Self {
         Self {
@@ -894,6 +911,7 @@ impl Default for RestirSettings {
             direct: DirectMode::EachWalk,
             candidate_tracking: CandidateTracking::Auto,
             pc_fetch: DensityFetch::Auto,
+            target: TargetScalar::Sum,
         }
     }
 }

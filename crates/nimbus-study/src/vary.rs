@@ -224,6 +224,14 @@ pub(super) fn apply(scene: &mut Scene, key: &str, value: &str) -> Result<Option<
                 _ => bail!("{key}: unknown place {value:?}; valid: auto, image, buffer"),
             };
         }
+        "target" => {
+            scene.integrator.restir.target = match value {
+                "luminance" => nimbus_scene::TargetScalar::Luminance,
+                "sum" => nimbus_scene::TargetScalar::Sum,
+                "max" => nimbus_scene::TargetScalar::Max,
+                _ => bail!("{key}: unknown target {value:?}; valid: luminance, sum, max"),
+            };
+        }
         "sigma_star_floor" => {
             scene.integrator.restir.sigma_star_floor = match value.parse::<f32>() {
                 Ok(f) if (0.0..=1.0).contains(&f) => f,
@@ -531,6 +539,7 @@ mod tests {
             ("direct", "escape"),
             ("candidate_tracking", "regular"),
             ("pc_fetch", "image"),
+            ("target", "sum"),
         ];
         assert_eq!(values.len(), keys().len());
         let mut s = scene();
@@ -565,6 +574,7 @@ mod tests {
             nimbus_scene::CandidateTracking::Regular
         );
         assert_eq!(r.pc_fetch, nimbus_scene::DensityFetch::Image);
+        assert_eq!(r.target, nimbus_scene::TargetScalar::Sum);
         assert_eq!(r.env_reuse, nimbus_scene::EnvReuse::World);
         assert_eq!(
             (r.spatial_shift, r.spatial_max_history),
@@ -585,6 +595,7 @@ mod tests {
             ("direct", "never"),
             ("candidate_tracking", "ratio"),
             ("spatial_when", "density_moves"),
+            ("target", "rgb"),
         ] {
             assert!(apply(&mut s, key, value).is_err(), "{key}={value}");
         }

@@ -18,7 +18,7 @@ pub fn specialization(
     exact_spans: bool,
     two_level: bool,
     pc_buffer: bool,
-) -> [(u32, SpecValue); 28] {
+) -> [(u32, SpecValue); 29] {
     [
         (SC_ID_PC_BUFFER, SpecValue::Bool(pc_buffer)),
         (
@@ -70,6 +70,14 @@ pub fn specialization(
             SpecValue::Bool(plan.direct_each_walk),
         ),
         (SC_ID_CANDIDATE_DELTA, SpecValue::Bool(plan.candidate_delta)),
+        (
+            SC_ID_TARGET_SCALAR,
+            SpecValue::U32(match plan.settings.target {
+                nimbus_scene::TargetScalar::Luminance => SC_TARGET_LUMINANCE,
+                nimbus_scene::TargetScalar::Sum => SC_TARGET_SUM,
+                nimbus_scene::TargetScalar::Max => SC_TARGET_MAX,
+            }),
+        ),
     ]
 }
 

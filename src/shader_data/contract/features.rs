@@ -109,6 +109,13 @@ gpu_consts! {
     /// decomposition tracking on the exact density, not by regular tracking through the
     /// piecewise-constant grid (`candidate_tracking`; restir/initial.comp).
     pub const SC_ID_CANDIDATE_DELTA: u32 = 38;
+    /// ReSTIR's target function: how p̂ makes a scalar of a path's RGB contribution
+    /// (`target`: one of the SC_TARGET_* values below; restir/vertex_media.glsl).
+    pub const SC_ID_TARGET_SCALAR: u32 = 39;
+    /// Values of SC_TARGET_SCALAR.
+    pub const SC_TARGET_LUMINANCE: u32 = 0;
+    pub const SC_TARGET_SUM: u32 = 1;
+    pub const SC_TARGET_MAX: u32 = 2;
 
     // -----------------------------------------------------------------------------------
     // Values of SC_ESTIMATOR (`shaders/box/crepuscular.comp`): the box-medium estimators

@@ -116,6 +116,7 @@ pub const RESTIR_KEYS: &[&str] = &[
     "direct",
     "candidate_tracking",
     "pc_fetch",
+    "target",
 ];
 
 /// One table of the scene format and every field the parser accepts in it.
@@ -761,6 +762,15 @@ fn parse_restir(source: &Source, table: &toml::Table) -> Result<RestirSettings> 
                 ("auto", DensityFetch::Auto),
                 ("image", DensityFetch::Image),
                 ("buffer", DensityFetch::Buffer),
+            ],
+        )?,
+        target: f.choice(
+            "target",
+            Some(d.target),
+            &[
+                ("luminance", TargetScalar::Luminance),
+                ("sum", TargetScalar::Sum),
+                ("max", TargetScalar::Max),
             ],
         )?,
     })

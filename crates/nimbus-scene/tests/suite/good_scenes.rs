@@ -34,6 +34,7 @@ fn minimal_scene_gets_every_default() {
     assert_eq!(restir.nee, NeeMode::Auto);
     assert_eq!(restir.direct, DirectMode::EachWalk);
     assert_eq!(restir.candidate_tracking, CandidateTracking::Auto);
+    assert_eq!(restir.target, TargetScalar::Sum);
     assert_eq!(restir.spatial_radius_px, None);
     assert_eq!(restir.spatial_rounds, 1);
     assert_eq!(restir.reuse, ReuseMode::Direction);
@@ -237,6 +238,7 @@ nee = "split"
 direct = "escape"
 candidate_tracking = "regular"
 pc_fetch = "buffer"
+target = "max"
 mis = "pairwise"
 spatial_shift = "optical_depth"
 env_reuse = "world"
@@ -465,6 +467,7 @@ density_fetch = "image"
                 direct: DirectMode::Escape,
                 candidate_tracking: CandidateTracking::Regular,
                 pc_fetch: DensityFetch::Buffer,
+                target: TargetScalar::Max,
             },
             baseline: BaselineSettings {
                 nee: NeeMode::One,

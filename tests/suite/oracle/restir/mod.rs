@@ -444,6 +444,16 @@ const TAU_SHIFT: Case = Case {
     restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 1\nspatial_neighbors = 3\nspatial_when = \"always\"\nspatial_radius_px = 10\n\
              spatial_shift = \"optical_depth\"",
 };
+const TARGET_LUMINANCE: Case = Case {
+    label: "temporal + spatial, the target the luminance (the paper's)",
+    restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 1\nspatial_neighbors = 3\nspatial_when = \"always\"\n\
+             spatial_radius_px = 10\ntarget = \"luminance\"",
+};
+const TARGET_MAX: Case = Case {
+    label: "temporal + spatial, the target the largest channel",
+    restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 1\nspatial_neighbors = 3\nspatial_when = \"always\"\n\
+             spatial_radius_px = 10\ntarget = \"max\"",
+};
 pub(crate) const PAIRWISE: Case = Case {
     label: "temporal + spatial, pairwise MIS, one light per vertex, regular tracking",
     restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 1\nspatial_neighbors = 3\nspatial_when = \"always\"\nspatial_radius_px = 10\nmis = \"pairwise\"\n\

@@ -44,7 +44,9 @@ fn multiple_scattering_matches_the_baseline_slow() {
 }
 
 /// An emitting cloud (emission candidates at every vertex), K = 2, temporal and spatial
-/// reuse: converges to the baseline (criteria in the module docs).
+/// reuse, also with emission folded and with the target the largest channel (the
+/// emission's hue is not the sun's): converges to the baseline (criteria in the module
+/// docs).
 #[test]
 fn emission_matches_the_baseline_slow() {
     check_cases(
@@ -55,7 +57,7 @@ fn emission_matches_the_baseline_slow() {
                            emission_scale = [2.0, 1.0, 0.5]",
             ..Cloud::default()
         },
-        &[BOTH, FOLDED],
+        &[BOTH, FOLDED, TARGET_MAX],
         "emission K=2",
     );
     // Under a sky alone (one-light NEE, the environment drawn at every vertex).
@@ -97,7 +99,9 @@ fn blackbody_matches_the_baseline() {
 
 /// An rgb albedo grid (each channel its own cloud, 0.25 to 0.95), K = 3: every
 /// scattering vertex of ReSTIR's paths (candidates, reuse and final shading) reads the
-/// albedo where it is, and ReSTIR converges to the baseline.
+/// albedo where it is, and ReSTIR converges to the baseline, with the target the sum of
+/// the channels (the default) and the luminance (the paths' hues differ with their
+/// vertices' albedos).
 #[test]
 fn albedo_grid_matches_the_baseline() {
     let dir = crate::common::cli::scratch("restir", "albedo-grid");
@@ -109,7 +113,7 @@ fn albedo_grid_matches_the_baseline() {
             albedo: &albedo,
             ..Cloud::default()
         },
-        &[BOTH],
+        &[BOTH, TARGET_LUMINANCE],
         "albedo grid K=3",
     );
 }

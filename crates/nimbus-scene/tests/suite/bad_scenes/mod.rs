@@ -402,6 +402,29 @@ fn out_of_range_values_are_rejected() {
             "\"regular\"",
         ],
     );
+    let error = parse_err("[integrator.restir]\ntarget = \"rgb\"\n");
+    assert_contains(
+        &error,
+        &[
+            SCENE,
+            "[integrator.restir]",
+            "field `target`",
+            "\"rgb\"",
+            "\"luminance\"",
+            "\"sum\"",
+            "\"max\"",
+        ],
+    );
+    let error = parse_err("[integrator.restir]\nspatial_when = \"density\"\n");
+    assert_contains(
+        &error,
+        &[
+            "field `spatial_when`",
+            "\"always\"",
+            "\"camera_moves\"",
+            "\"camera_or_density\"",
+        ],
+    );
     let error =
         parse_err("[[light]]\ntype = \"point\"\nposition = [0, 0, 0]\nintensity = [1, -1, 1]\n");
     assert_contains(&error, &["field `intensity`", ">= 0"]);
