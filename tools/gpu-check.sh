@@ -27,7 +27,8 @@
 # --motion sizes issue 26's motion studies for one lent-machine command (about 9 minutes
 # on an H200): the per-frame equal-time studies at 960x540 of the motion benchmarks
 # (assets/scenes/bench/motion) not measured yet, most wanted first: the rotating HDR sky,
-# the explosions under the orbiting camera with emission separate and folded, the moving
+# the explosions under the orbiting camera with emission separate and folded (the
+# mismatched one also with the target's luminance and sum), the moving
 # camera at K = 7, the animated plume (written first by the make_plume example: set
 # NIMBUS_MAKE_PLUME to its binary, target/release/examples/make_plume by default; at K = 3
 # with spatial reuse on its density's frames and without), the
@@ -248,7 +249,8 @@ if [[ $mode == motion ]]; then
         exit 0
     fi
     motion_study sky-g06-k3 100 $m/sky-g06.toml 3 --vary env_reuse=map,world
-    motion_study explosion-mismatched-k3 110 $m/explosion-mismatched.toml 3 --vary emission=separate,folded
+    motion_study explosion-mismatched-k3 150 $m/explosion-mismatched.toml 3 --vary emission=separate,folded \
+        --vary target=luminance,sum
     motion_study explosion-matched-k3 110 $m/explosion-matched.toml 3 --vary emission=separate,folded
     motion_study camera-g0-k7 90 $m/camera-g0.toml 7
     if [[ -x $plume_bin && ( -z ${NIMBUS_MOTION_ONLY:-} || " $NIMBUS_MOTION_ONLY " == *" plume-k"* ) ]]; then
