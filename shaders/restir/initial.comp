@@ -360,7 +360,8 @@ void restir_main() {
             beta /= sigma_star_total;
 
             vec3 emitted = vec3(0.0);
-            if (SC_HAS_EMISSION && sigma_t_grid > 0.0) {
+            // (SC_CAMERA_EMISSION: the camera segment's emission is shade.comp's.)
+            if (SC_HAS_EMISSION && sigma_t_grid > 0.0 && !(SC_CAMERA_EMISSION && i == 1u)) {
                 // The grid's sigma_a Le at x_i (eq. 25, emission case): a candidate of its
                 // own, or folded into the NEE candidate below.
                 emitted = (vec3(1.0) - albedo) * sigma_t_grid * grid_emission(x);

@@ -173,7 +173,9 @@ vec3 path_value(uint at, Reservoir r, CameraRay cam, CameraRay src, uint mode, i
         vec3 albedo = grid_albedo(x);
         vm = vertex_medium(x, sigma_t, albedo);
         if (i == kp && res_emission(r)) {
-            if (!SC_HAS_EMISSION || !(sigma_t > 0.0)) {
+            // Under SC_CAMERA_EMISSION the camera segment's emission is shade.comp's own
+            // estimate, outside the reservoirs: no path of the integrand ends there.
+            if (!SC_HAS_EMISSION || !(sigma_t > 0.0) || (SC_CAMERA_EMISSION && i == 1u)) {
                 return vec3(0.0);
             }
             // Emission path: the grid's sigma_a Le at x_k' (absorbed-emission convention;
@@ -187,7 +189,7 @@ vec3 path_value(uint at, Reservoir r, CameraRay cam, CameraRay src, uint mode, i
             return f * (vec3(1.0) - albedo) * sigma_t * grid_emission(x) * geometry;
         }
         // Folded emission: the last vertex's sigma_a Le joins its light terms.
-        if (SC_FOLD_EMISSION && i == kp && sigma_t > 0.0) {
+        if (SC_FOLD_EMISSION && i == kp && sigma_t > 0.0 && !(SC_CAMERA_EMISSION && i == 1u)) {
             last_emitted = (vec3(1.0) - albedo) * sigma_t * grid_emission(x);
         }
         // Scattering at x_i by the media there (sigma_s rho, applied with the next

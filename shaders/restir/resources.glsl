@@ -46,6 +46,9 @@ layout(constant_id = SC_ID_DIRECT_EACH_WALK) const bool SC_DIRECT_EACH_WALK = fa
 layout(constant_id = SC_ID_CANDIDATE_DELTA) const bool SC_CANDIDATE_DELTA = false;
 // How the target function makes a scalar of a path's RGB contribution (SC_TARGET_*).
 layout(constant_id = SC_ID_TARGET_SCALAR) const uint SC_TARGET_SCALAR = SC_TARGET_LUMINANCE;
+// The camera segment's emission is estimated in final shading by samples stratified in
+// sigma_t T, outside the reservoirs (`camera_emission = "stratified"`).
+layout(constant_id = SC_ID_CAMERA_EMISSION) const bool SC_CAMERA_EMISSION = false;
 // Opaque shapes beside the grid: paths may have surface vertices (restir/path_surfaces.glsl).
 layout(constant_id = SC_ID_HAS_SHAPES) const bool SC_HAS_SHAPES = false;
 // Homogeneous box media beside the grid (restir/vertex_media.glsl).

@@ -39,6 +39,58 @@ void restir_geometry_aovs(uvec2 pixel) {
     aov_write_geometry(pixel, t * dot(d, u_frame.cam_forward), normal, albedo, aov_motion(p, p_prev));
 }
 
+// Stratified samples of the camera segment's emission (SC_CAMERA_EMISSION).
+#define CAMERA_EMISSION_SAMPLES 8u
+
+// The emission the camera ray through `pixel` (a fresh, uniform sub-pixel jitter: the
+// reservoir's was chosen by resampling) sees in the grid up to its first opaque end: the
+// integral of T(t) sigma_a(t) Le(t) over the ray's span in the grid. Its points are drawn
+// with density sigma_t(t) T(t0, t) / P (P = 1 - T across the span), stratified in that
+// distribution: CAMERA_EMISSION_SAMPLES quantiles (k + u) / N of it, each found by exact
+// inversion of the closed-form optical depth through the trilinear grid, so each sample
+// weighs P / N (sigma_a / sigma_t) Le times the boxes' transmittance. Unbiased (every
+// sample is exact at a point distributed as its stratum of the density), and where the
+// glow is uniform its only noise is the albedo's and emission's variation along the ray.
+vec3 camera_emission(uvec2 pixel, inout uint rng) {
+    uint code = SC_PIXEL_JITTER ? jitter_code_sample(rng) : 0u;
+    CameraRay cam = camera_ray(pixel, code, SET_CURRENT);
+    uint sphere;
+    float t_end = nearest_sphere_light(light_base(SET_CURRENT), cam.o, cam.d, 1e-6, FAR, sphere);
+    t_end = min(t_end, surface_along(cam.o, cam.d, t_end).t);
+    vec2 span = grid_span(cam.o, cam.d);
+    float t0 = max(span.x, 0.0);
+    float t1 = min(span.y, t_end);
+    if (!(t1 > t0)) {
+        return vec3(0.0);
+    }
+    float tau_span = grid_optical_depth(cam.o, cam.d, t0, t1);
+    // P = 1 - exp(-tau_span), by its series for small depths. Domain: tau_span >= 0.
+    float P = tau_span < 1e-4 ? tau_span * (1.0 - 0.5 * tau_span) : 1.0 - exp(-tau_span);
+    if (!(P > 0.0)) {
+        return vec3(0.0);
+    }
+    float u = rng_next(rng);
+    float t_prev = t0;
+    float tau_prev = 0.0;
+    vec3 sum = vec3(0.0);
+    for (uint k = 0u; k < CAMERA_EMISSION_SAMPLES; ++k) {
+        // The quantile (k + u) / N of the distribution: optical depth -ln(1 - q P) from
+        // t0, reached past t_prev by the remaining difference. Domain: q P < 1.
+        float q = (float(k) + u) / float(CAMERA_EMISSION_SAMPLES);
+        float tau_k = -log(max(1.0 - q * P, 1e-30));
+        float t = grid_invert_optical_depth(cam.o, cam.d, t_prev, t1, max(tau_k - tau_prev, 1e-12));
+        if (t >= FAR) {
+            break;
+        }
+        t_prev = t;
+        tau_prev = tau_k;
+        vec3 x = cam.o + t * cam.d;
+        float T_box = SC_HAS_MEDIA ? exp(-box_optical_depth(cam.o, cam.d, 0.0, t)) : 1.0;
+        sum += T_box * (vec3(1.0) - grid_albedo(x)) * grid_emission(x);
+    }
+    return sum * (P / float(CAMERA_EMISSION_SAMPLES));
+}
+
 // The stage, then its counters into the stats buffer.
 void main() {
     restir_load();
@@ -70,6 +122,16 @@ void restir_main() {
             L = restir_aov_sum();
         } else {
             L = f * (r.w_sum / (r.p_hat * r.M));
+        }
+    }
+    if (SC_CAMERA_EMISSION) {
+        // Emitted with no scattering: the emission AOV's slot (and the default group).
+        vec3 e = camera_emission(pixel, rng);
+        if (aov_paths_on()) {
+            aov_add(aov_kind_emitted(0u), AOV_GROUP_DEFAULT, e);
+            L = restir_aov_sum();
+        } else {
+            L += e;
         }
     }
     // A non-finite estimate counts as 0: the frame still counts (uniform mean weights).

@@ -777,11 +777,22 @@ fn restir_plan(
         on(
             "pass restir shade",
             true,
-            if s.final_ratio_tracking {
-                "F with ratio-tracking transmittance (global majorant)".into()
-            } else {
-                "F with closed-form transmittance through the trilinear grid".into()
-            },
+            format!(
+                "{}{}",
+                if s.final_ratio_tracking {
+                    "F with ratio-tracking transmittance (global majorant)"
+                } else {
+                    "F with closed-form transmittance through the trilinear grid"
+                },
+                if plan.has_emission
+                    && s.camera_emission == nimbus_scene::CameraEmission::Stratified
+                {
+                    ", plus the camera ray's emission by 8 samples stratified in sigma_t T \
+                     (exact inversion of the optical depth) (camera_emission = \"stratified\", SC_CAMERA_EMISSION)"
+                } else {
+                    ""
+                }
+            ),
         ),
         on(
             "  SC_HAS_SHAPES",

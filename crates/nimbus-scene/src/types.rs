@@ -803,6 +803,21 @@ pub enum TargetScalar {
     Max,
 }
 
+/// Where ReSTIR estimates the medium emission its camera rays see directly
+/// (`camera_emission`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CameraEmission {
+    /// As every other path (the paper's): emission at a walk's first vertex is a candidate
+    /// (or, folded, part of its NEE candidate), resampled and reused.
+    Reservoir,
+    /// Apart from the reservoirs, in final shading: 8 samples along the pixel's camera ray
+    /// stratified in the distribution σ_t·T of its collisions (exact inversion of the
+    /// closed-form optical depth). A pixel's colour then
+    /// no longer hinges on whether its one selected path is the fire's glow or light
+    /// scattered in the smoke.
+    Stratified,
+}
+
 /// `[integrator.restir]`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RestirSettings {
@@ -873,6 +888,8 @@ pub struct RestirSettings {
     pub pc_fetch: DensityFetch,
     /// The target function's scalar of a path's RGB contribution (`target`).
     pub target: TargetScalar,
+    /// Where the camera rays' directly seen emission is estimated (`camera_emission`).
+    pub camera_emission: CameraEmission,
 }
 
 /// The defaults are what measured best at equal GPU time on the benchmark scenes
@@ -881,7 +898,8 @@ pub struct RestirSettings {
 /// levels, next-event estimation and the candidates' tracking chosen from the scene.
 /// The paper's algorithm is `temporal_limit = 4`, `spatial_neighbors = 3`,
 /// `temporal_history = "spatial"`, `mip_indirect = 2`, `mip_reuse = 1`, `nee = "one"`,
-/// `direct = "escape"`, `candidate_tracking = "regular"`, `target = "luminance"`.
+/// `direct = "escape"`, `candidate_tracking = "regular"`, `target = "luminance"`,
+/// `camera_emission = "reservoir"`.
 impl Default for RestirSettings {
     fn default() -> Self {
         Self {
@@ -912,6 +930,7 @@ impl Default for RestirSettings {
             candidate_tracking: CandidateTracking::Auto,
             pc_fetch: DensityFetch::Auto,
             target: TargetScalar::Sum,
+            camera_emission: CameraEmission::Stratified,
         }
     }
 }

@@ -232,6 +232,13 @@ pub(super) fn apply(scene: &mut Scene, key: &str, value: &str) -> Result<Option<
                 _ => bail!("{key}: unknown target {value:?}; valid: luminance, sum, max"),
             };
         }
+        "camera_emission" => {
+            scene.integrator.restir.camera_emission = match value {
+                "reservoir" => nimbus_scene::CameraEmission::Reservoir,
+                "stratified" => nimbus_scene::CameraEmission::Stratified,
+                _ => bail!("{key}: unknown choice {value:?}; valid: reservoir, stratified"),
+            };
+        }
         "sigma_star_floor" => {
             scene.integrator.restir.sigma_star_floor = match value.parse::<f32>() {
                 Ok(f) if (0.0..=1.0).contains(&f) => f,
@@ -540,6 +547,7 @@ mod tests {
             ("candidate_tracking", "regular"),
             ("pc_fetch", "image"),
             ("target", "sum"),
+            ("camera_emission", "reservoir"),
         ];
         assert_eq!(values.len(), keys().len());
         let mut s = scene();
@@ -575,6 +583,7 @@ mod tests {
         );
         assert_eq!(r.pc_fetch, nimbus_scene::DensityFetch::Image);
         assert_eq!(r.target, nimbus_scene::TargetScalar::Sum);
+        assert_eq!(r.camera_emission, nimbus_scene::CameraEmission::Reservoir);
         assert_eq!(r.env_reuse, nimbus_scene::EnvReuse::World);
         assert_eq!(
             (r.spatial_shift, r.spatial_max_history),
@@ -596,6 +605,7 @@ mod tests {
             ("candidate_tracking", "ratio"),
             ("spatial_when", "density_moves"),
             ("target", "rgb"),
+            ("camera_emission", "marched"),
         ] {
             assert!(apply(&mut s, key, value).is_err(), "{key}={value}");
         }

@@ -18,7 +18,7 @@ pub fn specialization(
     exact_spans: bool,
     two_level: bool,
     pc_buffer: bool,
-) -> [(u32, SpecValue); 29] {
+) -> [(u32, SpecValue); 30] {
     [
         (SC_ID_PC_BUFFER, SpecValue::Bool(pc_buffer)),
         (
@@ -77,6 +77,13 @@ pub fn specialization(
                 nimbus_scene::TargetScalar::Sum => SC_TARGET_SUM,
                 nimbus_scene::TargetScalar::Max => SC_TARGET_MAX,
             }),
+        ),
+        (
+            SC_ID_CAMERA_EMISSION,
+            SpecValue::Bool(
+                plan.has_emission
+                    && plan.settings.camera_emission == nimbus_scene::CameraEmission::Stratified,
+            ),
         ),
     ]
 }

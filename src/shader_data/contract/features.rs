@@ -112,6 +112,10 @@ gpu_consts! {
     /// ReSTIR's target function: how p̂ makes a scalar of a path's RGB contribution
     /// (`target`: one of the SC_TARGET_* values below; restir/vertex_media.glsl).
     pub const SC_ID_TARGET_SCALAR: u32 = 39;
+    /// ReSTIR: the camera segment's medium emission is estimated in final shading by
+    /// samples along the camera ray stratified in sigma_t T, and no candidate
+    /// path ends in it (`camera_emission = "stratified"`; restir/shade.comp).
+    pub const SC_ID_CAMERA_EMISSION: u32 = 40;
     /// Values of SC_TARGET_SCALAR.
     pub const SC_TARGET_LUMINANCE: u32 = 0;
     pub const SC_TARGET_SUM: u32 = 1;

@@ -433,7 +433,8 @@ fn check_sums(ctx: &Context, label: &str, cloud: Cloud, groups: &[&str]) -> Rend
 }
 
 /// Split NEE (a sun, a point light and a sky, K = 3), with and without emission and with
-/// folded emission; one-light NEE with emission candidates.
+/// folded emission; one-light NEE with emission candidates; the camera rays' emission
+/// resampled (the paper's) instead of estimated in shading.
 #[test]
 fn restir_path_aovs_sum_to_the_rgb_slow() {
     let ctx = context();
@@ -478,6 +479,24 @@ fn restir_path_aovs_sum_to_the_rgb_slow() {
             ..base
         },
         &groups,
+    );
+    // The camera rays' emission resampled as every path is (the paper's; the cases above
+    // estimate it in shading, apart from the reservoirs, into the emission layer and the
+    // default group).
+    let r = check_sums(
+        &ctx,
+        "camera emission resampled",
+        Cloud {
+            medium_extra: EMISSION,
+            restir: "camera_emission = \"reservoir\"",
+            ..base
+        },
+        &groups,
+    );
+    let sum: f32 = rgb(&r, "emission").iter().map(|p| p[0] + p[1] + p[2]).sum();
+    assert!(
+        sum > 0.0,
+        "camera emission resampled: the emission layer is black"
     );
 }
 

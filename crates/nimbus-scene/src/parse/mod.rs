@@ -117,6 +117,7 @@ pub const RESTIR_KEYS: &[&str] = &[
     "candidate_tracking",
     "pc_fetch",
     "target",
+    "camera_emission",
 ];
 
 /// One table of the scene format and every field the parser accepts in it.
@@ -771,6 +772,14 @@ fn parse_restir(source: &Source, table: &toml::Table) -> Result<RestirSettings> 
                 ("luminance", TargetScalar::Luminance),
                 ("sum", TargetScalar::Sum),
                 ("max", TargetScalar::Max),
+            ],
+        )?,
+        camera_emission: f.choice(
+            "camera_emission",
+            Some(d.camera_emission),
+            &[
+                ("reservoir", CameraEmission::Reservoir),
+                ("stratified", CameraEmission::Stratified),
             ],
         )?,
     })

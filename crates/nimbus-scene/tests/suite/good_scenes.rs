@@ -35,6 +35,7 @@ fn minimal_scene_gets_every_default() {
     assert_eq!(restir.direct, DirectMode::EachWalk);
     assert_eq!(restir.candidate_tracking, CandidateTracking::Auto);
     assert_eq!(restir.target, TargetScalar::Sum);
+    assert_eq!(restir.camera_emission, CameraEmission::Stratified);
     assert_eq!(restir.spatial_radius_px, None);
     assert_eq!(restir.spatial_rounds, 1);
     assert_eq!(restir.reuse, ReuseMode::Direction);
@@ -239,6 +240,7 @@ direct = "escape"
 candidate_tracking = "regular"
 pc_fetch = "buffer"
 target = "max"
+camera_emission = "reservoir"
 mis = "pairwise"
 spatial_shift = "optical_depth"
 env_reuse = "world"
@@ -468,6 +470,7 @@ density_fetch = "image"
                 candidate_tracking: CandidateTracking::Regular,
                 pc_fetch: DensityFetch::Buffer,
                 target: TargetScalar::Max,
+                camera_emission: CameraEmission::Reservoir,
             },
             baseline: BaselineSettings {
                 nee: NeeMode::One,

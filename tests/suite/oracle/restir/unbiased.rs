@@ -44,9 +44,10 @@ fn multiple_scattering_matches_the_baseline_slow() {
 }
 
 /// An emitting cloud (emission candidates at every vertex), K = 2, temporal and spatial
-/// reuse, also with emission folded and with the target the largest channel (the
-/// emission's hue is not the sun's): converges to the baseline (criteria in the module
-/// docs).
+/// reuse, also with emission folded, with the target the largest channel (the
+/// emission's hue is not the sun's), and with the camera rays' emission resampled as
+/// the paper does (separate and folded) instead of estimated in shading (the default):
+/// converges to the baseline (criteria in the module docs).
 #[test]
 fn emission_matches_the_baseline_slow() {
     check_cases(
@@ -57,7 +58,13 @@ fn emission_matches_the_baseline_slow() {
                            emission_scale = [2.0, 1.0, 0.5]",
             ..Cloud::default()
         },
-        &[BOTH, FOLDED, TARGET_MAX],
+        &[
+            BOTH,
+            FOLDED,
+            TARGET_MAX,
+            CAMERA_RESERVOIR,
+            CAMERA_RESERVOIR_FOLDED,
+        ],
         "emission K=2",
     );
     // Under a sky alone (one-light NEE, the environment drawn at every vertex).

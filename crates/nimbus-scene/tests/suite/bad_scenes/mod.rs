@@ -415,6 +415,16 @@ fn out_of_range_values_are_rejected() {
             "\"max\"",
         ],
     );
+    let error = parse_err("[integrator.restir]\ncamera_emission = \"marched\"\n");
+    assert_contains(
+        &error,
+        &[
+            "field `camera_emission`",
+            "\"marched\"",
+            "\"reservoir\"",
+            "\"stratified\"",
+        ],
+    );
     let error = parse_err("[integrator.restir]\nspatial_when = \"density\"\n");
     assert_contains(
         &error,
