@@ -459,11 +459,6 @@ const CAMERA_RESERVOIR: Case = Case {
     restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 1\nspatial_neighbors = 3\nspatial_when = \"always\"\n\
              spatial_radius_px = 10\ncamera_emission = \"reservoir\"",
 };
-const CAMERA_RESERVOIR_FOLDED: Case = Case {
-    label: "temporal + spatial, emission folded, the camera rays' resampled too",
-    restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 1\nspatial_neighbors = 3\nspatial_when = \"always\"\n\
-             spatial_radius_px = 10\nemission = \"folded\"\ncamera_emission = \"reservoir\"",
-};
 pub(crate) const PAIRWISE: Case = Case {
     label: "temporal + spatial, pairwise MIS, one light per vertex, regular tracking",
     restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 1\nspatial_neighbors = 3\nspatial_when = \"always\"\nspatial_radius_px = 10\nmis = \"pairwise\"\n\
