@@ -23,6 +23,21 @@ float cand_w_scale[MAX_CANDIDATES];
 bool cand_same_target[MAX_CANDIDATES];
 // Candidate i's camera-ray depth anchor (CameraRay.anchor; 0 unless temporal reuse sets it).
 float cand_anchor[MAX_CANDIDATES];
+// Candidate i's sub-pixel frame (jitter code units, x in bits 0-7 and y in 8-15, each mod
+// 256): a path owned by candidate i with jitter code c is evaluated at candidate j with
+// code c - shift_i + shift_j per axis (jitter_code_move), a translation of the pixel's
+// 256 x 256 grid that wraps around (a bijection: Jacobian 1). 0 unless temporal reuse
+// aligns the two frames' pixels (see temporal.comp).
+uint cand_jitter_shift[MAX_CANDIDATES];
+
+// Jitter code `code` of candidate `from`'s sub-pixel frame in candidate `to`'s.
+uint jitter_code_move(uint code, uint from, uint to) {
+    uint a = cand_jitter_shift[from];
+    uint b = cand_jitter_shift[to];
+    uint x = ((code & 0xffu) - (a & 0xffu) + (b & 0xffu)) & 0xffu;
+    uint y = (((code >> 8u) & 0xffu) - ((a >> 8u) & 0xffu) + ((b >> 8u) & 0xffu)) & 0xffu;
+    return x | (y << 8u);
+}
 
 // ---------------------------------------------------------------------------------------
 // The optical-depth shift of spatial reuse (SC_SPATIAL_TAU_SHIFT; spatial.comp defines
@@ -116,12 +131,12 @@ float shifted_target(uint at, Reservoir r, CameraRay ray, CameraRay owner, bool 
 // entered the medium (its depth anchor).
 #define ANCHOR_TAU 1e-3
 
-// T~ of the camera ray through the centre of `pixel` in a frame's set up to its first
+// T~ of the camera ray through `pixel` at jitter `code` in a frame's set up to its first
 // opaque end, what ends it (a shape: its index; an emitting sphere: 0x10000 + its index
 // in the set; nothing: NO_INDEX) and where it enters the medium (FAR if it does not): the
 // first point past optical depth ANCHOR_TAU through this frame's conservative grid.
-float camera_feature(uvec2 pixel, uint set, out uint end, out float entry) {
-    CameraRay r = camera_ray(pixel, JITTER_CODE_CENTRE, set);
+float camera_feature_at(uvec2 pixel, uint code, uint set, out uint end, out float entry) {
+    CameraRay r = camera_ray(pixel, code, set);
     uint sphere;
     float t_end = nearest_sphere_light(light_base(set), r.o, r.d, 1e-6, FAR, sphere);
     SurfacePoint s = surface_along(r.o, r.d, t_end);
@@ -131,6 +146,11 @@ float camera_feature(uvec2 pixel, uint set, out uint end, out float entry) {
     float tau;
     entry = pc_track(LEVEL_PRIMARY, r.o, r.d, t_end, ANCHOR_TAU, sigma_star, tau);
     return reuse_transmittance(set, r.o, r.d, t_end);
+}
+
+// camera_feature_at on the ray through the pixel's centre.
+float camera_feature(uvec2 pixel, uint set, out uint end, out float entry) {
+    return camera_feature_at(pixel, JITTER_CODE_CENTRE, set, end, entry);
 }
 
 // The relative change between two camera rays' T~ (relative to the larger, floored at
@@ -150,13 +170,20 @@ void candidate_set(uint i, uint at, uvec2 pixel, uint set) {
     cand_w_scale[i] = 1.0;
     cand_same_target[i] = i == 0u;
     cand_anchor[i] = 0.0;
+    cand_jitter_shift[i] = 0u;
 }
 
-// The camera ray of candidate i's pixel and frame at jitter `code`.
-CameraRay candidate_ray(uint i, uint code) {
-    CameraRay r = camera_ray(cand_pixel[i], code, cand_set[i]);
-    r.anchor = cand_anchor[i];
+// The camera ray of candidate j's pixel and frame for a path owned by candidate i with
+// jitter code `code` (in i's sub-pixel frame).
+CameraRay candidate_ray_for(uint j, uint i, uint code) {
+    CameraRay r = camera_ray(cand_pixel[j], jitter_code_move(code, i, j), cand_set[j]);
+    r.anchor = cand_anchor[j];
     return r;
+}
+
+// The camera ray of candidate i's pixel and frame at its own jitter `code`.
+CameraRay candidate_ray(uint i, uint code) {
+    return candidate_ray_for(i, i, code);
 }
 
 // Streams reservoir ri's sample into s with resampling weight w. The sample keeps its
@@ -241,8 +268,8 @@ uint combine_candidates_talbot(uint n, inout uint rng, out Reservoir s) {
                 // (Temporal reuse only, where x_1 keeps its distance.)
                 p = p_shared;
             } else {
-                p = shifted_target(cand_at[i], ri, candidate_ray(j, code), owner, j == i, tau1, sigma_own, anchor_j,
-                                   sigma_j, rng);
+                p = shifted_target(cand_at[i], ri, candidate_ray_for(j, i, code), owner, j == i, tau1, sigma_own,
+                                   anchor_j, sigma_j, rng);
             }
             if (cand_same_target[j]) {
                 p_shared = p;
@@ -290,8 +317,8 @@ float candidate_target(uint i, uint j, Reservoir ri, uint code, CameraRay owner,
         // Domain: sigma_own > 0 (path_tau).
         return ri.p_hat / sigma_own;
     }
-    return shifted_target(cand_at[i], ri, candidate_ray(j, code), owner, j == i, tau1, sigma_own, anchor, sigma_here,
-                          rng);
+    return shifted_target(cand_at[i], ri, candidate_ray_for(j, i, code), owner, j == i, tau1, sigma_own, anchor,
+                          sigma_here, rng);
 }
 
 // As combine_candidates_talbot, with pairwise MIS (Bitterli 2022; Lin et al. 2022,

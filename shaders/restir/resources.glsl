@@ -49,6 +49,10 @@ layout(constant_id = SC_ID_TARGET_SCALAR) const uint SC_TARGET_SCALAR = SC_TARGE
 // The camera segment's emission is estimated in final shading by samples stratified in
 // sigma_t T, outside the reservoirs (`camera_emission = "stratified"`).
 layout(constant_id = SC_ID_CAMERA_EMISSION) const bool SC_CAMERA_EMISSION = false;
+// Temporal reuse finds the previous pixel by the pixel's motion point and aligns the two
+// pixels' sub-pixel positions there (`temporal_reprojection = "aligned"`), else by the
+// selected path's x_1 (the paper's).
+layout(constant_id = SC_ID_TEMPORAL_ALIGNED) const bool SC_TEMPORAL_ALIGNED = false;
 // Opaque shapes beside the grid: paths may have surface vertices (restir/path_surfaces.glsl).
 layout(constant_id = SC_ID_HAS_SHAPES) const bool SC_HAS_SHAPES = false;
 // Homogeneous box media beside the grid (restir/vertex_media.glsl).

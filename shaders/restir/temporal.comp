@@ -1,14 +1,26 @@
 #version 460
 // Volumetric ReSTIR pass 2, temporal reuse (sec. 4.4, Algorithm 5): the pixel's initial
-// reservoir is combined with the previous frame's final reservoir of the pixel where the
-// first vertex x_1 of its selected path was one frame ago: x_1 moved back through the
-// medium's velocity field and projected by the previous camera. Where x_1 is not in the
-// medium (the path is empty or ends on a light seen directly), velocity resampling
-// (sec. 5.2) draws a point along the camera ray by regular tracking restricted to the
-// medium instead. An x_1 on a surface (shapes are static) is projected without the
-// velocity, and so is the surface a ray meets before any medium, or an x_1 in a box
-// medium. The previous reservoir's
-// M is clamped to Q M (temporal limit).
+// reservoir is combined with the previous frame's final reservoir of one pixel, its
+// temporal neighbour, found by a motion vector. The previous reservoir's M is clamped to
+// Q M (temporal limit) and scaled by the history's confidence.
+//
+// Two reprojections (`temporal_reprojection`, SC_TEMPORAL_ALIGNED):
+// - "path" (the paper's): the neighbour is the pixel where the first vertex x_1 of the
+//   selected path was one frame ago: x_1 moved back through the medium's velocity field and
+//   projected by the previous camera. Where x_1 is not in the medium (the path is empty or
+//   ends on a light seen directly), velocity resampling (sec. 5.2) draws a point along the
+//   camera ray by regular tracking restricted to the medium instead. A reused path keeps
+//   its sub-pixel position (its jitter code) and its depth past where the two pixels'
+//   centre rays enter the medium.
+// - "aligned" (the default): the neighbour is where the pixel's motion point (its centre
+//   ray's point at optical depth 1 through the conservative grid: motion_point) was one
+//   frame ago. A reused path's jitter code is translated (wrapping around the pixel) so
+//   that the previous frame's ray through the motion point becomes this pixel's centre
+//   ray, and its depth is kept past the motion point on both rays: a path found near the
+//   motion point keeps its world-space vertices. Both depend on the two frames alone,
+//   never on the samples.
+// An x_1 or motion point on a surface (shapes are static) is projected without the
+// velocity, and so is one in a box medium.
 //
 // Reads and writes slot u_push.src (= dst, in place: each pixel touches only its own
 // entry there) and reads the previous frame's slot u_push.aux.
@@ -18,15 +30,17 @@
 
 // The confidence in the previous frame's pixel q_prev as this frame's `pixel`: 0 where the
 // camera rays end on different things, else falling linearly with the relative change of
-// their T~ (0 at HISTORY_T_TOLERANCE). Sets both candidates' depth anchors to where their
-// centre rays enter the medium (0 unless both do).
-float camera_confidence(uvec2 pixel, uvec2 q_prev) {
+// their T~ (0 at HISTORY_T_TOLERANCE). The rays are this pixel's centre ray and q_prev's
+// at jitter `code_prev` (its centre, or under SC_TEMPORAL_ALIGNED the ray through the
+// motion point). Sets both candidates' depth anchors to where those rays enter the medium
+// (0 unless both do).
+float camera_confidence(uvec2 pixel, uvec2 q_prev, uint code_prev) {
     uint end_cur;
     uint end_prev;
     float entry_cur;
     float entry_prev;
     float t_cur = camera_feature(pixel, SET_CURRENT, end_cur, entry_cur);
-    float t_prev = camera_feature(q_prev, SET_PREVIOUS, end_prev, entry_prev);
+    float t_prev = camera_feature_at(q_prev, code_prev, SET_PREVIOUS, end_prev, entry_prev);
     if (end_cur != end_prev) {
         return 0.0;
     }
@@ -35,6 +49,84 @@ float camera_confidence(uvec2 pixel, uvec2 q_prev) {
         cand_anchor[1] = entry_prev;
     }
     return clamp(1.0 - camera_t_change(t_cur, t_prev) / HISTORY_T_TOLERANCE, 0.0, 1.0);
+}
+
+// The optical depth through the conservative grid at which a pixel's centre ray has its
+// motion point (SC_TEMPORAL_ALIGNED).
+#define MOTION_TAU 1.0
+
+// The motion point of `pixel` (SC_TEMPORAL_ALIGNED): a deterministic point of what its
+// centre ray sees, whose motion between the frames decides the temporal neighbour, aligns
+// the two pixels' sub-pixel positions and anchors the reused paths' depths. Where the ray
+// reaches optical depth MOTION_TAU through this frame's conservative grid before its
+// opaque end, that point (a typical first collision; half the ray's optical depth where it
+// holds less); else the shape or emitting sphere it ends on. False where it sees neither
+// (the background; `dir` is the ray's direction). `in_medium`: a point of the medium,
+// which moves with the velocity field.
+bool motion_point(uvec2 pixel, out vec3 x, out bool in_medium, out vec3 dir) {
+    CameraRay r = camera_ray(pixel, JITTER_CODE_CENTRE, SET_CURRENT);
+    dir = r.d;
+    uint sphere;
+    float t_end = nearest_sphere_light(0u, r.o, r.d, 1e-6, FAR, sphere);
+    SurfacePoint surface = surface_along(r.o, r.d, t_end);
+    t_end = min(t_end, surface.t);
+    float sigma_star;
+    float tau;
+    float tau_all;
+    float z = pc_track_through(LEVEL_PRIMARY, r.o, r.d, t_end, MOTION_TAU, true, sigma_star, tau, tau_all);
+    if (z >= FAR && tau_all > 0.0) {
+        z = pc_track(LEVEL_PRIMARY, r.o, r.d, t_end, 0.5 * tau_all, sigma_star, tau);
+    }
+    in_medium = z < FAR;
+    if (in_medium) {
+        x = r.o + z * r.d;
+        return true;
+    }
+    x = r.o + min(t_end, FAR) * r.d;
+    return t_end < FAR;
+}
+
+// The paper's motion vector's particle ("path"): x_1 of the selected path (header `cur`
+// at `at`), else a point drawn by velocity resampling along the pixel's camera ray, else
+// the surface the ray meets first. False where there is none (the background; `dir` is
+// the path's camera ray's direction).
+bool path_motion_point(uint at, Reservoir cur, inout uint rng, out vec3 x1, out bool in_medium, out vec3 dir) {
+    // The selected path's own camera ray (its jitter; the pixel centre region otherwise).
+    CameraRay cam = camera_ray(gl_GlobalInvocationID.xy, res_jitter(cur), SET_CURRENT);
+    dir = cam.d;
+    // x1 exists (anchored); it is a point of the medium, which moves with the velocity
+    // field (in_medium), or of a static surface.
+    bool anchored = path_x1(at, cur, cam, x1);
+    in_medium = anchored && res_z(at, 1u) >= 0.0;
+    if (anchored) {
+        return true;
+    }
+    uint sphere;
+    float t_end = nearest_sphere_light(0u, cam.o, cam.d, 1e-6, FAR, sphere);
+    SurfacePoint surface = surface_along(cam.o, cam.d, t_end);
+    t_end = min(t_end, surface.t);
+    float sigma_star;
+    float tau_total;
+    pc_track(LEVEL_PRIMARY, cam.o, cam.d, t_end, FAR, sigma_star, tau_total);
+    if (tau_total > 0.0) {
+        // A collision conditioned to happen: tau uniform in probability over
+        // [0, tau_total). Domain: 1 - u (1 - e^-tau) in (e^-tau, 1].
+        float u = rng_next(rng);
+        float tau_target = -log(1.0 - u * (1.0 - exp(-tau_total)));
+        float tau;
+        float z = pc_track(LEVEL_PRIMARY, cam.o, cam.d, t_end, min(tau_target, tau_total), sigma_star, tau);
+        if (z < FAR) {
+            x1 = cam.o + z * cam.d;
+            in_medium = true;
+            return true;
+        }
+    }
+    if (surface.shape != NO_INDEX) {
+        // The ray crosses no medium before a shape: follow the surface point.
+        x1 = cam.o + surface.t * cam.d;
+        return true;
+    }
+    return false;
 }
 
 void restir_main();
@@ -54,54 +146,30 @@ void restir_main() {
     COUNT(CTR_SAMPLES, 1);
     uint at = res_at(u_push.src, pixel);
     uint rng = rng_init(pixel, u_push.frame, 1u, u_frame.seed);
-    Reservoir cur = res_load(at);
-    // The selected path's own camera ray (its jitter; the pixel centre region otherwise).
-    CameraRay cam = camera_ray(pixel, res_jitter(cur), SET_CURRENT);
 
-    // The motion vector's particle: x_1 of the selected path, else velocity resampling.
-    vec3 x1 = vec3(0.0);
-    // x1 exists (anchored); it is a point of the medium, which moves with the velocity
-    // field (in_medium), or of a static surface.
-    bool anchored = path_x1(at, cur, cam, x1);
-    bool in_medium = anchored && res_z(at, 1u) >= 0.0;
-    if (!anchored) {
-        uint sphere;
-        float t_end = nearest_sphere_light(0u, cam.o, cam.d, 1e-6, FAR, sphere);
-        SurfacePoint surface = surface_along(cam.o, cam.d, t_end);
-        t_end = min(t_end, surface.t);
-        float sigma_star;
-        float tau_total;
-        pc_track(LEVEL_PRIMARY, cam.o, cam.d, t_end, FAR, sigma_star, tau_total);
-        if (tau_total > 0.0) {
-            // A collision conditioned to happen: tau uniform in probability over
-            // [0, tau_total). Domain: 1 - u (1 - e^-tau) in (e^-tau, 1].
-            float u = rng_next(rng);
-            float tau_target = -log(1.0 - u * (1.0 - exp(-tau_total)));
-            float tau;
-            float z = pc_track(LEVEL_PRIMARY, cam.o, cam.d, t_end, min(tau_target, tau_total), sigma_star, tau);
-            if (z < FAR) {
-                x1 = cam.o + z * cam.d;
-                anchored = true;
-                in_medium = true;
-            }
+    // The motion vector: where its particle was one frame ago, projected by the previous
+    // camera. A static scene's aligned neighbour (history_static: camera, lights and
+    // density as in the previous frame) is the pixel itself, unshifted, found without a
+    // walk.
+    bool still = SC_TEMPORAL_ALIGNED && u_restir.history_static != 0u;
+    vec3 x = vec3(0.0);
+    vec3 x_prev = vec3(0.0);
+    bool in_medium = false;
+    vec2 px = vec2(pixel) + 0.5;
+    bool on_screen = true;
+    if (!still) {
+        vec3 dir;
+        bool anchored = SC_TEMPORAL_ALIGNED ? motion_point(pixel, x, in_medium, dir)
+                                            : path_motion_point(at, res_load(at), rng, x, in_medium, dir);
+        if (anchored) {
+            // The velocity field moves the grid's points only (box media are static).
+            bool moves = SC_HAS_VELOCITY && in_medium && box_medium_at(x) == NO_INDEX;
+            x_prev = moves ? x - velocity_at(x) : x;
+        } else {
+            // Nothing in the medium along the ray: follow the background (a far point).
+            x_prev = u_prev_frame.cam_position + dir * 1e6;
         }
-        if (!anchored && surface.shape != NO_INDEX) {
-            // The ray crosses no medium before a shape: follow the surface point.
-            x1 = cam.o + surface.t * cam.d;
-            anchored = true;
-        }
-    }
-    vec3 x_prev;
-    vec2 px;
-    bool on_screen;
-    if (anchored) {
-        // The velocity field moves the grid's points only (box media are static).
-        bool moves = SC_HAS_VELOCITY && in_medium && box_medium_at(x1) == NO_INDEX;
-        x_prev = moves ? x1 - velocity_at(x1) : x1;
         on_screen = camera_project(u_prev_frame, x_prev, px);
-    } else {
-        // Nothing in the medium along the ray: follow the background (a far point).
-        on_screen = camera_project(u_prev_frame, u_prev_frame.cam_position + cam.d * 1e6, px);
     }
     // Written so that a NaN projection (an extreme velocity: f16 texels saturate to inf)
     // fails it too: NaN compares false.
@@ -113,12 +181,26 @@ void restir_main() {
     uvec2 q_prev = uvec2(px);
     candidate_set(0u, at, pixel, SET_CURRENT);
     candidate_set(1u, res_at(u_push.aux, q_prev), q_prev, SET_PREVIOUS);
+    uint code_prev = JITTER_CODE_CENTRE;
+    if (SC_TEMPORAL_ALIGNED && !still) {
+        // The previous pixel's sub-pixel frame, translated so that its jitter code under
+        // the motion point (fract(px)) is this pixel's centre code.
+        uvec2 c = min(uvec2(fract(px) * 256.0), uvec2(255u));
+        code_prev = c.x | (c.y << 8u);
+        uvec2 shift = (c - uvec2(JITTER_CODE_CENTRE & 0xffu, JITTER_CODE_CENTRE >> 8u)) & uvec2(0xffu);
+        cand_jitter_shift[1] = shift.x | (shift.y << 8u);
+    }
     // A static scene's history is this frame's: full confidence, nothing to compare.
     float confidence = 1.0;
     if (u_restir.history_static == 0u) {
         confidence = u_restir.history_confidence;
         if (confidence > 0.0) {
-            confidence *= camera_confidence(pixel, q_prev);
+            confidence *= camera_confidence(pixel, q_prev, code_prev);
+            if (SC_TEMPORAL_ALIGNED && in_medium) {
+                // Depths past the motion point on both rays (each passes through it).
+                cand_anchor[0] = length(x - u_frame.cam_position);
+                cand_anchor[1] = length(x_prev - u_prev_frame.cam_position);
+            }
         }
         if (!(confidence > 0.0)) {
             // Nothing of the previous frame resembles this one: the reservoir stays.
@@ -128,7 +210,8 @@ void restir_main() {
 
     // A static scene's previous frame at this very pixel has this frame's target function:
     // the samples' targets are evaluated once (3 path evaluations become 1).
-    cand_same_target[1] = u_restir.history_static != 0u && all(equal(q_prev, pixel));
+    cand_same_target[1] =
+        u_restir.history_static != 0u && all(equal(q_prev, pixel)) && cand_jitter_shift[1] == 0u;
     // Temporal limit: M_prev <= Q M, scaling w_sum alike so W_prev is unchanged.
     float m_cap = float(u_restir.temporal_limit) * float(u_restir.candidates);
     if (cand_M[1] > m_cap) {
@@ -143,6 +226,11 @@ void restir_main() {
     uint chosen = combine_candidates(2u, rng, s);
     uint src_at = chosen < 2u ? cand_at[chosen] : at;
     uint code = res_jitter(s);
-    CameraRay owner = candidate_ray(chosen < 2u ? chosen : 0u, code);
-    store_combined(at, s, src_at, owner, candidate_ray(0u, code));
+    uint owner_i = chosen < 2u ? chosen : 0u;
+    CameraRay owner = candidate_ray(owner_i, code);
+    if (chosen < 2u) {
+        // The path's jitter code in this pixel's sub-pixel frame.
+        s.info = (s.info & 0xffffu) | (jitter_code_move(code, owner_i, 0u) << 16u);
+    }
+    store_combined(at, s, src_at, owner, candidate_ray_for(0u, owner_i, code));
 }

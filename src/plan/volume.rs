@@ -673,7 +673,14 @@ fn restir_plan(
                 "[integrator.restir] temporal = false".into()
             } else if frames > 1 {
                 format!(
-                    "from the second frame: reprojection of x1{}, Q = {}{}, history = the {} output",
+                    "from the second frame: reprojection of {}{}, Q = {}{}, history = the {} output",
+                    match s.temporal_reprojection {
+                        nimbus_scene::TemporalReprojection::Path =>
+                            "the selected path's x1 (temporal_reprojection = \"path\", the paper's)",
+                        nimbus_scene::TemporalReprojection::Aligned =>
+                            "the pixel's motion point (optical depth 1 along its centre ray), the reused path's \
+                             sub-pixel position aligned there (temporal_reprojection = \"aligned\", SC_TEMPORAL_ALIGNED)",
+                    },
                     if plan.has_velocity {
                         " through the velocity field"
                     } else {

@@ -101,6 +101,7 @@
 //! | restir `candidate_tracking` | `"auto"`, `"delta"`, `"regular"` |
 //! | restir `target` | `"luminance"`, `"sum"`, `"max"` |
 //! | restir `camera_emission` | `"reservoir"`, `"stratified"` |
+//! | restir `temporal_reprojection` | `"path"`, `"aligned"` |
 //! | restir `pc_fetch` | `"auto"`, `"image"`, `"buffer"` (refused where the buffer exceeds the device's storage-buffer range) |
 //! | baseline `nee` | `"auto"`, `"one"`, `"split"` |
 //! | baseline `density_fetch` | `"auto"`, `"image"`, `"buffer"` |

@@ -818,6 +818,22 @@ pub enum CameraEmission {
     Stratified,
 }
 
+/// How temporal reuse finds a pixel's previous-frame neighbour and moves its path
+/// (`temporal_reprojection`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TemporalReprojection {
+    /// The paper's: the neighbour is where the selected path's first vertex x_1 was (velocity
+    /// resampling where it has none); the reused path keeps its sub-pixel position and its
+    /// depth past where the two pixels' centre rays enter the medium.
+    Path,
+    /// The neighbour is where the pixel's motion point (its centre ray's point at optical
+    /// depth 1 through the conservative grid) was; the reused path's sub-pixel position is
+    /// translated so that the previous ray through that point becomes this pixel's centre
+    /// ray, and its depth is kept past the point: a path found near it keeps its world-space
+    /// vertices under a moving camera.
+    Aligned,
+}
+
 /// `[integrator.restir]`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RestirSettings {
@@ -890,6 +906,9 @@ pub struct RestirSettings {
     pub target: TargetScalar,
     /// Where the camera rays' directly seen emission is estimated (`camera_emission`).
     pub camera_emission: CameraEmission,
+    /// How temporal reuse finds the previous frame's pixel and moves its path there
+    /// (`temporal_reprojection`).
+    pub temporal_reprojection: TemporalReprojection,
 }
 
 /// The defaults are what measured best at equal GPU time on the benchmark scenes
@@ -899,7 +918,7 @@ pub struct RestirSettings {
 /// The paper's algorithm is `temporal_limit = 4`, `spatial_neighbors = 3`,
 /// `temporal_history = "spatial"`, `mip_indirect = 2`, `mip_reuse = 1`, `nee = "one"`,
 /// `direct = "escape"`, `candidate_tracking = "regular"`, `target = "luminance"`,
-/// `camera_emission = "reservoir"`.
+/// `camera_emission = "reservoir"`, `temporal_reprojection = "path"`.
 impl Default for RestirSettings {
     fn default() -> Self {
         Self {
@@ -931,6 +950,7 @@ impl Default for RestirSettings {
             pc_fetch: DensityFetch::Auto,
             target: TargetScalar::Sum,
             camera_emission: CameraEmission::Stratified,
+            temporal_reprojection: TemporalReprojection::Aligned,
         }
     }
 }

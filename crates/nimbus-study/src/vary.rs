@@ -239,6 +239,13 @@ pub(super) fn apply(scene: &mut Scene, key: &str, value: &str) -> Result<Option<
                 _ => bail!("{key}: unknown choice {value:?}; valid: reservoir, stratified"),
             };
         }
+        "temporal_reprojection" => {
+            scene.integrator.restir.temporal_reprojection = match value {
+                "path" => nimbus_scene::TemporalReprojection::Path,
+                "aligned" => nimbus_scene::TemporalReprojection::Aligned,
+                _ => bail!("{key}: unknown choice {value:?}; valid: path, aligned"),
+            };
+        }
         "sigma_star_floor" => {
             scene.integrator.restir.sigma_star_floor = match value.parse::<f32>() {
                 Ok(f) if (0.0..=1.0).contains(&f) => f,
@@ -548,6 +555,7 @@ mod tests {
             ("pc_fetch", "image"),
             ("target", "sum"),
             ("camera_emission", "reservoir"),
+            ("temporal_reprojection", "path"),
         ];
         assert_eq!(values.len(), keys().len());
         let mut s = scene();
@@ -584,6 +592,10 @@ mod tests {
         assert_eq!(r.pc_fetch, nimbus_scene::DensityFetch::Image);
         assert_eq!(r.target, nimbus_scene::TargetScalar::Sum);
         assert_eq!(r.camera_emission, nimbus_scene::CameraEmission::Reservoir);
+        assert_eq!(
+            r.temporal_reprojection,
+            nimbus_scene::TemporalReprojection::Path
+        );
         assert_eq!(r.env_reuse, nimbus_scene::EnvReuse::World);
         assert_eq!(
             (r.spatial_shift, r.spatial_max_history),
@@ -606,6 +618,7 @@ mod tests {
             ("spatial_when", "density_moves"),
             ("target", "rgb"),
             ("camera_emission", "marched"),
+            ("temporal_reprojection", "motion"),
         ] {
             assert!(apply(&mut s, key, value).is_err(), "{key}={value}");
         }

@@ -18,7 +18,7 @@ pub fn specialization(
     exact_spans: bool,
     two_level: bool,
     pc_buffer: bool,
-) -> [(u32, SpecValue); 30] {
+) -> [(u32, SpecValue); 31] {
     [
         (SC_ID_PC_BUFFER, SpecValue::Bool(pc_buffer)),
         (
@@ -83,6 +83,12 @@ pub fn specialization(
             SpecValue::Bool(
                 plan.has_emission
                     && plan.settings.camera_emission == nimbus_scene::CameraEmission::Stratified,
+            ),
+        ),
+        (
+            SC_ID_TEMPORAL_ALIGNED,
+            SpecValue::Bool(
+                plan.settings.temporal_reprojection == nimbus_scene::TemporalReprojection::Aligned,
             ),
         ),
     ]

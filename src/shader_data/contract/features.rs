@@ -116,6 +116,10 @@ gpu_consts! {
     /// samples along the camera ray stratified in sigma_t T, and no candidate
     /// path ends in it (`camera_emission = "stratified"`; restir/shade.comp).
     pub const SC_ID_CAMERA_EMISSION: u32 = 40;
+    /// Temporal reuse aligns the two frames' pixels at the motion point
+    /// (`temporal_reprojection = "aligned"`; restir/temporal.comp); else the paper's
+    /// reprojection of the selected path's x_1.
+    pub const SC_ID_TEMPORAL_ALIGNED: u32 = 41;
     /// Values of SC_TARGET_SCALAR.
     pub const SC_TARGET_LUMINANCE: u32 = 0;
     pub const SC_TARGET_SUM: u32 = 1;

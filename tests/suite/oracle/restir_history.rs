@@ -207,7 +207,8 @@ fn a_moving_camera_keeps_each_frames_mean() {
             .expect("render")
             .image,
     );
-    // The defaults (temporal reuse, and spatial reuse on the frames whose camera or density moved),
+    // The defaults (temporal reuse aligned at each pixel's motion point, and spatial reuse
+    // on the frames whose camera or density moved), the paper's reprojection of x_1,
     // and spatial reuse by the optical-depth shift on the pixels whose history is short
     // (the camera's motion drops it).
     let spatial = "[integrator.restir]\nspatial_neighbors = 3\nspatial_radius_px = 4\nspatial_when = \"always\"\n\
@@ -216,6 +217,10 @@ fn a_moving_camera_keeps_each_frames_mean() {
                     spatial_anchor = true\nspatial_feature_tolerance = 0.3\n";
     for (label, extra) in [
         ("defaults", ""),
+        (
+            "the paper's reprojection",
+            "[integrator.restir]\ntemporal_reprojection = \"path\"\n",
+        ),
         ("temporal + short-history spatial", spatial),
         (
             "temporal + spatial with depth anchors and the neighbour test",

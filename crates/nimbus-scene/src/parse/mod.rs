@@ -118,6 +118,7 @@ pub const RESTIR_KEYS: &[&str] = &[
     "pc_fetch",
     "target",
     "camera_emission",
+    "temporal_reprojection",
 ];
 
 /// One table of the scene format and every field the parser accepts in it.
@@ -780,6 +781,14 @@ fn parse_restir(source: &Source, table: &toml::Table) -> Result<RestirSettings> 
             &[
                 ("reservoir", CameraEmission::Reservoir),
                 ("stratified", CameraEmission::Stratified),
+            ],
+        )?,
+        temporal_reprojection: f.choice(
+            "temporal_reprojection",
+            Some(d.temporal_reprojection),
+            &[
+                ("path", TemporalReprojection::Path),
+                ("aligned", TemporalReprojection::Aligned),
             ],
         )?,
     })

@@ -36,6 +36,7 @@ fn minimal_scene_gets_every_default() {
     assert_eq!(restir.candidate_tracking, CandidateTracking::Auto);
     assert_eq!(restir.target, TargetScalar::Sum);
     assert_eq!(restir.camera_emission, CameraEmission::Stratified);
+    assert_eq!(restir.temporal_reprojection, TemporalReprojection::Aligned);
     assert_eq!(restir.spatial_radius_px, None);
     assert_eq!(restir.spatial_rounds, 1);
     assert_eq!(restir.reuse, ReuseMode::Direction);
@@ -241,6 +242,7 @@ candidate_tracking = "regular"
 pc_fetch = "buffer"
 target = "max"
 camera_emission = "reservoir"
+temporal_reprojection = "path"
 mis = "pairwise"
 spatial_shift = "optical_depth"
 env_reuse = "world"
@@ -471,6 +473,7 @@ density_fetch = "image"
                 pc_fetch: DensityFetch::Buffer,
                 target: TargetScalar::Max,
                 camera_emission: CameraEmission::Reservoir,
+                temporal_reprojection: TemporalReprojection::Path,
             },
             baseline: BaselineSettings {
                 nee: NeeMode::One,

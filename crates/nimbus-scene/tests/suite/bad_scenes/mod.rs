@@ -425,6 +425,16 @@ fn out_of_range_values_are_rejected() {
             "\"stratified\"",
         ],
     );
+    let error = parse_err("[integrator.restir]\ntemporal_reprojection = \"motion\"\n");
+    assert_contains(
+        &error,
+        &[
+            "field `temporal_reprojection`",
+            "\"motion\"",
+            "\"path\"",
+            "\"aligned\"",
+        ],
+    );
     let error = parse_err("[integrator.restir]\nspatial_when = \"density\"\n");
     assert_contains(
         &error,
