@@ -138,10 +138,9 @@ float shifted_target(uint at, Reservoir r, CameraRay ray, CameraRay owner, bool 
 float camera_feature_at(uvec2 pixel, uint code, uint set, out uint end, out float entry) {
     CameraRay r = camera_ray(pixel, code, set);
     uint sphere;
-    float t_end = nearest_sphere_light(light_base(set), r.o, r.d, 1e-6, FAR, sphere);
-    SurfacePoint s = surface_along(r.o, r.d, t_end);
+    SurfacePoint s;
+    float t_end = opaque_end(light_base(set), r.o, r.d, sphere, s);
     end = s.shape != NO_INDEX ? s.shape : (sphere != NO_INDEX ? 0x10000u + sphere : NO_INDEX);
-    t_end = min(t_end, s.t);
     float sigma_star;
     float tau;
     entry = pc_track(LEVEL_PRIMARY, r.o, r.d, t_end, ANCHOR_TAU, sigma_star, tau);

@@ -209,9 +209,8 @@ void restir_main() {
             // Where the segment ends without a collision: an emitting sphere, a shape or far
             // away.
             uint sphere;
-            float t_sphere = nearest_sphere_light(0u, x, w, 1e-6, FAR, sphere);
-            SurfacePoint surface = surface_along(x, w, t_sphere);
-            float t_end = min(t_sphere, surface.t);
+            SurfacePoint surface;
+            float t_end = opaque_end(0u, x, w, sphere, surface);
             uint level = i == 1u ? LEVEL_PRIMARY : LEVEL_INDIRECT;
             float sigma_star_unused;
             bool direct_here = SC_DIRECT_EACH_WALK && i == 1u;

@@ -94,6 +94,15 @@ vec3 camera_end(uint set, vec3 o, vec3 d, out float t_end) {
     return L;
 }
 
+// Where the ray o + t d (t > 0) meets the nearest opaque thing of a frame's scene (`base`:
+// light_base of its set): an emitting sphere (`sphere`, else NO_INDEX) or a shape
+// (`surface`, else surface_none). Returns its distance (FAR if nothing).
+float opaque_end(uint base, vec3 o, vec3 d, out uint sphere, out SurfacePoint surface) {
+    float t_sphere = nearest_sphere_light(base, o, d, 1e-6, FAR, sphere);
+    surface = surface_along(o, d, t_sphere);
+    return min(t_sphere, surface.t);
+}
+
 // x_1 of the path stored at `at` (header r) on camera ray `cam`: on the ray at z_1, or the
 // surface the ray meets. False if it has none (no vertex, or the surface is gone).
 bool path_x1(uint at, Reservoir r, CameraRay cam, out vec3 x1) {

@@ -55,8 +55,8 @@ vec3 camera_emission(uvec2 pixel, inout uint rng) {
     uint code = SC_PIXEL_JITTER ? jitter_code_sample(rng) : 0u;
     CameraRay cam = camera_ray(pixel, code, SET_CURRENT);
     uint sphere;
-    float t_end = nearest_sphere_light(light_base(SET_CURRENT), cam.o, cam.d, 1e-6, FAR, sphere);
-    t_end = min(t_end, surface_along(cam.o, cam.d, t_end).t);
+    SurfacePoint surface;
+    float t_end = opaque_end(light_base(SET_CURRENT), cam.o, cam.d, sphere, surface);
     vec2 span = grid_span(cam.o, cam.d);
     float t0 = max(span.x, 0.0);
     float t1 = min(span.y, t_end);

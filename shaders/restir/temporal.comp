@@ -67,9 +67,8 @@ bool motion_point(uvec2 pixel, out vec3 x, out bool in_medium, out vec3 dir) {
     CameraRay r = camera_ray(pixel, JITTER_CODE_CENTRE, SET_CURRENT);
     dir = r.d;
     uint sphere;
-    float t_end = nearest_sphere_light(0u, r.o, r.d, 1e-6, FAR, sphere);
-    SurfacePoint surface = surface_along(r.o, r.d, t_end);
-    t_end = min(t_end, surface.t);
+    SurfacePoint surface;
+    float t_end = opaque_end(0u, r.o, r.d, sphere, surface);
     float sigma_star;
     float tau;
     float tau_all;
@@ -102,9 +101,8 @@ bool path_motion_point(uint at, Reservoir cur, inout uint rng, out vec3 x1, out 
         return true;
     }
     uint sphere;
-    float t_end = nearest_sphere_light(0u, cam.o, cam.d, 1e-6, FAR, sphere);
-    SurfacePoint surface = surface_along(cam.o, cam.d, t_end);
-    t_end = min(t_end, surface.t);
+    SurfacePoint surface;
+    float t_end = opaque_end(0u, cam.o, cam.d, sphere, surface);
     float sigma_star;
     float tau_total;
     pc_track(LEVEL_PRIMARY, cam.o, cam.d, t_end, FAR, sigma_star, tau_total);
