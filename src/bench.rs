@@ -48,8 +48,16 @@ const PERF_CLOUD: &str = include_str!("../assets/bench/perf-cloud.toml");
 const WINDOW: &str = include_str!("../assets/scenes/window.toml");
 const BOX_SPHERE: &str = include_str!("../assets/scenes/box-sphere.toml");
 
+/// The benchmark cloud under a camera that orbits about 0.9 px per frame at 48 px wide
+/// (issue 26's motion passes: temporal reuse re-evaluated on a new camera, spatial reuse).
+const PERF_CLOUD_MOVING: &str = concat!(
+    include_str!("../assets/bench/perf-cloud.toml"),
+    "\n[[camera.keyframe]]\nframe = 0\nposition = [0.0, 0.2, 2.4]\nlook_at = [0.0, 0.0, 0.0]\n\n\
+     [[camera.keyframe]]\nframe = 8\nposition = [0.3, 0.2, 2.3]\nlook_at = [0.0, 0.0, 0.0]\n"
+);
+
 /// The benchmark cases, small enough for lavapipe in CI (a few seconds each).
-pub const CASES: [Case; 5] = [
+pub const CASES: [Case; 6] = [
     Case {
         name: "baseline-k3",
         what: "64³ cloud, sigma_t <= 20/m, K = 3: decomposition + residual ratio tracking",
@@ -87,6 +95,21 @@ pub const CASES: [Case; 5] = [
             "render.height=48",
             "render.spp=1",
             "render.frames=3",
+            "integrator.volume=\"restir\"",
+        ],
+        warmup: 2,
+    },
+    Case {
+        name: "restir-motion-k3",
+        what: "the same cloud by ReSTIR under an orbiting camera: temporal reuse aligned on the \
+               new camera, spatial reuse on the moving frames",
+        source: "assets/bench/perf-cloud.toml",
+        text: PERF_CLOUD_MOVING,
+        overrides: &[
+            "render.width=48",
+            "render.height=48",
+            "render.spp=1",
+            "render.frames=4",
             "integrator.volume=\"restir\"",
         ],
         warmup: 2,
