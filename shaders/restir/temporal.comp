@@ -71,10 +71,10 @@ bool motion_point(uvec2 pixel, out vec3 x, out bool in_medium, out vec3 dir) {
     float t_end = opaque_end(0u, r.o, r.d, sphere, surface);
     float sigma_star;
     float tau;
-    float tau_all;
-    float z = pc_track_through(LEVEL_PRIMARY, r.o, r.d, t_end, MOTION_TAU, true, sigma_star, tau, tau_all);
-    if (z >= FAR && tau_all > 0.0) {
-        z = pc_track(LEVEL_PRIMARY, r.o, r.d, t_end, 0.5 * tau_all, sigma_star, tau);
+    // The walk stops at MOTION_TAU; where the ray holds less, tau is its whole optical depth.
+    float z = pc_track(LEVEL_PRIMARY, r.o, r.d, t_end, MOTION_TAU, sigma_star, tau);
+    if (z >= FAR && tau > 0.0) {
+        z = pc_track(LEVEL_PRIMARY, r.o, r.d, t_end, 0.5 * tau, sigma_star, tau);
     }
     in_medium = z < FAR;
     if (in_medium) {
