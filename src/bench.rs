@@ -182,6 +182,8 @@ pub fn run_case(ctx: &Context, case: &Case) -> Result<CaseResult> {
         warmup_frames: case.warmup,
         counters: true,
         skip_alpha: true,
+        // A GPU at its working clocks (renderer::settle); nothing on lavapipe.
+        settle: renderer::settle::DEFAULT_SETTLE,
         ..Default::default()
     };
     let result = renderer::render(ctx, &scene, &plan, &opts)

@@ -47,6 +47,39 @@ impl Report {
         }
     }
 
+    /// A warning when the measured frames fall into two costs: the median of the slowest
+    /// quarter over 1.5x the fastest quarter's (at least 8 frames, so that one slow first
+    /// frame is not a quarter). Either the work
+    /// changed between frames (an animation whose frames differ) or the device's state
+    /// did: an H200's first frames of a freshly built pipeline ran at 12.2 ms and then
+    /// 2.67 ms, with the same work (docs/gpu/h200-2026-11-28-6fe5952).
+    pub fn timing_warning(&self) -> Option<String> {
+        let mut ms: Vec<f64> = self
+            .frame_ms
+            .iter()
+            .copied()
+            .filter(|t| t.is_finite())
+            .collect();
+        if ms.len() < 8 {
+            return None;
+        }
+        ms.sort_by(f64::total_cmp);
+        let q = ms.len() / 4;
+        let fast = ms[q / 2];
+        let slow = ms[ms.len() - 1 - q / 2];
+        (fast > 0.0 && slow > 1.5 * fast).then(|| {
+            format!(
+                "warning: the measured frames fall into two costs ({fast:.3} ms for the \
+                 fastest quarter, {slow:.3} ms for the slowest, {:.1}x; 'frame ms in order' \
+                 shows when): either their work differs (an animation's frames) or the \
+                 device changed state during the measurement (its clocks, or a pipeline its \
+                 driver was still optimising), and then neither median nor mean is the \
+                 cost of one state: raise --warmup or --settle-ms and profile again",
+                slow / fast
+            )
+        })
+    }
+
     /// A fixed-width table, one row per pass.
     pub fn table(&self) -> String {
         let mut out = String::new();
@@ -111,5 +144,44 @@ impl Report {
             "work": self.work.as_ref().map(|w| w.json()),
         });
         Ok(serde_json::to_string_pretty(&doc)?)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn report(frame_ms: &[f64]) -> Report {
+        Report {
+            device: "gpu".into(),
+            scene: "s.toml".into(),
+            width: 8,
+            height: 8,
+            spp: 1,
+            frames: frame_ms.len(),
+            passes: Vec::new(),
+            frame_ms: frame_ms.to_vec(),
+            work: None,
+            coherent_lanes: false,
+        }
+    }
+
+    #[test]
+    fn frames_of_two_costs_are_flagged() {
+        // The H200's first profile of the baseline (2026-11-28): 11 frames of a slow
+        // state, then 5 at the pipeline's real cost.
+        let mut two = vec![12.2; 11];
+        two.extend([2.67; 5]);
+        let w = report(&two).timing_warning().expect("a warning");
+        assert!(
+            w.contains("2.670 ms for the fastest quarter, 12.200 ms"),
+            "{w}"
+        );
+        // One state, with noise and one slow first frame: no warning.
+        let mut one = vec![2.68, 2.66, 2.71, 2.69, 2.70, 2.65, 2.67, 2.68];
+        one[0] = 4.5;
+        assert_eq!(report(&one).timing_warning(), None);
+        // Too few frames to tell.
+        assert_eq!(report(&[29.3, 18.0, 13.1, 14.2]).timing_warning(), None);
     }
 }

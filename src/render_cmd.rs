@@ -410,6 +410,8 @@ pub(super) fn render(args: RenderArgs) -> Result<ExitCode> {
         counters: false,
         skip_alpha: false,
         coherent_lanes: false,
+        // A render is not a timing: no device time spent on clocks.
+        settle: Duration::ZERO,
     };
     let selection_words = |result: &RenderResult| match result.scene_frame {
         Some(f) => format!("frame {f}"),

@@ -17,6 +17,7 @@ use std::time::{Duration, Instant};
 pub mod aovs;
 pub mod film;
 pub mod progress;
+pub mod settle;
 mod stop;
 
 pub use stop::{StopReason, StopRule, MAX_STOP_RULE_FRAMES, MIN_ESTIMATES};
@@ -85,6 +86,11 @@ pub struct RenderOptions {
     /// tracers traces its first pixel's samples in all its invocations, so its lanes never
     /// diverge. The image is not the scene's.
     pub coherent_lanes: bool,
+    /// Keep the device busy this long right before the first measured frame (after the
+    /// warm-up), so that a GPU that lowered its clocks while the scene loaded is at its
+    /// working clocks when timing starts ([`settle`]); zero for none, and never on a CPU
+    /// device. Timing commands set [`settle::DEFAULT_SETTLE`].
+    pub settle: Duration,
 }
 
 /// The result of rendering one image.
@@ -445,6 +451,10 @@ impl Run<'_> {
                 }
             }
             self.dispatch(pass, frame)?;
+        }
+        if !opts.settle.is_zero() && settle::applies(self.ctx) && !self.interrupted() {
+            settle::settle(self.ctx, opts.settle)
+                .context("keeping the device busy before the measured frames")?;
         }
         let mut last = None;
         for (index, &(scene_frame, count)) in images.iter().enumerate() {

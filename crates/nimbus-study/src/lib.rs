@@ -143,6 +143,10 @@ pub struct StudyOptions {
     /// steady state, as Volumetric ReSTIR reports), with the GPU time of one frame;
     /// otherwise the error of the mean over the frames.
     pub per_frame: bool,
+    /// Arithmetic load on a GPU right before each render's measured frames
+    /// (`nimbus::renderer::settle`), so that every configuration is timed at the
+    /// device's working clocks; zero for none. Never on a CPU device.
+    pub settle: std::time::Duration,
 }
 
 /// One configuration, ready to render.
@@ -225,6 +229,8 @@ pub struct Study {
     /// Renders per configuration.
     seeds: u32,
     per_frame: bool,
+    /// [`StudyOptions::settle`].
+    settle: std::time::Duration,
     /// An animated scene's measured scene frames, the same for every configuration (each
     /// warms up on the frames just before them) and each measured against its own
     /// reference image; `None` for a static scene.
@@ -400,6 +406,7 @@ impl Study {
             warmup: opts.warmup,
             seeds: opts.seeds,
             per_frame: opts.per_frame,
+            settle: opts.settle,
             window,
         })
     }
@@ -587,6 +594,7 @@ fn grid_options(name: &str) -> StudyOptions {
         warmup: 1,
         seeds: 1,
         per_frame: false,
+        settle: std::time::Duration::ZERO,
     }
 }
 

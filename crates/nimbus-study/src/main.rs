@@ -84,6 +84,13 @@ struct StudyArgs {
     /// warm-up, each against a reference of that scene frame.
     #[arg(long)]
     per_frame: bool,
+    /// Milliseconds of arithmetic load on the device right before each render's
+    /// measured frames, so that every configuration is timed at the GPU's working
+    /// clocks: an H200 lowers them within a second of idling (as it does while a scene
+    /// loads) and a light configuration alone does not raise them again, which timed
+    /// the baseline's 1-spp frames up to 4x too slow. 0 for none; never on a CPU device.
+    #[arg(long, value_name = "MS", default_value_t = nimbus::renderer::settle::DEFAULT_SETTLE.as_millis() as u64, value_parser = clap::value_parser!(u64).range(0..=60_000))]
+    settle_ms: u64,
 }
 
 fn main() -> ExitCode {
@@ -113,6 +120,7 @@ fn study_cmd(args: StudyArgs) -> Result<()> {
         warmup: args.warmup,
         seeds: args.seeds,
         per_frame: args.per_frame,
+        settle: std::time::Duration::from_millis(args.settle_ms),
     })?;
     let ctx = Context::new(&ContextDesc::from_env())?;
     eprintln!("device: {}", ctx.info().name);

@@ -256,6 +256,94 @@ impl Study {
     }
 }
 
+/// How far apart the GPU times of one configuration's seeds may be before the study
+/// says the device changed state between renders.
+pub(super) const SEED_TIME_SPREAD: f64 = 1.5;
+
+/// Warnings about the GPU times themselves; `None` when they look like one device state.
+///
+/// Two signs that a render was timed in another state of the device than its neighbours
+/// (a GPU's idle clocks, a pipeline the driver was still optimising): one
+/// configuration's seeds whose median frame times differ by more than
+/// [`SEED_TIME_SPREAD`]x, and a configuration with r times the samples per pixel of one
+/// that differs from it in nothing else, which costs less than 1 + (r - 1) / 10 times as
+/// much (the work grew r-fold, so the time must grow unless a frame's fixed cost is over
+/// 9 samples').
+/// On an H200 without `--settle-ms` both showed: the baseline's 1-spp frame took 0.78 ms
+/// for one seed and 3.06 ms for the next, and 4 spp 13.5 ms against 16 spp 12.7 ms.
+pub(super) fn timing_text(rows: &[Row]) -> Option<String> {
+    let mut lines = Vec::new();
+    for row in rows {
+        let ms: Vec<f64> = row.runs.iter().map(|r| r.gpu_ms_per_frame).collect();
+        let (lo, hi) = ms.iter().fold((f64::INFINITY, 0.0_f64), |(lo, hi), &t| {
+            (lo.min(t), hi.max(t))
+        });
+        if ms.len() > 1 && lo > 0.0 && hi > SEED_TIME_SPREAD * lo {
+            lines.push(format!(
+                "- `{}`: its seeds took {} to {} ms a frame ({:.1}x)",
+                format_pairs(&row.assignment),
+                sig(lo, 4),
+                sig(hi, 4),
+                hi / lo
+            ));
+        }
+    }
+    // Rows equal but for spp, by their other settings.
+    let without_spp = |row: &Row| -> Assignment {
+        row.assignment
+            .iter()
+            .filter(|(k, _)| k != "spp")
+            .cloned()
+            .collect()
+    };
+    for (i, a) in rows.iter().enumerate() {
+        for b in &rows[i + 1..] {
+            let (fewer, more) = if a.spp < b.spp { (a, b) } else { (b, a) };
+            if fewer.spp == more.spp
+                || fewer.frames != more.frames
+                || without_spp(a) != without_spp(b)
+            {
+                continue;
+            }
+            let (t_fewer, t_more) = (
+                fewer.summary.gpu_ms_per_frame,
+                more.summary.gpu_ms_per_frame,
+            );
+            // r times the samples cost at least 1 + (r - 1) / 10 times as much unless a
+            // frame's fixed cost is over 9 samples' (no integrator here comes close).
+            let r = f64::from(more.spp) / f64::from(fewer.spp.max(1));
+            if t_more < t_fewer * (1.0 + (r - 1.0) / 10.0) {
+                lines.push(format!(
+                    "- `{}` ({} ms a frame) costs {:.2}x `{}` ({} ms): {} spp against {}",
+                    format_pairs(&more.assignment),
+                    sig(t_more, 4),
+                    t_more / t_fewer,
+                    format_pairs(&fewer.assignment),
+                    sig(t_fewer, 4),
+                    more.spp,
+                    fewer.spp
+                ));
+            }
+        }
+    }
+    if lines.is_empty() {
+        return None;
+    }
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "WARNING: these GPU times were not all taken in one state of the device (its clocks \
+         between renders, or a pipeline its driver was still optimising), so the \
+         equal-time comparisons above mix states. Keep --settle-ms (500 by default: a \
+         load that raises a GPU's clocks before each render's measured frames) and \
+         compare with a run where this warning is absent.\n"
+    );
+    for line in lines {
+        let _ = writeln!(out, "{line}");
+    }
+    Some(out)
+}
+
 /// The configurations that render exactly as another (the integrator does not read
 /// the setting they differ in), each line `X renders as Y`; `None` when there are none.
 pub(super) fn equivalents_text(rows: &[Row]) -> Option<String> {
@@ -754,5 +842,48 @@ mod tests {
         assert!(text.contains("- seeds: 1 seed per configuration"), "{text}");
         assert!(text.contains("the time of one frame (total)"), "{text}");
         remove_scratch(&opts);
+    }
+
+    #[test]
+    fn timing_text_flags_times_of_two_device_states() {
+        // The H200's baseline at 960x540 without settling (2026-11-28): per seed, total
+        // ms of 2 frames (per frame half of it).
+        let spp = |v: &str, runs: &[(f64, f64)]| {
+            let mut row = test_row_seeds(&[("volume", "baseline"), ("spp", v)], runs);
+            row.spp = v.parse().unwrap();
+            row.summary = crate::metrics::summarize(&row.runs).unwrap();
+            row
+        };
+        let steady = [
+            spp("1", &[(1.56, 0.1), (1.6, 0.1), (1.58, 0.1)]),
+            spp("4", &[(5.0, 0.05), (5.1, 0.05), (5.2, 0.05)]),
+            spp("16", &[(19.0, 0.03), (19.5, 0.03), (19.2, 0.03)]),
+        ];
+        assert_eq!(timing_text(&steady), None);
+
+        let mixed = [
+            spp("1", &[(1.56, 0.1), (6.12, 0.1), (7.13, 0.1)]),
+            spp("4", &[(27.1, 0.05), (27.0, 0.05), (24.2, 0.05)]),
+            spp("16", &[(28.6, 0.03), (25.4, 0.03), (24.3, 0.03)]),
+        ];
+        let text = timing_text(&mixed).expect("a warning");
+        assert!(text.starts_with("WARNING"), "{text}");
+        assert!(
+            text.contains(
+                "- `volume=baseline spp=1`: its seeds took 0.7800 to 3.565 ms a frame (4.6x)"
+            ),
+            "{text}"
+        );
+        assert!(
+            text.contains("- `volume=baseline spp=16` (12.70 ms a frame) costs 0.94x `volume=baseline spp=4` (13.50 ms): 16 spp against 4"),
+            "{text}"
+        );
+        // 16 spp against 1 spp grew 7.3-fold: no line for that pair.
+        assert_eq!(text.matches(" costs ").count(), 1, "{text}");
+
+        // Rows that differ in more than spp are not compared.
+        let mut other = spp("16", &[(2.0, 0.03)]);
+        other.assignment = vary::assignment(&[("volume", "restir"), ("spp", "16")]);
+        assert_eq!(timing_text(&[steady[0].clone(), other]), None);
     }
 }

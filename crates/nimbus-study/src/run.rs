@@ -15,6 +15,7 @@ use super::metrics::{
 };
 use super::report::{
     csv, equal_time_text, equivalents_text, left_out_text, markdown_table, noise_text, sig, table,
+    timing_text,
 };
 use super::vary::{format_pairs, group_series, series_key, series_label, Assignment, KNOB_KEYS};
 use super::{plot, scene_stem, Configuration, Row, Study};
@@ -118,6 +119,7 @@ impl Study {
             );
         }
         let equivalents = equivalents_text(&rows);
+        let timing = timing_text(&rows);
         let left_out = left_out_text(&self.left_out);
         let equal = comparisons
             .as_ref()
@@ -133,6 +135,10 @@ impl Study {
         md += "\n";
         md += &noise;
         if let Some(text) = &equal {
+            md += "\n";
+            md += text;
+        }
+        if let Some(text) = &timing {
             md += "\n";
             md += text;
         }
@@ -164,6 +170,9 @@ impl Study {
         if let Some(text) = &equal {
             print!("\n{text}");
         }
+        if let Some(text) = &timing {
+            print!("\n{text}");
+        }
         eprintln!(
             "wrote {}, {} and {}",
             csv_path.display(),
@@ -189,6 +198,8 @@ impl Study {
             keep_frames: self.per_frame,
             // Studies measure radiance: the alpha nobody reads would only add its cost.
             skip_alpha: true,
+            // Every configuration timed at the GPU's working clocks, whatever its load.
+            settle: self.settle,
             ..Default::default()
         };
         if let Some(window) = &self.window {

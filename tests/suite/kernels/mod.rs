@@ -7,3 +7,4 @@ mod envmap_gpu;
 mod grid_volume;
 mod mesh_bvh_gpu;
 mod sampling_gpu;
+mod settle;
