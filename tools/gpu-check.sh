@@ -13,16 +13,18 @@
 # Every mode first runs `nimbus bench` (bench.txt, bench.json: ms and work per sample of
 # the benchmark cases beside assets/bench/baseline.json; docs/performance.md).
 #
-# --lent sizes the run for a lent GPU machine's device time (about 15 minutes, start-up
-# included; see docs/restir.md "Measuring on a GPU" for the steps): no test suite, the
-# per-pass profiles of the benchmark cloud at 1920x1080 (its work counters at K = 3, and
-# the baseline with its density read from a storage buffer and with coherent lanes,
-# ReSTIR's tracking with its sigma* read from a buffer),
-# issue 15's per-frame equal-time study of ReSTIR against the baseline on the benchmark
-# clouds (g = 0 and 0.8, K = 1, 3, 7, 3 seeds; at 960x540, since the benchmark's 320x240
-# leaves a GPU idle) and what the ReSTIR levers buy at K = 3. --quick shrinks the full
-# run into a lavapipe smoke test of the script (a few minutes on 2 cores): a test of the
-# script, not a measurement.
+# --lent sizes the run for one command of a lent GPU machine (about 8 minutes on an H200;
+# see docs/restir.md "Measuring on a GPU" for the steps): no test suite; `nimbus bench`;
+# the benchmark cloud's per-pass profiles at 1920x1080 (ReSTIR and the 1-spp baseline,
+# K = 1 and 3, ReSTIR's work counters at K = 3); issue 15's per-frame equal-time studies
+# of ReSTIR against the baseline on the benchmark clouds (g = 0 and 0.8, 3 seeds, at
+# 960x540, since the benchmark's 320x240 leaves a GPU idle) at K = 3 and 1, then the
+# moving camera at K = 3, then the clouds at K = 7 (what a cut run loses first). Every
+# timed render settles the GPU first (--settle-ms); a study.md that ends in a WARNING
+# mixed device states and is no measurement (NIMBUS_LENT_SMOKE=1: the same steps at
+# lavapipe sizes, to test the script). --quick shrinks the full run into a
+# lavapipe smoke test of the script (a few minutes on 2 cores): a test of the script,
+# not a measurement.
 #
 # --motion sizes issue 26's motion studies for one lent-machine command (about 9 minutes
 # on an H200): the per-frame equal-time studies at 960x540 of the motion benchmarks
@@ -47,9 +49,12 @@
 # named pictures (cumulus-baseline, smoke-fog, ...), `denoise` and `study-cumulus` /
 # `study-explosion` / `study-smoke`.
 #
-# --baseline-ab (about 2 minutes on an H200; run it first in a lent session) asks why the
-# baseline's 1-spp 1080p frame measured 12.3 ms at ac4f19f against 2.17 ms at d97c1f1
-# (docs/performance.md, "The baseline on an H200 after split NEE"): the baseline at K = 1
+# --baseline-ab (about 2 minutes on an H200; run it first in a lent session) checks that
+# timings of the baseline's light frames are taken in one state of the GPU: on 2026-11-28
+# it showed that the 12.3 ms measured at ac4f19f against 2.17 ms at d97c1f1 was the H200's
+# idle clock, not the code (docs/performance.md, "GPU timings and the device's clocks"),
+# and every timed render now settles the GPU first (--settle-ms); round 1 must now agree
+# with round 2. It runs the baseline at K = 1
 # and 3 with nee = auto (split, the sky along the path) against nee = one (both compiled
 # out) and with the density from the buffer, at 1920x1080 and 960x540, twice in
 # alternation (a state of the machine shows as a change between rounds, code as a change
@@ -127,7 +132,8 @@ case $mode in
         seeds=3
         frames_list=1,4,16
         box_samples=1,4,16
-        bounces_list="1 3 7"
+        # K = 7 after the moving camera (below): the cut of a slow run falls on it.
+        bounces_list="3 1"
         spp_list=1,2,4,8,16,32
         ;;
     full | gallery | ab)
@@ -142,6 +148,17 @@ case $mode in
         spp_list=1,2,4,8,16,32
         ;;
 esac
+# NIMBUS_LENT_SMOKE=1 runs --lent's steps at --quick's sizes: a lavapipe test of the
+# script before it spends a lent machine's minutes.
+lent_study_size=(--width 960 --height 540)
+if [[ $mode == lent && -n ${NIMBUS_LENT_SMOKE:-} ]]; then
+    hd=(--width 64 --height 36)
+    frames=2
+    ref=(--reference-frames 8 --reference-spp 4)
+    seeds=1
+    spp_list=1,2
+    lent_study_size=(--width 48 --height 36)
+fi
 cache=(--cache-dir "$out/references")
 
 nimbus devices | tee "$out/devices.txt"
@@ -384,11 +401,16 @@ paper=(--set integrator.restir.temporal_limit=4 --set integrator.restir.spatial_
 for k in 1 3; do
     step "profile restir k$k" profile "bench-restir-hd-k$k" assets/scenes/bench/cloud-g0.toml "${hd[@]}" \
         --set "integrator.max_bounces=$k"
-    step "profile restir paper k$k" profile "bench-restir-paper-hd-k$k" assets/scenes/bench/cloud-g0.toml \
-        "${hd[@]}" --set "integrator.max_bounces=$k" "${paper[@]}"
+    if [[ $mode != lent ]]; then
+        step "profile restir paper k$k" profile "bench-restir-paper-hd-k$k" assets/scenes/bench/cloud-g0.toml \
+            "${hd[@]}" --set "integrator.max_bounces=$k" "${paper[@]}"
+    fi
     step "profile baseline k$k" profile "bench-baseline-hd-k$k" assets/scenes/bench/cloud-g0.toml "${hd[@]}" \
         --set "integrator.max_bounces=$k" --set integrator.volume=baseline
 done
+# The one-off diagnostics below were measured on an H200 (docs/performance.md) and are
+# left out of --lent, which must fit one lent-machine command.
+if [[ $mode != lent ]]; then
 # The baseline's density read from a storage buffer instead of the atlas image (what
 # density_fetch = "auto" takes on CPU devices; unmeasured on GPUs, which keep the image).
 step "profile baseline buffer k3" profile "bench-baseline-buffer-hd-k3" assets/scenes/bench/cloud-g0.toml \
@@ -414,6 +436,7 @@ for k in 1 3; do
         assets/scenes/bench/cloud-g0.toml "${hd[@]}" --set "integrator.max_bounces=$k" \
         --set integrator.volume=baseline --coherent-lanes
 done
+fi
 # What a 1080p ReSTIR frame does per pixel (work counters, K = 3).
 step "counters restir k3" profile "counters-restir-hd-k3" assets/scenes/bench/cloud-g0.toml "${hd[@]}" \
     --set "integrator.max_bounces=3" --counters
@@ -432,7 +455,7 @@ case $mode in
     quick) bench=(cloud-g08); bench_size=("${size[@]}") ;;
     # On a GPU the benchmark's 320x240 leaves the device idle (launch latency decides
     # the times, docs/performance.md): a quarter of 1080p.
-    lent) bench=(cloud-g0 cloud-g08); bench_size=(--width 960 --height 540) ;;
+    lent) bench=(cloud-g0 cloud-g08); bench_size=("${lent_study_size[@]}") ;;
     full) bench=(cloud-g0 cloud-g08 sky-sun explosion-matched explosion-mismatched); bench_size=() ;;
 esac
 if [[ " ${bench[*]} " == *" sky-sun "* && ! -f target/bench/sky-sun.exr ]]; then
@@ -456,11 +479,10 @@ done
 # sky (sky-g06) is the paper's Fig. 4 (top).
 case $mode in
     quick) motion=(sun-g0); motion_k=1; motion_vary=() ;;
-    # About a minute on an H200: the moving camera at g = 0, the aligned temporal
-    # reprojection against the paper's, with and without spatial reuse (never compared on
-    # a GPU; lavapipe: aligned 1.15-1.30x the efficiency, spatial reuse a loss at 160x120).
-    lent) motion=(camera-g0); motion_k=3
-        motion_vary=(--vary temporal_reprojection=aligned,path --vary spatial_neighbors=0,3) ;;
+    # About a minute on an H200: the moving camera at g = 0 with ReSTIR's defaults (the
+    # aligned reprojection and spatial reuse, which won there on 2026-11-28:
+    # docs/restir.md, "The moving camera on the H200 at 6fe5952").
+    lent) motion=(camera-g0); motion_k=3; motion_vary=() ;;
     full) motion=(camera-g0 sun-g0 sky-g06 camera-g08); motion_k=3
         motion_vary=(--vary temporal_limit_moving=2,20 --vary candidate_tracking=delta,regular) ;;
 esac
@@ -475,25 +497,21 @@ for scene in "${motion[@]}"; do
         --baseline volume=baseline --out-dir "$out/study-motion-$scene-k$motion_k"
 done
 
-# The turning sky at K = 1 (--lent): on an H200, env_reuse = "map" with Q = 20 on every
-# frame ruined two seeds of three there (2026-11-27); a turning map's frames now take
-# temporal_limit_moving and "map" is the default (docs/restir.md, "A turning sky under map
-# reuse"). Q = 20 on every frame is the old map reuse.
+# --lent: the benchmark clouds at K = 7 last (what a cut run loses first).
 if [[ $mode == lent ]]; then
-    [[ -f target/bench/sky-sun.exr ]] || nimbus make-sky target/bench/sky-sun.exr
-    step "study motion sky-g06 k1" nimbus study assets/scenes/bench/motion/sky-g06.toml \
-        "${bench_size[@]}" --reference-frames "${ref[1]}" --reference-spp 16 "${cache[@]}" \
-        --seeds "$seeds" --per-frame --frames 8 --vary max_bounces=1 \
-        --vary volume=baseline,restir --vary "spp=$spp_list" --vary env_reuse=map,world \
-        --vary temporal_limit_moving=2,20 --baseline volume=baseline \
-        --out-dir "$out/study-motion-sky-g06-k1"
+    for scene in "${bench[@]}"; do
+        step "study $scene k7" nimbus study "assets/scenes/bench/$scene.toml" "${bench_size[@]}" "${ref[@]}" \
+            "${cache[@]}" --seeds "$seeds" --per-frame --frames "$frames" \
+            --vary max_bounces=7 --vary volume=baseline,restir --vary "spp=$spp_list" \
+            --baseline volume=baseline --out-dir "$out/study-bench-$scene-k7"
+    done
 fi
 
 # What the ReSTIR levers buy at K = 3 (the same metric): split against the paper's NEE,
 # spatial reuse on and off, Q = 4 against 20 (the baseline renders once).
 lever_k=3
 [[ $mode == quick ]] && lever_k=1
-step "study levers" nimbus study "assets/scenes/bench/${bench[0]}.toml" "${bench_size[@]}" "${ref[@]}" \
+[[ $mode == lent ]] || step "study levers" nimbus study "assets/scenes/bench/${bench[0]}.toml" "${bench_size[@]}" "${ref[@]}" \
     "${cache[@]}" --seeds "$seeds" --per-frame --frames "$frames" \
     --vary "max_bounces=$lever_k" --vary volume=baseline,restir --vary "spp=$spp_list" \
     --vary nee=one,split --vary spatial_neighbors=0,3 --vary spatial_when=always --vary temporal_limit=4,20 \
