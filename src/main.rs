@@ -539,6 +539,8 @@ fn profile_cmd(args: ProfileArgs) -> Result<()> {
     }
     let report = profile::Report {
         coherent_lanes: args.coherent_lanes,
+        settled: renderer::settle::applies(&ctx)
+            .then(|| std::time::Duration::from_millis(args.settle_ms)),
         ..profile::Report::new(&ctx, &scene, &result)
     };
     print!("{}", report.table());

@@ -25,6 +25,9 @@ pub struct Report {
     pub work: Option<crate::shader_data::counters::WorkCounts>,
     /// Measured with `--coherent-lanes` (a diagnostic: not the scene's image).
     pub coherent_lanes: bool,
+    /// The settling load before the measured frames, where it applied (not on a CPU
+    /// device): `renderer::settle`.
+    pub settled: Option<std::time::Duration>,
 }
 
 impl Report {
@@ -44,6 +47,7 @@ impl Report {
                 .collect(),
             work: result.work.clone(),
             coherent_lanes: false,
+            settled: None,
         }
     }
 
@@ -88,6 +92,13 @@ impl Report {
             "{} on {} ({}x{}, {} spp), {} measured frames",
             self.scene, self.device, self.width, self.height, self.spp, self.frames
         );
+        if let Some(settled) = self.settled.filter(|d| !d.is_zero()) {
+            let _ = writeln!(
+                out,
+                "settled: {} ms of arithmetic load before the first measured frame",
+                settled.as_millis()
+            );
+        }
         if self.coherent_lanes {
             let _ = writeln!(
                 out,
@@ -139,6 +150,7 @@ impl Report {
             "spp": self.spp,
             "frames": self.frames,
             "coherent_lanes": self.coherent_lanes,
+            "settle_ms": self.settled.map(|d| d.as_millis() as u64),
             "passes": passes,
             "frame_ms": self.frame_ms,
             "work": self.work.as_ref().map(|w| w.json()),
@@ -163,6 +175,7 @@ mod tests {
             frame_ms: frame_ms.to_vec(),
             work: None,
             coherent_lanes: false,
+            settled: None,
         }
     }
 

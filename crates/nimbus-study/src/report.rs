@@ -233,6 +233,13 @@ impl Study {
              frames), at least --warmup ({})",
             self.warmup
         );
+        let _ = writeln!(
+            out,
+            "- settle: {} ms of arithmetic load on the device right before each render's \
+             measured frames, so that a GPU is timed at its working clocks (--settle-ms; \
+             never on a CPU device)",
+            self.settle.as_millis()
+        );
         let (total, errors) = if self.per_frame {
             (
                 "the time of one frame (total)",
@@ -841,6 +848,7 @@ mod tests {
         assert!(!text.contains("its own max_bounces"), "{text}");
         assert!(text.contains("- seeds: 1 seed per configuration"), "{text}");
         assert!(text.contains("the time of one frame (total)"), "{text}");
+        assert!(text.contains("- settle: 0 ms of arithmetic load"), "{text}");
         remove_scratch(&opts);
     }
 
