@@ -539,6 +539,12 @@ if [[ $mode != lent ]]; then
     done
 fi
 
+# The studies whose GPU times mixed two states of the device (their study.md ends in a
+# WARNING: no measurement), named in steps.txt and at the top of summary.md.
+mixed=$(grep -l "WARNING: these GPU times" "$out"/study-*/study.md 2>/dev/null || true)
+if [[ -n $mixed ]]; then
+    echo "mixed device states (not measurements): $(echo $mixed | tr '\n' ' ')" | tee -a "$out/steps.txt"
+fi
 # One page with every study's equal-time section.
 {
     echo "# gpu-check $(date -u +%Y-%m-%dT%H:%M:%SZ) ($mode)"
