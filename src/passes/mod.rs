@@ -459,19 +459,89 @@ pub fn compute_pipeline<P>(
     film: FilmSpec,
     name: &str,
 ) -> Result<Handle<ComputePipeline>> {
-    let spirv = spirv_words(spirv)?;
-    let specialization = pipeline_specialization(specialization, film);
-    let pipeline = ctx.create_compute_pipeline(
-        &ComputePipelineDesc {
-            spirv: &spirv,
-            entry: "main",
-            bindings,
-            push_constant_size: std::mem::size_of::<P>() as u32,
-            specialization: &specialization,
-        },
-        name,
-    )?;
-    Ok(objects.add(pipeline))
+    let job = PipelineJob {
+        spirv,
+        specialization,
+        film,
+        name: name.to_owned(),
+    };
+    compute_pipelines::<P>(ctx, objects, bindings, std::slice::from_ref(&job))?
+        .pop()
+        .context("internal: one pipeline asked for, none built")
+}
+
+/// One pipeline of [`compute_pipelines`].
+pub struct PipelineJob<'a> {
+    pub spirv: &'a [u8],
+    pub specialization: &'a [(u32, SpecValue)],
+    pub film: FilmSpec,
+    pub name: String,
+}
+
+/// Several image-space compute pipelines with one layout and push constants of type `P`,
+/// built at once, one thread each, and added to `objects` in the order of `jobs`. A
+/// driver compiles one pipeline on one thread: lavapipe takes 1.6-3.4 s for each of
+/// ReSTIR's larger passes even with Mesa's shader cache warm, and an NVIDIA driver
+/// seconds on a cold cache. If any fails, none is kept.
+pub fn compute_pipelines<P>(
+    ctx: &Context,
+    objects: &mut GpuObjects,
+    bindings: &[BindingDesc],
+    jobs: &[PipelineJob<'_>],
+) -> Result<Vec<Handle<ComputePipeline>>> {
+    let build = |job: &PipelineJob<'_>| -> Result<ComputePipeline> {
+        let spirv = spirv_words(job.spirv)?;
+        let specialization = pipeline_specialization(job.specialization, job.film);
+        ctx.create_compute_pipeline(
+            &ComputePipelineDesc {
+                spirv: &spirv,
+                entry: "main",
+                bindings,
+                push_constant_size: std::mem::size_of::<P>() as u32,
+                specialization: &specialization,
+            },
+            &job.name,
+        )
+    };
+    let built: Vec<Result<ComputePipeline>> = if jobs.len() == 1 {
+        vec![build(&jobs[0])]
+    } else {
+        std::thread::scope(|scope| {
+            let threads: Vec<_> = jobs
+                .iter()
+                .map(|job| scope.spawn(move || build(job)))
+                .collect();
+            threads
+                .into_iter()
+                .zip(jobs)
+                .map(|(thread, job)| {
+                    thread.join().unwrap_or_else(|_| {
+                        Err(anyhow::anyhow!(
+                            "internal: building pipeline '{}' panicked",
+                            job.name
+                        ))
+                    })
+                })
+                .collect()
+        })
+    };
+    let mut pipelines = Vec::with_capacity(built.len());
+    let mut error = None;
+    for result in built {
+        match result {
+            Ok(p) => pipelines.push(p),
+            Err(e) => {
+                error.get_or_insert(e);
+            }
+        }
+    }
+    if let Some(e) = error {
+        for p in pipelines {
+            ctx.destroy_compute_pipeline(p);
+        }
+        return Err(e);
+    }
+    Ok(pipelines.into_iter().map(|p| objects.add(p)).collect())
 }
 
 /// Every specialization constant of a pipeline: the pass's own and the film's

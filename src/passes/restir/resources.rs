@@ -11,7 +11,8 @@ use nimbus_gpu::{
 use super::schedule::Stage;
 use super::volumes::{AtlasSizes, DerivedVolume};
 use crate::passes::{
-    compute_pipeline, image_3d, upload_env_map, upload_params, upload_records, StaticGrids, Targets,
+    compute_pipelines, image_3d, upload_env_map, upload_params, upload_records, PipelineJob,
+    StaticGrids, Targets,
 };
 use crate::shader_data::sparse::{
     atlas_dims, slot_major_bytes, upload_atlas, upload_slot_major, TexelFormat,
@@ -197,18 +198,19 @@ impl Resources {
             pc_buffer,
         } = *inputs;
         let layout = layout();
-        let mut pipelines = Vec::with_capacity(4);
-        for (slot, stage) in Stage::ALL.into_iter().enumerate() {
-            pipelines.push(compute_pipeline::<RestirPush>(
-                ctx,
-                o,
-                spirv_of(stage),
-                &layout,
+        // The four passes' pipelines are built at once (about 4 s on lavapipe one after
+        // the other).
+        let jobs: Vec<PipelineJob<'_>> = Stage::ALL
+            .into_iter()
+            .enumerate()
+            .map(|(slot, stage)| PipelineJob {
+                spirv: spirv_of(stage),
                 specialization,
-                targets.film_spec(slot as u32),
-                &format!("restir {}", stage.name()),
-            )?);
-        }
+                film: targets.film_spec(slot as u32),
+                name: format!("restir {}", stage.name()),
+            })
+            .collect();
+        let pipelines = compute_pipelines::<RestirPush>(ctx, o, &layout, &jobs)?;
 
         // Scene buffers. The light buffer holds this frame's and the previous frame's
         // records (the same until lights animate).

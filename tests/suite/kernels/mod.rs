@@ -6,5 +6,6 @@ mod box_analytic;
 mod envmap_gpu;
 mod grid_volume;
 mod mesh_bvh_gpu;
+mod pipelines;
 mod sampling_gpu;
 mod settle;
