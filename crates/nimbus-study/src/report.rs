@@ -339,11 +339,12 @@ pub(super) fn timing_text(rows: &[Row]) -> Option<String> {
     let mut out = String::new();
     let _ = writeln!(
         out,
-        "WARNING: these GPU times were not all taken in one state of the device (its clocks \
-         between renders, or a pipeline its driver was still optimising), so the \
-         equal-time comparisons above mix states. Keep --settle-ms (500 by default: a \
-         load that raises a GPU's clocks before each render's measured frames) and \
-         compare with a run where this warning is absent.\n"
+        "WARNING: these GPU times were not all taken in one state of the device (a GPU's \
+         clocks between renders, a pipeline its driver was still optimising, or other \
+         work on a CPU device's cores), so the equal-time comparisons above mix states. \
+         On a GPU keep --settle-ms (500 by default: a load that raises its clocks before \
+         each render's measured frames); on a CPU device measure on a quiet machine with \
+         more frames. Compare with a run where this warning is absent.\n"
     );
     for line in lines {
         let _ = writeln!(out, "{line}");
