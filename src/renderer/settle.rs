@@ -17,7 +17,9 @@
 use std::time::{Duration, Instant};
 
 use anyhow::Result;
-use nimbus_gpu::{vk, BindingDesc, BufferDesc, ComputePipelineDesc, Context, DescriptorWrite};
+use nimbus_gpu::{
+    vk, BindingDesc, BufferDesc, ComputePipelineDesc, Context, DescriptorWrite, GpuObjects,
+};
 
 use crate::passes::spirv_words;
 
@@ -56,64 +58,60 @@ pub fn settle(ctx: &Context, duration: Duration) -> Result<Settled> {
         return Ok(Settled::default());
     }
     let words = spirv_words(crate::shaders::TOOLS_SETTLE)?;
-    let bindings = [BindingDesc::storage_buffer(0)];
-    let pipeline = ctx.create_compute_pipeline(
-        &ComputePipelineDesc {
-            spirv: &words,
-            entry: "main",
-            bindings: &bindings,
-            push_constant_size: 16,
-            specialization: &[],
-        },
-        "settle",
-    )?;
-    let run = || -> Result<Settled> {
-        let sink = ctx.create_buffer(
+    // The kernel's pipeline, its sink buffer and its set, freed together (also on error).
+    let (objects, (pipeline, set)) = GpuObjects::build(ctx, |o| {
+        let pipeline = o.add(ctx.create_compute_pipeline(
+            &ComputePipelineDesc {
+                spirv: &words,
+                entry: "main",
+                bindings: &[BindingDesc::storage_buffer(0)],
+                push_constant_size: 16,
+                specialization: &[],
+            },
+            "settle",
+        )?);
+        let sink = o.add(ctx.create_buffer(
             &BufferDesc::gpu_only(16, vk::BufferUsageFlags::STORAGE_BUFFER),
             "settle sink",
-        )?;
+        )?);
         let set = ctx.create_descriptor_set(
-            &pipeline,
+            &o[pipeline],
             &[DescriptorWrite::StorageBuffer {
                 binding: 0,
-                buffer: &sink,
+                buffer: &o[sink],
             }],
             "settle",
-        );
-        let set = match set {
-            Ok(set) => set,
-            Err(e) => {
-                ctx.destroy_buffer(sink);
-                return Err(e);
-            }
-        };
-        let push: [u32; 4] = [ITERATIONS, 0, 0, 0];
-        let max_groups = ctx.info().max_compute_work_group_count[0].min(1 << 20);
-        let start = Instant::now();
-        let mut settled = Settled::default();
-        let mut groups = 16;
-        let result = loop {
-            let began = Instant::now();
-            if let Err(e) = ctx.submit_one_shot("settle", |cmd| {
-                pipeline.dispatch(ctx, cmd, &set, bytemuck::bytes_of(&push), [groups, 1, 1])
-            }) {
-                break Err(e);
-            }
-            settled.dispatches += 1;
-            settled.groups = groups;
-            if start.elapsed() >= duration {
-                settled.elapsed = start.elapsed();
-                break Ok(settled);
-            }
-            if began.elapsed() < MIN_DISPATCH && groups < max_groups {
-                groups = (groups * 2).min(max_groups);
-            }
-        };
-        ctx.destroy_descriptor_set(set);
-        ctx.destroy_buffer(sink);
-        result
+        )?;
+        Ok((pipeline, o.add(set)))
+    })?;
+    let push: [u32; 4] = [ITERATIONS, 0, 0, 0];
+    let max_groups = ctx.info().max_compute_work_group_count[0].min(1 << 20);
+    let start = Instant::now();
+    let mut settled = Settled::default();
+    let mut groups = 16;
+    let result = loop {
+        let began = Instant::now();
+        if let Err(e) = ctx.submit_one_shot("settle", |cmd| {
+            objects[pipeline].dispatch(
+                ctx,
+                cmd,
+                &objects[set],
+                bytemuck::bytes_of(&push),
+                [groups, 1, 1],
+            )
+        }) {
+            break Err(e);
+        }
+        settled.dispatches += 1;
+        settled.groups = groups;
+        if start.elapsed() >= duration {
+            settled.elapsed = start.elapsed();
+            break Ok(settled);
+        }
+        if began.elapsed() < MIN_DISPATCH && groups < max_groups {
+            groups = (groups * 2).min(max_groups);
+        }
     };
-    let result = run();
-    ctx.destroy_compute_pipeline(pipeline);
+    objects.destroy(ctx);
     result
 }
