@@ -435,13 +435,25 @@ fn a_second_interrupt_says_what_was_written() {
 }
 
 /// `--frame N` renders one frame of an animation, `--frame-range` each frame into the
-/// sequence, `--resume` skips what is there; a static scene has no frames to pick.
+/// sequence, `--resume` skips what is there; a static scene has no frames to pick. The
+/// frames are the baseline's: choosing and naming them is the same for either integrator,
+/// and each of the test's eight processes would otherwise build ReSTIR's four pipelines
+/// (most of its CI time on lavapipe).
 #[test]
 fn frames_of_an_animation_are_their_own_images_slow() {
     let dir = scratch("frames");
     let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/scenes/plume-anim.toml");
     let run = |args: &[&str]| {
-        let mut all = vec!["render", scene, "--width", "24", "--height", "18"];
+        let mut all = vec![
+            "render",
+            scene,
+            "--width",
+            "24",
+            "--height",
+            "18",
+            "--set",
+            "integrator.volume=baseline",
+        ];
         all.extend_from_slice(args);
         let out = nimbus(&all);
         (out.status.success(), text(&out.stderr))
@@ -517,6 +529,8 @@ fn frames_of_an_animation_are_their_own_images_slow() {
         "18",
         "--frame",
         "1",
+        "--set",
+        "integrator.volume=baseline",
         "--out",
         other.to_str().unwrap(),
     ]);
@@ -544,10 +558,11 @@ fn frames_of_an_animation_are_their_own_images_slow() {
 }
 
 /// ReSTIR's frames are correlated through temporal reuse; its error estimate comes from
-/// batch means of 84 frames (the default temporal_limit 20). Two independent chains
-/// (seeds) then differ by what their estimates predict, sqrt(e1² + e2²) (measured with
-/// temporal_limit 4 and batches of 20: 1.08 times it at this size; 1.07 at 48x36 with 400
-/// frames).
+/// batch means of 4 (Q + 1) frames (84 at the default temporal_limit Q = 20; here the
+/// paper's Q = 4, 20 frames, for a quarter of the CI time). Two independent chains (seeds)
+/// then differ by what their estimates predict, sqrt(e1² + e2²) (measured with Q = 20 and
+/// 840 frames, and with Q = 4 and batches of 20: 1.08 times it at this size; 1.07 at 48x36
+/// with 400 frames).
 #[test]
 fn restir_error_estimates_account_for_correlated_frames_slow() {
     let dir = scratch("restir-error");
@@ -565,7 +580,11 @@ fn restir_error_estimates_account_for_correlated_frames_slow() {
             "--height",
             "18",
             "--frames",
-            "840",
+            "200",
+            // The paper's Q = 4 (batches of 4 (Q + 1) = 20 frames) rather than the
+            // default 20 (84): the same estimate over a quarter of the frames.
+            "--set",
+            "integrator.restir.temporal_limit=4",
             "--seed",
             seed,
             "--out",
@@ -574,13 +593,13 @@ fn restir_error_estimates_account_for_correlated_frames_slow() {
         let stderr = text(&out.stderr);
         assert!(out.status.success(), "{stderr}");
         assert!(
-            stderr.contains("batch means of 84 correlated frames"),
+            stderr.contains("batch means of 20 correlated frames"),
             "{stderr}"
         );
         read_layers(&path).unwrap()
     };
     let (a, b) = (chain("1"), chain("2"));
-    assert_eq!(a.attributes["error_batch"], "84");
+    assert_eq!(a.attributes["error_batch"], "20");
     assert_eq!(a.attributes["estimates"], "10");
     let e = |l: &nimbus::output::Layers| l.attributes["rel_error"].parse::<f64>().unwrap();
     let predicted = (e(&a).powi(2) + e(&b).powi(2)).sqrt();
