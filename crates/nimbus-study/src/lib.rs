@@ -85,12 +85,12 @@ mod vary;
 use std::path::{Path, PathBuf};
 
 use anyhow::{anyhow, bail, ensure, Context as _, Result};
-use nimbus_scene::{Scene, VolumeIntegrator};
+use nimbus_scene::{FieldOverride, Scene};
 
 use self::cache::{default_cache_dir, scene_inputs, ReferenceJob};
 use self::metrics::{SeedRun, SeedSummary};
 use self::vary::{
-    apply, cartesian, format_pairs, parse_vary, resolve_baseline, Assignment, Vary, INTEGRAND_KEYS,
+    cartesian, format_pairs, parse_vary, resolve_baseline, Assignment, Vary, INTEGRAND_KEYS,
 };
 use nimbus::plan::{self, RenderPlan};
 
@@ -180,13 +180,13 @@ fn warmup_frames(plan: &RenderPlan, requested: u32) -> u32 {
 /// sample per pixel: the same scene with spp = 1 plans as ReSTIR. A study that varies
 /// spp leaves such configurations out (ReSTIR's work per frame is set by its candidates,
 /// the baseline's by spp) instead of failing, and says so in its report.
-fn restir_refuses_only_spp(scene: &Scene, box_samples: Option<u32>) -> bool {
+fn restir_refuses_only_spp(scene: &Scene) -> bool {
     if scene.render.spp <= 1 {
         return false;
     }
     let mut one = scene.clone();
     one.render.spp = 1;
-    plan::build(&one, box_samples).is_ok_and(|p| p.restir().is_some())
+    plan::build(&one, None).is_ok_and(|p| p.restir().is_some())
 }
 
 /// One measured configuration: one row of the tables and one point of the plot.
@@ -246,12 +246,15 @@ impl Study {
             "--seeds {}: expected 1..={MAX_SEEDS} renders per configuration",
             opts.seeds
         );
-        let (base, scene_bytes, animated) = load_base(opts)?;
+        let (file, base, animated) = load_base(opts)?;
         let (width, height) = (base.render.width, base.render.height);
 
         let varies = parse_varies(opts, animated)?;
 
-        let (ref_base, ref_box_samples) = reference_base(&base, opts)?;
+        let ref_overrides = reference_overrides(&base, opts);
+        // The reference settings are checked now, also when nothing varies the integrand.
+        let ref_base = reference_scene(&file, &base, &ref_overrides, &[])
+            .context("the reference settings cannot be rendered")?;
         let ref_fold = fold_seed(ref_base.render.seed);
         let stem = scene_stem(&opts.scene);
         let cache_dir = match &opts.cache_dir {
@@ -271,15 +274,7 @@ impl Study {
         let mut left_out: Vec<Assignment> = Vec::new();
         let spp_varied = varies.iter().any(|v| v.key == "spp");
         for assignment in cartesian(&varies) {
-            let mut scene = base.clone();
-            let mut box_samples = None;
-            for (k, v) in &assignment {
-                if let Some(n) =
-                    apply(&mut scene, k, v).with_context(|| format!("--vary {k}={v}"))?
-                {
-                    box_samples = Some(n);
-                }
-            }
+            let scene = file.scene(&vary::overrides(&assignment)?)?;
             let label = if assignment.is_empty() {
                 "the scene's own settings".to_owned()
             } else {
@@ -297,11 +292,11 @@ impl Study {
             } else {
                 derived_seeds.clone()
             };
-            if spp_varied && restir_refuses_only_spp(&scene, box_samples) {
+            if spp_varied && restir_refuses_only_spp(&scene) {
                 left_out.push(assignment);
                 continue;
             }
-            let plan = plan::build(&scene, box_samples)
+            let plan = plan::build(&scene, None)
                 .with_context(|| format!("configuration {label} cannot be rendered"))?;
 
             let integrand: Assignment = assignment
@@ -312,11 +307,8 @@ impl Study {
             let reference = match integrands.iter().position(|i| *i == integrand) {
                 Some(i) => i,
                 None => {
-                    let mut ref_scene = ref_base.clone();
-                    for (k, v) in &integrand {
-                        apply(&mut ref_scene, k, v).with_context(|| format!("--vary {k}={v}"))?;
-                    }
-                    let ref_plan = plan::build(&ref_scene, ref_box_samples).with_context(|| {
+                    let ref_scene = reference_scene(&file, &base, &ref_overrides, &integrand)?;
+                    let ref_plan = plan::build(&ref_scene, None).with_context(|| {
                         if integrand.is_empty() {
                             "the reference settings cannot be rendered".to_owned()
                         } else {
@@ -371,13 +363,26 @@ impl Study {
             let start = configurations.iter().map(|c| c.warmup).max().unwrap_or(1);
             start..start.saturating_add(opts.frames)
         });
+        // Those frames, and the warm-up before them, are scene frames: the scene must be
+        // valid at every one (the camera's path, a camera inside a sphere light), as a
+        // scene file rendering that many frames is checked.
+        if let Some(w) = &window {
+            file.scene(&[FieldOverride {
+                key: "render.frames".into(),
+                value: i64::from(w.end).into(),
+                origin: Some(format!(
+                    "the study's scene frames 0..{} (a warm-up of {} frames, then --frames {})",
+                    w.end, w.start, opts.frames
+                )),
+            }])?;
+        }
         let references: Vec<ReferenceJob> = pending
             .into_iter()
             .map(|(scene, plan)| {
                 ReferenceJob::new(
                     scene,
                     plan,
-                    &scene_bytes,
+                    file.text.as_bytes(),
                     &inputs,
                     &stem,
                     &cache_dir,
@@ -414,19 +419,38 @@ impl Study {
 
 /// The scene as the study renders it (`--width`, `--height`, `--frames` applied), its
 /// file's bytes (what the reference cache hashes) and whether it is animated.
-fn load_base(opts: &StudyOptions) -> Result<(Scene, Vec<u8>, bool)> {
+fn load_base(opts: &StudyOptions) -> Result<(SceneFile, Scene, bool)> {
     // Read once, as `nimbus render` does: a regular file of a scene's size (issue 24:
     // a device named as the scene was read forever), parsed from the bytes hashed.
-    let scene_text = nimbus_scene::read_scene_file(&opts.scene)?;
-    let mut base = nimbus_scene::parse_str(&scene_text, &opts.scene)?;
-    let scene_bytes = scene_text.into_bytes();
+    let text = nimbus_scene::read_scene_file(&opts.scene)?;
+    // The size and frame count are fields of the scene, set before validation as
+    // `nimbus render --width` sets them (a size out of range, or a camera that leaves its
+    // keyframes at a later frame, is refused naming the flag).
+    let mut flags = vec![FieldOverride::from_flag(
+        "--frames",
+        "render.frames",
+        i64::from(opts.frames),
+    )];
     if let Some(w) = opts.width {
-        base.render.width = w;
+        flags.push(FieldOverride::from_flag(
+            "--width",
+            "render.width",
+            i64::from(w),
+        ));
     }
     if let Some(h) = opts.height {
-        base.render.height = h;
+        flags.push(FieldOverride::from_flag(
+            "--height",
+            "render.height",
+            i64::from(h),
+        ));
     }
-    base.render.frames = opts.frames;
+    let file = SceneFile {
+        text,
+        path: opts.scene.clone(),
+        flags,
+    };
+    let base = file.scene(&[])?;
     // An animated scene is measured frame by frame, each frame against its own
     // reference (a window of scene frames after the warm-up, see `Study::window`).
     let animated = base.is_animated();
@@ -438,7 +462,24 @@ fn load_base(opts: &StudyOptions) -> Result<(Scene, Vec<u8>, bool)> {
          frames would mix different images)",
         opts.scene.display()
     );
-    Ok((base, scene_bytes, animated))
+    Ok((file, base, animated))
+}
+
+/// The study's scene file, read once: every configuration and reference is this text
+/// parsed with its own field overrides (after the study's `--width`, `--height` and
+/// `--frames`), so each is validated as a scene file holding those values would be.
+struct SceneFile {
+    text: String,
+    path: PathBuf,
+    flags: Vec<FieldOverride>,
+}
+
+impl SceneFile {
+    /// The scene with `overrides` applied after the study's flags.
+    fn scene(&self, overrides: &[FieldOverride]) -> Result<Scene> {
+        let all: Vec<FieldOverride> = self.flags.iter().chain(overrides).cloned().collect();
+        nimbus_scene::parse_str_with(&self.text, &self.path, &all)
+    }
 }
 
 /// The `--vary` lists, each key varied once.
@@ -471,52 +512,64 @@ fn parse_varies(opts: &StudyOptions, animated: bool) -> Result<Vec<Vary>> {
     Ok(varies)
 }
 
-/// The scene with the reference settings (`--reference-*`; grid media by the baseline)
-/// and the reference's `box_samples` override; the integrand's keys are set per
-/// configuration.
-fn reference_base(base: &Scene, opts: &StudyOptions) -> Result<(Scene, Option<u32>)> {
-    let mut ref_base = base.clone();
-    ref_base.render.seed = base.render.seed ^ REFERENCE_SEED_MIX;
+/// The reference's overrides (`--reference-*`; grid media by the baseline), the
+/// integrand's keys being added per configuration.
+fn reference_overrides(base: &Scene, opts: &StudyOptions) -> Vec<FieldOverride> {
     let reference_estimator = opts
         .reference_estimator
         .clone()
         .unwrap_or_else(|| base.integrator.box_estimator.name().to_owned());
-    let ref_pairs = [
-        (
-            "frames",
-            opts.reference_frames.to_string(),
+    let mut out = vec![
+        FieldOverride::from_flag(
             "--reference-frames",
+            "render.frames",
+            i64::from(opts.reference_frames),
         ),
-        ("spp", opts.reference_spp.to_string(), "--reference-spp"),
-        (
-            "box_estimator",
-            reference_estimator,
-            "--reference-estimator",
+        FieldOverride::from_flag(
+            "--reference-spp",
+            "render.spp",
+            i64::from(opts.reference_spp),
         ),
-        (
-            "box_samples",
-            opts.reference_box_samples.to_string(),
+        FieldOverride {
+            key: "integrator.box_estimator".into(),
+            origin: Some(format!("--reference-estimator {reference_estimator}")),
+            value: reference_estimator.into(),
+        },
+        FieldOverride::from_flag(
             "--reference-box-samples",
+            "integrator.box_samples",
+            i64::from(opts.reference_box_samples),
         ),
     ];
-    let mut ref_box_samples = None;
-    for (key, value, flag) in &ref_pairs {
-        if let Some(n) =
-            apply(&mut ref_base, key, value).with_context(|| format!("{flag} {value}"))?
-        {
-            ref_box_samples = Some(n);
-        }
-    }
     // Grid media: the converged reference is the baseline path tracer's (the unbiased
     // estimator every Volumetric ReSTIR claim is measured against).
-    if ref_base
+    if base
         .media
         .iter()
         .any(|m| matches!(m, nimbus_scene::Medium::Grid(_)))
     {
-        ref_base.integrator.volume = VolumeIntegrator::Baseline;
+        out.push(FieldOverride {
+            key: "integrator.volume".into(),
+            value: "baseline".into(),
+            origin: Some("the reference (grid media: the baseline path tracer)".into()),
+        });
     }
-    Ok((ref_base, ref_box_samples))
+    out
+}
+
+/// The reference scene of `integrand` (its keys set after the reference's overrides),
+/// with the reference's seed.
+fn reference_scene(
+    file: &SceneFile,
+    base: &Scene,
+    ref_overrides: &[FieldOverride],
+    integrand: &[(String, String)],
+) -> Result<Scene> {
+    let mut given = ref_overrides.to_vec();
+    given.extend(vary::overrides(integrand)?);
+    let mut scene = file.scene(&given)?;
+    scene.render.seed = base.render.seed ^ REFERENCE_SEED_MIX;
+    Ok(scene)
 }
 
 /// `n` seeds for the configurations: `scene_seed`, then the seeds after it (wrapping),

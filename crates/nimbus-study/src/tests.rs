@@ -1,5 +1,6 @@
 //! Unit tests of the study's planning: options, deduplication, windows.
 use super::*;
+use nimbus_scene::VolumeIntegrator;
 
 fn same_as(study: &Study) -> Vec<Option<usize>> {
     study.configurations.iter().map(|c| c.same_as).collect()
@@ -317,6 +318,88 @@ fn bad_options_fail_before_rendering() {
         let message = format!("{:#}", Study::new(&bad).err().expect("an error"));
         assert!(message.contains(needle), "{vary:?}: {message}");
     }
+    remove_scratch(&opts);
+}
+
+/// The size, frame counts and varied values are the scene's fields, checked by the scene
+/// parser as a file holding them would be, each error naming the flag it came from.
+#[test]
+fn options_the_scene_format_refuses_are_refused_naming_the_flag() {
+    let opts = grid_options("scene-checks");
+    let cases = [
+        (
+            StudyOptions {
+                width: Some(0),
+                ..opts.clone()
+            },
+            "--width 0",
+        ),
+        (
+            StudyOptions {
+                height: Some(70_000),
+                ..opts.clone()
+            },
+            "--height 70000",
+        ),
+        (
+            StudyOptions {
+                reference_spp: 0,
+                ..opts.clone()
+            },
+            "--reference-spp 0",
+        ),
+        (
+            StudyOptions {
+                reference_frames: 2_000_000,
+                ..opts.clone()
+            },
+            "--reference-frames 2000000",
+        ),
+        (
+            StudyOptions {
+                vary: vec!["spatial_neighbors=4,65".into()],
+                ..opts.clone()
+            },
+            "--vary spatial_neighbors=65",
+        ),
+        (
+            StudyOptions {
+                vary: vec!["seed=1,-3".into()],
+                seeds: 1,
+                ..opts.clone()
+            },
+            "--vary seed=-3",
+        ),
+    ];
+    for (bad, needle) in cases {
+        let message = format!("{:#}", Study::new(&bad).err().expect("an error"));
+        assert!(message.contains(needle), "{needle}: {message}");
+    }
+    remove_scratch(&opts);
+}
+
+/// An animated study renders the warm-up's scene frames and then its window: a camera
+/// whose path enters a sphere light after the scene file's own frames is refused.
+#[test]
+fn every_scene_frame_a_study_renders_is_checked() {
+    let opts = grid_options("animated-checks");
+    let scene = std::fs::read_to_string(&opts.scene).unwrap();
+    let scene = scene.replace("width = 8", "frames = 2\nwidth = 8")
+        + "[[camera.keyframe]]\nframe = 0\nposition = [0, 0, 3]\nlook_at = [0, 0, 0]\n\
+           [[camera.keyframe]]\nframe = 1\nposition = [0, 0, 2.9]\nlook_at = [0, 0, 0]\n\
+           [[camera.keyframe]]\nframe = 20\nposition = [0, 0, 1.2]\nlook_at = [0, 0, 0]\n\
+           [[light]]\ntype = \"sphere\"\ncenter = [0, 0, 1.2]\nradius = 0.1\n\
+           radiance = [1, 1, 1]\n";
+    std::fs::write(&opts.scene, scene).unwrap();
+    nimbus_scene::load(&opts.scene).expect("the file itself is valid (2 frames)");
+    let animated = StudyOptions {
+        per_frame: true,
+        frames: 3,
+        ..opts.clone()
+    };
+    let message = format!("{:#}", Study::new(&animated).err().expect("an error"));
+    assert!(message.contains("scene frames 0.."), "{message}");
+    assert!(message.contains("sphere"), "{message}");
     remove_scratch(&opts);
 }
 

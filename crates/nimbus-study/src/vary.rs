@@ -1,12 +1,12 @@
-//! What a study varies: the `--vary KEY=V1,V2,...` lists, the keys they accept and how
-//! each sets the scene ([`apply`]), their cartesian product, the series that
-//! configurations fall into, and the `--baseline` series.
+//! What a study varies: the `--vary KEY=V1,V2,...` lists, the keys they accept and the
+//! scene fields they set ([`field_override`]: the scene parser checks every value), their
+//! cartesian product, the series that configurations fall into, and the `--baseline`
+//! series.
 
 use anyhow::{anyhow, bail, ensure, Result};
-use nimbus_scene::{BoxEstimator, Scene, VolumeIntegrator};
+use nimbus_scene::FieldOverride;
 
-/// The keys `--vary` (and `--baseline`) accept besides the ReSTIR knobs, in the order
-/// [`apply`] lists them.
+/// The keys `--vary` (and `--baseline`) accept besides the ReSTIR knobs.
 const GENERAL_KEYS: [&str; 7] = [
     "box_estimator",
     "spp",
@@ -39,255 +39,40 @@ pub(super) const KNOB_KEYS: [&str; 3] = ["spp", "frames", "box_samples"];
 /// study of one refuses `--vary frames` (each frame has its own reference).
 pub(super) const INTEGRAND_KEYS: [&str; 1] = ["max_bounces"];
 
-/// The `[integrator] volume` names of the scene format.
-const VOLUME_INTEGRATORS: [(&str, VolumeIntegrator); 2] = [
-    ("restir", VolumeIntegrator::Restir),
-    ("baseline", VolumeIntegrator::Baseline),
-];
-
-/// Sets `key` = `value` on `scene`. Returns the `box_samples` override for
-/// [`plan::build`](nimbus::plan::build) when the key is `box_samples` (the scene's field
-/// is set as well).
-///
-/// Errors name the key and list what it accepts; the message is meant to be prefixed
-/// with the flag it came from.
-pub(super) fn apply(scene: &mut Scene, key: &str, value: &str) -> Result<Option<u32>> {
-    let value = value.trim();
+/// The scene-format field that `key` sets: `[render]` and `[integrator]` fields by their
+/// own names, the ReSTIR knobs under `[integrator.restir]`.
+fn field_path(key: &str) -> Option<String> {
     match key {
-        "box_estimator" => {
-            scene.integrator.box_estimator = BoxEstimator::ALL
-                .into_iter()
-                .find(|e| e.name() == value)
-                .ok_or_else(|| {
-                    let names: Vec<_> = BoxEstimator::ALL.iter().map(|e| e.name()).collect();
-                    anyhow!(
-                        "box_estimator: unknown estimator {value:?}; valid: {}",
-                        names.join(", ")
-                    )
-                })?;
+        "spp" | "frames" | "seed" => Some(format!("render.{key}")),
+        "box_estimator" | "box_samples" | "max_bounces" | "volume" => {
+            Some(format!("integrator.{key}"))
         }
-        "spp" => scene.render.spp = parse_count(key, value, 65_536)?,
-        "box_samples" => {
-            let n = parse_count(key, value, 65_536)?;
-            scene.integrator.box_samples = n;
-            return Ok(Some(n));
-        }
-        "frames" => scene.render.frames = parse_count(key, value, 1_000_000)?,
-        "seed" => {
-            scene.render.seed = value
-                .parse()
-                .map_err(|_| anyhow!("seed: {value:?} is not an unsigned 64-bit integer"))?;
-        }
-        "max_bounces" => scene.integrator.max_bounces = parse_count(key, value, 1024)?,
-        "volume" => {
-            scene.integrator.volume = VOLUME_INTEGRATORS
-                .into_iter()
-                .find(|(name, _)| *name == value)
-                .map(|(_, v)| v)
-                .ok_or_else(|| {
-                    let names: Vec<_> = VOLUME_INTEGRATORS.iter().map(|(n, _)| *n).collect();
-                    anyhow!(
-                        "volume: unknown integrator {value:?}; valid: {}",
-                        names.join(", ")
-                    )
-                })?;
-        }
-        "candidates" => scene.integrator.restir.candidates = parse_count(key, value, 4096)?,
-        "temporal" => scene.integrator.restir.temporal = parse_bool(key, value)?,
-        "temporal_limit" => {
-            scene.integrator.restir.temporal_limit = parse_count(key, value, 1024)?;
-        }
-        "temporal_limit_moving" => {
-            scene.integrator.restir.temporal_limit_moving = parse_count(key, value, 1024)?;
-        }
-        "spatial_neighbors" => {
-            scene.integrator.restir.spatial_neighbors =
-                parse_range(key, value, 0, nimbus_scene::MAX_SPATIAL_NEIGHBORS)?;
-        }
-        "spatial_radius_px" => {
-            scene.integrator.restir.spatial_radius_px = match value.parse::<f32>() {
-                _ if value == "auto" => None,
-                Ok(r) if (0.0..=16384.0).contains(&r) => Some(r),
-                _ => bail!("{key}: {value:?} is not a number in [0, 16384] or auto"),
-            };
-        }
-        "spatial_when" => {
-            scene.integrator.restir.spatial_when = match value {
-                "always" => nimbus_scene::SpatialWhen::Always,
-                "camera_moves" => nimbus_scene::SpatialWhen::CameraMoves,
-                "camera_or_density" => nimbus_scene::SpatialWhen::CameraOrDensity,
-                _ => bail!(
-                    "{key}: unknown choice {value:?}; valid: always, camera_moves, camera_or_density"
-                ),
-            };
-        }
-        "spatial_rounds" => {
-            scene.integrator.restir.spatial_rounds = parse_range(key, value, 0, 16)?;
-        }
-        "emission" => {
-            scene.integrator.restir.fold_emission = match value {
-                "separate" => false,
-                "folded" => true,
-                _ => bail!("{key}: unknown choice {value:?}; valid: separate, folded"),
-            };
-        }
-        "spatial_max_history" => {
-            scene.integrator.restir.spatial_max_history = match value.parse::<f32>() {
-                Ok(r) if (0.0..=1025.0).contains(&r) => r,
-                _ => bail!("{key}: {value:?} is not a number in [0, 1025]"),
-            };
-        }
-        "spatial_feature_tolerance" => {
-            scene.integrator.restir.spatial_feature_tolerance = match value.parse::<f32>() {
-                Ok(r) if (0.0..=1.0).contains(&r) => r,
-                _ => bail!("{key}: {value:?} is not a number in [0, 1]"),
-            };
-        }
-        "spatial_anchor" => scene.integrator.restir.spatial_anchor = parse_bool(key, value)?,
-        "reuse" => {
-            scene.integrator.restir.reuse = match value {
-                "direction" => nimbus_scene::ReuseMode::Direction,
-                "vertex" => nimbus_scene::ReuseMode::Vertex,
-                _ => bail!("{key}: unknown reuse {value:?}; valid: direction, vertex"),
-            };
-        }
-        "mip_candidates" => {
-            scene.integrator.restir.mip_candidates = parse_range(key, value, 0, 16)?
-        }
-        "mip_indirect" => scene.integrator.restir.mip_indirect = parse_level(key, value)?,
-        "mip_reuse" => scene.integrator.restir.mip_reuse = parse_level(key, value)?,
-        "final_transmittance" => {
-            scene.integrator.restir.final_ratio_tracking = match value {
-                "analytic" => false,
-                "ratio" => true,
-                _ => bail!("{key}: unknown transmittance {value:?}; valid: analytic, ratio"),
-            };
-        }
-        "mis" => {
-            scene.integrator.restir.mis = match value {
-                "talbot" => nimbus_scene::MisMode::Talbot,
-                "pairwise" => nimbus_scene::MisMode::Pairwise,
-                _ => bail!("{key}: unknown MIS {value:?}; valid: talbot, pairwise"),
-            };
-        }
-        "spatial_shift" => {
-            scene.integrator.restir.spatial_shift = match value {
-                "distance" => nimbus_scene::SpatialShift::Distance,
-                "optical_depth" => nimbus_scene::SpatialShift::OpticalDepth,
-                _ => bail!("{key}: unknown shift {value:?}; valid: distance, optical_depth"),
-            };
-        }
-        "env_reuse" => {
-            scene.integrator.restir.env_reuse = match value {
-                "map" => nimbus_scene::EnvReuse::Map,
-                "world" => nimbus_scene::EnvReuse::World,
-                _ => bail!("{key}: unknown choice {value:?}; valid: map, world"),
-            };
-        }
-        "temporal_history" => {
-            scene.integrator.restir.temporal_history = match value {
-                "spatial" => nimbus_scene::HistoryMode::Spatial,
-                "temporal" => nimbus_scene::HistoryMode::Temporal,
-                _ => bail!("{key}: unknown history {value:?}; valid: spatial, temporal"),
-            };
-        }
-        "nee" => {
-            scene.integrator.restir.nee = match value {
-                "auto" => nimbus_scene::NeeMode::Auto,
-                "one" => nimbus_scene::NeeMode::One,
-                "split" => nimbus_scene::NeeMode::Split,
-                _ => {
-                    bail!("{key}: unknown next-event estimation {value:?}; valid: auto, one, split")
-                }
-            };
-        }
-        "direct" => {
-            scene.integrator.restir.direct = match value {
-                "each_walk" => nimbus_scene::DirectMode::EachWalk,
-                "escape" => nimbus_scene::DirectMode::Escape,
-                _ => bail!("{key}: unknown direct candidate {value:?}; valid: each_walk, escape"),
-            };
-        }
-        "candidate_tracking" => {
-            scene.integrator.restir.candidate_tracking = match value {
-                "auto" => nimbus_scene::CandidateTracking::Auto,
-                "delta" => nimbus_scene::CandidateTracking::Delta,
-                "regular" => nimbus_scene::CandidateTracking::Regular,
-                _ => bail!("{key}: unknown tracking {value:?}; valid: auto, delta, regular"),
-            };
-        }
-        "pc_fetch" => {
-            scene.integrator.restir.pc_fetch = match value {
-                "auto" => nimbus_scene::DensityFetch::Auto,
-                "image" => nimbus_scene::DensityFetch::Image,
-                "buffer" => nimbus_scene::DensityFetch::Buffer,
-                _ => bail!("{key}: unknown place {value:?}; valid: auto, image, buffer"),
-            };
-        }
-        "target" => {
-            scene.integrator.restir.target = match value {
-                "luminance" => nimbus_scene::TargetScalar::Luminance,
-                "sum" => nimbus_scene::TargetScalar::Sum,
-                "max" => nimbus_scene::TargetScalar::Max,
-                _ => bail!("{key}: unknown target {value:?}; valid: luminance, sum, max"),
-            };
-        }
-        "camera_emission" => {
-            scene.integrator.restir.camera_emission = match value {
-                "reservoir" => nimbus_scene::CameraEmission::Reservoir,
-                "stratified" => nimbus_scene::CameraEmission::Stratified,
-                _ => bail!("{key}: unknown choice {value:?}; valid: reservoir, stratified"),
-            };
-        }
-        "temporal_reprojection" => {
-            scene.integrator.restir.temporal_reprojection = match value {
-                "path" => nimbus_scene::TemporalReprojection::Path,
-                "aligned" => nimbus_scene::TemporalReprojection::Aligned,
-                _ => bail!("{key}: unknown choice {value:?}; valid: path, aligned"),
-            };
-        }
-        "sigma_star_floor" => {
-            scene.integrator.restir.sigma_star_floor = match value.parse::<f32>() {
-                Ok(f) if (0.0..=1.0).contains(&f) => f,
-                _ => bail!("{key}: {value:?} is not a number in [0, 1]"),
-            };
-        }
-        _ => bail!("unknown key {key:?}; valid keys: {}", keys().join(", ")),
-    }
-    Ok(None)
-}
-
-/// An integer in min..=max.
-fn parse_range(key: &str, value: &str, min: u32, max: u32) -> Result<u32> {
-    match value.parse::<u32>() {
-        Ok(n) if (min..=max).contains(&n) => Ok(n),
-        _ => bail!("{key}: {value:?} is not an integer in {min}..={max}"),
+        k if nimbus_scene::RESTIR_KEYS.contains(&k) => Some(format!("integrator.restir.{k}")),
+        _ => None,
     }
 }
 
-/// A mip level 0..=16, or `auto` (`None`: chosen from the volume's content).
-fn parse_level(key: &str, value: &str) -> Result<Option<u32>> {
-    if value == "auto" {
-        return Ok(None);
-    }
-    parse_range(key, value, 0, 16).map(Some)
+/// The override that sets `key` = `value` in the scene's tables before they are
+/// validated, so that a varied value passes exactly the checks the same value written in
+/// the scene file passes (ranges, choices, and what one field means for another), and no
+/// list of valid values is kept twice. `origin` names where the value came from in error
+/// messages (`--vary spp=0`, `--reference-spp 0`). The value is read as `--set` reads
+/// one: TOML, or a bare word as a string (`baseline`, `auto`).
+pub(super) fn field_override(key: &str, value: &str, origin: String) -> Result<FieldOverride> {
+    let path = field_path(key)
+        .ok_or_else(|| anyhow!("unknown key {key:?}; valid keys: {}", keys().join(", ")))?;
+    let mut o = FieldOverride::parse(&format!("{path}={}", value.trim()))
+        .map_err(|e| anyhow!("{origin}: {e:#}"))?;
+    o.origin = Some(origin);
+    Ok(o)
 }
 
-/// `true` or `false`.
-fn parse_bool(key: &str, value: &str) -> Result<bool> {
-    match value {
-        "true" => Ok(true),
-        "false" => Ok(false),
-        _ => bail!("{key}: {value:?} is not true or false"),
-    }
-}
-
-/// An integer in 1..=max.
-fn parse_count(key: &str, value: &str, max: u32) -> Result<u32> {
-    match value.parse::<u32>() {
-        Ok(n) if (1..=max).contains(&n) => Ok(n),
-        _ => bail!("{key}: {value:?} is not an integer in 1..={max}"),
-    }
+/// The overrides of one assignment, in its order, each named `--vary KEY=VALUE`.
+pub(super) fn overrides(assignment: &[(String, String)]) -> Result<Vec<FieldOverride>> {
+    assignment
+        .iter()
+        .map(|(k, v)| field_override(k, v, format!("--vary {k}={v}")))
+        .collect()
 }
 
 /// One `--vary KEY=V1,V2,...`.
@@ -298,7 +83,8 @@ pub(super) struct Vary {
 }
 
 /// Parses `KEY=V1,V2,...`: a known key (see [`keys`]) and a non-empty list of distinct,
-/// non-empty values. The values themselves are checked by [`apply`].
+/// non-empty values. The values themselves are checked by the scene parser
+/// ([`field_override`]).
 pub(super) fn parse_vary(text: &str) -> Result<Vary> {
     let (key, values) = text
         .split_once('=')
@@ -454,66 +240,55 @@ pub(super) fn assignment(items: &[(&str, &str)]) -> Assignment {
 mod tests {
     use std::path::Path;
 
+    use nimbus_scene::{BoxEstimator, VolumeIntegrator};
+
     use super::*;
 
-    fn scene() -> Scene {
-        nimbus_scene::parse_str(nimbus::DEFAULT_SCENE, Path::new("window.toml")).unwrap()
+    /// The default scene with `pairs` set as `--vary` sets them.
+    fn scene_with(pairs: &[(&str, &str)]) -> Result<nimbus_scene::Scene> {
+        let given = overrides(&assignment(pairs))?;
+        nimbus_scene::parse_str_with(nimbus::DEFAULT_SCENE, Path::new("window.toml"), &given)
     }
 
     #[test]
-    fn parse_vary_reads_key_and_values() {
-        let v = parse_vary("box_estimator= rm, reds ,mcds").unwrap();
-        assert_eq!(v.key, "box_estimator");
-        assert_eq!(v.values, ["rm", "reds", "mcds"]);
-        assert_eq!(parse_vary("spp=4").unwrap().values, ["4"]);
-    }
-
-    #[test]
-    fn parse_vary_errors_name_the_problem() {
-        let cases = [
-            ("spp", "KEY=V1,V2"),
-            ("colour=1,2", "valid keys: box_estimator, spp"),
-            ("spp=", "empty"),
-            ("spp= ", "empty"),
-            ("spp=1,,4", "empty value"),
-            ("spp=1,4,1", "\"1\" is repeated"),
-        ];
-        for (text, needle) in cases {
-            let message = format!("{:#}", parse_vary(text).unwrap_err());
-            assert!(message.contains(needle), "{text}: {message}");
-        }
-    }
-
-    #[test]
-    fn apply_sets_each_key_and_lists_valid_values() {
-        let mut s = scene();
-        assert_eq!(apply(&mut s, "box_estimator", "reds").unwrap(), None);
+    fn overrides_set_each_key_and_the_parser_lists_valid_values() {
+        let s = scene_with(&[
+            ("box_estimator", "reds"),
+            ("spp", "8"),
+            ("box_samples", "24"),
+            ("frames", "3"),
+            ("seed", "9223372036854775807"),
+            ("max_bounces", "4"),
+            ("volume", "baseline"),
+        ])
+        .unwrap();
         assert_eq!(s.integrator.box_estimator, BoxEstimator::Reds);
-        assert_eq!(apply(&mut s, "spp", "8").unwrap(), None);
-        assert_eq!(s.render.spp, 8);
-        assert_eq!(apply(&mut s, "box_samples", "24").unwrap(), Some(24));
+        assert_eq!((s.render.spp, s.render.frames), (8, 3));
         assert_eq!(s.integrator.box_samples, 24);
-        apply(&mut s, "frames", "3").unwrap();
-        assert_eq!(s.render.frames, 3);
-        apply(&mut s, "seed", "18446744073709551615").unwrap();
-        assert_eq!(s.render.seed, u64::MAX);
-        apply(&mut s, "max_bounces", "4").unwrap();
+        assert_eq!(s.render.seed, i64::MAX as u64);
         assert_eq!(s.integrator.max_bounces, 4);
-        apply(&mut s, "volume", "baseline").unwrap();
         assert_eq!(s.integrator.volume, VolumeIntegrator::Baseline);
 
         let cases = [
-            ("box_estimator", "RM", "mcwvds, reds, rees, rm, mcds, me"),
-            ("spp", "0", "spp: \"0\" is not an integer in 1..=65536"),
+            ("box_estimator", "RM", "mcwvds"),
+            ("spp", "0", "spp"),
             ("spp", "many", "spp"),
-            ("box_samples", "70000", "1..=65536"),
+            ("box_samples", "70000", "box_samples"),
             ("seed", "-1", "seed"),
-            ("volume", "pt", "restir, baseline"),
+            ("seed", "18446744073709551615", "seed"),
+            ("volume", "pt", "baseline"),
+            ("spatial_radius_px", "-1", "spatial_radius_px"),
             ("exposure", "2", "valid keys: box_estimator"),
         ];
         for (key, value, needle) in cases {
-            let message = format!("{:#}", apply(&mut s, key, value).unwrap_err());
+            let message = format!("{:#}", scene_with(&[(key, value)]).unwrap_err());
             assert!(message.contains(needle), "{key}={value}: {message}");
+            if key != "exposure" {
+                assert!(
+                    message.contains(&format!("--vary {key}={value}")),
+                    "{key}={value}: {message}"
+                );
+            }
         }
     }
 
@@ -558,11 +333,10 @@ mod tests {
             ("temporal_reprojection", "path"),
         ];
         assert_eq!(values.len(), keys().len());
-        let mut s = scene();
-        for (key, value) in values {
-            assert!(keys().contains(&key));
-            apply(&mut s, key, value).unwrap();
+        for (key, _) in values {
+            assert!(keys().contains(&key), "{key}");
         }
+        let s = scene_with(&values).unwrap();
         let r = &s.integrator.restir;
         assert_eq!(
             (
@@ -602,6 +376,14 @@ mod tests {
             (nimbus_scene::SpatialShift::OpticalDepth, 8.0)
         );
         assert_eq!((r.spatial_feature_tolerance, r.spatial_anchor), (0.3, true));
+        assert_eq!(
+            scene_with(&[("spatial_radius_px", "auto")])
+                .unwrap()
+                .integrator
+                .restir
+                .spatial_radius_px,
+            None
+        );
         for (key, value) in [
             ("temporal", "yes"),
             ("reuse", "path"),
@@ -620,7 +402,7 @@ mod tests {
             ("camera_emission", "marched"),
             ("temporal_reprojection", "motion"),
         ] {
-            assert!(apply(&mut s, key, value).is_err(), "{key}={value}");
+            assert!(scene_with(&[(key, value)]).is_err(), "{key}={value}");
         }
         for (value, when) in [
             ("camera_moves", nimbus_scene::SpatialWhen::CameraMoves),
@@ -629,7 +411,7 @@ mod tests {
                 nimbus_scene::SpatialWhen::CameraOrDensity,
             ),
         ] {
-            apply(&mut s, "spatial_when", value).unwrap();
+            let s = scene_with(&[("spatial_when", value)]).unwrap();
             assert_eq!(s.integrator.restir.spatial_when, when);
         }
     }

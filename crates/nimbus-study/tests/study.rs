@@ -260,10 +260,10 @@ fn study_errors_name_the_flag() {
             vec!["--vary", "box_estimator=rm,fast"],
             vec![
                 "--vary box_estimator=fast",
-                "mcwvds, reds, rees, rm, mcds, me",
+                "\"mcwvds\", \"reds\", \"rees\", \"rm\", \"mcds\", \"me\"",
             ],
         ),
-        (vec!["--vary", "spp=0"], vec!["--vary spp=0", "1..=65536"]),
+        (vec!["--vary", "spp=0"], vec!["--vary spp=0", "[1, 65536]"]),
         (
             vec!["--vary", "spp=1", "--vary", "spp=2"],
             vec!["--vary spp=2", "already varied"],
