@@ -479,68 +479,40 @@ pub struct PipelineJob<'a> {
 }
 
 /// Several image-space compute pipelines with one layout and push constants of type `P`,
-/// built at once, one thread each, and added to `objects` in the order of `jobs`. A
-/// driver compiles one pipeline on one thread: lavapipe takes 1.6-3.4 s for each of
-/// ReSTIR's larger passes even with Mesa's shader cache warm, and an NVIDIA driver
-/// seconds on a cold cache. If any fails, none is kept.
+/// built at once ([`Context::create_compute_pipelines`]: one thread each) and added to
+/// `objects` in the order of `jobs`. If any fails, none is kept.
 pub fn compute_pipelines<P>(
     ctx: &Context,
     objects: &mut GpuObjects,
     bindings: &[BindingDesc],
     jobs: &[PipelineJob<'_>],
 ) -> Result<Vec<Handle<ComputePipeline>>> {
-    let build = |job: &PipelineJob<'_>| -> Result<ComputePipeline> {
-        let spirv = spirv_words(job.spirv)?;
-        let specialization = pipeline_specialization(job.specialization, job.film);
-        ctx.create_compute_pipeline(
-            &ComputePipelineDesc {
-                spirv: &spirv,
-                entry: "main",
-                bindings,
-                push_constant_size: std::mem::size_of::<P>() as u32,
-                specialization: &specialization,
-            },
-            &job.name,
-        )
-    };
-    let built: Vec<Result<ComputePipeline>> = if jobs.len() == 1 {
-        vec![build(&jobs[0])]
-    } else {
-        std::thread::scope(|scope| {
-            let threads: Vec<_> = jobs
-                .iter()
-                .map(|job| scope.spawn(move || build(job)))
-                .collect();
-            threads
-                .into_iter()
-                .zip(jobs)
-                .map(|(thread, job)| {
-                    thread.join().unwrap_or_else(|_| {
-                        Err(anyhow::anyhow!(
-                            "internal: building pipeline '{}' panicked",
-                            job.name
-                        ))
-                    })
-                })
-                .collect()
+    let words = jobs
+        .iter()
+        .map(|job| spirv_words(job.spirv))
+        .collect::<Result<Vec<_>>>()?;
+    let specializations: Vec<_> = jobs
+        .iter()
+        .map(|job| pipeline_specialization(job.specialization, job.film))
+        .collect();
+    let descs: Vec<(ComputePipelineDesc<'_>, &str)> = words
+        .iter()
+        .zip(&specializations)
+        .zip(jobs)
+        .map(|((spirv, specialization), job)| {
+            (
+                ComputePipelineDesc {
+                    spirv,
+                    entry: "main",
+                    bindings,
+                    push_constant_size: std::mem::size_of::<P>() as u32,
+                    specialization,
+                },
+                job.name.as_str(),
+            )
         })
-    };
-    let mut pipelines = Vec::with_capacity(built.len());
-    let mut error = None;
-    for result in built {
-        match result {
-            Ok(p) => pipelines.push(p),
-            Err(e) => {
-                error.get_or_insert(e);
-            }
-        }
-    }
-    if let Some(e) = error {
-        for p in pipelines {
-            ctx.destroy_compute_pipeline(p);
-        }
-        return Err(e);
-    }
+        .collect();
+    let pipelines = ctx.create_compute_pipelines(&descs)?;
     Ok(pipelines.into_iter().map(|p| objects.add(p)).collect())
 }
 
