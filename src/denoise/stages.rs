@@ -159,33 +159,21 @@ impl State {
             let output = buffer(o, pixels * 16, "denoise output")?;
             let residual = buffer(o, pixels * 4, "denoise residuals")?;
 
-            // Built at once, one thread each (a driver compiles one pipeline per thread).
-            let stages = stages();
-            let words: Vec<(Vec<u32>, Vec<BindingDesc>)> = stages
-                .iter()
-                .map(|(_, spirv, bindings)| Ok((spirv_words(spirv)?, layout(bindings))))
-                .collect::<Result<_>>()?;
-            let descs: Vec<(ComputePipelineDesc<'_>, &str)> = stages
-                .iter()
-                .zip(&words)
-                .map(|((name, _, _), (spirv, bindings))| {
-                    (
-                        ComputePipelineDesc {
-                            spirv,
-                            entry: "main",
-                            bindings,
-                            push_constant_size: std::mem::size_of::<DenoisePush>() as u32,
-                            specialization: &[],
-                        },
-                        *name,
-                    )
-                })
-                .collect();
-            let pipelines: Vec<Handle<ComputePipeline>> = ctx
-                .create_compute_pipelines(&descs)?
-                .into_iter()
-                .map(|p| o.add(p))
-                .collect();
+            let mut pipelines = Vec::new();
+            for (name, spirv, bindings) in stages() {
+                let words = spirv_words(spirv)?;
+                let pipeline = ctx.create_compute_pipeline(
+                    &ComputePipelineDesc {
+                        spirv: &words,
+                        entry: "main",
+                        bindings: &layout(bindings),
+                        push_constant_size: std::mem::size_of::<DenoisePush>() as u32,
+                        specialization: &[],
+                    },
+                    name,
+                )?;
+                pipelines.push(o.add(pipeline));
+            }
             let [prepare, residual_p, variance_p, atrous, finish] = pipelines[..] else {
                 bail!("internal: the denoiser has five pipelines");
             };

@@ -417,8 +417,8 @@ impl Study {
     }
 }
 
-/// The scene as the study renders it (`--width`, `--height`, `--frames` applied), its
-/// file's bytes (what the reference cache hashes) and whether it is animated.
+/// The scene file with the study's `--width`, `--height` and `--frames` (its text is what
+/// the reference cache hashes), the scene they give, and whether it is animated.
 fn load_base(opts: &StudyOptions) -> Result<(SceneFile, Scene, bool)> {
     // Read once, as `nimbus render` does: a regular file of a scene's size (issue 24:
     // a device named as the scene was read forever), parsed from the bytes hashed.

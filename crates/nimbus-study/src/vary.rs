@@ -6,15 +6,16 @@
 use anyhow::{anyhow, bail, ensure, Result};
 use nimbus_scene::FieldOverride;
 
-/// The keys `--vary` (and `--baseline`) accept besides the ReSTIR knobs.
-const GENERAL_KEYS: [&str; 7] = [
-    "box_estimator",
-    "spp",
-    "box_samples",
-    "frames",
-    "seed",
-    "max_bounces",
-    "volume",
+/// The keys `--vary` (and `--baseline`) accept besides the ReSTIR knobs, with the scene
+/// table that holds each.
+const GENERAL_KEYS: [(&str, &str); 7] = [
+    ("box_estimator", "integrator"),
+    ("spp", "render"),
+    ("box_samples", "integrator"),
+    ("frames", "render"),
+    ("seed", "render"),
+    ("max_bounces", "integrator"),
+    ("volume", "integrator"),
 ];
 
 /// Every key `--vary` accepts: [`GENERAL_KEYS`], then the fields of
@@ -22,8 +23,8 @@ const GENERAL_KEYS: [&str; 7] = [
 pub fn keys() -> Vec<&'static str> {
     GENERAL_KEYS
         .iter()
-        .chain(nimbus_scene::RESTIR_KEYS)
-        .copied()
+        .map(|(key, _)| *key)
+        .chain(nimbus_scene::RESTIR_KEYS.iter().copied())
         .collect()
 }
 
@@ -39,17 +40,15 @@ pub(super) const KNOB_KEYS: [&str; 3] = ["spp", "frames", "box_samples"];
 /// study of one refuses `--vary frames` (each frame has its own reference).
 pub(super) const INTEGRAND_KEYS: [&str; 1] = ["max_bounces"];
 
-/// The scene-format field that `key` sets: `[render]` and `[integrator]` fields by their
-/// own names, the ReSTIR knobs under `[integrator.restir]`.
+/// The scene-format field that `key` sets: `render.spp`, `integrator.volume`,
+/// `integrator.restir.candidates`, ...
 fn field_path(key: &str) -> Option<String> {
-    match key {
-        "spp" | "frames" | "seed" => Some(format!("render.{key}")),
-        "box_estimator" | "box_samples" | "max_bounces" | "volume" => {
-            Some(format!("integrator.{key}"))
-        }
-        k if nimbus_scene::RESTIR_KEYS.contains(&k) => Some(format!("integrator.restir.{k}")),
-        _ => None,
+    if let Some((_, table)) = GENERAL_KEYS.iter().find(|(k, _)| *k == key) {
+        return Some(format!("{table}.{key}"));
     }
+    nimbus_scene::RESTIR_KEYS
+        .contains(&key)
+        .then(|| format!("integrator.restir.{key}"))
 }
 
 /// The override that sets `key` = `value` in the scene's tables before they are
