@@ -35,7 +35,7 @@ impl Arg<'_> {
 
 /// A validated context and one test pipeline.
 pub struct Kernel {
-    ctx: Context,
+    ctx: super::gpu::TestContext,
     /// Always `Some` until dropped.
     pipeline: Option<ComputePipeline>,
     name: String,
