@@ -1,8 +1,6 @@
 //! A validated lavapipe context and a checked render, shared by the render tests.
 
-use std::ops::Deref;
 use std::path::Path;
-use std::sync::{Mutex, PoisonError};
 
 use nimbus::output::ImageRgb;
 use nimbus::plan;
@@ -12,59 +10,16 @@ use nimbus_scene::Scene;
 
 use super::check_adapter;
 
-/// Contexts that passing tests gave back, idle and with no validation message pending.
-static IDLE: Mutex<Vec<Context>> = Mutex::new(Vec::new());
-
-/// A context with validation layers on, on the device CI uses (checked under CI), for
-/// this test alone: no other test uses it until this one ends. Contexts are reused from
-/// test to test (never by two at once), so that a context's pipeline cache hands a later
-/// test the pipelines an earlier one built: building pipelines is most of the suite's
-/// time on lavapipe (docs/performance.md, "Where the test suite's time goes").
-pub fn context() -> TestContext {
-    let idle = IDLE.lock().unwrap_or_else(PoisonError::into_inner).pop();
-    let ctx = idle.unwrap_or_else(|| {
-        let ctx = Context::new(&ContextDesc {
-            validation: true,
-            device_filter: std::env::var("NIMBUS_DEVICE").ok(),
-            app_name: "nimbus-tests".into(),
-        })
-        .expect("a Vulkan device (install mesa-vulkan-drivers for lavapipe)");
-        check_adapter(&ctx.info().name);
-        ctx
-    });
-    TestContext(Some(ctx))
-}
-
-/// One test's context (see [`context`]); dereferences to the [`Context`].
-pub struct TestContext(Option<Context>);
-
-impl Deref for TestContext {
-    type Target = Context;
-
-    fn deref(&self) -> &Context {
-        self.0
-            .as_ref()
-            .expect("a TestContext holds its context until dropped")
-    }
-}
-
-impl Drop for TestContext {
-    /// Gives the context back for the next test, unless this test failed, the device did
-    /// not go idle, or a validation error is pending (a later test must not inherit this
-    /// one's errors): such a context is destroyed.
-    fn drop(&mut self) {
-        let Some(ctx) = self.0.take() else { return };
-        if std::thread::panicking()
-            || ctx.wait_idle().is_err()
-            || !ctx.validation_errors().is_empty()
-        {
-            return;
-        }
-        ctx.take_validation_warnings();
-        IDLE.lock()
-            .unwrap_or_else(PoisonError::into_inner)
-            .push(ctx);
-    }
+/// A context with validation layers on, on the device CI uses (checked under CI).
+pub fn context() -> Context {
+    let ctx = Context::new(&ContextDesc {
+        validation: true,
+        device_filter: std::env::var("NIMBUS_DEVICE").ok(),
+        app_name: "nimbus-tests".into(),
+    })
+    .expect("a Vulkan device (install mesa-vulkan-drivers for lavapipe)");
+    check_adapter(&ctx.info().name);
+    ctx
 }
 
 /// Scene frame `frame` of the animated scene `s` alone, `passes` dispatches of it

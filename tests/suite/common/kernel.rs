@@ -35,7 +35,7 @@ impl Arg<'_> {
 
 /// A validated context and one test pipeline.
 pub struct Kernel {
-    ctx: super::gpu::TestContext,
+    ctx: Context,
     /// Always `Some` until dropped.
     pipeline: Option<ComputePipeline>,
     name: String,
