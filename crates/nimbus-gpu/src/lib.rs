@@ -50,6 +50,7 @@ pub mod pipeline;
 pub mod pipeline_cache;
 pub mod profiler;
 pub mod spirv;
+pub mod spirv_strip;
 
 pub use ash::vk;
 pub use buffer::{Buffer, BufferDesc};

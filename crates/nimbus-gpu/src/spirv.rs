@@ -24,6 +24,9 @@ const OP_TYPE_RUNTIME_ARRAY: u32 = 29;
 const OP_TYPE_STRUCT: u32 = 30;
 const OP_TYPE_POINTER: u32 = 32;
 const OP_CONSTANT: u32 = 43;
+const OP_SPEC_CONSTANT_TRUE: u32 = 48;
+const OP_SPEC_CONSTANT_FALSE: u32 = 49;
+const OP_SPEC_CONSTANT: u32 = 50;
 const OP_VARIABLE: u32 = 59;
 const OP_DECORATE: u32 = 71;
 const OP_MEMBER_DECORATE: u32 = 72;
@@ -224,6 +227,76 @@ pub fn reflect(words: &[u32]) -> Reflection {
         bindings,
         push_constant_size,
     }
+}
+
+/// `words` with its specialization constants' defaults replaced by `values` (`(SpecId,
+/// the 4 bytes the driver would read from VkSpecializationInfo)`): `OpSpecConstant`'s
+/// literal becomes the value, and a boolean's `OpSpecConstantTrue` / `False` follows
+/// whether the value is nonzero (a `VkBool32`). Specialization constants not named in
+/// `values` keep their defaults, and a value naming no constant is ignored, as
+/// `VkSpecializationInfo` does.
+///
+/// A pipeline made from the result with no specialization info is the pipeline the
+/// original module and `values` specify: drivers apply specialization by these same
+/// defaults (Mesa's `spirv_to_nir` reads a constant's literal unless a specialization
+/// entry replaces it). Why Nimbus does this instead of passing the values: see
+/// [`crate::pipeline`]'s docs on creation cost under the validation layer.
+///
+/// Refuses (naming `name`) a constant of more than 32 bits that `values` sets, and a
+/// module whose instruction stream ends early.
+pub fn specialize(name: &str, words: &[u32], values: &[(u32, u32)]) -> Result<Vec<u32>> {
+    let value_of: HashMap<u32, u32> = values.iter().copied().collect();
+    // Result id -> the value its SpecId asks for.
+    let mut wanted: HashMap<u32, u32> = HashMap::new();
+    let mut walked = 5.min(words.len());
+    for (op, o) in instructions(words) {
+        walked += o.len() + 1;
+        if op == OP_DECORATE && o.len() >= 3 && o[1] == DECORATION_SPEC_ID {
+            if let Some(v) = value_of.get(&o[2]) {
+                wanted.insert(o[0], *v);
+            }
+        }
+    }
+    if walked != words.len() {
+        bail!(
+            "pipeline '{name}': the shader's instruction stream ends at word {walked} of {} \
+             (a truncated or malformed module)",
+            words.len()
+        );
+    }
+    let mut out = words.to_vec();
+    let mut at = 5.min(out.len());
+    while at < out.len() {
+        let head = out[at];
+        let count = (head >> 16) as usize;
+        let op = head & 0xffff;
+        // Operands: result type, result id, then the literal.
+        let result = out.get(at + 2).copied();
+        match (op, result.and_then(|id| wanted.get(&id))) {
+            (OP_SPEC_CONSTANT_TRUE | OP_SPEC_CONSTANT_FALSE, Some(v)) => {
+                let op = if *v != 0 {
+                    OP_SPEC_CONSTANT_TRUE
+                } else {
+                    OP_SPEC_CONSTANT_FALSE
+                };
+                out[at] = (head & 0xffff_0000) | op;
+            }
+            (OP_SPEC_CONSTANT, Some(v)) => {
+                if count != 4 {
+                    bail!(
+                        "pipeline '{name}': specialization constant %{} is {} bits wide; \
+                         only 32-bit constants can be set",
+                        result.unwrap_or(0),
+                        32 * (count.saturating_sub(3))
+                    );
+                }
+                out[at + 3] = *v;
+            }
+            _ => {}
+        }
+        at += count;
+    }
+    Ok(out)
 }
 
 /// Checks a pipeline description against its module: every specialization constant the

@@ -11,3 +11,4 @@ mod context;
 mod images;
 mod profiler;
 mod profiler_math;
+mod specialize;
