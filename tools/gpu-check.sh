@@ -11,7 +11,9 @@
 # took) and summary.md, which collects the equal-time ratios of every study.
 #
 # Every mode first runs `nimbus bench` (bench.txt, bench.json: ms and work per sample of
-# the benchmark cases beside assets/bench/baseline.json; docs/performance.md).
+# the benchmark cases beside assets/bench/baseline.json; docs/performance.md), and
+# (outside --gallery and --baseline-ab) times the driver's pipeline builds from stripped and
+# whole shader modules (pipelines-stripped.txt, pipelines-whole.txt).
 #
 # --lent sizes the run for one command of a lent GPU machine (about 8 minutes on an H200;
 # see docs/restir.md "Measuring on a GPU" for the steps): no test suite; `nimbus bench`;
@@ -371,6 +373,24 @@ fi
 # are shown, not judged, on a device other than the baseline's).
 step bench nimbus bench --baseline "$root/assets/bench/baseline.json" --json "$out/bench.json" \
     >"$out/bench.txt" 2>&1
+
+# What the driver takes to build the pipelines, from the stripped modules and from the
+# whole specialized ones (NIMBUS_STRIP_SHADERS=0; docs/performance.md, "Pipelines built
+# from the code a scene reaches"): ReSTIR's at K = 3 and the baseline's, one tiny frame
+# each, NVIDIA's disk shader cache off so that every build compiles.
+pipelines() {
+    local name=$1
+    shift
+    for volume in restir baseline; do
+        step "pipelines $name $volume" env __GL_SHADER_DISK_CACHE=0 NIMBUS_PIPELINE_TIMES=1 "$@" \
+            "$NIMBUS_BIN" render assets/scenes/bench/cloud-g0.toml --width 64 --height 36 \
+            --frames 1 --set "integrator.volume=$volume" --out "$out/pipelines-$volume.exr" \
+            >>"$out/pipelines-$name.txt" 2>&1
+    done
+}
+pipelines stripped
+pipelines whole NIMBUS_STRIP_SHADERS=0
+rm -f "$out"/pipelines-*.exr
 
 # The test suite on this device (goldens, statistical tests, validation layers).
 run_tests() {
