@@ -119,15 +119,12 @@ fn cache() -> &'static Mutex<Cache> {
 /// seeded with the length), both fixed by this code so that they name files on disk
 /// across builds.
 fn key(words: &[u32]) -> (u64, u64) {
-    let mut fnv: u64 = 0xcbf2_9ce4_8422_2325;
     let mut mix: u64 = 0x9e37_79b9_7f4a_7c15 ^ words.len() as u64;
     for w in words {
-        fnv ^= u64::from(*w);
-        fnv = fnv.wrapping_mul(0x0000_0100_0000_01b3);
         mix = (mix ^ u64::from(*w)).wrapping_mul(0xff51_afd7_ed55_8ccd);
         mix ^= mix >> 32;
     }
-    (fnv, mix)
+    (fnv64(words), mix)
 }
 
 /// `words` (a specialized module) stripped as the module docs say, from the process's
@@ -246,6 +243,7 @@ fn disk_name(key: (u64, u64)) -> String {
     format!("{:016x}{:016x}.spv", key.0, key.1)
 }
 
+/// FNV-1a over the words (each taken whole).
 fn fnv64(words: &[u32]) -> u64 {
     let mut h: u64 = 0xcbf2_9ce4_8422_2325;
     for w in words {
