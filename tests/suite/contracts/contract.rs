@@ -167,3 +167,62 @@ fn a_pass_out_of_step_with_its_spirv_is_reported() {
          pass's record 20"
     );
 }
+
+/// Every pass's pipeline, specialized as its pass does for the shipped scenes, strips
+/// (`nimbus_gpu::spirv_strip`: a refusal would silently hand the driver the whole module
+/// again, docs/performance.md "Pipelines built from the code a scene reaches") to a
+/// smaller module with every specialization constant frozen, whose bindings and push
+/// constants still fit the pass.
+#[test]
+fn every_pass_pipeline_strips_to_a_smaller_module_that_still_fits_its_pass() {
+    const SPEC_CONSTANT_OPS: std::ops::RangeInclusive<u32> = 48..=52;
+    let mut errors = Vec::new();
+    for c in all_contracts() {
+        let words = spirv_words(c.spirv).unwrap();
+        let values: Vec<(u32, u32)> = c
+            .specialization
+            .iter()
+            .map(|(id, v)| (*id, u32::from_ne_bytes(v.to_bytes())))
+            .collect();
+        let specialized = nimbus_gpu::spirv::specialize(&c.name, &words, &values).unwrap();
+        let stripped = match nimbus_gpu::spirv_strip::strip_uncached(&specialized) {
+            Ok(s) => s,
+            Err(e) => {
+                errors.push(format!("{}: SPIRV-Tools refused it: {e}", c.name));
+                continue;
+            }
+        };
+        if stripped.len() >= words.len() {
+            errors.push(format!(
+                "{}: {} words stripped to {}",
+                c.name,
+                words.len(),
+                stripped.len()
+            ));
+        }
+        // Header: magic, then the instruction stream; no specialization constant left.
+        let mut at = 5;
+        let mut spec_ops = 0;
+        while at < stripped.len() {
+            let count = (stripped[at] >> 16) as usize;
+            assert!(count > 0, "{}: malformed at word {at}", c.name);
+            spec_ops += usize::from(SPEC_CONSTANT_OPS.contains(&(stripped[at] & 0xffff)));
+            at += count;
+        }
+        if stripped.first() != Some(&0x0723_0203) || at != stripped.len() || spec_ops > 0 {
+            errors.push(format!(
+                "{}: not a whole frozen module ({spec_ops} spec-constant instructions)",
+                c.name
+            ));
+        }
+        let layout: Vec<(u32, vk::DescriptorType)> =
+            c.bindings.iter().map(|b| (b.binding, b.ty)).collect();
+        let ids: Vec<u32> = c.specialization.iter().map(|(id, _)| *id).collect();
+        if let Err(e) =
+            nimbus_gpu::spirv::check(&c.name, &stripped, &layout, &ids, c.push_constant_size)
+        {
+            errors.push(format!("{e:#}"));
+        }
+    }
+    assert!(errors.is_empty(), "\n{}", errors.join("\n"));
+}
