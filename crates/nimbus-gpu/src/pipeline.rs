@@ -9,7 +9,8 @@
 //! the code they make dead is removed ([`crate::spirv_strip`]), and the pipeline is created
 //! from that module without `VkSpecializationInfo`: the same program for the driver, from a
 //! module 1.5-3.5x smaller. On lavapipe that took a ReSTIR pipeline's creation from
-//! 1.5-4.6 s to 0.4-0.6 s (plus the strip's 0.1-0.7 s of CPU, once per process and module).
+//! 1.5-4.6 s to 0.4-0.6 s (plus the strip's 0.1-0.7 s of CPU, once per module: the result
+//! is kept in memory and on disk).
 
 use crate::context::{lock, Context};
 use crate::descriptor::DescriptorSet;
