@@ -239,8 +239,8 @@ pub fn reflect(words: &[u32]) -> Reflection {
 /// A pipeline made from the result with no specialization info is the pipeline the
 /// original module and `values` specify: drivers apply specialization by these same
 /// defaults (Mesa's `spirv_to_nir` reads a constant's literal unless a specialization
-/// entry replaces it). Why Nimbus does this instead of passing the values: see
-/// [`crate::pipeline`]'s docs on creation cost under the validation layer.
+/// entry replaces it). Nimbus does this so that [`crate::spirv_strip`] can then remove
+/// the code the values switch off before the driver sees the module.
 ///
 /// Refuses (naming `name`) a constant of more than 32 bits that `values` sets, and a
 /// module whose instruction stream ends early.

@@ -22,10 +22,10 @@
 //! 128-bit hash: per process, up to [`CACHE_BYTES`] (a test binary or a study strips each
 //! distinct module once), and on disk for later processes, up to [`DISK_BYTES`] in
 //! [`disk_dir`] (a CLI render or a farm task strips only what no earlier process did;
-//! a file that does not read back whole is removed and stripped again). `NIMBUS_STRIP_SHADERS=0` turns the step off (for
-//! measuring it), `NIMBUS_PIPELINE_TIMES=1` prints what each pipeline's strip and build
-//! took; a module the optimizer refuses is handed to the driver as it is, with
-//! a warning on stderr.
+//! a file that does not read back whole is removed and stripped again).
+//! `NIMBUS_STRIP_SHADERS=0` turns the step off (for measuring it),
+//! `NIMBUS_PIPELINE_TIMES=1` prints what each pipeline's strip and build took; a module
+//! the optimizer refuses is handed to the driver as it is, with a warning on stderr.
 
 use std::collections::HashMap;
 use std::ffi::{c_char, c_int, CStr};
@@ -145,15 +145,14 @@ pub fn strip(name: &str, words: &[u32]) -> Arc<Vec<u32>> {
             return Arc::clone(module);
         }
     }
-    let disk = disk_dir().map(|dir| dir.join(disk_name(key)));
-    let from_disk = disk.as_deref().and_then(read_disk);
+    let from_disk = disk_dir().and_then(|dir| read_disk(dir, key));
     let module = match from_disk.map_or_else(
         || strip_uncached(words).map(|m| (m, true)),
         |m| Ok((m, false)),
     ) {
         Ok((stripped, fresh)) => {
-            if let (true, Some(path)) = (fresh, disk.as_deref()) {
-                write_disk(path, &stripped);
+            if let (true, Some(dir)) = (fresh, disk_dir()) {
+                write_disk(dir, key, &stripped);
             }
             Arc::new(stripped)
         }
@@ -233,7 +232,18 @@ pub fn disk_dir() -> Option<&'static Path> {
             })
             .collect();
         let dir = root.join(tag);
-        std::fs::create_dir_all(&dir).ok()?;
+        if let Err(e) = std::fs::create_dir_all(&dir) {
+            // Only a folder the user named is worth a word; the default one missing (a
+            // read-only home) just costs each process its strips.
+            if env_dir("NIMBUS_SHADER_CACHE_DIR").is_some() {
+                eprintln!(
+                    "[nimbus-gpu] warning: NIMBUS_SHADER_CACHE_DIR: cannot make {}: {e}; \
+                     stripped shaders are kept in memory only",
+                    dir.display()
+                );
+            }
+            return None;
+        }
         Some(dir)
     })
     .as_deref()
@@ -253,10 +263,11 @@ fn fnv64(words: &[u32]) -> u64 {
     h
 }
 
-/// The stripped module stored at `path`, if the file is whole (magic, its own key in the
-/// name, count and hash agree); a file that is not is removed.
-fn read_disk(path: &Path) -> Option<Vec<u32>> {
-    let bytes = std::fs::read(path).ok()?;
+/// The stripped module stored in `dir` under `key`, if its file is whole (magic, the key
+/// inside, count and hash agree); a file that is not is removed.
+fn read_disk(dir: &Path, key: (u64, u64)) -> Option<Vec<u32>> {
+    let path = dir.join(disk_name(key));
+    let bytes = std::fs::read(&path).ok()?;
     let parse = || -> Option<Vec<u32>> {
         let u64_at = |at: usize| -> Option<u64> {
             Some(u64::from_le_bytes(bytes.get(at..at + 8)?.try_into().ok()?))
@@ -264,8 +275,7 @@ fn read_disk(path: &Path) -> Option<Vec<u32>> {
         if bytes.get(..8)? != DISK_MAGIC {
             return None;
         }
-        let name = path.file_name()?.to_str()?;
-        if name != disk_name((u64_at(8)?, u64_at(16)?)) {
+        if (u64_at(8)?, u64_at(16)?) != key {
             return None;
         }
         let count = usize::try_from(u64_at(24)?).ok()?;
@@ -283,33 +293,23 @@ fn read_disk(path: &Path) -> Option<Vec<u32>> {
     match &words {
         // Most recently used first when the folder is trimmed.
         Some(_) => {
-            if let Ok(f) = std::fs::File::options().append(true).open(path) {
+            if let Ok(f) = std::fs::File::options().append(true).open(&path) {
                 let _ = f.set_modified(std::time::SystemTime::now());
             }
         }
         None => {
-            let _ = std::fs::remove_file(path);
+            let _ = std::fs::remove_file(&path);
         }
     }
     words
 }
 
-/// Stores `words` at `path` (written to a temporary file, then renamed, so that a reader
-/// never sees half a file) and trims the folder to [`DISK_BYTES`]. Failures only cost the
-/// next process a strip.
-fn write_disk(path: &Path, words: &[u32]) {
-    let Some(dir) = path.parent() else {
-        return;
-    };
-    let Some(name) = path.file_name().and_then(|n| n.to_str()) else {
-        return;
-    };
-    let Some(key) = u64::from_str_radix(name.get(..16).unwrap_or(""), 16)
-        .ok()
-        .zip(u64::from_str_radix(name.get(16..32).unwrap_or(""), 16).ok())
-    else {
-        return;
-    };
+/// Stores `words` in `dir` under `key` (written to a temporary file, then renamed, so that
+/// a reader never sees half a file) and trims the folder to [`DISK_BYTES`]. Failures only
+/// cost the next process a strip.
+fn write_disk(dir: &Path, key: (u64, u64), words: &[u32]) {
+    let name = disk_name(key);
+    let path = dir.join(&name);
     let mut bytes = Vec::with_capacity(40 + 4 * words.len());
     bytes.extend_from_slice(DISK_MAGIC);
     bytes.extend_from_slice(&key.0.to_le_bytes());
@@ -322,7 +322,7 @@ fn write_disk(path: &Path, words: &[u32]) {
     static SERIAL: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
     let serial = SERIAL.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     let temporary = dir.join(format!(".{name}.{}.{serial}.tmp", std::process::id()));
-    if std::fs::write(&temporary, &bytes).is_err() || std::fs::rename(&temporary, path).is_err() {
+    if std::fs::write(&temporary, &bytes).is_err() || std::fs::rename(&temporary, &path).is_err() {
         let _ = std::fs::remove_file(&temporary);
         return;
     }
@@ -382,16 +382,14 @@ mod tests {
     fn a_module_comes_back_from_disk_as_it_was_written() {
         let dir = scratch("roundtrip");
         let words = module(1000);
-        let path = dir.join(disk_name(key(&words)));
-        write_disk(&path, &words);
-        assert_eq!(read_disk(&path), Some(words.clone()));
+        write_disk(&dir, key(&words), &words);
+        assert_eq!(read_disk(&dir, key(&words)), Some(words.clone()));
         // A second module under another key stays apart.
         let other = module(999);
-        let other_path = dir.join(disk_name(key(&other)));
-        assert_ne!(path, other_path);
-        write_disk(&other_path, &other);
-        assert_eq!(read_disk(&other_path), Some(other));
-        assert_eq!(read_disk(&path), Some(words));
+        assert_ne!(key(&words), key(&other));
+        write_disk(&dir, key(&other), &other);
+        assert_eq!(read_disk(&dir, key(&other)), Some(other));
+        assert_eq!(read_disk(&dir, key(&words)), Some(words));
         let _ = std::fs::remove_dir_all(&dir);
     }
 
@@ -399,25 +397,30 @@ mod tests {
     fn a_damaged_or_misnamed_file_is_refused_and_removed() {
         let dir = scratch("damaged");
         let words = module(100);
-        let path = dir.join(disk_name(key(&words)));
-        write_disk(&path, &words);
+        let k = key(&words);
+        let path = dir.join(disk_name(k));
+        write_disk(&dir, k, &words);
         let mut bytes = std::fs::read(&path).unwrap();
         // One flipped bit in the words: the hash disagrees.
         bytes[40] ^= 1;
         std::fs::write(&path, &bytes).unwrap();
-        assert_eq!(read_disk(&path), None);
+        assert_eq!(read_disk(&dir, k), None);
         assert!(!path.exists(), "the damaged file is removed");
         // Cut short.
-        write_disk(&path, &words);
+        write_disk(&dir, k, &words);
         let bytes = std::fs::read(&path).unwrap();
         std::fs::write(&path, &bytes[..bytes.len() - 3]).unwrap();
-        assert_eq!(read_disk(&path), None);
+        assert_eq!(read_disk(&dir, k), None);
         // A whole file under another module's name.
-        write_disk(&path, &words);
-        let elsewhere = dir.join(disk_name(key(&module(7))));
-        std::fs::copy(&path, &elsewhere).unwrap();
-        assert_eq!(read_disk(&elsewhere), None);
-        assert_eq!(read_disk(&path), Some(words));
+        write_disk(&dir, k, &words);
+        let other = key(&module(7));
+        std::fs::copy(&path, dir.join(disk_name(other))).unwrap();
+        assert_eq!(read_disk(&dir, other), None);
+        assert!(
+            !dir.join(disk_name(other)).exists(),
+            "the misnamed file is removed"
+        );
+        assert_eq!(read_disk(&dir, k), Some(words));
         let _ = std::fs::remove_dir_all(&dir);
     }
 
@@ -428,7 +431,7 @@ mod tests {
         for n in 0..6u32 {
             let words = module(250 + n);
             let path = dir.join(disk_name(key(&words)));
-            write_disk(&path, &words);
+            write_disk(&dir, key(&words), &words);
             let age = std::time::SystemTime::now()
                 - std::time::Duration::from_secs(600 - 60 * u64::from(n));
             std::fs::File::options()
