@@ -209,7 +209,7 @@ void grid_cell_corners_at(sampler3D atlas, GridSpace s, uint offset, ivec3 cell,
 }
 
 #ifdef NIMBUS_DENSITY_BUFFER
-// The includer (the baseline) also binds the density's slots as a storage buffer, slot
+// The includer (the baseline, ReSTIR) also binds the density's slots as a storage buffer, slot
 // after slot, each slot's 10^3 texels from lattice point 8 b - 1 x fastest (the brick, its
 // high-side apron and a low-side one: every dual cell of a point of the brick's
 // super-voxel lies in the slot, grid_sigma_index_in_brick), and reads u_density's values from it where

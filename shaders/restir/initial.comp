@@ -339,7 +339,7 @@ void restir_main() {
             walk_z[i - 1u] = z;
             // The media there, as path_value finds them: the grid's sigma_s and g, and the
             // box's holding x (overlapping media add).
-            float sigma_t_grid = grid_sigma_t_in(u_density, x);
+            float sigma_t_grid = grid_sigma_t(x);
             vec3 albedo = grid_albedo(x);
             VertexMedium vm = vertex_medium(x, sigma_t_grid, albedo);
             if (!(sigma_t_grid + vm.sigma_t_box > 0.0)) {

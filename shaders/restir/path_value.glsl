@@ -169,7 +169,7 @@ vec3 path_value(uint at, Reservoir r, CameraRay cam, CameraRay src, uint mode, i
             continue;
         }
         x += z * w;
-        float sigma_t = mode == MODE_FINAL ? grid_sigma_t_in(u_density, x) : sigma_t_of(set, x);
+        float sigma_t = mode == MODE_FINAL ? grid_sigma_t(x) : sigma_t_of(set, x);
         vec3 albedo = grid_albedo(x);
         vm = vertex_medium(x, sigma_t, albedo);
         if (i == kp && res_emission(r)) {

@@ -100,6 +100,9 @@ layout(std430, set = 0, binding = BINDING_RESERVOIRS) buffer ReservoirBlock {
     uint reservoirs[];
 };
 
+// This frame's density is read from a storage buffer where SC_DENSITY_BUFFER (grid.glsl;
+// `[integrator.restir] density_fetch`); the previous frame's from its atlas.
+#define NIMBUS_DENSITY_BUFFER 1
 #include "grid_resources.glsl"
 #include "shapes.glsl"
 #include "box_media.glsl"

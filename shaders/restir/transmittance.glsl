@@ -11,7 +11,7 @@
 // Media lookups for a frame's set.
 
 float sigma_t_of(uint set, vec3 x) {
-    return set == SET_CURRENT ? grid_sigma_t_in(u_density, x)
+    return set == SET_CURRENT ? grid_sigma_t(x)
                               : grid_sigma_t_at(u_density_prev, u_restir.density_prev_offset, x);
 }
 

@@ -171,7 +171,10 @@ pub fn create(
         let uniforms = upload_params(ctx, o, &grid.uniforms, "baseline uniforms")?;
         let bricks = upload_records(ctx, o, &grid.indirection()?, "grid bricks")?;
         let (density, density_texels) = if density_buffer {
-            let buffer = upload_density_texels(ctx, o, &grid)?;
+            let layout = &grid.density_layout;
+            let slots = layout.first_slot as u64 + layout.bricks.len() as u64;
+            let buffer = super::density_quads_buffer(ctx, o, slots)?;
+            super::upload_density_quads(ctx, &o[buffer], layout, &grid.density)?;
             let image = placeholder_atlas(ctx, o)?;
             (image, buffer)
         } else {
@@ -385,49 +388,6 @@ fn density_in_buffer(
         "[integrator.baseline] field `density_fetch`",
         &format!("the density's {slots} slots"),
     )
-}
-
-/// The density's slots as one storage buffer (slot after slot from slot 0, each slot's
-/// 10^3 texels x fastest, a quad of R32 per texel: [`SparseLayout::slot_major_quads`]),
-/// uploaded a chunk of slots at a time so that the host never holds more than a chunk (the
-/// memory estimate counts the atlas's layers the same way).
-///
-/// [`SparseLayout::slot_major_quads`]: crate::shader_data::sparse::SparseLayout::slot_major_quads
-fn upload_density_texels(
-    ctx: &Context,
-    o: &mut GpuObjects,
-    grid: &GpuGrid,
-) -> Result<Handle<Buffer>> {
-    use crate::shader_data::sparse::{density_buffer_bytes, SparseLayout, DENSITY_SLOT_TEXELS};
-    /// Slots per upload: 4 MB of quads.
-    const CHUNK: usize = 256;
-    let layout = &grid.density_layout;
-    let first = layout.first_slot as usize;
-    let slot_bytes = density_buffer_bytes(1);
-    let bytes = density_buffer_bytes((first + layout.bricks.len()) as u64);
-    let buffer = o.add(ctx.create_buffer(
-        &nimbus_gpu::BufferDesc::gpu_only(bytes, vk::BufferUsageFlags::STORAGE_BUFFER),
-        "grid density texels",
-    )?);
-    let mut quads = Vec::with_capacity(CHUNK * DENSITY_SLOT_TEXELS);
-    // Slots before the grid's first belong to no brick here: zeros.
-    for start in (0..first).step_by(CHUNK) {
-        let n = CHUNK.min(first - start);
-        quads.clear();
-        quads.resize(n * DENSITY_SLOT_TEXELS, [0f32; 4]);
-        ctx.upload_buffer(
-            &o[buffer],
-            start as u64 * slot_bytes,
-            bytemuck::cast_slice(&quads),
-        )?;
-    }
-    for (c, bricks) in layout.bricks.chunks(CHUNK).enumerate() {
-        quads.clear();
-        SparseLayout::slot_major_quads(&grid.density, bricks, 1.0, &mut quads);
-        let offset = (first + c * CHUNK) as u64 * slot_bytes;
-        ctx.upload_buffer(&o[buffer], offset, bytemuck::cast_slice(&quads))?;
-    }
-    Ok(buffer)
 }
 
 /// A 1-texel atlas bound where the density is read from its buffer.

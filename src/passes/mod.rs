@@ -637,6 +637,59 @@ pub fn volume_in_buffer(
     })
 }
 
+/// A storage buffer for `slots` slots of a density's quads ([`upload_density_quads`]),
+/// owned by `o`.
+pub fn density_quads_buffer(
+    ctx: &Context,
+    o: &mut GpuObjects,
+    slots: u64,
+) -> Result<Handle<Buffer>> {
+    let bytes = crate::shader_data::sparse::density_buffer_bytes(slots.max(1));
+    Ok(o.add(ctx.create_buffer(
+        &BufferDesc::gpu_only(bytes, vk::BufferUsageFlags::STORAGE_BUFFER),
+        "grid density texels",
+    )?))
+}
+
+/// Writes a density's slots into `buffer` (made by [`density_quads_buffer`]) as the
+/// shaders read them where SC_DENSITY_BUFFER: slot after slot from slot 0, each slot's
+/// 10^3 texels x fastest, a quad of R32 per texel ([`SparseLayout::slot_major_quads`]);
+/// slots before the layout's first hold zeros. Uploaded a chunk of slots at a time, so the
+/// host never holds more than a chunk (the memory estimate counts the atlas's layers the
+/// same way).
+///
+/// [`SparseLayout::slot_major_quads`]: crate::shader_data::sparse::SparseLayout::slot_major_quads
+pub fn upload_density_quads(
+    ctx: &Context,
+    buffer: &Buffer,
+    layout: &SparseLayout,
+    density: &BrickGrid,
+) -> Result<()> {
+    use crate::shader_data::sparse::{density_buffer_bytes, DENSITY_SLOT_TEXELS};
+    /// Slots per upload: 4 MB of quads.
+    const CHUNK: usize = 256;
+    let first = layout.first_slot as usize;
+    let slot_bytes = density_buffer_bytes(1);
+    let mut quads = Vec::with_capacity(CHUNK * DENSITY_SLOT_TEXELS);
+    for start in (0..first).step_by(CHUNK) {
+        let n = CHUNK.min(first - start);
+        quads.clear();
+        quads.resize(n * DENSITY_SLOT_TEXELS, [0f32; 4]);
+        ctx.upload_buffer(
+            buffer,
+            start as u64 * slot_bytes,
+            bytemuck::cast_slice(&quads),
+        )?;
+    }
+    for (c, bricks) in layout.bricks.chunks(CHUNK).enumerate() {
+        quads.clear();
+        SparseLayout::slot_major_quads(density, bricks, 1.0, &mut quads);
+        let offset = (first + c * CHUNK) as u64 * slot_bytes;
+        ctx.upload_buffer(buffer, offset, bytemuck::cast_slice(&quads))?;
+    }
+    Ok(())
+}
+
 /// A GPU-only storage buffer holding `records`, owned by `objects`.
 pub fn upload_records<T: bytemuck::Pod>(
     ctx: &Context,

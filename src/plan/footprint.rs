@@ -319,6 +319,25 @@ fn restir(scene: &Scene, p: &RestirPlan, f: &mut Footprint) -> Result<()> {
             pc_bytes,
         );
     }
+    // The passes read this frame's density from a buffer of its slots' quads with
+    // `density_fetch = "buffer"`, and with "auto" on CPU devices up to
+    // AUTO_DENSITY_BUFFER_MAX: counted as the piecewise-constant levels' buffer is (the
+    // atlas, sized for the largest frame, stays counted).
+    let density_atlas_slots: u64 = atlas_slots(density_slots)?
+        .iter()
+        .map(|&n| u64::from(n))
+        .product();
+    let density_bytes = crate::shader_data::sparse::density_buffer_bytes(density_atlas_slots);
+    if let Some(words) = buffer_counted(p.settings.density_fetch, density_bytes) {
+        f.add(
+            format!(
+                "{file}: [integrator.restir] field `density_fetch` = \"{words}\" (the \
+                 density's {density_atlas_slots} slots as one storage buffer)"
+            ),
+            Binding::Storage,
+            density_bytes,
+        );
+    }
     f.add(
         format!("{table} (brick indirection of the derived levels)"),
         Binding::Storage,

@@ -909,6 +909,30 @@ fn restir_plan(
             },
         ),
         on(
+            "  SC_DENSITY_BUFFER",
+            s.density_fetch == nimbus_scene::DensityFetch::Buffer,
+            match s.density_fetch {
+                nimbus_scene::DensityFetch::Auto => {
+                    "[integrator.restir] density_fetch = \"auto\": this frame's density \
+                     (vertices, delta tracking, final shading's closed-form transmittance) is \
+                     read from a storage buffer of its slots on a CPU device where it takes at \
+                     most 128 MiB (lavapipe: a trilinear lookup from it is two 16-byte loads, \
+                     from the atlas eight texelFetch calls), from the atlas image on a GPU"
+                        .into()
+                }
+                nimbus_scene::DensityFetch::Image => {
+                    "[integrator.restir] density_fetch = \"image\": the density's atlas image, \
+                     by texelFetch"
+                        .into()
+                }
+                nimbus_scene::DensityFetch::Buffer => {
+                    "[integrator.restir] density_fetch = \"buffer\": a storage buffer of the \
+                     density's slots (10^3 quads per slot, the baseline's layout)"
+                        .into()
+                }
+            },
+        ),
+        on(
             "  SC_HAS_MEDIA (boxes)",
             plan.has_boxes,
             format!(

@@ -103,6 +103,7 @@
 //! | restir `camera_emission` | `"reservoir"`, `"stratified"` |
 //! | restir `temporal_reprojection` | `"path"`, `"aligned"` |
 //! | restir `pc_fetch` | `"auto"`, `"image"`, `"buffer"` (refused where the buffer exceeds the device's storage-buffer range) |
+//! | restir `density_fetch` | `"auto"`, `"image"`, `"buffer"` (refused where the buffer exceeds the device's storage-buffer range) |
 //! | baseline `nee` | `"auto"`, `"one"`, `"split"` |
 //! | baseline `density_fetch` | `"auto"`, `"image"`, `"buffer"` |
 //! | grid `procedural` | `"cloud"`, `"cumulus"` (not allowed for `velocity`) |

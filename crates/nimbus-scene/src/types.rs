@@ -902,6 +902,9 @@ pub struct RestirSettings {
     /// Where regular tracking reads the piecewise-constant levels from (`pc_fetch`): the
     /// same choices as the baseline's `density_fetch`.
     pub pc_fetch: DensityFetch,
+    /// Where the passes read the full-resolution density from (`density_fetch`): the
+    /// same choices as the baseline's.
+    pub density_fetch: DensityFetch,
     /// The target function's scalar of a path's RGB contribution (`target`).
     pub target: TargetScalar,
     /// Where the camera rays' directly seen emission is estimated (`camera_emission`).
@@ -948,6 +951,7 @@ impl Default for RestirSettings {
             direct: DirectMode::EachWalk,
             candidate_tracking: CandidateTracking::Auto,
             pc_fetch: DensityFetch::Auto,
+            density_fetch: DensityFetch::Auto,
             target: TargetScalar::Sum,
             camera_emission: CameraEmission::Stratified,
             temporal_reprojection: TemporalReprojection::Aligned,

@@ -327,6 +327,7 @@ mod tests {
             ("direct", "escape"),
             ("candidate_tracking", "regular"),
             ("pc_fetch", "image"),
+            ("density_fetch", "buffer"),
             ("target", "sum"),
             ("camera_emission", "reservoir"),
             ("temporal_reprojection", "path"),
@@ -363,6 +364,7 @@ mod tests {
             nimbus_scene::CandidateTracking::Regular
         );
         assert_eq!(r.pc_fetch, nimbus_scene::DensityFetch::Image);
+        assert_eq!(r.density_fetch, nimbus_scene::DensityFetch::Buffer);
         assert_eq!(r.target, nimbus_scene::TargetScalar::Sum);
         assert_eq!(r.camera_emission, nimbus_scene::CameraEmission::Reservoir);
         assert_eq!(

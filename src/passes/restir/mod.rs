@@ -61,6 +61,8 @@ pub struct RestirPass {
     env_reuse_map: bool,
     /// Tracking reads the piecewise-constant levels from `res.pc_texels` (SC_PC_BUFFER).
     pc_buffer: bool,
+    /// The passes read this frame's density from `res.density_texels` (SC_DENSITY_BUFFER).
+    density_buffer: bool,
     constants: FrameConstants,
     grid: GridMedium,
     volumes: Volumes,
@@ -241,6 +243,12 @@ impl RestirPass {
             volumes.sizes.pc,
             &scene.source,
         )?;
+        let density_buffer = resources::density_in_buffer(
+            ctx.info(),
+            plan.settings.density_fetch,
+            volumes.sizes.density,
+            &scene.source,
+        )?;
         let inputs = Inputs {
             grid: &grid_gpu,
             shapes: &shapes,
@@ -257,13 +265,14 @@ impl RestirPass {
             sizes: volumes.sizes,
             animated,
             pc_buffer,
+            density_buffer,
         };
         let exact_spans =
             volumes.needs_exact_spans(&grid_gpu.p_to_world, FINAL_RATIO_MAJORANT_SCALE);
         // The density is the finest grid: its section is two-level if any is.
         let two_level =
             first.density_layout.indirection.two_level || grid_gpu.two_level_bricks()?;
-        let spec = specialization(plan, exact_spans, two_level, pc_buffer);
+        let spec = specialization(plan, exact_spans, two_level, pc_buffer, density_buffer);
         let (objects, res) =
             GpuObjects::build(ctx, |o| Resources::create(ctx, o, &spec, &inputs, targets))?;
         Ok(RestirPass {
@@ -275,6 +284,7 @@ impl RestirPass {
             temporal_limits: [plan.temporal_limit, plan.temporal_limit_moving],
             env_reuse_map: plan.env_reuse_map,
             pc_buffer,
+            density_buffer,
             constants: FrameConstants {
                 env_radiance: grid_gpu.env_radiance,
                 env_size: grid_gpu.uniforms.env_size,
@@ -404,6 +414,14 @@ impl RestirPass {
             ],
             r32,
         )?;
+        if self.density_buffer {
+            crate::passes::upload_density_quads(
+                ctx,
+                &o[r.density_texels],
+                &cur.density_layout,
+                &c.density,
+            )?;
+        }
         if self.pc_buffer {
             upload_slot_major(
                 ctx,

@@ -51,6 +51,9 @@ pub struct Resources {
     /// The piecewise-constant levels slot-major, where tracking reads them from a buffer
     /// (`Inputs::pc_buffer`); else one texel.
     pub pc_texels: Handle<Buffer>,
+    /// This frame's density as slots of quads, where the passes read it from a buffer
+    /// (`Inputs::density_buffer`); else one quad.
+    pub density_texels: Handle<Buffer>,
 }
 
 /// What [`Resources::create`] uploads.
@@ -76,6 +79,9 @@ pub struct Inputs<'a> {
     /// Regular tracking reads the piecewise-constant levels from a storage buffer
     /// (SC_PC_BUFFER, [`pc_in_buffer`]).
     pub pc_buffer: bool,
+    /// The passes read this frame's density from a storage buffer of quads
+    /// (SC_DENSITY_BUFFER, [`density_in_buffer`]).
+    pub density_buffer: bool,
 }
 
 /// Whether regular tracking reads the piecewise-constant levels from a slot-major
@@ -97,6 +103,29 @@ pub fn pc_in_buffer(
     )
 }
 
+/// Whether the passes read this frame's full-resolution density from a storage buffer of
+/// its slots' quads (the baseline's layout: [`crate::passes::upload_density_quads`])
+/// instead of its atlas image (`[integrator.restir] density_fetch`,
+/// [`crate::passes::volume_in_buffer`]): on lavapipe a trilinear lookup from it is two
+/// 16-byte loads, from the atlas eight texelFetch calls. The previous frame's density (read
+/// where it differs) stays in its atlas.
+pub fn density_in_buffer(
+    info: &nimbus_gpu::DeviceInfo,
+    fetch: nimbus_scene::DensityFetch,
+    density_slots: [u32; 3],
+    source: &std::path::Path,
+) -> Result<bool> {
+    let slots = slot_count(density_slots) as u64;
+    crate::passes::volume_in_buffer(
+        info,
+        fetch,
+        crate::shader_data::sparse::density_buffer_bytes(slots),
+        source,
+        "[integrator.restir] field `density_fetch`",
+        &format!("the density's {slots} slots"),
+    )
+}
+
 /// The descriptor layout all four stages share.
 fn layout() -> Vec<BindingDesc> {
     let mut layout = Vec::from(Targets::layout());
@@ -107,6 +136,7 @@ fn layout() -> Vec<BindingDesc> {
         BindingDesc::storage_buffer(bindings::BASELINE_UNIFORMS),
         BindingDesc::storage_buffer(bindings::RESTIR_UNIFORMS),
         BindingDesc::sampled_image(bindings::GRID_DENSITY),
+        BindingDesc::storage_buffer(bindings::GRID_DENSITY_TEXELS),
         BindingDesc::sampled_image(bindings::GRID_DENSITY_PREV),
         BindingDesc::sampled_image(bindings::GRID_EMISSION),
         BindingDesc::sampled_image(bindings::GRID_TEMPERATURE),
@@ -145,7 +175,7 @@ fn spirv_of(stage: Stage) -> &'static [u8] {
 /// The four stages' pipelines as the pass creates them (without a device; see
 /// [`crate::passes::PipelineContract`]).
 pub fn pipeline_contracts(plan: &crate::plan::RestirPlan) -> Vec<crate::passes::PipelineContract> {
-    let specialization = super::specialization(plan, false, false, false);
+    let specialization = super::specialization(plan, false, false, false, false);
     Stage::ALL
         .into_iter()
         .map(|stage| {
@@ -196,6 +226,7 @@ impl Resources {
             sizes,
             animated,
             pc_buffer,
+            density_buffer,
         } = *inputs;
         let layout = layout();
         // The four passes' pipelines are built at once (about 4 s on lavapipe one after
@@ -260,6 +291,13 @@ impl Resources {
             &[(&first.density_layout, &g.density, 1.0)],
             r32,
         )?;
+        let density_texels = if density_buffer {
+            let b = crate::passes::density_quads_buffer(ctx, o, slot_count(sizes.density) as u64)?;
+            crate::passes::upload_density_quads(ctx, &o[b], &first.density_layout, &g.density)?;
+            b
+        } else {
+            upload_records(ctx, o, &[[0f32; 4]], "grid density texels (unused)")?
+        };
         let scale = grid.uniforms.grid.density_scale;
         let pc = atlas(ctx, o, sizes.pc, r32, "piecewise-constant levels")?;
         upload_atlas(
@@ -382,6 +420,7 @@ impl Resources {
                     buffer(bindings::BASELINE_UNIFORMS, base_uniforms),
                     buffer(bindings::RESTIR_UNIFORMS, restir_uniforms),
                     image(bindings::GRID_DENSITY, density, nearest),
+                    buffer(bindings::GRID_DENSITY_TEXELS, density_texels),
                     image(bindings::GRID_DENSITY_PREV, density_prev, nearest),
                     image(bindings::GRID_EMISSION, emission, nearest),
                     image(bindings::GRID_TEMPERATURE, temperature, nearest),
@@ -429,6 +468,7 @@ impl Resources {
             density_prev,
             march_reuse_prev,
             pc_texels,
+            density_texels,
         })
     }
 }

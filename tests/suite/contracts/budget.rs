@@ -153,38 +153,47 @@ fn a_density_buffer_beyond_the_storage_buffer_range_is_refused_naming_the_field(
         .expect("auto takes a buffer every device binds");
 }
 
-/// The same for ReSTIR's piecewise-constant levels (`[integrator.restir] pc_fetch`): a
-/// buffer beyond the device's storage-buffer range is refused before any allocation,
-/// naming the file and the field; "auto" takes it only where every device binds it.
+/// The same for ReSTIR's piecewise-constant levels (`[integrator.restir] pc_fetch`) and
+/// its density (`density_fetch`): a buffer beyond the device's storage-buffer range is
+/// refused before any allocation, naming the file and the field; "auto" takes it only
+/// where every device binds it.
 #[test]
-fn a_piecewise_constant_buffer_beyond_the_storage_buffer_range_is_refused_naming_the_field() {
+fn restir_buffers_beyond_the_storage_buffer_range_are_refused_naming_the_field() {
     let ctx = context();
-    let mut info = ctx.info().clone();
-    let footprint = |fetch: &str| {
-        small_cloud_footprint(&[
-            FieldOverride::new("render.spp", 1),
-            FieldOverride::new("integrator.volume", "restir"),
-            FieldOverride::new("integrator.restir.pc_fetch", fetch),
-        ])
-    };
-    let bytes = |f: &Footprint| {
-        f.device
-            .iter()
-            .find(|i| i.what.contains("field `pc_fetch`"))
-            .map(|i| i.bytes)
-    };
-    let buffer = footprint("buffer");
-    let pc = bytes(&buffer).expect("the buffer is counted");
-    assert_eq!(
-        bytes(&footprint("image")),
-        None,
-        "\"image\" allocates no buffer"
-    );
-    // A range just below the levels' buffer (everything else of this small image fits it).
-    info.max_storage_buffer_range = u32::try_from(pc - 4).unwrap();
-    assert_refused_for_the_buffer_range(&buffer, &info, "[integrator.restir] field `pc_fetch`");
-    info.max_storage_buffer_range = 1 << 27;
-    footprint("auto")
-        .check(&info, u64::MAX)
-        .expect("auto takes a buffer every device binds");
+    for (field, other) in [("pc_fetch", "density_fetch"), ("density_fetch", "pc_fetch")] {
+        let mut info = ctx.info().clone();
+        // The other buffer stays out, so that the range refuses this one alone.
+        let footprint = |fetch: &str| {
+            small_cloud_footprint(&[
+                FieldOverride::new("render.spp", 1),
+                FieldOverride::new("integrator.volume", "restir"),
+                FieldOverride::new(&format!("integrator.restir.{field}"), fetch),
+                FieldOverride::new(&format!("integrator.restir.{other}"), "image"),
+            ])
+        };
+        let bytes = |f: &Footprint| {
+            f.device
+                .iter()
+                .find(|i| i.what.contains(&format!("field `{field}`")))
+                .map(|i| i.bytes)
+        };
+        let buffer = footprint("buffer");
+        let counted = bytes(&buffer).expect("the buffer is counted");
+        assert_eq!(
+            bytes(&footprint("image")),
+            None,
+            "{field} = \"image\" allocates no buffer"
+        );
+        // A range just below the buffer (everything else of this small image fits it).
+        info.max_storage_buffer_range = u32::try_from(counted - 4).unwrap();
+        assert_refused_for_the_buffer_range(
+            &buffer,
+            &info,
+            &format!("[integrator.restir] field `{field}`"),
+        );
+        info.max_storage_buffer_range = 1 << 27;
+        footprint("auto")
+            .check(&info, u64::MAX)
+            .expect("auto takes a buffer every device binds");
+    }
 }

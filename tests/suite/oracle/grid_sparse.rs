@@ -215,3 +215,54 @@ fn restir_reads_its_piecewise_constant_levels_alike_from_the_atlas_and_the_buffe
         assert!(image.alpha[15 * 40 + 20] > 0.2, "{name}: the cloud is seen");
     }
 }
+
+/// ReSTIR reads this frame's density (vertices, delta-tracked walks, the walked and the
+/// final closed-form transmittance) from its atlas image or from the baseline's storage
+/// buffer of quads (`[integrator.restir] density_fetch`; "auto" takes the buffer on
+/// lavapipe): the same values, so the same image and alpha to the bit, with regular and
+/// with delta-tracked candidates, under temporal reuse, and on density frames that swap
+/// clouds (the buffer is uploaded again with each frame). The plan names the choice.
+#[test]
+fn restir_reads_its_density_alike_from_the_atlas_and_the_buffer() {
+    let ctx = context();
+    let dir = scratch("grid_sparse", "restir_density_fetch");
+    let (padded, offset) = padded_cloud(&procedural_cloud([20, 14, 18], 3));
+    let grid = medium(&write_raw(&dir, "padded.raw", &padded), &padded, offset);
+    let (other, _) = padded_cloud(&procedural_cloud([20, 14, 18], 9));
+    let frames = format!(
+        "[[medium.frame]]\nframe = 2\ndensity = {{ file = {:?}, dims = {:?} }}\n",
+        dir.join("other.raw").display().to_string(),
+        other.dims
+    );
+    write_raw(&dir, "other.raw", &other);
+    // Regular tracking on the static cloud; delta tracking ("auto" under density frames),
+    // whose temporal reuse also evaluates the previous frame's density, on the frames.
+    for (name, extra) in [
+        ("regular", "candidate_tracking = \"regular\"\n"),
+        ("frames", frames.as_str()),
+    ] {
+        let render = |fetch: &str| {
+            // The frames' table follows the whole scene: it belongs to the last medium.
+            let text = scene_text(&grid, "restir").replace(
+                "temporal = false\n",
+                &format!("temporal = true\ndensity_fetch = \"{fetch}\"\n{extra}"),
+            );
+            let scene = scene(&text, &format!("{name}-{fetch}.toml"));
+            let plan = nimbus::plan::build(&scene, None).expect("plan");
+            let row = plan
+                .decisions
+                .iter()
+                .find(|d| d.name.trim() == "SC_DENSITY_BUFFER")
+                .expect("an SC_DENSITY_BUFFER row");
+            assert!(row.reason.contains(fetch), "{}", row.reason);
+            render_checked(&ctx, &scene, None)
+        };
+        let image = render("image");
+        for fetch in ["buffer", "auto"] {
+            let other = render(fetch);
+            assert_eq!(image.image.data, other.image.data, "{name}, {fetch}: RGB");
+            assert_eq!(image.alpha, other.alpha, "{name}, {fetch}: alpha");
+        }
+        assert!(image.alpha[15 * 40 + 20] > 0.2, "{name}: the cloud is seen");
+    }
+}

@@ -116,6 +116,7 @@ pub const RESTIR_KEYS: &[&str] = &[
     "direct",
     "candidate_tracking",
     "pc_fetch",
+    "density_fetch",
     "target",
     "camera_emission",
     "temporal_reprojection",
@@ -760,6 +761,15 @@ fn parse_restir(source: &Source, table: &toml::Table) -> Result<RestirSettings> 
         pc_fetch: f.choice(
             "pc_fetch",
             Some(d.pc_fetch),
+            &[
+                ("auto", DensityFetch::Auto),
+                ("image", DensityFetch::Image),
+                ("buffer", DensityFetch::Buffer),
+            ],
+        )?,
+        density_fetch: f.choice(
+            "density_fetch",
+            Some(d.density_fetch),
             &[
                 ("auto", DensityFetch::Auto),
                 ("image", DensityFetch::Image),

@@ -240,6 +240,7 @@ nee = "split"
 direct = "escape"
 candidate_tracking = "regular"
 pc_fetch = "buffer"
+density_fetch = "image"
 target = "max"
 camera_emission = "reservoir"
 temporal_reprojection = "path"
@@ -471,6 +472,7 @@ density_fetch = "image"
                 direct: DirectMode::Escape,
                 candidate_tracking: CandidateTracking::Regular,
                 pc_fetch: DensityFetch::Buffer,
+                density_fetch: DensityFetch::Image,
                 target: TargetScalar::Max,
                 camera_emission: CameraEmission::Reservoir,
                 temporal_reprojection: TemporalReprojection::Path,
