@@ -96,6 +96,16 @@ layout(constant_id = SC_ID_PC_BUFFER) const bool SC_PC_BUFFER = false;
 layout(std430, set = 0, binding = BINDING_PC_TEXELS) readonly buffer PcTexelBlock {
     float pc_texels[];
 };
+// The ray-march mips (this frame's reuse mip, the previous frame's, the NEE mip) as one
+// buffer of quads, each level's slots from its quad_base, each slot's 9^3 texels x fastest,
+// a texel and its +x, +y and +x+y neighbours (src/shader_data/sparse.rs,
+// upload_march_quads), read instead of the linearly filtered atlases where
+// SC_MARCH_BUFFER: on lavapipe a filtered textureLod is a call into the sampler's code,
+// two 16-byte loads two loops over the lanes. One quad where the atlases are read.
+layout(constant_id = SC_ID_MARCH_BUFFER) const bool SC_MARCH_BUFFER = false;
+layout(std430, set = 0, binding = BINDING_MARCH_QUADS) readonly buffer MarchQuadBlock {
+    vec4 march_quads[];
+};
 layout(std430, set = 0, binding = BINDING_RESERVOIRS) buffer ReservoirBlock {
     uint reservoirs[];
 };

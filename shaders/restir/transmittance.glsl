@@ -20,12 +20,15 @@ float sigma_t_of(uint set, vec3 x) {
 
 // T~ along o + t d, t in [t0, t1]: midpoint ray marching of the mip level L (its atlas
 // `tex`, indirection section at `offset`) with steps of at most `step` metres, the texture
-// filtered linearly inside a slot (the apron holds the upper neighbours). Samples in an
+// filtered linearly inside a slot (the apron holds the upper neighbours); where
+// SC_MARCH_BUFFER the same trilinear filter from its quads from slot `quad_base` on of
+// march_quads (two loads; the hardware filter's weights may round otherwise, so T~ may
+// differ in the last bits, consistently for every evaluation of a frame). Samples in an
 // empty brick read 0, so the march jumps over such bricks to the first sample past them
 // (the same sum). Deterministic, so a target function is a function of the path (needed by
 // the MIS weights).
-float march_transmittance(sampler3D tex, GridLevel L, uint offset, float step, vec3 o, vec3 d,
-                          float t0, float t1) {
+float march_transmittance(sampler3D tex, GridLevel L, uint offset, uint quad_base, float step, vec3 o,
+                          vec3 d, float t0, float t1) {
     vec2 span = grid_span(o, d);
     float a = max(t0, span.x);
     float b = min(t1, span.y);
@@ -81,10 +84,24 @@ float march_transmittance(sampler3D tex, GridLevel L, uint offset, float step, v
             j = max(j, int(next) - 1);
             continue;
         }
-        vec3 texel = origin + u + 0.5;
         COUNT_STEP();
         COUNT(CTR_DENSITY, 1);
-        sum += textureLod(tex, texel * inv_size, 0.0).r;
+        if (SC_MARCH_BUFFER) {
+            // The filter's lower texel floor(u) and weights fract(u): in the slot, texels
+            // floor(u) - 8 brick (0..7) and one further (its apron at 8).
+            vec3 fl = floor(u);
+            vec3 w = u - fl;
+            ivec3 l = ivec3(fl) - brick * 8;
+            int q = int(quad_base + slot) * 729 + (l.z * 9 + l.y) * 9 + l.x;
+            vec4 q0 = march_quads[q];
+            vec4 q1 = march_quads[q + 81];
+            float a0 = mix(mix(q0.x, q0.y, w.x), mix(q0.z, q0.w, w.x), w.y);
+            float a1 = mix(mix(q1.x, q1.y, w.x), mix(q1.z, q1.w, w.x), w.y);
+            sum += mix(a0, a1, w.z);
+        } else {
+            vec3 texel = origin + u + 0.5;
+            sum += textureLod(tex, texel * inv_size, 0.0).r;
+        }
         if (sum >= sum_cap) {
             return exp(-MARCH_MAX_TAU);
         }
@@ -101,11 +118,11 @@ float reuse_transmittance(uint set, vec3 o, vec3 d, float t1) {
     COUNT_SHADOW_BEGIN();
     float T;
     if (set == SET_CURRENT) {
-        T = march_transmittance(u_march_reuse, u_restir.march_reuse, u_restir.march_reuse.bricks_offset, step,
-                                o, d, 0.0, t1);
+        T = march_transmittance(u_march_reuse, u_restir.march_reuse, u_restir.march_reuse.bricks_offset,
+                                u_restir.march_reuse.quad_base, step, o, d, 0.0, t1);
     } else {
         T = march_transmittance(u_march_reuse_prev, u_restir.march_reuse, u_restir.march_reuse_prev_offset,
-                                step, o, d, 0.0, t1);
+                                u_restir.march_reuse_prev_quad_base, step, o, d, 0.0, t1);
     }
     COUNT_SHADOW_END();
     return T;
@@ -115,7 +132,7 @@ float reuse_transmittance(uint set, vec3 o, vec3 d, float t1) {
 float nee_transmittance(vec3 o, vec3 d, float t1) {
     COUNT_SHADOW_BEGIN();
     float T = march_transmittance(u_march_nee, u_restir.march_nee, u_restir.march_nee.bricks_offset,
-                                  u_restir.march_nee_step, o, d, 0.0, t1);
+                                  u_restir.march_nee.quad_base, u_restir.march_nee_step, o, d, 0.0, t1);
     COUNT_SHADOW_END();
     return T;
 }

@@ -319,16 +319,23 @@ fn restir(scene: &Scene, p: &RestirPlan, f: &mut Footprint) -> Result<()> {
             pc_bytes,
         );
     }
-    // The passes read this frame's density from a buffer of its slots' quads with
-    // `density_fetch = "buffer"`, and with "auto" on CPU devices up to
-    // AUTO_DENSITY_BUFFER_MAX: counted as the piecewise-constant levels' buffer is (the
-    // atlas, sized for the largest frame, stays counted).
-    let density_atlas_slots: u64 = atlas_slots(density_slots)?
-        .iter()
-        .map(|&n| u64::from(n))
-        .product();
+    // The passes read this frame's density from a buffer of its slots' quads, and the
+    // ray marches their mips from one buffer of quads, with `density_fetch = "buffer"`,
+    // and with "auto" on CPU devices where the larger is at most AUTO_DENSITY_BUFFER_MAX.
+    // The density's slots are known here; the mips' only as an upper bound (their levels
+    // may be chosen from the content), so under "auto" they count up to that maximum: the
+    // estimate never falls short of what is allocated.
+    let slots_of = |bricks: u64| -> Result<u64> {
+        Ok(atlas_slots(bricks)?.iter().map(|&n| u64::from(n)).product())
+    };
+    let density_atlas_slots = slots_of(density_slots)?;
     let density_bytes = crate::shader_data::sparse::density_buffer_bytes(density_atlas_slots);
+    let march_slots = slots_of(reuse)? * if animated { 2 } else { 1 } + slots_of(nee)?;
+    let mut march_bytes = march_slots * crate::shader_data::sparse::MARCH_QUAD_SLOT_BYTES;
     if let Some(words) = buffer_counted(p.settings.density_fetch, density_bytes) {
+        if words == "auto" {
+            march_bytes = march_bytes.min(crate::shader_data::sparse::AUTO_DENSITY_BUFFER_MAX);
+        }
         f.add(
             format!(
                 "{file}: [integrator.restir] field `density_fetch` = \"{words}\" (the \
@@ -336,6 +343,14 @@ fn restir(scene: &Scene, p: &RestirPlan, f: &mut Footprint) -> Result<()> {
             ),
             Binding::Storage,
             density_bytes,
+        );
+        f.add(
+            format!(
+                "{file}: [integrator.restir] field `density_fetch` = \"{words}\" (the \
+                 ray-march mips, at most {march_slots} slots, as one storage buffer of quads)"
+            ),
+            Binding::Storage,
+            march_bytes,
         );
     }
     f.add(

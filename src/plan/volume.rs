@@ -914,20 +914,22 @@ fn restir_plan(
             match s.density_fetch {
                 nimbus_scene::DensityFetch::Auto => {
                     "[integrator.restir] density_fetch = \"auto\": this frame's density \
-                     (vertices, delta tracking, final shading's closed-form transmittance) is \
-                     read from a storage buffer of its slots on a CPU device where it takes at \
-                     most 128 MiB (lavapipe: a trilinear lookup from it is two 16-byte loads, \
-                     from the atlas eight texelFetch calls), from the atlas image on a GPU"
+                     (vertices, delta tracking, final shading's closed-form transmittance) and \
+                     the ray marches' mips are read from storage buffers of quads on a CPU \
+                     device where each takes at most 128 MiB (lavapipe: a trilinear lookup \
+                     from one is two 16-byte loads, from an atlas eight texelFetch calls or a \
+                     filtered textureLod), from the atlas images on a GPU"
                         .into()
                 }
                 nimbus_scene::DensityFetch::Image => {
-                    "[integrator.restir] density_fetch = \"image\": the density's atlas image, \
-                     by texelFetch"
+                    "[integrator.restir] density_fetch = \"image\": the density's atlas image \
+                     by texelFetch, the march mips' by linear filtering"
                         .into()
                 }
                 nimbus_scene::DensityFetch::Buffer => {
-                    "[integrator.restir] density_fetch = \"buffer\": a storage buffer of the \
-                     density's slots (10^3 quads per slot, the baseline's layout)"
+                    "[integrator.restir] density_fetch = \"buffer\": storage buffers of the \
+                     density's slots (10^3 quads per slot, the baseline's layout) and of the \
+                     march mips' (9^3 quads per slot)"
                         .into()
                 }
             },

@@ -392,6 +392,59 @@ pub fn upload_slot_major(
     Ok(())
 }
 
+/// Bytes per slot of a ray-march mip's buffer of quads ([`upload_march_quads`]).
+pub const MARCH_QUAD_SLOT_BYTES: u64 = SLOT_TEXELS as u64 * 16;
+
+/// Uploads the march mip `grid`'s slots of `layout` into `buffer` as ReSTIR's ray marches
+/// read them where SC_MARCH_BUFFER (`restir/transmittance.glsl`): from slot `base` on,
+/// slot after slot, each slot's 9^3 texels x fastest, each a quad of the texel and its
+/// +x, +y and +x+y neighbours in the slot (clamped to its last texel), so that a linearly
+/// filtered sample is two 16-byte loads. Values are the atlas's: rounded through a half
+/// float where the atlas is `TexelFormat::R16`. A chunk of slots at a time.
+pub fn upload_march_quads(
+    ctx: &Context,
+    buffer: &nimbus_gpu::Buffer,
+    base: u64,
+    layout: &SparseLayout,
+    grid: &BrickGrid,
+    format: TexelFormat,
+) -> Result<()> {
+    const CHUNK: usize = SLOT_MAJOR_CHUNK_SLOTS;
+    let e = SLOT_EDGE as usize;
+    let mut scratch = Vec::with_capacity(SLOT_TEXELS * 3);
+    let mut nine: Vec<f32> = Vec::with_capacity(SLOT_TEXELS);
+    let mut out: Vec<[f32; 4]> = Vec::with_capacity(CHUNK * SLOT_TEXELS);
+    for (c, bricks) in layout.bricks.chunks(CHUNK).enumerate() {
+        out.clear();
+        for b in bricks {
+            nine.clear();
+            layout_slot_values(layout, grid, *b, 1.0, &mut scratch, &mut nine);
+            if format == TexelFormat::R16 {
+                for v in &mut nine {
+                    *v = half::f16::from_f32(*v).to_f32();
+                }
+            }
+            let at = |x: usize, y: usize, z: usize| nine[(z * e + y) * e + x];
+            for z in 0..e {
+                for y in 0..e {
+                    let y1 = (y + 1).min(e - 1);
+                    for x in 0..e {
+                        let x1 = (x + 1).min(e - 1);
+                        out.push([at(x, y, z), at(x1, y, z), at(x, y1, z), at(x1, y1, z)]);
+                    }
+                }
+            }
+        }
+        let slot = base + u64::from(layout.first_slot) + (c * CHUNK) as u64;
+        ctx.upload_buffer(
+            buffer,
+            slot * MARCH_QUAD_SLOT_BYTES,
+            bytemuck::cast_slice(&out),
+        )?;
+    }
+    Ok(())
+}
+
 /// Uploads the slot texels of `parts` into `atlas` (`slots` per axis, `format`), one layer
 /// of slots at a time; slots no part holds are 0.
 pub fn upload_atlas(

@@ -13,18 +13,19 @@ use crate::shader_data::features::*;
 /// ([`crate::shader_data::scene::needs_exact_spans`]).
 /// `two_level`: some brick indirection section is two-level. `pc_buffer`: tracking reads
 /// the piecewise-constant levels from their buffer ([`super::resources::pc_in_buffer`]);
-/// `density_buffer`: the passes read this frame's density from its buffer of quads
-/// ([`super::resources::density_in_buffer`]).
+/// `density_buffer`: the passes read this frame's density and the ray marches their
+/// mips from buffers of quads ([`super::resources::density_in_buffer`]).
 pub fn specialization(
     plan: &RestirPlan,
     exact_spans: bool,
     two_level: bool,
     pc_buffer: bool,
     density_buffer: bool,
-) -> [(u32, SpecValue); 32] {
+) -> [(u32, SpecValue); 33] {
     [
         (SC_ID_PC_BUFFER, SpecValue::Bool(pc_buffer)),
         (SC_ID_DENSITY_BUFFER, SpecValue::Bool(density_buffer)),
+        (SC_ID_MARCH_BUFFER, SpecValue::Bool(density_buffer)),
         (
             SC_ID_HAS_SPHERE_LIGHTS,
             SpecValue::Bool(plan.has_sphere_lights),

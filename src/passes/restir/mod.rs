@@ -32,7 +32,9 @@ use self::velocity::{velocity_texels, velocity_uvw};
 use self::volumes::{grid_level, march_step, Volumes};
 use super::{image_groups, scene_grid, FrameConstants, Pass, Targets};
 use crate::plan::RestirPlan;
-use crate::shader_data::sparse::{upload_atlas, upload_slot_major, TexelFormat};
+use crate::shader_data::sparse::{
+    upload_atlas, upload_march_quads, upload_slot_major, TexelFormat,
+};
 use crate::shader_data::{
     non_empty, shape_records, BaselineUniformsGpu, FrameUniforms, GpuGrid, LightGpu, LightSet,
     MeshBuffers, RecordCounts, RestirPush, RestirUniformsGpu,
@@ -187,7 +189,7 @@ impl RestirPass {
                 },
             },
         );
-        let restir_uniforms = RestirUniformsGpu {
+        let mut restir_uniforms = RestirUniformsGpu {
             pc_primary: grid_level(
                 density,
                 &g.pc_primary,
@@ -246,9 +248,16 @@ impl RestirPass {
         let density_buffer = resources::density_in_buffer(
             ctx.info(),
             plan.settings.density_fetch,
-            volumes.sizes.density,
+            volumes.sizes,
+            animated,
             &scene.source,
         )?;
+        // Where the marches find each mip in the buffer of quads (read only where it is
+        // bound: SC_MARCH_BUFFER).
+        let march_quads = resources::MarchQuads::of(volumes.sizes, animated);
+        restir_uniforms.march_reuse.quad_base = march_quads.reuse as u32;
+        restir_uniforms.march_nee.quad_base = march_quads.nee as u32;
+        restir_uniforms.march_reuse_prev_quad_base = march_quads.reuse_prev as u32;
         let inputs = Inputs {
             grid: &grid_gpu,
             shapes: &shapes,
@@ -421,6 +430,14 @@ impl RestirPass {
                 &cur.density_layout,
                 &c.density,
             )?;
+            let at = r.march_quads_at;
+            for (base, layout, level) in [
+                (at.reuse, &cur.march_reuse_layout, &c.march_reuse),
+                (at.nee, &cur.march_nee_layout, &c.march_nee),
+                (at.reuse_prev, &prev.march_reuse_layout, &p.march_reuse),
+            ] {
+                upload_march_quads(ctx, &o[r.march_quads], base, layout, level, format)?;
+            }
         }
         if self.pc_buffer {
             upload_slot_major(

@@ -15,7 +15,7 @@ use crate::passes::{
     StaticGrids, Targets,
 };
 use crate::shader_data::sparse::{
-    atlas_dims, slot_major_bytes, upload_atlas, upload_slot_major, TexelFormat,
+    atlas_dims, slot_major_bytes, upload_atlas, upload_march_quads, upload_slot_major, TexelFormat,
 };
 use crate::shader_data::{
     bindings, non_empty, BaselineUniformsGpu, BoxMediumGpu, FrameUniforms, GpuGrid, MeshBuffers,
@@ -54,6 +54,42 @@ pub struct Resources {
     /// This frame's density as slots of quads, where the passes read it from a buffer
     /// (`Inputs::density_buffer`); else one quad.
     pub density_texels: Handle<Buffer>,
+    /// The ray-march mips as slots of quads (where `density_texels` is a buffer; else
+    /// one quad), each level from its first slot in `march_quads_at`.
+    pub march_quads: Handle<Buffer>,
+    pub march_quads_at: MarchQuads,
+}
+
+/// Where each ray-march mip's slots start in the buffer of march quads (`GridLevel`'s
+/// `quad_base`, restir/transmittance.glsl), each section its atlas's slots: this frame's
+/// reuse mip, the previous frame's (where the density changes; else the same section),
+/// the NEE mip.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MarchQuads {
+    pub reuse: u64,
+    pub reuse_prev: u64,
+    pub nee: u64,
+    /// Slots in all.
+    pub slots: u64,
+}
+
+impl MarchQuads {
+    pub fn of(sizes: AtlasSizes, animated: bool) -> MarchQuads {
+        let reuse = slot_count(sizes.march_reuse) as u64;
+        let nee = slot_count(sizes.march_nee) as u64;
+        let prev = if animated { reuse } else { 0 };
+        MarchQuads {
+            reuse: 0,
+            reuse_prev: prev,
+            nee: reuse + prev,
+            slots: reuse + prev + nee,
+        }
+    }
+
+    /// The buffer's bytes (at least one quad).
+    pub fn bytes(&self) -> u64 {
+        (self.slots * crate::shader_data::sparse::MARCH_QUAD_SLOT_BYTES).max(16)
+    }
 }
 
 /// What [`Resources::create`] uploads.
@@ -105,24 +141,37 @@ pub fn pc_in_buffer(
 
 /// Whether the passes read this frame's full-resolution density from a storage buffer of
 /// its slots' quads (the baseline's layout: [`crate::passes::upload_density_quads`])
-/// instead of its atlas image (`[integrator.restir] density_fetch`,
-/// [`crate::passes::volume_in_buffer`]): on lavapipe a trilinear lookup from it is two
-/// 16-byte loads, from the atlas eight texelFetch calls. The previous frame's density (read
-/// where it differs) stays in its atlas.
+/// instead of its atlas image, and the ray marches their mips from one buffer of quads
+/// ([`MarchQuads`]) instead of their linearly filtered atlases (`[integrator.restir]
+/// density_fetch`, [`crate::passes::volume_in_buffer`], judged by the larger buffer): on
+/// lavapipe a trilinear lookup from a buffer is two 16-byte loads, from an atlas eight
+/// texelFetch calls or one filtered textureLod. The previous frame's density (read where
+/// it differs) stays in its atlas.
 pub fn density_in_buffer(
     info: &nimbus_gpu::DeviceInfo,
     fetch: nimbus_scene::DensityFetch,
-    density_slots: [u32; 3],
+    sizes: AtlasSizes,
+    animated: bool,
     source: &std::path::Path,
 ) -> Result<bool> {
-    let slots = slot_count(density_slots) as u64;
+    let slots = slot_count(sizes.density) as u64;
+    let density = crate::shader_data::sparse::density_buffer_bytes(slots);
+    let march = MarchQuads::of(sizes, animated);
+    let (bytes, what) = if density >= march.bytes() {
+        (density, format!("the density's {slots} slots"))
+    } else {
+        (
+            march.bytes(),
+            format!("the ray-march mips' {} slots", march.slots),
+        )
+    };
     crate::passes::volume_in_buffer(
         info,
         fetch,
-        crate::shader_data::sparse::density_buffer_bytes(slots),
+        bytes,
         source,
         "[integrator.restir] field `density_fetch`",
-        &format!("the density's {slots} slots"),
+        &what,
     )
 }
 
@@ -148,6 +197,7 @@ fn layout() -> Vec<BindingDesc> {
         BindingDesc::sampled_image(bindings::VELOCITY),
         BindingDesc::sampled_image(bindings::PC_GRID),
         BindingDesc::storage_buffer(bindings::PC_TEXELS),
+        BindingDesc::storage_buffer(bindings::MARCH_QUADS),
         BindingDesc::storage_buffer(bindings::SUPER_VOXELS),
         BindingDesc::storage_buffer(bindings::GRID_BRICKS),
         BindingDesc::storage_buffer(bindings::RESERVOIRS),
@@ -348,6 +398,37 @@ impl Resources {
             &[(&first.march_nee_layout, &g.march_nee, 1.0)],
             march_format,
         )?;
+        // The march mips' quads: the previous frame's section starts as a copy of the
+        // first frame's.
+        let march_quads_at = MarchQuads::of(sizes, animated);
+        let march_quads = if density_buffer {
+            let b = o.add(ctx.create_buffer(
+                &BufferDesc::gpu_only(march_quads_at.bytes(), vk::BufferUsageFlags::STORAGE_BUFFER),
+                "ray-march mips (quads)",
+            )?);
+            ctx.fill_buffer(&o[b], 0)?;
+            let mut sections = vec![
+                (
+                    march_quads_at.reuse,
+                    &first.march_reuse_layout,
+                    &g.march_reuse,
+                ),
+                (march_quads_at.nee, &first.march_nee_layout, &g.march_nee),
+            ];
+            if animated {
+                sections.push((
+                    march_quads_at.reuse_prev,
+                    &first.march_reuse_layout,
+                    &g.march_reuse,
+                ));
+            }
+            for (base, layout, level) in sections {
+                upload_march_quads(ctx, &o[b], base, layout, level, march_format)?;
+            }
+            b
+        } else {
+            upload_records(ctx, o, &[[0f32; 4]], "ray-march mips (quads, unused)")?
+        };
         // The previous frame starts as a copy of the first.
         let (density_prev, march_reuse_prev) = if animated {
             let d = atlas(ctx, o, sizes.density, r32, "previous density")?;
@@ -432,6 +513,7 @@ impl Resources {
                     image(bindings::VELOCITY, velocity, linear),
                     image(bindings::PC_GRID, pc, nearest),
                     buffer(bindings::PC_TEXELS, pc_texels),
+                    buffer(bindings::MARCH_QUADS, march_quads),
                     buffer(bindings::SUPER_VOXELS, super_voxels),
                     buffer(bindings::GRID_BRICKS, bricks),
                     buffer(bindings::RESERVOIRS, reservoirs),
@@ -469,6 +551,8 @@ impl Resources {
             march_reuse_prev,
             pc_texels,
             density_texels,
+            march_quads,
+            march_quads_at,
         })
     }
 }

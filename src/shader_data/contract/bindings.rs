@@ -64,14 +64,20 @@ gpu_consts! {
     /// `AovUniforms`: the previous frame's camera and the light groups of what has no
     /// light record.
     pub const AOV_UNIFORMS: u32 = 38 => BINDING_AOV_UNIFORMS;
-    /// The density's slots as a storage buffer (`float density_texels[slot * 729 + texel]`,
-    /// each slot's 9^3 texels x fastest): where the device is a CPU (lavapipe), the
-    /// baseline reads the density from it instead of the atlas image (grid.glsl).
+    /// The density's slots as a storage buffer of quads (`vec4 density_quads[slot * 1000 +
+    /// texel]`, each slot's 10^3 texels from lattice point 8b - 1, x fastest): where the
+    /// device is a CPU (lavapipe), the baseline and ReSTIR read the density from it
+    /// instead of the atlas image (grid.glsl).
     pub const GRID_DENSITY_TEXELS: u32 = 39 => BINDING_GRID_DENSITY_TEXELS;
     /// The ReSTIR passes' piecewise-constant levels as a storage buffer (`float
     /// pc_texels[slot * 729 + texel]`, each slot's 9^3 texels x fastest): where the device
     /// is a CPU, regular tracking reads them from it instead of the PC_GRID atlas.
     pub const PC_TEXELS: u32 = 40 => BINDING_PC_TEXELS;
+    /// The ReSTIR passes' ray-march mips (reuse, the previous frame's reuse, NEE) as one
+    /// storage buffer of quads (`vec4 march_quads[slot * 729 + texel]`, each slot's 9^3
+    /// texels x fastest, a texel and its +x, +y and +x+y neighbours): where the device is a
+    /// CPU, the marches read it instead of the MARCH_* atlases (restir/transmittance.glsl).
+    pub const MARCH_QUADS: u32 = 41 => BINDING_MARCH_QUADS;
 
     // The denoiser's own pipelines (src/denoise, shaders/denoise): per-pixel buffers.
     /// The noisy image (premultiplied RGB, A).

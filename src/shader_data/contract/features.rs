@@ -83,8 +83,9 @@ gpu_consts! {
     /// that a reused sample turns with a turning map (`env_reuse = "map"`;
     /// restir/path_value.glsl).
     pub const SC_ID_ENV_REUSE_MAP: u32 = 31;
-    /// The baseline reads the density from the storage buffer GRID_DENSITY_TEXELS
-    /// instead of the atlas image (grid.glsl): the plan's choice on CPU devices.
+    /// The baseline and ReSTIR read the density from the storage buffer
+    /// GRID_DENSITY_TEXELS instead of the atlas image (grid.glsl): the plan's choice on
+    /// CPU devices.
     pub const SC_ID_DENSITY_BUFFER: u32 = 32;
     /// The baseline's split NEE estimates a constant sky's transmittance along the path's
     /// next segment, in that segment's walk (pathtrace.comp).
@@ -120,6 +121,10 @@ gpu_consts! {
     /// (`temporal_reprojection = "aligned"`; restir/temporal.comp); else the paper's
     /// reprojection of the selected path's x_1.
     pub const SC_ID_TEMPORAL_ALIGNED: u32 = 41;
+    /// ReSTIR's ray marches read the march mips from the storage buffer MARCH_QUADS
+    /// instead of their linearly filtered atlases (restir/transmittance.glsl): the plan's
+    /// choice on CPU devices, with SC_DENSITY_BUFFER.
+    pub const SC_ID_MARCH_BUFFER: u32 = 42;
     /// Values of SC_TARGET_SCALAR.
     pub const SC_TARGET_LUMINANCE: u32 = 0;
     pub const SC_TARGET_SUM: u32 = 1;

@@ -415,7 +415,9 @@ gpu_records! {
         slots_x: u32,
         /// Atlas slots along y.
         slots_y: u32,
-        _pad0: u32,
+        /// A ray-march mip's first slot in the buffer of quads the marches read where
+        /// SC_MARCH_BUFFER (restir/transmittance.glsl); 0 elsewhere.
+        quad_base: u32,
         _pad1: u32,
         _pad2: u32,
     }
@@ -471,7 +473,9 @@ gpu_records! {
         /// 1: spatial reuse anchors each pixel's ray where its centre ray enters the
         /// medium (CameraRay.anchor), as temporal reuse does.
         spatial_anchor: u32,
-        _pad0: u32,
+        /// The previous frame's reuse mip's first slot in the buffer of march quads
+        /// (SC_MARCH_BUFFER; the current frame's when the density does not change).
+        march_reuse_prev_quad_base: u32,
         _pad1: u32,
     }
 

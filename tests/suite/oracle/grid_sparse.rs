@@ -218,10 +218,14 @@ fn restir_reads_its_piecewise_constant_levels_alike_from_the_atlas_and_the_buffe
 
 /// ReSTIR reads this frame's density (vertices, delta-tracked walks, the walked and the
 /// final closed-form transmittance) from its atlas image or from the baseline's storage
-/// buffer of quads (`[integrator.restir] density_fetch`; "auto" takes the buffer on
-/// lavapipe): the same values, so the same image and alpha to the bit, with regular and
-/// with delta-tracked candidates, under temporal reuse, and on density frames that swap
-/// clouds (the buffer is uploaded again with each frame). The plan names the choice.
+/// buffer of quads, and its ray marches read their mips from linearly filtered atlases or
+/// from a buffer of quads (`[integrator.restir] density_fetch`; "auto" takes the buffers
+/// on lavapipe), with regular and with delta-tracked candidates, under temporal reuse, and
+/// on density frames that swap clouds (the buffers are uploaded again with each frame).
+/// The density's values are the same; a march sample's trilinear weights round as the
+/// sampler's do or not, so the targets may differ in their last bits: every pixel agrees
+/// within 1e-4 relative but a few where that flips a selection (a march read from the
+/// wrong texels flips most). The plan names the choice.
 #[test]
 fn restir_reads_its_density_alike_from_the_atlas_and_the_buffer() {
     let ctx = context();
@@ -258,10 +262,31 @@ fn restir_reads_its_density_alike_from_the_atlas_and_the_buffer() {
             render_checked(&ctx, &scene, None)
         };
         let image = render("image");
+        let close = |a: f32, b: f32| (a - b).abs() <= 1e-4 * a.abs().max(b.abs()) + 1e-7;
         for fetch in ["buffer", "auto"] {
             let other = render(fetch);
-            assert_eq!(image.image.data, other.image.data, "{name}, {fetch}: RGB");
-            assert_eq!(image.alpha, other.alpha, "{name}, {fetch}: alpha");
+            let apart = image
+                .image
+                .data
+                .iter()
+                .zip(&other.image.data)
+                .filter(|(a, b)| (0..3).any(|c| !close(a[c], b[c])))
+                .count();
+            assert!(
+                apart * 200 <= image.image.data.len(),
+                "{name}, {fetch}: {apart} of {} pixels differ",
+                image.image.data.len()
+            );
+            let alpha_apart = image
+                .alpha
+                .iter()
+                .zip(&other.alpha)
+                .filter(|(a, b)| !close(**a, **b))
+                .count();
+            assert!(
+                alpha_apart * 200 <= image.alpha.len(),
+                "{name}, {fetch}: {alpha_apart} alphas differ"
+            );
         }
         assert!(image.alpha[15 * 40 + 20] > 0.2, "{name}: the cloud is seen");
     }
