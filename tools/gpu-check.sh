@@ -447,6 +447,13 @@ step "profile restir delta k3" profile "bench-restir-delta-hd-k3" assets/scenes/
 # unmeasured on GPUs, which keep the image); the ratio to profile-bench-restir-hd-k1.
 step "profile restir pc buffer k1" profile "bench-restir-pc-buffer-hd-k1" assets/scenes/bench/cloud-g0.toml \
     "${hd[@]}" --set "integrator.max_bounces=1" --set 'integrator.restir.pc_fetch="buffer"'
+# ReSTIR reading the density and the march mips from buffers of quads instead of the atlas
+# images (what density_fetch = "auto" takes on CPU devices: 0.72-0.83x a frame on
+# lavapipe, docs/performance.md; unmeasured on GPUs, which keep the images); the ratio to
+# profile-bench-restir-hd-k3.
+step "profile restir density buffer k3" profile "bench-restir-density-buffer-hd-k3" \
+    assets/scenes/bench/cloud-g0.toml "${hd[@]}" --set "integrator.max_bounces=3" \
+    --set 'integrator.restir.density_fetch="buffer"'
 # What SIMD divergence costs the baseline on this device: every workgroup traces its first
 # pixel's paths in all its lanes (`--coherent-lanes`); the ratio to profile-bench-baseline-hd-k*
 # is the most a wavefront or path-regenerating baseline could win here (2.0-2.3x on
