@@ -406,24 +406,9 @@ impl RestirPass {
         let scale = self.grid.density_scale;
         let r32 = TexelFormat::R32;
         let (c, p) = (&cur.grids, &prev.grids);
-        upload_atlas(
-            ctx,
-            &o[r.density],
-            sizes.density,
-            &[(&cur.density_layout, &c.density, 1.0)],
-            r32,
-        )?;
-        upload_atlas(
-            ctx,
-            &o[r.pc],
-            sizes.pc,
-            &[
-                (&cur.pc_primary_layout, &c.pc_primary, scale),
-                (&cur.pc_indirect_layout, &c.pc_indirect, scale),
-            ],
-            r32,
-        )?;
         if self.density_buffer {
+            // The passes read this frame's density and every march mip from the buffers
+            // (their atlases are unread placeholders); the previous density's atlas below.
             crate::passes::upload_density_quads(
                 ctx,
                 &o[r.density_texels],
@@ -438,7 +423,47 @@ impl RestirPass {
             ] {
                 upload_march_quads(ctx, &o[r.march_quads], base, layout, level, format)?;
             }
+        } else {
+            upload_atlas(
+                ctx,
+                &o[r.density],
+                sizes.density,
+                &[(&cur.density_layout, &c.density, 1.0)],
+                r32,
+            )?;
+            for (atlas, slots, layout, level) in [
+                (
+                    r.march_reuse,
+                    sizes.march_reuse,
+                    &cur.march_reuse_layout,
+                    &c.march_reuse,
+                ),
+                (
+                    r.march_nee,
+                    sizes.march_nee,
+                    &cur.march_nee_layout,
+                    &c.march_nee,
+                ),
+                (
+                    r.march_reuse_prev,
+                    sizes.march_reuse,
+                    &prev.march_reuse_layout,
+                    &p.march_reuse,
+                ),
+            ] {
+                upload_atlas(ctx, &o[atlas], slots, &[(layout, level, 1.0)], format)?;
+            }
         }
+        upload_atlas(
+            ctx,
+            &o[r.pc],
+            sizes.pc,
+            &[
+                (&cur.pc_primary_layout, &c.pc_primary, scale),
+                (&cur.pc_indirect_layout, &c.pc_indirect, scale),
+            ],
+            r32,
+        )?;
         if self.pc_buffer {
             upload_slot_major(
                 ctx,
@@ -451,31 +476,10 @@ impl RestirPass {
         }
         upload_atlas(
             ctx,
-            &o[r.march_reuse],
-            sizes.march_reuse,
-            &[(&cur.march_reuse_layout, &c.march_reuse, 1.0)],
-            format,
-        )?;
-        upload_atlas(
-            ctx,
-            &o[r.march_nee],
-            sizes.march_nee,
-            &[(&cur.march_nee_layout, &c.march_nee, 1.0)],
-            format,
-        )?;
-        upload_atlas(
-            ctx,
             &o[r.density_prev],
             sizes.density,
             &[(&prev.density_layout, &p.density, 1.0)],
             r32,
-        )?;
-        upload_atlas(
-            ctx,
-            &o[r.march_reuse_prev],
-            sizes.march_reuse,
-            &[(&prev.march_reuse_layout, &p.march_reuse, 1.0)],
-            format,
         )?;
         let mut records = c.super_voxels.clone();
         records.resize(

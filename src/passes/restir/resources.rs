@@ -382,21 +382,34 @@ impl Resources {
                 ],
             )?;
         }
-        let march_reuse = atlas(ctx, o, sizes.march_reuse, march_format, "march (reuse)")?;
-        upload_atlas(
-            ctx,
-            &o[march_reuse],
+        // The marches' atlases, or where they read the buffer of quads below
+        // (SC_MARCH_BUFFER) one-slot placeholders: nothing reads them then.
+        let march_atlas = |o: &mut GpuObjects,
+                           slots: [u32; 3],
+                           layout: &crate::shader_data::sparse::SparseLayout,
+                           level: &nimbus_scene::BrickGrid,
+                           name: &str|
+         -> Result<Handle<Image>> {
+            if density_buffer {
+                return atlas(ctx, o, [1, 1, 1], march_format, &format!("{name}, unused"));
+            }
+            let a = atlas(ctx, o, slots, march_format, name)?;
+            upload_atlas(ctx, &o[a], slots, &[(layout, level, 1.0)], march_format)?;
+            Ok(a)
+        };
+        let march_reuse = march_atlas(
+            o,
             sizes.march_reuse,
-            &[(&first.march_reuse_layout, &g.march_reuse, 1.0)],
-            march_format,
+            &first.march_reuse_layout,
+            &g.march_reuse,
+            "march (reuse)",
         )?;
-        let march_nee = atlas(ctx, o, sizes.march_nee, march_format, "march (NEE)")?;
-        upload_atlas(
-            ctx,
-            &o[march_nee],
+        let march_nee = march_atlas(
+            o,
             sizes.march_nee,
-            &[(&first.march_nee_layout, &g.march_nee, 1.0)],
-            march_format,
+            &first.march_nee_layout,
+            &g.march_nee,
+            "march (NEE)",
         )?;
         // The march mips' quads: the previous frame's section starts as a copy of the
         // first frame's.
@@ -439,19 +452,12 @@ impl Resources {
                 &[(&first.density_layout, &g.density, 1.0)],
                 r32,
             )?;
-            let m = atlas(
-                ctx,
+            let m = march_atlas(
                 o,
                 sizes.march_reuse,
-                march_format,
+                &first.march_reuse_layout,
+                &g.march_reuse,
                 "previous march (reuse)",
-            )?;
-            upload_atlas(
-                ctx,
-                &o[m],
-                sizes.march_reuse,
-                &[(&first.march_reuse_layout, &g.march_reuse, 1.0)],
-                march_format,
             )?;
             (d, m)
         } else {
