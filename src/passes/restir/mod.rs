@@ -454,25 +454,14 @@ impl RestirPass {
                 upload_atlas(ctx, &o[atlas], slots, &[(layout, level, 1.0)], format)?;
             }
         }
-        upload_atlas(
-            ctx,
-            &o[r.pc],
-            sizes.pc,
-            &[
-                (&cur.pc_primary_layout, &c.pc_primary, scale),
-                (&cur.pc_indirect_layout, &c.pc_indirect, scale),
-            ],
-            r32,
-        )?;
+        let levels = [
+            (&cur.pc_primary_layout, &c.pc_primary, scale),
+            (&cur.pc_indirect_layout, &c.pc_indirect, scale),
+        ];
         if self.pc_buffer {
-            upload_slot_major(
-                ctx,
-                &o[r.pc_texels],
-                &[
-                    (&cur.pc_primary_layout, &c.pc_primary, scale),
-                    (&cur.pc_indirect_layout, &c.pc_indirect, scale),
-                ],
-            )?;
+            upload_slot_major(ctx, &o[r.pc_texels], &levels)?;
+        } else {
+            upload_atlas(ctx, &o[r.pc], sizes.pc, &levels, r32)?;
         }
         upload_atlas(
             ctx,

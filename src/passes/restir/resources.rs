@@ -349,17 +349,24 @@ impl Resources {
             upload_records(ctx, o, &[[0f32; 4]], "grid density texels (unused)")?
         };
         let scale = grid.uniforms.grid.density_scale;
-        let pc = atlas(ctx, o, sizes.pc, r32, "piecewise-constant levels")?;
-        upload_atlas(
-            ctx,
-            &o[pc],
-            sizes.pc,
-            &[
-                (&first.pc_primary_layout, &g.pc_primary, scale),
-                (&first.pc_indirect_layout, &g.pc_indirect, scale),
-            ],
-            r32,
-        )?;
+        // Where tracking reads the levels' buffer (SC_PC_BUFFER), nothing reads their
+        // atlas: a one-slot placeholder.
+        let pc = if pc_buffer {
+            atlas(ctx, o, [1, 1, 1], r32, "piecewise-constant levels, unused")?
+        } else {
+            let pc = atlas(ctx, o, sizes.pc, r32, "piecewise-constant levels")?;
+            upload_atlas(
+                ctx,
+                &o[pc],
+                sizes.pc,
+                &[
+                    (&first.pc_primary_layout, &g.pc_primary, scale),
+                    (&first.pc_indirect_layout, &g.pc_indirect, scale),
+                ],
+                r32,
+            )?;
+            pc
+        };
         let pc_texels = o.add(ctx.create_buffer(
             &BufferDesc::gpu_only(
                 if pc_buffer {
