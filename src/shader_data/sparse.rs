@@ -269,16 +269,7 @@ impl SparseLayout {
                     }
                 }
             }
-            let at = |x: usize, y: usize, z: usize| texels[(z * e + y) * e + x];
-            for z in 0..e {
-                for y in 0..e {
-                    let y1 = (y + 1).min(e - 1);
-                    for x in 0..e {
-                        let x1 = (x + 1).min(e - 1);
-                        out.push([at(x, y, z), at(x1, y, z), at(x, y1, z), at(x1, y1, z)]);
-                    }
-                }
-            }
+            push_quads(&texels, e, out);
         }
     }
 
@@ -392,6 +383,21 @@ pub fn upload_slot_major(
     Ok(())
 }
 
+/// Appends the quads of a slot of `e`^3 texels (x fastest): per texel, it and its +x, +y
+/// and +x+y neighbours, clamped to the slot's last texel.
+fn push_quads(texels: &[f32], e: usize, out: &mut Vec<[f32; 4]>) {
+    let at = |x: usize, y: usize, z: usize| texels[(z * e + y) * e + x];
+    for z in 0..e {
+        for y in 0..e {
+            let y1 = (y + 1).min(e - 1);
+            for x in 0..e {
+                let x1 = (x + 1).min(e - 1);
+                out.push([at(x, y, z), at(x1, y, z), at(x, y1, z), at(x1, y1, z)]);
+            }
+        }
+    }
+}
+
 /// Bytes per slot of a ray-march mip's buffer of quads ([`upload_march_quads`]).
 pub const MARCH_QUAD_SLOT_BYTES: u64 = SLOT_TEXELS as u64 * 16;
 
@@ -424,16 +430,7 @@ pub fn upload_march_quads(
                     *v = half::f16::from_f32(*v).to_f32();
                 }
             }
-            let at = |x: usize, y: usize, z: usize| nine[(z * e + y) * e + x];
-            for z in 0..e {
-                for y in 0..e {
-                    let y1 = (y + 1).min(e - 1);
-                    for x in 0..e {
-                        let x1 = (x + 1).min(e - 1);
-                        out.push([at(x, y, z), at(x1, y, z), at(x, y1, z), at(x1, y1, z)]);
-                    }
-                }
-            }
+            push_quads(&nine, e, &mut out);
         }
         let slot = base + u64::from(layout.first_slot) + (c * CHUNK) as u64;
         ctx.upload_buffer(

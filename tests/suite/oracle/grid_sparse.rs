@@ -171,6 +171,44 @@ fn the_baseline_reads_the_density_alike_from_its_atlas_image_and_its_buffer() {
     assert!(image.alpha[15 * 40 + 20] > 0.2, "the cloud is seen");
 }
 
+/// The padded cloud written to `dir` as a grid medium's lines, and a `[[medium.frame]]`
+/// table that swaps another cloud in at frame 2.
+fn cloud_and_frame(dir: &Path) -> (String, String) {
+    let (padded, offset) = padded_cloud(&procedural_cloud([20, 14, 18], 3));
+    let grid = medium(&write_raw(dir, "padded.raw", &padded), &padded, offset);
+    let (other, _) = padded_cloud(&procedural_cloud([20, 14, 18], 9));
+    let frames = format!(
+        "[[medium.frame]]\nframe = 2\ndensity = {{ file = {:?}, dims = {:?} }}\n",
+        dir.join("other.raw").display().to_string(),
+        other.dims
+    );
+    write_raw(dir, "other.raw", &other);
+    (grid, frames)
+}
+
+/// Renders ReSTIR on `grid` with `settings` (its `[integrator.restir]` lines, then any
+/// tables: the frames' table follows the whole scene, so it belongs to the last medium),
+/// after checking that the plan's `row` names `fetch`.
+fn render_restir(
+    ctx: &nimbus_gpu::Context,
+    grid: &str,
+    name: &str,
+    settings: &str,
+    row: &str,
+    fetch: &str,
+) -> nimbus::renderer::RenderResult {
+    let text = scene_text(grid, "restir").replace("temporal = false\n", settings);
+    let scene = scene(&text, &format!("{name}.toml"));
+    let plan = nimbus::plan::build(&scene, None).expect("plan");
+    let decision = plan
+        .decisions
+        .iter()
+        .find(|d| d.name.trim() == row)
+        .unwrap_or_else(|| panic!("an {row} row"));
+    assert!(decision.reason.contains(fetch), "{}", decision.reason);
+    render_checked(ctx, &scene, None)
+}
+
 /// ReSTIR's regular tracking reads the piecewise-constant levels from their atlas image
 /// or from a slot-major storage buffer (`[integrator.restir] pc_fetch`; "auto" takes the
 /// buffer on lavapipe): the same values, so the same image and alpha to the bit, on the
@@ -180,31 +218,18 @@ fn the_baseline_reads_the_density_alike_from_its_atlas_image_and_its_buffer() {
 fn restir_reads_its_piecewise_constant_levels_alike_from_the_atlas_and_the_buffer() {
     let ctx = context();
     let dir = scratch("grid_sparse", "pc_fetch");
-    let (padded, offset) = padded_cloud(&procedural_cloud([20, 14, 18], 3));
-    let grid = medium(&write_raw(&dir, "padded.raw", &padded), &padded, offset);
-    let (other, _) = padded_cloud(&procedural_cloud([20, 14, 18], 9));
-    let frames = format!(
-        "[[medium.frame]]\nframe = 2\ndensity = {{ file = {:?}, dims = {:?} }}\n",
-        dir.join("other.raw").display().to_string(),
-        other.dims
-    );
-    write_raw(&dir, "other.raw", &other);
+    let (grid, frames) = cloud_and_frame(&dir);
     for (name, extra) in [("static", ""), ("frames", frames.as_str())] {
         let render = |fetch: &str| {
-            // The frames' table follows the whole scene: it belongs to the last medium.
-            let text = scene_text(&grid, "restir").replace(
-                "temporal = false\n",
-                &format!("temporal = false\npc_fetch = \"{fetch}\"\n{extra}"),
-            );
-            let scene = scene(&text, &format!("{name}-{fetch}.toml"));
-            let plan = nimbus::plan::build(&scene, None).expect("plan");
-            let row = plan
-                .decisions
-                .iter()
-                .find(|d| d.name.trim() == "SC_PC_BUFFER")
-                .expect("an SC_PC_BUFFER row");
-            assert!(row.reason.contains(fetch), "{}", row.reason);
-            render_checked(&ctx, &scene, None)
+            let settings = format!("temporal = false\npc_fetch = \"{fetch}\"\n{extra}");
+            render_restir(
+                &ctx,
+                &grid,
+                &format!("{name}-{fetch}"),
+                &settings,
+                "SC_PC_BUFFER",
+                fetch,
+            )
         };
         let image = render("image");
         for fetch in ["buffer", "auto"] {
@@ -230,15 +255,7 @@ fn restir_reads_its_piecewise_constant_levels_alike_from_the_atlas_and_the_buffe
 fn restir_reads_its_density_alike_from_the_atlas_and_the_buffer() {
     let ctx = context();
     let dir = scratch("grid_sparse", "restir_density_fetch");
-    let (padded, offset) = padded_cloud(&procedural_cloud([20, 14, 18], 3));
-    let grid = medium(&write_raw(&dir, "padded.raw", &padded), &padded, offset);
-    let (other, _) = padded_cloud(&procedural_cloud([20, 14, 18], 9));
-    let frames = format!(
-        "[[medium.frame]]\nframe = 2\ndensity = {{ file = {:?}, dims = {:?} }}\n",
-        dir.join("other.raw").display().to_string(),
-        other.dims
-    );
-    write_raw(&dir, "other.raw", &other);
+    let (grid, frames) = cloud_and_frame(&dir);
     // Regular tracking on the static cloud; delta tracking ("auto" under density frames),
     // whose temporal reuse also evaluates the previous frame's density, on the frames.
     for (name, extra) in [
@@ -246,20 +263,16 @@ fn restir_reads_its_density_alike_from_the_atlas_and_the_buffer() {
         ("frames", frames.as_str()),
     ] {
         let render = |fetch: &str| {
-            // The frames' table follows the whole scene: it belongs to the last medium.
-            let text = scene_text(&grid, "restir").replace(
-                "temporal = false\n",
-                &format!("temporal = true\ndensity_fetch = \"{fetch}\"\n{extra}"),
-            );
-            let scene = scene(&text, &format!("{name}-{fetch}.toml"));
-            let plan = nimbus::plan::build(&scene, None).expect("plan");
-            let row = plan
-                .decisions
-                .iter()
-                .find(|d| d.name.trim() == "SC_DENSITY_BUFFER")
-                .expect("an SC_DENSITY_BUFFER row");
-            assert!(row.reason.contains(fetch), "{}", row.reason);
-            render_checked(&ctx, &scene, None)
+            let settings = format!("temporal = true\ndensity_fetch = \"{fetch}\"\n{extra}");
+            let row = "SC_DENSITY_BUFFER";
+            render_restir(
+                &ctx,
+                &grid,
+                &format!("{name}-{fetch}"),
+                &settings,
+                row,
+                fetch,
+            )
         };
         let image = render("image");
         let close = |a: f32, b: f32| (a - b).abs() <= 1e-4 * a.abs().max(b.abs()) + 1e-7;

@@ -632,20 +632,19 @@ fn nee_choice(f: &Fields, default: NeeMode) -> Result<NeeMode> {
     )
 }
 
+/// The choices of every `*_fetch` field (`density_fetch`, `pc_fetch`).
+const FETCH_CHOICES: &[(&str, DensityFetch)] = &[
+    ("auto", DensityFetch::Auto),
+    ("image", DensityFetch::Image),
+    ("buffer", DensityFetch::Buffer),
+];
+
 fn parse_baseline(source: &Source, table: &toml::Table) -> Result<BaselineSettings> {
     let f = Fields::new(source, "[integrator.baseline]".into(), table, BASELINE_KEYS)?;
     let d = BaselineSettings::default();
     Ok(BaselineSettings {
         nee: nee_choice(&f, d.nee)?,
-        density_fetch: f.choice(
-            "density_fetch",
-            Some(d.density_fetch),
-            &[
-                ("auto", DensityFetch::Auto),
-                ("image", DensityFetch::Image),
-                ("buffer", DensityFetch::Buffer),
-            ],
-        )?,
+        density_fetch: f.choice("density_fetch", Some(d.density_fetch), FETCH_CHOICES)?,
     })
 }
 
@@ -758,24 +757,8 @@ fn parse_restir(source: &Source, table: &toml::Table) -> Result<RestirSettings> 
                 ("regular", CandidateTracking::Regular),
             ],
         )?,
-        pc_fetch: f.choice(
-            "pc_fetch",
-            Some(d.pc_fetch),
-            &[
-                ("auto", DensityFetch::Auto),
-                ("image", DensityFetch::Image),
-                ("buffer", DensityFetch::Buffer),
-            ],
-        )?,
-        density_fetch: f.choice(
-            "density_fetch",
-            Some(d.density_fetch),
-            &[
-                ("auto", DensityFetch::Auto),
-                ("image", DensityFetch::Image),
-                ("buffer", DensityFetch::Buffer),
-            ],
-        )?,
+        pc_fetch: f.choice("pc_fetch", Some(d.pc_fetch), FETCH_CHOICES)?,
+        density_fetch: f.choice("density_fetch", Some(d.density_fetch), FETCH_CHOICES)?,
         target: f.choice(
             "target",
             Some(d.target),
