@@ -245,16 +245,16 @@ impl RestirPass {
             volumes.sizes.pc,
             &scene.source,
         )?;
+        // Where the marches find each mip in the buffer of quads (read only where it is
+        // bound: SC_MARCH_BUFFER).
+        let march_quads = resources::MarchQuads::of(volumes.sizes, animated);
         let density_buffer = resources::density_in_buffer(
             ctx.info(),
             plan.settings.density_fetch,
             volumes.sizes,
-            animated,
+            march_quads,
             &scene.source,
         )?;
-        // Where the marches find each mip in the buffer of quads (read only where it is
-        // bound: SC_MARCH_BUFFER).
-        let march_quads = resources::MarchQuads::of(volumes.sizes, animated);
         restir_uniforms.march_reuse.quad_base = march_quads.reuse as u32;
         restir_uniforms.march_nee.quad_base = march_quads.nee as u32;
         restir_uniforms.march_reuse_prev_quad_base = march_quads.reuse_prev as u32;
@@ -275,6 +275,7 @@ impl RestirPass {
             animated,
             pc_buffer,
             density_buffer,
+            march_quads,
         };
         let exact_spans =
             volumes.needs_exact_spans(&grid_gpu.p_to_world, FINAL_RATIO_MAJORANT_SCALE);

@@ -118,6 +118,8 @@ pub struct Inputs<'a> {
     /// The passes read this frame's density from a storage buffer of quads
     /// (SC_DENSITY_BUFFER, [`density_in_buffer`]).
     pub density_buffer: bool,
+    /// Where each march mip starts in the buffer of quads (the uniforms' `quad_base`s).
+    pub march_quads: MarchQuads,
 }
 
 /// Whether regular tracking reads the piecewise-constant levels from a slot-major
@@ -151,12 +153,11 @@ pub fn density_in_buffer(
     info: &nimbus_gpu::DeviceInfo,
     fetch: nimbus_scene::DensityFetch,
     sizes: AtlasSizes,
-    animated: bool,
+    march: MarchQuads,
     source: &std::path::Path,
 ) -> Result<bool> {
     let slots = slot_count(sizes.density) as u64;
     let density = crate::shader_data::sparse::density_buffer_bytes(slots);
-    let march = MarchQuads::of(sizes, animated);
     let (bytes, what) = if density >= march.bytes() {
         (density, format!("the density's {slots} slots"))
     } else {
@@ -277,6 +278,7 @@ impl Resources {
             animated,
             pc_buffer,
             density_buffer,
+            march_quads: march_quads_at,
         } = *inputs;
         let layout = layout();
         // The four passes' pipelines are built at once (about 4 s on lavapipe one after
@@ -420,7 +422,6 @@ impl Resources {
         )?;
         // The march mips' quads: the previous frame's section starts as a copy of the
         // first frame's.
-        let march_quads_at = MarchQuads::of(sizes, animated);
         let march_quads = if density_buffer {
             let b = o.add(ctx.create_buffer(
                 &BufferDesc::gpu_only(march_quads_at.bytes(), vk::BufferUsageFlags::STORAGE_BUFFER),
