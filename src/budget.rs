@@ -409,18 +409,59 @@ pub fn host_budget() -> Result<u64> {
     Ok(available.unwrap_or(8 << 30))
 }
 
-/// The process's peak resident memory (`VmHWM` of `/proc/self/status`), if known.
-pub fn peak_host_bytes() -> Option<u64> {
+/// Fields of `/proc/self/status` in bytes (`VmHWM`, `VmRSS`, ...), if known.
+fn status_bytes(field: &str) -> Option<u64> {
     let text = std::fs::read_to_string("/proc/self/status").ok()?;
     let kib = text
         .lines()
-        .find_map(|l| l.strip_prefix("VmHWM:"))?
+        .find_map(|l| l.strip_prefix(field)?.strip_prefix(':'))?
         .trim()
         .trim_end_matches("kB")
         .trim()
         .parse::<u64>()
         .ok()?;
     Some(kib << 10)
+}
+
+/// The peak resident memory before [`mark_host_memory`] reset the kernel's, and the
+/// resident memory at that moment (0: not marked).
+static PEAK_BEFORE_MARK: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+static RESIDENT_AT_MARK: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+
+/// The process's peak resident memory (`VmHWM` of `/proc/self/status`, or the peak
+/// before [`mark_host_memory`] reset it where that was higher), if known.
+pub fn peak_host_bytes() -> Option<u64> {
+    let before = PEAK_BEFORE_MARK.load(std::sync::atomic::Ordering::Relaxed);
+    Some(status_bytes("VmHWM")?.max(before))
+}
+
+/// Marks the host memory once the render is under way, so that what later frames add
+/// can be told from the setup's peak: it keeps the peak so far and the resident memory
+/// now, and resets the kernel's peak (`5` to `/proc/self/clear_refs`). The setup's peak
+/// (the shader compiler's, on lavapipe) is larger than anything a frame holds and varies
+/// between runs by tens of MiB with how the pipelines' compiles overlap in their threads,
+/// which hid a leak of a few MiB a frame when two renders' peaks were compared. Once a
+/// process; nothing where `/proc` says nothing.
+pub fn mark_host_memory() {
+    use std::sync::atomic::Ordering::Relaxed;
+    if RESIDENT_AT_MARK.load(Relaxed) != 0 {
+        return;
+    }
+    let (Some(peak), Some(resident)) = (status_bytes("VmHWM"), status_bytes("VmRSS")) else {
+        return;
+    };
+    if std::fs::write("/proc/self/clear_refs", "5").is_ok() {
+        PEAK_BEFORE_MARK.store(peak, Relaxed);
+        RESIDENT_AT_MARK.store(resident.max(1), Relaxed);
+    }
+}
+
+/// How far the resident memory rose above what it was at [`mark_host_memory`], at its
+/// peak since; None if it was never marked.
+pub fn host_growth_since_mark() -> Option<u64> {
+    let at_mark = RESIDENT_AT_MARK.load(std::sync::atomic::Ordering::Relaxed);
+    (at_mark != 0).then_some(())?;
+    Some(status_bytes("VmHWM")?.saturating_sub(at_mark))
 }
 
 #[cfg(test)]

@@ -466,8 +466,11 @@ pub(super) fn render(args: RenderArgs) -> Result<ExitCode> {
         renderer::render_each(&ctx, &scene, &plan, &opts, &mut sink)?
     };
     let mib = |b: u64| b as f64 / f64::from(1u32 << 20);
+    let growth = nimbus::budget::host_growth_since_mark().map_or_else(String::new, |b| {
+        format!(" (frames after the second added {:.0} MiB)", mib(b))
+    });
     let host = nimbus::budget::peak_host_bytes().map_or_else(String::new, |b| {
-        format!(", peak host memory {:.0} MiB", mib(b))
+        format!(", peak host memory {:.0} MiB{growth}", mib(b))
     });
     let memory = format!(
         "GPU memory {:.1} MiB{host}, {:.2} s in all",

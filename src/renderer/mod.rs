@@ -41,6 +41,11 @@ use bytemuck::Zeroable as _;
 use film::{Batches, Totals};
 use progress::{Progress, Status};
 
+/// Frames dispatched before the host memory is marked
+/// ([`crate::budget::mark_host_memory`]): by the end of the second every pass has run
+/// each of its pipelines (ReSTIR's temporal reuse first runs in the second).
+const HOST_MARK_AFTER_FRAMES: u32 = 2;
+
 /// Which scene frames the render draws, and which images they make.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub enum FrameSelection {
@@ -519,6 +524,9 @@ impl Run<'_> {
             Ok(())
         })?;
         self.dispatches += 1;
+        if self.dispatches == HOST_MARK_AFTER_FRAMES {
+            crate::budget::mark_host_memory();
+        }
         match self.profiler.as_mut() {
             Some(p) => Ok(Some(p.resolve(ctx)?)),
             None => Ok(None),
