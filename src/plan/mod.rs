@@ -294,6 +294,22 @@ impl RestirPlan {
         AskedLevels::of(&self.settings)
     }
 
+    /// The plan as a pass that reads this frame's density from its buffer of quads
+    /// (`density_fetch`, which the pass decides with the device) renders it, if that
+    /// changes anything: there `candidate_tracking = "auto"` takes delta tracking wherever
+    /// the plan took regular tracking. An exact trilinear lookup from the buffer costs
+    /// about what regular tracking's conservative-grid lookups do (lavapipe, 160x120,
+    /// K = 3: 1.00-1.03x the frame), so the tracking ratio's variance is left out for
+    /// free (per-frame MSE 0.89-0.93x; docs/restir.md, "Which tracking").
+    pub fn with_density_buffer(&self) -> Option<RestirPlan> {
+        let auto = self.settings.candidate_tracking == nimbus_scene::CandidateTracking::Auto;
+        (auto && !self.candidate_delta).then(|| RestirPlan {
+            candidate_delta: true,
+            direct_each_walk: false,
+            ..self.clone()
+        })
+    }
+
     /// The reservoir slots the plan's schedule uses ([`reservoir_slots`]).
     pub fn reservoir_slots(&self) -> u32 {
         reservoir_slots(

@@ -466,7 +466,10 @@ fn tracking_reason(s: &nimbus_scene::RestirSettings, plan: &RestirPlan) -> Strin
             } else {
                 format!(
                     "a static density under temporal reuse, and mip {} of the candidates fits \
-                     the field (march error {error} <= {CANDIDATE_DELTA_MARCH_ERROR})",
+                     the field (march error {error} <= {CANDIDATE_DELTA_MARCH_ERROR}); where the \
+                     density is read from its buffer of quads (density_fetch, \"auto\" on a CPU \
+                     device) delta tracking instead, whose exact lookups cost as little \
+                     there",
                     plan.levels.levels.candidates
                 )
             };

@@ -89,6 +89,8 @@ pub struct RestirPass {
     restir_uniforms: RestirUniformsGpu,
     /// What the velocity grid's magnitude suggests about its unit, if anything.
     velocity_note: Option<String>,
+    /// Why the candidates' tracking differs from the plan's, if it does.
+    tracking_note: Option<String>,
     /// The render's AOVs: the light groups written into animated light records.
     aov: crate::plan::AovPlan,
 }
@@ -132,6 +134,32 @@ impl RestirPass {
         let first = volumes.base()?;
         let levels = volumes.levels;
         let animated = !grid.frames.is_empty();
+        let pc_buffer = resources::pc_in_buffer(
+            ctx.info(),
+            plan.settings.pc_fetch,
+            volumes.sizes.pc,
+            &scene.source,
+        )?;
+        // Where the marches find each mip in the buffer of quads (read only where it is
+        // bound: SC_MARCH_BUFFER).
+        let march_quads = resources::MarchQuads::of(volumes.sizes, animated);
+        let density_buffer = resources::density_in_buffer(
+            ctx.info(),
+            plan.settings.density_fetch,
+            volumes.sizes,
+            march_quads,
+            &scene.source,
+        )?;
+        // Where this frame's density is read from its buffer, `candidate_tracking = "auto"`
+        // takes delta tracking (RestirPlan::with_density_buffer).
+        let buffered_plan = density_buffer.then(|| plan.with_density_buffer()).flatten();
+        let tracking_note = buffered_plan.as_ref().map(|_| {
+            "[integrator.restir] candidate_tracking = \"auto\": delta tracking, because this \
+             device reads the density from its buffer of quads (density_fetch), where an exact \
+             lookup costs as little as regular tracking's"
+                .to_string()
+        });
+        let plan = buffered_plan.as_ref().unwrap_or(plan);
         let static_sections = grid_gpu.static_sections()?;
         let (mut bricks, sections) = indirection(first, first, &static_sections, animated)?;
         // An animated grid's frames share their sections' offsets, not their lengths
@@ -239,22 +267,6 @@ impl RestirPass {
             ..RestirUniformsGpu::default()
         };
         let meshes = MeshBuffers::build(scene);
-        let pc_buffer = resources::pc_in_buffer(
-            ctx.info(),
-            plan.settings.pc_fetch,
-            volumes.sizes.pc,
-            &scene.source,
-        )?;
-        // Where the marches find each mip in the buffer of quads (read only where it is
-        // bound: SC_MARCH_BUFFER).
-        let march_quads = resources::MarchQuads::of(volumes.sizes, animated);
-        let density_buffer = resources::density_in_buffer(
-            ctx.info(),
-            plan.settings.density_fetch,
-            volumes.sizes,
-            march_quads,
-            &scene.source,
-        )?;
         restir_uniforms.march_reuse.quad_base = march_quads.reuse as u32;
         restir_uniforms.march_nee.quad_base = march_quads.nee as u32;
         restir_uniforms.march_reuse_prev_quad_base = march_quads.reuse_prev as u32;
@@ -329,6 +341,7 @@ impl RestirPass {
             prev_uploaded: None,
             restir_uniforms,
             velocity_note,
+            tracking_note,
             aov: targets.aov.clone(),
         })
     }
@@ -642,7 +655,11 @@ impl Pass for RestirPass {
     }
 
     fn notes(&self) -> Vec<String> {
-        self.velocity_note.iter().cloned().collect()
+        self.velocity_note
+            .iter()
+            .chain(&self.tracking_note)
+            .cloned()
+            .collect()
     }
 
     fn destroy(self: Box<Self>, ctx: &Context) {

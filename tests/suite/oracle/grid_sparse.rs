@@ -304,3 +304,78 @@ fn restir_reads_its_density_alike_from_the_atlas_and_the_buffer() {
         assert!(image.alpha[15 * 40 + 20] > 0.2, "{name}: the cloud is seen");
     }
 }
+
+/// `candidate_tracking = "auto"` where the plan takes regular tracking (a static density
+/// under temporal reuse whose candidates' level fits the field): a pass that reads the
+/// density from its buffer of quads takes delta tracking instead
+/// (`RestirPlan::with_density_buffer`: an exact lookup costs there as little as a
+/// conservative-grid one) and says so; one that reads the atlas keeps regular tracking.
+/// Each renders as the explicit setting does, to the bit.
+#[test]
+fn auto_tracking_takes_delta_tracking_where_the_density_is_read_from_its_buffer() {
+    let ctx = context();
+    let dir = scratch("grid_sparse", "auto_tracking");
+    // A smooth blob, which the coarse grid fits (the procedural clouds' voxel-scale detail
+    // does not, even at mip 0, so the plan takes delta tracking for them itself).
+    let n = 24u32;
+    let mut blob = VoxelGrid {
+        dims: [n; 3],
+        channels: 1,
+        data: Vec::new(),
+    };
+    for k in 0..n {
+        for j in 0..n {
+            for i in 0..n {
+                let r2 = [i, j, k]
+                    .map(|c| (c as f32 + 0.5) / n as f32 - 0.5)
+                    .iter()
+                    .map(|c| c * c)
+                    .sum::<f32>();
+                blob.data.push((-r2 / 0.03).exp());
+            }
+        }
+    }
+    let grid = medium(&write_raw(&dir, "blob.raw", &blob), &blob, [0; 3]);
+    let render = |fetch: &str, tracking: &str| {
+        let settings = format!(
+            "temporal = true\ndensity_fetch = \"{fetch}\"\ncandidate_tracking = \"{tracking}\"\n"
+        );
+        let text = scene_text(&grid, "restir").replace("temporal = false\n", &settings);
+        let scene = scene(&text, &format!("{fetch}-{tracking}.toml"));
+        let plan = nimbus::plan::build(&scene, None).expect("plan");
+        let planned_delta = plan.restir().expect("a ReSTIR plan").candidate_delta;
+        let why = plan
+            .decisions
+            .iter()
+            .find(|d| d.name.trim() == "SC_CANDIDATE_DELTA")
+            .map(|d| d.reason.clone())
+            .unwrap_or_default();
+        ((planned_delta, why), render_checked(&ctx, &scene, None))
+    };
+    let said = |r: &nimbus::renderer::RenderResult| {
+        r.notes
+            .iter()
+            .any(|n| n.contains("candidate_tracking = \"auto\": delta tracking"))
+    };
+    let ((planned_delta, why), auto) = render("buffer", "auto");
+    assert!(
+        !planned_delta,
+        "the plan takes regular tracking for this cloud: {why}"
+    );
+    let (_, delta) = render("buffer", "delta");
+    let (_, regular) = render("buffer", "regular");
+    assert!(auto.image.data == delta.image.data, "auto renders as delta");
+    assert!(
+        auto.image.data != regular.image.data,
+        "the trackings differ"
+    );
+    assert!(said(&auto), "{:?}", auto.notes);
+    assert!(!said(&delta), "{:?}", delta.notes);
+    let (_, auto) = render("image", "auto");
+    let (_, regular) = render("image", "regular");
+    assert!(
+        auto.image.data == regular.image.data,
+        "auto renders as regular"
+    );
+    assert!(!said(&auto), "{:?}", auto.notes);
+}
