@@ -438,8 +438,9 @@ step "profile baseline buffer k3" profile "bench-baseline-buffer-hd-k3" assets/s
     --set 'integrator.baseline.density_fetch="buffer"'
 # ReSTIR's candidates by delta tracking on the exact density instead of regular tracking
 # through the piecewise-constant grid (which candidate_tracking = "auto" keeps on this
-# static, smooth cloud; lavapipe: 1.27x the frame for 0.91x the per-frame MSE at K = 3,
-# docs/restir.md "Candidates by delta tracking"); the ratio to profile-bench-restir-hd-k3.
+# static, smooth cloud where the density is read from the atlas; lavapipe, atlas: 1.27x
+# the frame for 0.91x the per-frame MSE at K = 3, docs/restir.md "Candidates by delta
+# tracking"); the ratio to profile-bench-restir-hd-k3.
 step "profile restir delta k3" profile "bench-restir-delta-hd-k3" assets/scenes/bench/cloud-g0.toml \
     "${hd[@]}" --set "integrator.max_bounces=3" --set 'integrator.restir.candidate_tracking="delta"'
 # ReSTIR's regular tracking reading sigma* from a storage buffer instead of the atlas
@@ -449,9 +450,17 @@ step "profile restir pc buffer k1" profile "bench-restir-pc-buffer-hd-k1" assets
     "${hd[@]}" --set "integrator.max_bounces=1" --set 'integrator.restir.pc_fetch="buffer"'
 # ReSTIR reading the density and the march mips from buffers of quads instead of the atlas
 # images (what density_fetch = "auto" takes on CPU devices: 0.72-0.83x a frame on
-# lavapipe, docs/performance.md; unmeasured on GPUs, which keep the images); the ratio to
-# profile-bench-restir-hd-k3.
+# lavapipe, docs/performance.md; unmeasured on GPUs, which keep the images), with the
+# plan's regular tracking; the ratio to profile-bench-restir-hd-k3.
 step "profile restir density buffer k3" profile "bench-restir-density-buffer-hd-k3" \
+    assets/scenes/bench/cloud-g0.toml "${hd[@]}" --set "integrator.max_bounces=3" \
+    --set 'integrator.restir.density_fetch="buffer"' \
+    --set 'integrator.restir.candidate_tracking="regular"'
+# The same buffers with the delta-tracked candidates that candidate_tracking = "auto"
+# takes where the density is read from its buffer (lavapipe: 1.03x the frame for 0.90x the
+# per-frame MSE, docs/restir.md "Which tracking once the density is read from a buffer");
+# the ratio to profile-bench-restir-delta-hd-k3.
+step "profile restir density buffer delta k3" profile "bench-restir-density-buffer-delta-hd-k3" \
     assets/scenes/bench/cloud-g0.toml "${hd[@]}" --set "integrator.max_bounces=3" \
     --set 'integrator.restir.density_fetch="buffer"'
 # What SIMD divergence costs the baseline on this device: every workgroup traces its first
