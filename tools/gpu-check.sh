@@ -511,8 +511,10 @@ done
 # (the window after ReSTIR's warm-up), ReSTIR's defaults against its candidates by
 # regular tracking (candidate_tracking) and, outside --lent, Q = 2 and 20 on the frames
 # whose camera moved (temporal_limit_moving; lavapipe measured 2 better at 160x120; a
-# scene whose camera and density hold still renders both alike, once); the rotating HDR
-# sky (sky-g06) is the paper's Fig. 4 (top).
+# scene whose camera and density hold still renders both alike, once) and spatial reuse
+# on and off (with delta-tracked candidates it lost on lavapipe's moving camera at
+# 160x120 and 320x240: docs/restir.md, "Which tracking once the density is read from a
+# buffer"); the rotating HDR sky (sky-g06) is the paper's Fig. 4 (top).
 case $mode in
     quick) motion=(sun-g0); motion_k=1; motion_vary=() ;;
     # About a minute on an H200: the moving camera at g = 0 with ReSTIR's defaults (the
@@ -520,7 +522,8 @@ case $mode in
     # docs/restir.md, "The moving camera on the H200 at 6fe5952").
     lent) motion=(camera-g0); motion_k=3; motion_vary=() ;;
     full) motion=(camera-g0 sun-g0 sky-g06 camera-g08); motion_k=3
-        motion_vary=(--vary temporal_limit_moving=2,20 --vary candidate_tracking=delta,regular) ;;
+        motion_vary=(--vary temporal_limit_moving=2,20 --vary candidate_tracking=delta,regular
+            --vary spatial_neighbors=0,3) ;;
 esac
 if [[ " ${motion[*]} " == *" sky-g06 "* && ! -f target/bench/sky-sun.exr ]]; then
     nimbus make-sky target/bench/sky-sun.exr
