@@ -441,7 +441,8 @@ pub fn peak_host_bytes() -> Option<u64> {
 /// (the shader compiler's, on lavapipe) is larger than anything a frame holds and varies
 /// between runs by tens of MiB with how the pipelines' compiles overlap in their threads,
 /// which hid a leak of a few MiB a frame when two renders' peaks were compared. Once a
-/// process; nothing where `/proc` says nothing.
+/// process; nothing where `/proc` says nothing. Where the peak cannot be reset,
+/// [`host_growth_since_mark`] measures the resident memory at its call instead.
 pub fn mark_host_memory() {
     use std::sync::atomic::Ordering::Relaxed;
     if RESIDENT_AT_MARK.load(Relaxed) != 0 {
@@ -450,18 +451,29 @@ pub fn mark_host_memory() {
     let (Some(peak), Some(resident)) = (status_bytes("VmHWM"), status_bytes("VmRSS")) else {
         return;
     };
-    if std::fs::write("/proc/self/clear_refs", "5").is_ok() {
+    let reset = std::fs::write("/proc/self/clear_refs", "5").is_ok();
+    PEAK_RESET.store(reset, Relaxed);
+    if reset {
         PEAK_BEFORE_MARK.store(peak, Relaxed);
-        RESIDENT_AT_MARK.store(resident.max(1), Relaxed);
     }
+    RESIDENT_AT_MARK.store(resident.max(1), Relaxed);
 }
 
-/// How far the resident memory rose above what it was at [`mark_host_memory`], at its
-/// peak since; None if it was never marked.
+/// Whether [`mark_host_memory`] reset the kernel's peak.
+static PEAK_RESET: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// How far the resident memory rose above what it was at [`mark_host_memory`]: at its
+/// peak since, or where the peak could not be reset, now; None if it was never marked.
 pub fn host_growth_since_mark() -> Option<u64> {
-    let at_mark = RESIDENT_AT_MARK.load(std::sync::atomic::Ordering::Relaxed);
+    use std::sync::atomic::Ordering::Relaxed;
+    let at_mark = RESIDENT_AT_MARK.load(Relaxed);
     (at_mark != 0).then_some(())?;
-    Some(status_bytes("VmHWM")?.saturating_sub(at_mark))
+    let field = if PEAK_RESET.load(Relaxed) {
+        "VmHWM"
+    } else {
+        "VmRSS"
+    };
+    Some(status_bytes(field)?.saturating_sub(at_mark))
 }
 
 #[cfg(test)]
