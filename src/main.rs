@@ -384,6 +384,12 @@ struct ProfileArgs {
     /// Never on a CPU device (lavapipe).
     #[arg(long, value_name = "MS", default_value_t = renderer::settle::DEFAULT_SETTLE.as_millis() as u64, value_parser = clap::value_parser!(u64).range(0..=60_000))]
     settle_ms: u64,
+    /// Time the frames of the still that `nimbus render` makes of a static scene (the
+    /// mean of its frames), not real-time frames: ReSTIR's `temporal = "auto"` then
+    /// leaves temporal reuse out, as the render does. An animated scene's frames are
+    /// images either way.
+    #[arg(long)]
+    still: bool,
     #[command(flatten)]
     overrides: Overrides,
 }
@@ -515,7 +521,12 @@ fn profile_cmd(args: ProfileArgs) -> Result<()> {
         args.scene.as_deref(),
         &args.overrides.fields(Some(args.frames))?,
     )?;
-    let plan = plan::build(&scene, None)?;
+    let product = if args.still {
+        plan::Product::Still
+    } else {
+        plan::Product::Frames
+    };
+    let plan = plan::build_for(&scene, None, product)?;
     let ctx = Context::new(&ContextDesc::from_env())?;
     let result = renderer::render(
         &ctx,

@@ -217,7 +217,9 @@ pub(super) fn render(args: RenderArgs) -> Result<ExitCode> {
             }
         }
     }
-    let plan = plan::build(&scene, None)?;
+    // A static scene renders a still, the mean of its frames (an animation's frames are
+    // its images): that decides ReSTIR's `temporal = "auto"`.
+    let plan = plan::build_for(&scene, None, plan::Product::Still)?;
     if !args.explain && args.frame.is_none() && args.frame_range.is_none() {
         if let Some(note) = plan.stills_note(&scene) {
             eprintln!("note: {note}");

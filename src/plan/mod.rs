@@ -476,11 +476,38 @@ pub fn estimator_id(estimator: BoxEstimator) -> u32 {
     }
 }
 
-/// Build the plan for `scene`, or say which part of it cannot be rendered yet.
-/// `samples_along_ray` overrides the scene's `[integrator] box_samples`.
+/// What a render makes of its frames. It decides ReSTIR's `temporal = "auto"`: temporal
+/// reuse makes each frame better and the frames correlated, which pays where each frame
+/// is looked at and not where only their mean is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Product {
+    /// Each frame is an image (an animation, real-time frames, a profile, a per-frame
+    /// study): temporal reuse on.
+    Frames,
+    /// The mean of the frames of a static scene is the image (`nimbus render` of a scene
+    /// without keyframes or density frames): ReSTIR's frames independent (fresh
+    /// candidates each frame, no temporal pass), 6x as efficient for that mean as
+    /// temporal reuse's correlated frames on the benchmark cloud (docs/performance.md,
+    /// "What a ReSTIR still can be"). An animated scene's frames are images whatever is
+    /// asked.
+    Still,
+}
+
+/// Build the plan for `scene` when each of its frames is an image ([`Product::Frames`]),
+/// or say which part of it cannot be rendered yet. `samples_along_ray` overrides the
+/// scene's `[integrator] box_samples`.
 pub fn build(scene: &Scene, samples_along_ray: Option<u32>) -> Result<RenderPlan> {
+    build_for(scene, samples_along_ray, Product::Frames)
+}
+
+/// [`build`] for what the render makes of its frames.
+pub fn build_for(
+    scene: &Scene,
+    samples_along_ray: Option<u32>,
+    product: Product,
+) -> Result<RenderPlan> {
     let (integrator, rows) = if scene.media.iter().any(|m| matches!(m, Medium::Grid(_))) {
-        volume::build(scene)?
+        volume::build(scene, product)?
     } else {
         boxes::build(scene, samples_along_ray)?
     };
@@ -582,27 +609,27 @@ impl RenderPlan {
         out
     }
 
-    /// What to use for a still: ReSTIR's frames are real-time frames, correlated through
-    /// temporal reuse, so their mean converges slower than independent samples. A note
-    /// for a static scene rendered by ReSTIR (whose output is the mean of its frames).
+    /// What to use for a still: the baseline, whose samples are independent and cheaper
+    /// than ReSTIR's frames. A note for a static scene rendered by ReSTIR (whose output
+    /// is the mean of its frames).
     pub fn stills_note(&self, scene: &Scene) -> Option<String> {
         let restir = self.restir()?;
         if scene.is_animated() {
             return None;
         }
-        let why = if restir.settings.temporal {
-            "ReSTIR's frames are correlated real-time frames, and for a still the baseline \
-             is 13x as efficient as ReSTIR's defaults"
+        let (why, rest) = if restir.temporal {
+            (
+                "temporal reuse (temporal = true) makes ReSTIR's frames correlated real-time \
+                 frames, and for a still the baseline is 13x as efficient",
+                "; temporal = \"auto\" (the default) makes a still's frames independent (6x \
+                 temporal reuse's efficiency, half the baseline's)",
+            )
         } else {
-            "ReSTIR's frames are independent here (temporal = false: 6x the defaults' \
-             efficiency for a still, 1.8x Mitsuba 3's), and the baseline is still 2x as \
-             efficient"
-        };
-        let rest = if restir.settings.temporal {
-            "; if a still must be ReSTIR, [integrator.restir] temporal = false makes its \
-             frames independent (6x the defaults' efficiency, half the baseline's)"
-        } else {
-            ""
+            (
+                "ReSTIR's frames are independent here (temporal reuse off: 6x its efficiency \
+                 for a still, 1.8x Mitsuba 3's), and the baseline is still 2x as efficient",
+                "",
+            )
         };
         Some(format!(
             "this static scene renders a still, the mean of its frames; {why} (perf-cloud, \

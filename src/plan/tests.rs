@@ -279,3 +279,61 @@ fn spatial_reuse_follows_the_density_frames_under_camera_or_density() {
     assert!(plan(&frames, "spatial_when = \"always\"\n").0);
     assert!(plan("", "spatial_when = \"always\"\n").0);
 }
+
+/// `temporal = "auto"` (the default): temporal reuse for frames that are images, none
+/// for the still of a static scene (whose independent frames converge faster), and an
+/// animated scene's frames are images whatever the render asks; `true` and `false` are
+/// kept, and the candidates' tracking follows (delta tracking where each frame stands on
+/// its candidates).
+#[test]
+fn temporal_auto_follows_what_the_render_makes_of_its_frames() {
+    let text = |restir: &str, camera_keys: bool| {
+        let keys = if camera_keys {
+            "[[camera.keyframe]]\nframe = 0\nposition = [0, 0, 30]\nlook_at = [0, 0, 0]\n\
+             [[camera.keyframe]]\nframe = 4\nposition = [1, 0, 30]\nlook_at = [0, 0, 0]\n"
+        } else {
+            ""
+        };
+        format!(
+            "[render]\nframes = 8\n[camera]\nposition = [0, 0, 30]\nlook_at = [0, 0, 0]\n{keys}\
+             [[medium]]\ntype = \"grid\"\nbounds_min = [0, 0, 0]\nbounds_max = [1, 1, 1]\n\
+             density = {{ procedural = \"cloud\", dims = [4, 4, 4] }}\n\
+             [integrator]\nvolume = \"restir\"\n[integrator.restir]\n{restir}\n"
+        )
+    };
+    let decide = |restir: &str, camera_keys: bool, product: Product| {
+        let scene =
+            nimbus_scene::parse_str(&text(restir, camera_keys), Path::new("t.toml")).unwrap();
+        let plan = build_for(&scene, None, product).unwrap();
+        let r = plan.restir().unwrap().clone();
+        let row = plan
+            .decisions
+            .iter()
+            .find(|d| d.name == "pass restir temporal")
+            .unwrap()
+            .clone();
+        assert_eq!(row.enabled, r.temporal);
+        assert_eq!(r.settings.temporal, Some(r.temporal));
+        (
+            r.temporal,
+            r.candidate_delta,
+            row.reason.contains("\"auto\""),
+        )
+    };
+    let (on, delta, auto) = decide("", false, Product::Still);
+    assert!(
+        !on && delta && auto,
+        "a static still: independent frames, delta-tracked"
+    );
+    assert!(decide("", false, Product::Frames).0);
+    assert!(
+        decide("temporal = \"auto\"", true, Product::Still).0,
+        "an animation"
+    );
+    let (on, _, auto) = decide("temporal = true", false, Product::Still);
+    assert!(on && !auto);
+    assert!(!decide("temporal = false", false, Product::Frames).0);
+    // `build` plans frames that are images.
+    let scene = nimbus_scene::parse_str(&text("", false), Path::new("t.toml")).unwrap();
+    assert!(build(&scene, None).unwrap().restir().unwrap().temporal);
+}

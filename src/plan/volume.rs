@@ -24,7 +24,7 @@ const _: () =
     assert!(MAX_BASELINE_LIGHTS < crate::shader_data::features::MAX_RESTIR_LIGHTS as usize);
 
 /// The plan of a scene with a grid medium and its decision rows.
-pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
+pub(super) fn build(scene: &Scene, product: super::Product) -> Result<(Integrator, Vec<Decision>)> {
     let file = scene.source.display();
     let integrator = &scene.integrator;
     let restir = integrator.volume == nimbus_scene::VolumeIntegrator::Restir;
@@ -117,6 +117,7 @@ pub(super) fn build(scene: &Scene) -> Result<(Integrator, Vec<Decision>)> {
             env_map.is_some(),
             lights,
             boxes,
+            product,
         );
     }
     let (nee_split, sky_along_path, nee_decisions) =
@@ -405,12 +406,25 @@ fn other_lights_are_the_sky(scene: &Scene) -> bool {
         && !scene.shapes.iter().any(|s| s.emits())
 }
 
+/// ReSTIR's temporal reuse for `scene` rendered as `product`, and whether `"auto"` took it
+/// off (a still of a static scene: [`super::Product::Still`]).
+fn temporal_choice(scene: &Scene, product: super::Product) -> (bool, bool) {
+    match scene.integrator.restir.temporal {
+        Some(on) => (on, false),
+        None => {
+            let still = product == super::Product::Still && !scene.is_animated();
+            (!still, still)
+        }
+    }
+}
+
 /// Whether the candidates' walks use delta tracking (`candidate_tracking`; `"auto"`:
 /// where each frame leans on its candidates, temporal reuse off or a density that changes
 /// from frame to frame, or where the candidates' level misses the field, its march error
 /// above [`CANDIDATE_DELTA_MARCH_ERROR`]).
 fn candidate_delta(
     s: &nimbus_scene::RestirSettings,
+    temporal: bool,
     animated_density: bool,
     levels: &LevelChoice,
 ) -> bool {
@@ -418,7 +432,7 @@ fn candidate_delta(
         nimbus_scene::CandidateTracking::Delta => true,
         nimbus_scene::CandidateTracking::Regular => false,
         nimbus_scene::CandidateTracking::Auto => {
-            !s.temporal
+            !temporal
                 || animated_density
                 || candidates_march_error(levels).is_some_and(|e| e > CANDIDATE_DELTA_MARCH_ERROR)
         }
@@ -453,7 +467,7 @@ fn tracking_reason(s: &nimbus_scene::RestirSettings, plan: &RestirPlan) -> Strin
             let error = candidates_march_error(&plan.levels)
                 .map(|e| format!("{e:.3}"))
                 .unwrap_or_else(|| "unmeasured".into());
-            let cause = if !s.temporal {
+            let cause = if !plan.temporal {
                 "temporal reuse is off, so every frame stands on its candidates".to_string()
             } else if plan.animated_density {
                 "the density changes from frame to frame, so the history is weak".to_string()
@@ -507,6 +521,8 @@ fn nee_split_applies(scene: &Scene) -> bool {
 }
 
 /// The ReSTIR plan for a validated grid scene.
+// The facts `build` has already worked out, passed rather than worked out twice.
+#[allow(clippy::too_many_arguments)]
 fn restir_plan(
     scene: &Scene,
     index: usize,
@@ -515,8 +531,10 @@ fn restir_plan(
     has_env_map: bool,
     lights: usize,
     boxes: usize,
+    product: super::Product,
 ) -> Result<(Integrator, Vec<Decision>)> {
     let s = &scene.integrator.restir;
+    let (temporal, temporal_auto_off) = temporal_choice(scene, product);
     // ReSTIR keeps one temperature, albedo and emission grid resident for the whole
     // animation; rather than render frames with the wrong fire or colour, it refuses
     // frames that swap them (the baseline renders each frame's).
@@ -560,8 +578,11 @@ fn restir_plan(
         has_velocity: grid.velocity.is_some(),
         animated_density: !grid.frames.is_empty(),
         // Set below, once spatial reuse is known.
-        settings: s.clone(),
-        temporal: s.temporal,
+        settings: nimbus_scene::RestirSettings {
+            temporal: Some(temporal),
+            ..s.clone()
+        },
+        temporal,
         temporal_limit: s.temporal_limit,
         temporal_limit_moving: if super::has_moving_frames(
             scene,
@@ -615,7 +636,7 @@ fn restir_plan(
         has_sphere_lights: has_sphere_lights(scene),
         has_gobos: gobo_count(scene) > 0,
     };
-    plan.candidate_delta = candidate_delta(s, plan.animated_density, &plan.levels);
+    plan.candidate_delta = candidate_delta(s, temporal, plan.animated_density, &plan.levels);
     plan.direct_each_walk = s.direct == nimbus_scene::DirectMode::EachWalk && !plan.candidate_delta;
     // Folded emission needs the environment's sampler at every vertex (q > 0 wherever it
     // draws): split NEE, or the environment as the only light; and emission.
@@ -625,7 +646,7 @@ fn restir_plan(
     let frames = scene.render.frames;
     let spatial = plan.spatial();
     if !spatial {
-        plan.settings = without_spatial(s);
+        plan.settings = without_spatial(&plan.settings);
     }
     if !super::has_moving_frames(scene, plan.animated_density, plan.env_reuse_map) {
         // Read by nothing where no frame moves (camera, density, a map under map reuse):
@@ -672,7 +693,13 @@ fn restir_plan(
         on(
             "pass restir temporal",
             plan.temporal && frames > 1,
-            if !plan.temporal {
+            if temporal_auto_off {
+                "temporal = \"auto\": this static scene renders a still, the mean of its \
+                 frames, and independent frames (fresh candidates each frame) make that mean \
+                 about 6x as efficient as temporal reuse's correlated ones (perf-cloud, K = 3: \
+                 docs/performance.md); temporal = true keeps it"
+                    .into()
+            } else if !plan.temporal {
                 "[integrator.restir] temporal = false".into()
             } else if frames > 1 {
                 format!(
@@ -1083,7 +1110,7 @@ mod tests {
         use nimbus_scene::FieldOverride;
         let plan = |file: &str, overrides: &[FieldOverride]| {
             let scene = crate::load_scene(Some(&root.join(file)), overrides).unwrap();
-            match build(&scene).unwrap().0 {
+            match build(&scene, crate::plan::Product::Frames).unwrap().0 {
                 Integrator::Restir(p) => (p.candidate_delta, p.direct_each_walk, scene),
                 _ => panic!("{file}: not ReSTIR"),
             }
@@ -1093,7 +1120,7 @@ mod tests {
         assert!(plan(noisy, &[]).0);
         let (delta, each_walk, scene) = plan(smooth, &[]);
         assert!(!delta && each_walk);
-        let restir = match build(&scene).unwrap().0 {
+        let restir = match build(&scene, crate::plan::Product::Frames).unwrap().0 {
             Integrator::Restir(p) => p,
             _ => unreachable!(),
         };
@@ -1131,7 +1158,10 @@ mod tests {
     /// refused with what sets its work instead; the baseline takes any spp.
     #[test]
     fn restir_refuses_more_than_one_sample_per_pixel() {
-        let message = format!("{:#}", build(&grid_scene("restir", 4)).unwrap_err());
+        let message = format!(
+            "{:#}",
+            build(&grid_scene("restir", 4), crate::plan::Product::Frames).unwrap_err()
+        );
         for needle in [
             "spp.toml",
             "[render]",
@@ -1142,8 +1172,9 @@ mod tests {
         ] {
             assert!(message.contains(needle), "{needle:?} missing: {message}");
         }
-        assert!(build(&grid_scene("restir", 1)).is_ok());
-        let (integrator, _) = build(&grid_scene("baseline", 4)).unwrap();
+        assert!(build(&grid_scene("restir", 1), crate::plan::Product::Frames).is_ok());
+        let (integrator, _) =
+            build(&grid_scene("baseline", 4), crate::plan::Product::Frames).unwrap();
         assert!(matches!(integrator, Integrator::Baseline(_)));
     }
 
@@ -1163,7 +1194,7 @@ mod tests {
                  [integrator.baseline]\nnee = \"{nee}\"\n"
             );
             let scene = nimbus_scene::parse_str(&text, Path::new("nee.toml")).unwrap();
-            let (integrator, decisions) = build(&scene).unwrap();
+            let (integrator, decisions) = build(&scene, crate::plan::Product::Frames).unwrap();
             let Integrator::Baseline(plan) = integrator else {
                 panic!("not the baseline")
             };

@@ -99,13 +99,19 @@ def write_file_scene(work, vol):
 # Nimbus's integrators as the rows name them: "restir-fresh" is ReSTIR without temporal
 # reuse (fresh candidates every frame, so the frames of a still are independent: the
 # still mode docs/performance.md measures).
-RESTIR_ROWS = {"restir": "ReSTIR", "restir-fresh": "ReSTIR, temporal = false,"}
+# "restir": the defaults, which for this static scene's still leave temporal reuse out
+# (temporal = "auto"); "restir-temporal" keeps it (the defaults before 2026-12-02).
+RESTIR_ROWS = {"restir": "ReSTIR (defaults)", "restir-temporal": "ReSTIR, temporal = true,",
+               "restir-fresh": "ReSTIR, temporal = false,"}
+RESTIR_DEFAULT_ROWS = ["restir", "restir-temporal"]
 
 
 def nimbus_sets(k, g, volume):
     sets = ["--set", "integrator.max_bounces=%d" % k, "--set", "medium.1.g=%g" % g]
     if volume == "restir-fresh":
         return sets + ["--set", 'integrator.volume="restir"', "--set", "integrator.restir.temporal=false"]
+    if volume == "restir-temporal":
+        return sets + ["--set", 'integrator.volume="restir"', "--set", "integrator.restir.temporal=true"]
     return sets + ["--set", 'integrator.volume="%s"' % volume]
 
 
@@ -129,7 +135,9 @@ def nimbus_render(args, scene, k, g, volume, frames, spp, seed, out, extra=(), b
 
 def nimbus_profile(args, scene, k, g, volume, frames, spp, seed, out_json):
     cmd = [args.nimbus, "profile", scene, *nimbus_sets(k, g, volume), "--frames", str(frames),
-           "--warmup", "1", "--spp", str(spp), "--seed", str(seed), "--json", out_json]
+           "--warmup", "1", "--spp", str(spp), "--seed", str(seed), "--json", out_json,
+           # the frames of the still `nimbus render` makes (temporal = "auto" decides as there)
+           "--still"]
     run(cmd, out_json + ".log")
     prof = json.load(open(out_json))
     frame = [p for p in prof["passes"] if p["pass"] == "frame"][0]
@@ -527,8 +535,8 @@ def main():
     ap.add_argument("--nimbus-frames", default="16,64", help="baseline frame counts")
     ap.add_argument("--nimbus-spp", type=int, default=16)
     ap.add_argument("--restir-frames", default="64,256", help="ReSTIR frame counts (1 spp)")
-    ap.add_argument("--restir", nargs="+", default=list(RESTIR_ROWS), choices=list(RESTIR_ROWS),
-                    help="ReSTIR rows (K = 3, g = 0): its defaults, and without temporal reuse")
+    ap.add_argument("--restir", nargs="+", default=RESTIR_DEFAULT_ROWS, choices=list(RESTIR_ROWS),
+                    help="ReSTIR rows (K = 3, g = 0): its defaults (a still without temporal reuse), with it, and with temporal = false")
     ap.add_argument("--configs", nargs="+", default=["%d:%g" % c for c in CONFIGS], metavar="K:G",
                     help="the configurations (max_bounces:g) to compare, e.g. 3:0")
     ap.add_argument("--mitsuba-spp", default="64,256")

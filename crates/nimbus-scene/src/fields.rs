@@ -279,6 +279,19 @@ impl<'a> Fields<'a> {
         }
     }
 
+    /// `true`, `false` or the string `"auto"` (`None`); absent gives `default`.
+    pub fn bool_or_auto(&self, key: &str, default: Option<bool>) -> Result<Option<bool>> {
+        match self.map.get(key) {
+            None => Ok(default),
+            Some(Value::Boolean(b)) => Ok(Some(*b)),
+            Some(Value::String(s)) if s == "auto" => Ok(None),
+            Some(Value::String(s)) => {
+                Err(self.error(key, format!("\"{s}\" is not true, false or \"auto\"")))
+            }
+            Some(other) => Err(self.wrong_type(key, "a boolean or \"auto\"", other)),
+        }
+    }
+
     pub fn opt_str(&self, key: &str) -> Result<Option<&'a str>> {
         match self.map.get(key) {
             Some(Value::String(s)) => Ok(Some(s.as_str())),

@@ -80,6 +80,7 @@
 //! | `box_estimator` | `"mcwvds"`, `"reds"`, `"rees"`, `"rm"`, `"mcds"`, `"me"` |
 //! | `moment_map_size` | a power of two in 16..=4096 |
 //! | restir `candidates` | 1..=4096 |
+//! | restir `temporal` | `true`, `false`, or `"auto"` (off for a still of a static scene) |
 //! | restir `temporal_limit` | 1..=1024 (turn temporal reuse off with `temporal = false`) |
 //! | restir `temporal_limit_moving` | 1..=1024 (Q where the camera or the density moved: the smaller of it and `temporal_limit`) |
 //! | restir `spatial_neighbors` | 0..=16 ([`MAX_SPATIAL_NEIGHBORS`]) |

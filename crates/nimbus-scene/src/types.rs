@@ -838,7 +838,12 @@ pub enum TemporalReprojection {
 #[derive(Clone, Debug, PartialEq)]
 pub struct RestirSettings {
     pub candidates: u32,
-    pub temporal: bool,
+    /// Temporal reuse from the second frame on (`temporal`); `None` (`"auto"`, the
+    /// default): on wherever each frame is a product (an animation, real-time frames,
+    /// a profile or a per-frame study), off where the product is a still of a static
+    /// scene, the mean of its frames, which independent frames make converge faster
+    /// (the plan decides: `nimbus::plan::Product`).
+    pub temporal: Option<bool>,
     pub temporal_limit: u32,
     /// Q on the frames whose camera moved, whose density frame changed or (under
     /// `env_reuse = "map"`) whose environment map turned (`temporal_limit_moving`): the temporal limit there is the smaller of this and
@@ -926,7 +931,7 @@ impl Default for RestirSettings {
     fn default() -> Self {
         Self {
             candidates: 4,
-            temporal: true,
+            temporal: None,
             temporal_limit: 20,
             temporal_limit_moving: 2,
             spatial_neighbors: 3,

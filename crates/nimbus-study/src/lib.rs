@@ -256,6 +256,13 @@ impl Study {
         let ref_base = reference_scene(&file, &base, &ref_overrides, &[])
             .context("the reference settings cannot be rendered")?;
         let ref_fold = fold_seed(ref_base.render.seed);
+        // Without --per-frame a static scene's measured image is the mean of its frames,
+        // as `nimbus render` makes it: ReSTIR's `temporal = "auto"` decides as there.
+        let product = if opts.per_frame {
+            plan::Product::Frames
+        } else {
+            plan::Product::Still
+        };
         let stem = scene_stem(&opts.scene);
         let cache_dir = match &opts.cache_dir {
             Some(dir) => dir.clone(),
@@ -296,7 +303,7 @@ impl Study {
                 left_out.push(assignment);
                 continue;
             }
-            let plan = plan::build(&scene, None)
+            let plan = plan::build_for(&scene, None, product)
                 .with_context(|| format!("configuration {label} cannot be rendered"))?;
 
             let integrand: Assignment = assignment

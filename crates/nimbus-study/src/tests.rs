@@ -281,17 +281,29 @@ fn warmup_covers_compilation_and_the_temporal_history() {
     // Without temporal reuse there is no history to fill.
     assert_eq!(warmup_frames(&restir(20, false), 0), 1);
 
+    // A per-frame study measures real-time frames: ReSTIR's temporal = "auto" keeps
+    // its history, and the warm-up fills it.
     let opts = StudyOptions {
         vary: vec![
             "volume=baseline,restir".into(),
             "temporal_limit=4,20".into(),
         ],
         warmup: 0,
+        per_frame: true,
         ..grid_options("warmup")
     };
     let study = Study::new(&opts).unwrap();
     let warmups: Vec<u32> = study.configurations.iter().map(|c| c.warmup).collect();
     assert_eq!(warmups, [1, 1, 16, 80]);
+    // A study of the mean of the frames (a still of this static scene): "auto" renders
+    // independent frames, with no history to warm up.
+    let still = StudyOptions {
+        per_frame: false,
+        ..opts.clone()
+    };
+    let study = Study::new(&still).unwrap();
+    let warmups: Vec<u32> = study.configurations.iter().map(|c| c.warmup).collect();
+    assert_eq!(warmups, [1, 1, 1, 1]);
     remove_scratch(&opts);
 }
 

@@ -515,7 +515,8 @@ fn a_transparent_png_sequence_and_an_absurd_time_limit_are_refused_with_the_reas
 
 /// A still of a static scene by ReSTIR says which integrator stills want (issue 23:
 /// accumulated ReSTIR frames converge 13x slower per second than the baseline's samples
-/// on lavapipe, 2x with temporal reuse off, which it names); an animation does not.
+/// on lavapipe with temporal reuse, 2x without it, which `temporal = "auto"` leaves out
+/// of a still and the note names); an animation does not.
 #[test]
 fn explain_says_which_integrator_renders_stills() {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
@@ -525,7 +526,22 @@ fn explain_says_which_integrator_renders_stills() {
     assert!(out.status.success(), "{}", text(&out.stderr));
     assert!(
         stdout.contains("note: this static scene renders a still")
-            && stdout.contains("temporal = false makes its frames independent"),
+            && stdout.contains("ReSTIR's frames are independent here")
+            && stdout.contains("[off] pass restir temporal"),
+        "{stdout}"
+    );
+    let temporal = nimbus(&[
+        "render",
+        still.to_str().unwrap(),
+        "--explain",
+        "--set",
+        "integrator.restir.temporal=true",
+    ]);
+    let stdout = text(&temporal.stdout);
+    assert!(
+        stdout.contains("[on ] pass restir temporal")
+            && stdout
+                .contains("temporal = \"auto\" (the default) makes a still's frames independent"),
         "{stdout}"
     );
     let baseline = nimbus(&[

@@ -557,7 +557,8 @@ fn frames_of_an_animation_are_their_own_images_slow() {
     assert!(!out.status.success() && text(&out.stderr).contains("static"));
 }
 
-/// ReSTIR's frames are correlated through temporal reuse; its error estimate comes from
+/// ReSTIR's frames are correlated through temporal reuse (`temporal = true`); its error
+/// estimate then comes from
 /// batch means of 4 (Q + 1) frames (84 at the default temporal_limit Q = 20; here the
 /// paper's Q = 4, 20 frames, for a quarter of the CI time). Two independent chains (seeds)
 /// then differ by what their estimates predict, sqrt(e1² + e2²) (measured with Q = 20 and
@@ -585,6 +586,10 @@ fn restir_error_estimates_account_for_correlated_frames_slow() {
             // default 20 (84): the same estimate over a quarter of the frames.
             "--set",
             "integrator.restir.temporal_limit=4",
+            // A static scene's still leaves temporal reuse out by default (`temporal =
+            // "auto"`): kept here, whose frames must be correlated.
+            "--set",
+            "integrator.restir.temporal=true",
             "--seed",
             seed,
             "--out",

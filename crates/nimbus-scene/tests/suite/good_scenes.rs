@@ -25,7 +25,7 @@ fn minimal_scene_gets_every_default() {
     assert_eq!(scene.integrator.box_samples, 16);
     let restir = &scene.integrator.restir;
     assert_eq!(restir.candidates, 4);
-    assert!(restir.temporal);
+    assert_eq!(restir.temporal, None, "temporal = \"auto\" by default");
     assert_eq!(restir.temporal_limit, 20);
     assert_eq!(restir.temporal_limit_moving, 2);
     assert_eq!(restir.spatial_neighbors, 3);
@@ -51,6 +51,22 @@ fn mip_levels_are_numbers_or_auto() {
     let text = format!("{CAMERA}[integrator.restir]\nmip_indirect = 2\nmip_reuse = \"auto\"\n");
     let restir = parse(&text).unwrap().integrator.restir;
     assert_eq!((restir.mip_indirect, restir.mip_reuse), (Some(2), None));
+}
+
+#[test]
+fn temporal_is_a_boolean_or_auto() {
+    for (value, expected) in [
+        ("true", Some(true)),
+        ("false", Some(false)),
+        ("\"auto\"", None),
+    ] {
+        let text = format!("{CAMERA}[integrator.restir]\ntemporal = {value}\n");
+        assert_eq!(
+            parse(&text).unwrap().integrator.restir.temporal,
+            expected,
+            "{value}"
+        );
+    }
 }
 
 #[test]
@@ -447,7 +463,7 @@ density_fetch = "image"
             moment_map_size: 256,
             restir: RestirSettings {
                 candidates: 16,
-                temporal: false,
+                temporal: Some(false),
                 temporal_limit: 20,
                 temporal_limit_moving: 6,
                 spatial_neighbors: 5,

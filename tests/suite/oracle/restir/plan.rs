@@ -20,15 +20,18 @@ fn explain(path: &std::path::Path, args: &[&str]) -> String {
 }
 
 /// `--explain` lists the four ReSTIR passes; temporal reuse is off with `temporal =
-/// false` and with a single frame; SC_HAS_EMISSION follows the medium.
+/// false`, with a single frame and, under `temporal = "auto"` (the default), for the
+/// still of a static scene; SC_HAS_EMISSION follows the medium.
 #[test]
 fn explain_lists_the_restir_passes() {
-    // The defaults: no spatial reuse, split NEE under a sun and a sky.
+    // The defaults: no spatial reuse, split NEE under a sun and a sky, and the static
+    // scene's still made of independent frames.
     let defaults = scene_file("explain-default", &Cloud::default());
     let out = explain(&defaults, &[]);
     for line in [
         "[on ] pass restir initial",
-        "[on ] pass restir temporal",
+        "[off] pass restir temporal",
+        "temporal = \"auto\": this static scene renders a still",
         "[off] pass restir spatial",
         "[on ] pass restir shade",
         "[off]   SC_HAS_EMISSION",
@@ -56,6 +59,20 @@ fn explain_lists_the_restir_passes() {
     assert!(
         one_frame.contains("[on ] pass restir spatial"),
         "{one_frame}"
+    );
+
+    let temporal = scene_file(
+        "explain-temporal",
+        &Cloud {
+            restir: "temporal = true",
+            ..Cloud::default()
+        },
+    );
+    let out = explain(&temporal, &[]);
+    assert!(out.contains("[on ] pass restir temporal"), "{out}");
+    assert!(
+        out.contains("temporal reuse (temporal = true) makes"),
+        "{out}"
     );
 
     let no_temporal = scene_file(

@@ -146,7 +146,23 @@ fn wrong_types_say_what_was_expected() {
     let error = parse_err("[integrator.restir]\ntemporal = 1\n");
     assert_contains(
         &error,
-        &[SCENE, "[integrator.restir]", "field `temporal`", "boolean"],
+        &[
+            SCENE,
+            "[integrator.restir]",
+            "field `temporal`",
+            "boolean or \"auto\"",
+        ],
+    );
+    let error = parse_err("[integrator.restir]\ntemporal = \"yes\"\n");
+    assert_contains(
+        &error,
+        &[
+            SCENE,
+            "[integrator.restir]",
+            "field `temporal`",
+            "\"yes\"",
+            "\"auto\"",
+        ],
     );
     let error = parse_err("[light]\ntype = \"point\"\n");
     assert_contains(
