@@ -514,8 +514,8 @@ fn a_transparent_png_sequence_and_an_absurd_time_limit_are_refused_with_the_reas
 }
 
 /// A still of a static scene by ReSTIR says which integrator stills want (issue 23:
-/// accumulated ReSTIR frames converge 13x slower per second than the baseline's samples
-/// on lavapipe with temporal reuse, 2x without it, which `temporal = "auto"` leaves out
+/// accumulated ReSTIR frames converge 8x slower per second than the baseline's samples
+/// on lavapipe with temporal reuse, 1.4x without it, which `temporal = "auto"` leaves out
 /// of a still and the note names); an animation does not.
 #[test]
 fn explain_says_which_integrator_renders_stills() {
