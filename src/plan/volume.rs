@@ -406,16 +406,14 @@ fn other_lights_are_the_sky(scene: &Scene) -> bool {
         && !scene.shapes.iter().any(|s| s.emits())
 }
 
-/// ReSTIR's temporal reuse for `scene` rendered as `product`, and whether `"auto"` took it
-/// off (a still of a static scene: [`super::Product::Still`]).
-fn temporal_choice(scene: &Scene, product: super::Product) -> (bool, bool) {
-    match scene.integrator.restir.temporal {
-        Some(on) => (on, false),
-        None => {
-            let still = product == super::Product::Still && !scene.is_animated();
-            (!still, still)
-        }
-    }
+/// ReSTIR's temporal reuse for `scene` rendered as `product`: as asked, or for `"auto"`
+/// off in a still of a static scene ([`super::Product::Still`]) and on otherwise.
+fn temporal_choice(scene: &Scene, product: super::Product) -> bool {
+    scene
+        .integrator
+        .restir
+        .temporal
+        .unwrap_or(product == super::Product::Frames || scene.is_animated())
 }
 
 /// Whether the candidates' walks use delta tracking (`candidate_tracking`; `"auto"`:
@@ -534,7 +532,9 @@ fn restir_plan(
     product: super::Product,
 ) -> Result<(Integrator, Vec<Decision>)> {
     let s = &scene.integrator.restir;
-    let (temporal, temporal_auto_off) = temporal_choice(scene, product);
+    let temporal = temporal_choice(scene, product);
+    // `"auto"` took temporal reuse off (the decision row says why).
+    let temporal_auto_off = s.temporal.is_none() && !temporal;
     // ReSTIR keeps one temperature, albedo and emission grid resident for the whole
     // animation; rather than render frames with the wrong fire or colour, it refuses
     // frames that swap them (the baseline renders each frame's).
