@@ -70,6 +70,37 @@ fn equal_time_ratios(baseline: &[(f64, f64)], other: &[(f64, f64)]) -> Vec<(f64,
         .collect()
 }
 
+/// How far outside its measured times (as a factor of time) a baseline is extrapolated.
+pub(super) const MAX_EXTRAPOLATION: f64 = 4.0;
+
+/// The RMSE at time `t` of a baseline measured at `points` (time ascending) but not at
+/// times as short or long as `t`: from its nearest measured point as RMSE ∝ t^-1/2, the
+/// law of an estimator whose work and samples grow together (more samples per pixel of
+/// independent paths: MSE ∝ 1/samples). `None` inside the measured range, beyond
+/// [`MAX_EXTRAPOLATION`] times it, or for an empty curve.
+fn extrapolate(points: &[(f64, f64)], t: f64) -> Option<f64> {
+    let (first, last) = (points.first()?, points.last()?);
+    let near = if t > last.0 {
+        last
+    } else if t < first.0 {
+        first
+    } else {
+        return None;
+    };
+    let factor = if t > near.0 { t / near.0 } else { near.0 / t };
+    (t > 0.0 && factor <= MAX_EXTRAPOLATION).then(|| near.1 * (near.0 / t).sqrt())
+}
+
+/// The log–log slope of the last two points of `points` (RMSE against time: −1/2 for an
+/// estimator whose MSE falls as 1/time).
+fn last_slope(points: &[(f64, f64)]) -> Option<f64> {
+    let [a, b] = points.get(points.len().checked_sub(2)?..)? else {
+        return None;
+    };
+    (a.0 > 0.0 && b.0 > a.0 && a.1 > 0.0 && b.1 > 0.0)
+        .then(|| (b.1.ln() - a.1.ln()) / (b.0.ln() - a.0.ln()))
+}
+
 /// exp(mean ln v), `None` for an empty slice or a non-positive value.
 fn geometric_mean(values: &[f64]) -> Option<f64> {
     if values.is_empty() || values.iter().any(|v| v.is_nan() || *v <= 0.0) {
@@ -241,6 +272,11 @@ pub(super) struct Comparison {
     /// The geometric-mean ratio of each seed's series against the baseline series of
     /// the same seed (empty when compared without seeds).
     pub(super) seed_geo_means: Vec<Option<f64>>,
+    /// Some of `points` lie outside the baseline's measured times, the baseline's RMSE
+    /// there extrapolated from its nearest point as RMSE ∝ t^-1/2 ([`extrapolate`]);
+    /// with the log–log slope the baseline's own last two points measured (`None` for a
+    /// baseline of one time).
+    pub(super) extrapolated: Option<Option<f64>>,
 }
 
 impl Comparison {
@@ -320,16 +356,35 @@ pub(super) fn equal_time(baseline: &(String, String), series: &[plot::Series]) -
         };
         let (base_curve, curve) = (curve(base), curve(s));
         let ratios = equal_time_ratios(&base_curve, &curve);
+        let mut extrapolated = None;
         let points: Vec<(f64, f64, f64, f64)> = if ratios.is_empty() {
             // The series' times fall between the baseline's (e.g. a series of one
-            // time): the baseline interpolated at the series' own times instead.
-            curve
-                .iter()
-                .filter_map(|&(t, rmse)| {
-                    let base_rmse = interpolate_loglog(&base_curve, t)?;
-                    (base_rmse > 0.0).then(|| (t, base_rmse, rmse, rmse / base_rmse))
-                })
-                .collect()
+            // time): the baseline interpolated at the series' own times instead; where
+            // none does (a series slower or faster than every baseline point), the
+            // baseline extrapolated there, and the comparison says so.
+            let at = |interpolate: bool| -> Vec<(f64, f64, f64, f64)> {
+                curve
+                    .iter()
+                    .filter_map(|&(t, rmse)| {
+                        let base_rmse = if interpolate {
+                            interpolate_loglog(&base_curve, t)?
+                        } else {
+                            extrapolate(&base_curve, t)?
+                        };
+                        (base_rmse > 0.0).then(|| (t, base_rmse, rmse, rmse / base_rmse))
+                    })
+                    .collect()
+            };
+            let inside = at(true);
+            if inside.is_empty() {
+                let outside = at(false);
+                if !outside.is_empty() {
+                    extrapolated = Some(last_slope(&base_curve));
+                }
+                outside
+            } else {
+                inside
+            }
         } else {
             ratios
                 .iter()
@@ -349,6 +404,7 @@ pub(super) fn equal_time(baseline: &(String, String), series: &[plot::Series]) -
             points,
             geo_mean: geometric_mean(&values),
             seed_geo_means: Vec::new(),
+            extrapolated,
         });
     }
     out
@@ -502,6 +558,56 @@ mod tests {
         assert_eq!((t, r), (20.0, 0.25));
         assert!((b - 0.5f64.sqrt()).abs() < 1e-12, "{b}");
         assert!((ratio - 0.25 / 0.5f64.sqrt()).abs() < 1e-12);
+        assert_eq!(c[0].extrapolated, None);
+    }
+
+    /// A series slower than every baseline point (ReSTIR's frame beyond the baseline's
+    /// largest spp) is compared with the baseline extrapolated as RMSE ∝ t^-1/2 from its
+    /// slowest point, up to [`MAX_EXTRAPOLATION`] times it, and the comparison says so
+    /// with the baseline's own measured slope; farther it is not compared.
+    #[test]
+    fn equal_time_extrapolates_the_baseline_a_little_and_says_so() {
+        let point = |t: f64, rmse: f64| plot::Point {
+            time_ms: t,
+            rmse,
+            knobs: Vec::new(),
+            rmse_range: None,
+        };
+        let series = |volume: &str, points: Vec<plot::Point>| plot::Series {
+            key: assignment(&[("volume", volume)]),
+            aliases: Vec::new(),
+            label: format!("volume={volume}"),
+            points,
+        };
+        // The baseline's slope over its last two points: 0.5 -> 0.3 over 10 -> 40 ms.
+        let base = || series("baseline", vec![point(10.0, 0.5), point(40.0, 0.3)]);
+        let key = ("volume".to_owned(), "baseline".to_owned());
+        let c = equal_time(&key, &[base(), series("restir", vec![point(90.0, 0.1)])]);
+        let (t, b, r, ratio) = c[0].points[0];
+        assert_eq!((t, r), (90.0, 0.1));
+        assert!((b - 0.3 * (40.0f64 / 90.0).sqrt()).abs() < 1e-12, "{b}");
+        assert!((ratio - 0.1 / b).abs() < 1e-12);
+        let slope = c[0].extrapolated.expect("extrapolated").expect("a slope");
+        assert!(
+            (slope - (0.6f64.ln() / 4.0f64.ln())).abs() < 1e-12,
+            "{slope}"
+        );
+        // Faster than the fastest point too.
+        let c = equal_time(&key, &[base(), series("restir", vec![point(5.0, 0.1)])]);
+        assert!((c[0].points[0].1 - 0.5 * 2.0f64.sqrt()).abs() < 1e-12);
+        // Beyond 4x: no comparison.
+        let c = equal_time(&key, &[base(), series("restir", vec![point(161.0, 0.1)])]);
+        assert!(c[0].points.is_empty() && c[0].geo_mean.is_none());
+        assert_eq!(c[0].extrapolated, None);
+        let text = crate::report::equal_time_text(
+            &equal_time(&key, &[base(), series("restir", vec![point(90.0, 0.1)])]),
+            Some(&key),
+            1,
+        );
+        assert!(
+            text.contains("EXTRAPOLATED") && text.contains("-0.368"),
+            "{text}"
+        );
     }
 
     #[test]

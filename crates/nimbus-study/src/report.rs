@@ -6,7 +6,7 @@
 use std::fmt::Write as _;
 
 use super::cache::Reference;
-use super::metrics::{Comparison, ReferenceNoise, REL_MSE_EPSILON};
+use super::metrics::{Comparison, ReferenceNoise, MAX_EXTRAPOLATION, REL_MSE_EPSILON};
 use super::run::reference_label;
 use super::vary::{format_pairs, Assignment, Vary, KNOB_KEYS};
 use super::{Row, Study, WARMUP_PER_TEMPORAL_LIMIT};
@@ -523,16 +523,29 @@ pub(super) fn equal_time_text(
             }
             None => String::new(),
         };
+        let extrapolated = match c.extrapolated {
+            None => String::new(),
+            Some(slope) => format!(
+                "; EXTRAPOLATED: the series' times lie outside the baseline's, and the \
+                 baseline's RMSE there is that of its nearest measured point times \
+                 (t_point / t)^1/2 (at most {}x away in time; the slope of its last two \
+                 points is {}, the law's -0.5): measure the baseline at the series' time \
+                 to confirm",
+                MAX_EXTRAPOLATION,
+                slope.map_or("-".to_owned(), |s| sig(s, 3))
+            ),
+        };
         summary.push(match c.geo_mean {
             Some(g) => format!(
-                "- {} vs {}: geometric mean RMSE ratio {}{spread} over {} time(s)",
+                "- {} vs {}: geometric mean RMSE ratio {}{spread} over {} time(s){extrapolated}",
                 c.series,
                 c.baseline,
                 sig(g, 3),
                 c.points.len()
             ),
             None => format!(
-                "- {} vs {}: no common GPU time range (the series' times do not overlap the baseline's)",
+                "- {} vs {}: no common GPU time range (the series' times do not overlap the \
+                 baseline's, nor lie within {MAX_EXTRAPOLATION}x of its measured times)",
                 c.series, c.baseline
             ),
         });
@@ -725,6 +738,7 @@ mod tests {
                 points: vec![(1.0, 1.0, 0.25, 0.25), (10.0, 0.5, 0.125, 0.25)],
                 geo_mean: Some(0.25),
                 seed_geo_means: Vec::new(),
+                extrapolated: None,
             },
             Comparison {
                 series: "box_estimator=mcds".into(),
@@ -732,6 +746,7 @@ mod tests {
                 points: Vec::new(),
                 geo_mean: None,
                 seed_geo_means: Vec::new(),
+                extrapolated: None,
             },
         ];
         let text = equal_time_text(&comparisons, Some(&baseline), 1);
