@@ -682,6 +682,8 @@ pub fn effective_scene(scene: &Scene, plan: &RenderPlan) -> Scene {
         Integrator::Restir(p) => {
             i.box_estimator = defaults.box_estimator;
             i.box_samples = defaults.box_samples;
+            // "auto" and the Q it resolves to render the same.
+            i.restir.temporal_limit = Some(p.temporal_limit);
             if !spatial_on(p) {
                 // Without spatial reuse its settings are read by nothing.
                 i.restir = volume::without_spatial(&i.restir);

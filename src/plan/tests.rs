@@ -81,12 +81,12 @@ fn grid_scenes_name_what_the_baseline_does_not_take() {
     assert!(plan.baseline().is_none() && !r.has_emission && !r.vertex_reuse);
     assert_eq!(
         (r.settings.candidates, r.temporal_limit, r.spatial_neighbors),
-        (4, 20, 0)
+        (4, nimbus_scene::STILL_TEMPORAL_LIMIT, 0)
     );
     // A camera that never moves over a still density takes Q alone (whatever the moving
     // frames' Q says); one with keyframes the smaller of the two on its moving frames,
     // and --explain says so.
-    assert_eq!(r.temporal_limit_moving, 20);
+    assert_eq!(r.temporal_limit_moving, nimbus_scene::STILL_TEMPORAL_LIMIT);
     let q_moving = |keys: bool, q: u32, q_moving: u32| {
         let camera = if keys {
             "[[camera.keyframe]]\nframe = 0\nposition = [0, 0, 30]\nlook_at = [0, 0, 0]\n\
@@ -317,7 +317,7 @@ fn temporal_auto_follows_what_the_render_makes_of_its_frames() {
         (
             r.temporal,
             r.candidate_delta,
-            row.reason.contains("\"auto\""),
+            row.reason.contains("temporal = \"auto\""),
         )
     };
     let (on, delta, auto) = decide("", false, Product::Still);
@@ -336,4 +336,69 @@ fn temporal_auto_follows_what_the_render_makes_of_its_frames() {
     // `build` plans frames that are images.
     let scene = nimbus_scene::parse_str(&text("", false), Path::new("t.toml")).unwrap();
     assert!(build(&scene, None).unwrap().restir().unwrap().temporal);
+}
+
+/// `temporal_limit = "auto"` (the default): the long history where nothing moves, the
+/// motion benchmarks' Q where anything does (camera, light or density keyframes), and
+/// the plan, `--explain` and the study's effective scene say which.
+#[test]
+fn auto_temporal_limit_follows_the_scene() {
+    let grid = "[[medium]]\ntype = \"grid\"\nbounds_min = [0, 0, 0]\nbounds_max = [1, 1, 1]\n\
+                density = { procedural = \"cloud\", dims = [4, 4, 4] }\n";
+    let camera_keys = "[[camera.keyframe]]\nframe = 0\nposition = [0, 0, 30]\nlook_at = [0, 0, 0]\n\
+                       [[camera.keyframe]]\nframe = 4\nposition = [1, 0, 30]\nlook_at = [0, 0, 0]\n";
+    let sun_keys = "[[light]]\ntype = \"directional\"\ndirection = [0, -1, 0]\nirradiance = 1\n\
+                    [[light.keyframe]]\nframe = 0\ndirection = [0, -1, 0]\n\
+                    [[light.keyframe]]\nframe = 4\ndirection = [1, -1, 0]\n";
+    let q = |body: &str, restir: &str| {
+        let text = format!(
+            "[render]\nframes = 8\n[camera]\nposition = [0, 0, 30]\nlook_at = [0, 0, 0]\n\
+             {body}{grid}[integrator]\nvolume = \"restir\"\n[integrator.restir]\n{restir}\n"
+        );
+        let scene = nimbus_scene::parse_str(&text, Path::new("q.toml")).unwrap();
+        let plan = build(&scene, None).unwrap();
+        let r = plan.restir().unwrap().clone();
+        let row = plan
+            .decisions
+            .iter()
+            .find(|d| d.name == "pass restir temporal")
+            .unwrap()
+            .reason
+            .clone();
+        assert_eq!(r.settings.temporal_limit, Some(r.temporal_limit));
+        assert_eq!(
+            effective_scene(&scene, &plan)
+                .integrator
+                .restir
+                .temporal_limit,
+            Some(r.temporal_limit),
+            "\"auto\" and the Q it resolves to render the same"
+        );
+        (r.temporal_limit, r.temporal_limit_moving, row)
+    };
+    let (still, still_moving, row) = q("", "");
+    assert_eq!(
+        (still, still_moving),
+        (nimbus_scene::STILL_TEMPORAL_LIMIT, still)
+    );
+    assert!(
+        row.contains(&format!("Q = {still} (temporal_limit = \"auto\""))
+            && row.contains("where nothing moves"),
+        "{row}"
+    );
+    let (camera, camera_moving, row) = q(camera_keys, "");
+    assert_eq!(
+        (camera, camera_moving),
+        (nimbus_scene::ANIMATED_TEMPORAL_LIMIT, 2)
+    );
+    assert!(row.contains("where something moves"), "{row}");
+    assert_eq!(
+        q(sun_keys, "").0,
+        nimbus_scene::ANIMATED_TEMPORAL_LIMIT,
+        "a turning sun alone"
+    );
+    let (asked, _, row) = q("", "temporal_limit = 7");
+    assert_eq!(asked, 7);
+    assert!(!row.contains("\"auto\""), "{row}");
+    assert_eq!(q(camera_keys, "temporal_limit = \"auto\"").0, camera);
 }

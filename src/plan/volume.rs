@@ -567,6 +567,7 @@ fn restir_plan(
     let asked_levels = AskedLevels::of(s);
     let k = scene.integrator.max_bounces;
     let env_reuse_map = s.env_reuse == nimbus_scene::EnvReuse::Map && has_env_map;
+    let temporal_limit = scene.restir_temporal_limit();
     let mut plan = RestirPlan {
         max_bounces: k,
         has_emission: grid.emission.is_some() || grid.temperature.is_some(),
@@ -580,18 +581,19 @@ fn restir_plan(
         // Set below, once spatial reuse is known.
         settings: nimbus_scene::RestirSettings {
             temporal: Some(temporal),
+            temporal_limit: Some(temporal_limit),
             ..s.clone()
         },
         temporal,
-        temporal_limit: s.temporal_limit,
+        temporal_limit,
         temporal_limit_moving: if super::has_moving_frames(
             scene,
             !grid.frames.is_empty(),
             env_reuse_map,
         ) {
-            s.temporal_limit.min(s.temporal_limit_moving)
+            temporal_limit.min(s.temporal_limit_moving)
         } else {
-            s.temporal_limit
+            temporal_limit
         },
         // spatial_when = "camera_moves" under a camera that never moves, or
         // "camera_or_density" where neither the camera nor the density moves: no spatial
@@ -703,7 +705,7 @@ fn restir_plan(
                 "[integrator.restir] temporal = false".into()
             } else if frames > 1 {
                 format!(
-                    "from the second frame: reprojection of {}{}, Q = {}{}, history = the {} output",
+                    "from the second frame: reprojection of {}{}, Q = {}{}{}, history = the {} output",
                     match s.temporal_reprojection {
                         nimbus_scene::TemporalReprojection::Path =>
                             "the selected path's x1 (temporal_reprojection = \"path\", the paper's)",
@@ -717,6 +719,17 @@ fn restir_plan(
                         ""
                     },
                     plan.temporal_limit,
+                    match s.temporal_limit {
+                        Some(_) => String::new(),
+                        None if scene.is_animated() => format!(
+                            " (temporal_limit = \"auto\": {} where something moves)",
+                            nimbus_scene::ANIMATED_TEMPORAL_LIMIT
+                        ),
+                        None => format!(
+                            " (temporal_limit = \"auto\": {} where nothing moves)",
+                            nimbus_scene::STILL_TEMPORAL_LIMIT
+                        ),
+                    },
                     if plan.temporal_limit_moving != plan.temporal_limit {
                         format!(
                             " (Q = {} on frames whose camera or density moved{}: temporal_limit_moving)",

@@ -7,7 +7,7 @@ use glam::Vec3;
 
 use crate::types::{
     reduce_degrees, Camera, CameraFrame, GridFrame, GridMedium, GridSource, Light, LightKeyframe,
-    LightState, Medium, Scene,
+    LightState, Medium, Scene, ANIMATED_TEMPORAL_LIMIT, STILL_TEMPORAL_LIMIT,
 };
 
 impl Scene {
@@ -40,6 +40,20 @@ impl Scene {
             || self.media.iter().any(|m| match m {
                 Medium::Grid(g) => !g.frames.is_empty(),
                 Medium::Box(_) | Medium::Convex(_) => false,
+            })
+    }
+
+    /// ReSTIR's Q (`[integrator.restir] temporal_limit`) as asked, or for `"auto"`
+    /// [`STILL_TEMPORAL_LIMIT`] where nothing moves and [`ANIMATED_TEMPORAL_LIMIT`]
+    /// where something does ([`Scene::is_animated`]).
+    pub fn restir_temporal_limit(&self) -> u32 {
+        self.integrator
+            .restir
+            .temporal_limit
+            .unwrap_or(if self.is_animated() {
+                ANIMATED_TEMPORAL_LIMIT
+            } else {
+                STILL_TEMPORAL_LIMIT
             })
     }
 

@@ -345,7 +345,7 @@ mod tests {
                 r.temporal_limit,
                 r.spatial_neighbors
             ),
-            (8, Some(false), 20, 0)
+            (8, Some(false), Some(20), 0)
         );
         assert_eq!(r.temporal_limit_moving, 3);
         assert_eq!((r.spatial_radius_px, r.spatial_rounds), (Some(2.5), 2));

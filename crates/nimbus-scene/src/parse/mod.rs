@@ -654,7 +654,7 @@ fn parse_restir(source: &Source, table: &toml::Table) -> Result<RestirSettings> 
     Ok(RestirSettings {
         candidates: f.u32_in("candidates", Some(d.candidates), 1..=4096)?,
         temporal: f.bool_or_auto("temporal", d.temporal)?,
-        temporal_limit: f.u32_in("temporal_limit", Some(d.temporal_limit), 1..=1024)?,
+        temporal_limit: f.u32_or_auto("temporal_limit", d.temporal_limit, 1..=1024)?,
         temporal_limit_moving: f.u32_in(
             "temporal_limit_moving",
             Some(d.temporal_limit_moving),

@@ -26,7 +26,11 @@ fn minimal_scene_gets_every_default() {
     let restir = &scene.integrator.restir;
     assert_eq!(restir.candidates, 4);
     assert_eq!(restir.temporal, None, "temporal = \"auto\" by default");
-    assert_eq!(restir.temporal_limit, 20);
+    assert_eq!(
+        restir.temporal_limit, None,
+        "temporal_limit = \"auto\" by default"
+    );
+    assert_eq!(scene.restir_temporal_limit(), STILL_TEMPORAL_LIMIT);
     assert_eq!(restir.temporal_limit_moving, 2);
     assert_eq!(restir.spatial_neighbors, 3);
     assert_eq!(restir.spatial_when, SpatialWhen::CameraOrDensity);
@@ -464,7 +468,7 @@ density_fetch = "image"
             restir: RestirSettings {
                 candidates: 16,
                 temporal: Some(false),
-                temporal_limit: 20,
+                temporal_limit: Some(20),
                 temporal_limit_moving: 6,
                 spatial_neighbors: 5,
                 spatial_radius_px: Some(30.5),
