@@ -277,6 +277,14 @@ pub fn moment_texels_per_light(size: u64) -> u64 {
 }
 
 impl RestirPlan {
+    /// M on the frames whose temporal history is full (`candidates_settled`), where it
+    /// is fewer than `candidates`; `None` where every frame draws `candidates` (no
+    /// temporal reuse, or a settled M of at least M).
+    pub fn candidates_settled(&self) -> Option<u32> {
+        let s = &self.settings;
+        (self.temporal && s.candidates_settled < s.candidates).then_some(s.candidates_settled)
+    }
+
     /// Whether spatial reuse runs.
     pub fn spatial(&self) -> bool {
         self.spatial_neighbors > 0 && self.spatial_rounds > 0
@@ -337,6 +345,26 @@ pub fn reservoir_slots(
     }
 }
 
+/// The frame's M and Q: `candidates` and `temporal_limit`, or on a frame whose history
+/// is full the settled M with the Q that keeps the history's cap of `temporal_limit` ·
+/// `candidates` candidates (the temporal pass caps the previous M at Q·M of the frame's
+/// own; rounded, at least 1).
+pub fn settled_candidates(
+    candidates: u32,
+    temporal_limit: u32,
+    settled: Option<u32>,
+) -> (u32, u32) {
+    match settled {
+        Some(m) if m > 0 && m < candidates => {
+            let cap = u64::from(temporal_limit) * u64::from(candidates);
+            let m64 = u64::from(m);
+            let q = ((cap + m64 / 2) / m64).clamp(1, u64::from(u32::MAX));
+            (m, q as u32)
+        }
+        _ => (candidates, temporal_limit),
+    }
+}
+
 /// Frames per batch of the error estimate for `plan`: ReSTIR's temporal reuse carries
 /// each reservoir's history into the next frames, with weight capped at Q times the
 /// frame's own (Q = `temporal_limit`), so a frame's influence decays roughly like
@@ -345,7 +373,16 @@ pub fn reservoir_slots(
 /// numbers each frame: 1.
 pub fn error_batch(plan: &RenderPlan) -> u32 {
     match plan.restir() {
-        Some(p) if p.temporal => 4 * (p.temporal_limit + 1),
+        Some(p) if p.temporal => {
+            // Settled frames (`candidates_settled`) keep the history's Q·M candidates with
+            // fewer of their own, so their Q is the larger one.
+            let (_, q) = settled_candidates(
+                p.settings.candidates,
+                p.temporal_limit,
+                p.candidates_settled(),
+            );
+            4u32.saturating_mul(q.saturating_add(1))
+        }
         _ => 1,
     }
 }
@@ -682,8 +719,10 @@ pub fn effective_scene(scene: &Scene, plan: &RenderPlan) -> Scene {
         Integrator::Restir(p) => {
             i.box_estimator = defaults.box_estimator;
             i.box_samples = defaults.box_samples;
-            // "auto" and the Q it resolves to render the same.
+            // "auto" and the Q it resolves to render the same, and so does every settled M
+            // that takes no effect.
             i.restir.temporal_limit = Some(p.temporal_limit);
+            i.restir.candidates_settled = p.candidates_settled().unwrap_or(i.restir.candidates);
             if !spatial_on(p) {
                 // Without spatial reuse its settings are read by nothing.
                 i.restir = volume::without_spatial(&i.restir);

@@ -402,3 +402,64 @@ fn auto_temporal_limit_follows_the_scene() {
     assert!(!row.contains("\"auto\""), "{row}");
     assert_eq!(q(camera_keys, "temporal_limit = \"auto\"").0, camera);
 }
+
+/// `candidates_settled`: the plan reports it where it takes effect (temporal reuse on, a
+/// settled M below M), `--explain` says so on the initial pass's row, and the study's
+/// effective scene folds the values that take no effect into M.
+#[test]
+fn candidates_settled_is_explained_where_it_takes_effect() {
+    let plan_of = |restir: &str| {
+        let text = format!(
+            "[render]\nframes = 8\n[camera]\nposition = [0, 0, 30]\nlook_at = [0, 0, 0]\n\
+             [[medium]]\ntype = \"grid\"\nbounds_min = [0, 0, 0]\nbounds_max = [1, 1, 1]\n\
+             density = {{ procedural = \"cloud\", dims = [4, 4, 4] }}\n\
+             [integrator]\nvolume = \"restir\"\n[integrator.restir]\n{restir}\n"
+        );
+        let scene = nimbus_scene::parse_str(&text, Path::new("s.toml")).unwrap();
+        let plan = build(&scene, None).unwrap();
+        let r = plan.restir().unwrap().clone();
+        let row = plan
+            .decisions
+            .iter()
+            .find(|d| d.name == "pass restir initial")
+            .unwrap()
+            .reason
+            .clone();
+        let effective = effective_scene(&scene, &plan)
+            .integrator
+            .restir
+            .candidates_settled;
+        (r.candidates_settled(), row, effective, error_batch(&plan))
+    };
+    let (settled, row, effective, batch) = plan_of("");
+    assert_eq!((settled, effective), (Some(1), 1));
+    // The error estimate's batches follow the settled frames' Q (240): 4 (240 + 1).
+    assert_eq!(batch, 964);
+    assert!(
+        row.contains("(1 once the history is full, after 60 frames in a row")
+            && row.contains("cap of 240 candidates"),
+        "{row}"
+    );
+    let (settled, row, effective, batch) = plan_of("candidates_settled = 4");
+    assert_eq!((settled, effective, batch), (None, 4, 244));
+    assert!(!row.contains("once the history is full"), "{row}");
+    assert_eq!(plan_of("candidates_settled = 9").2, 4, "more than M is M");
+    assert_eq!(
+        plan_of("temporal = false").0,
+        None,
+        "no history, nothing settles"
+    );
+}
+
+/// The settled M keeps the history's cap of Q·M candidates; nothing changes where
+/// the frame is not settled or the settled M is not fewer.
+#[test]
+fn settled_candidates_keep_the_history_cap() {
+    assert_eq!(settled_candidates(4, 60, None), (4, 60));
+    assert_eq!(settled_candidates(4, 60, Some(1)), (1, 240));
+    assert_eq!(settled_candidates(4, 60, Some(2)), (2, 120));
+    assert_eq!(settled_candidates(4, 5, Some(3)), (3, 7)); // 20 / 3, rounded
+    assert_eq!(settled_candidates(4, 60, Some(4)), (4, 60));
+    assert_eq!(settled_candidates(4, 60, Some(9)), (4, 60));
+    assert_eq!(settled_candidates(4096, 1024, Some(1)), (1, 4_194_304));
+}

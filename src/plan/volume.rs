@@ -666,11 +666,21 @@ fn restir_plan(
             "pass restir initial",
             true,
             format!(
-                "grid medium #{}: M = {} random walks per pixel, {}, \
+                "grid medium #{}: M = {} random walks per pixel{}, {}, \
                  K = {k}, {lights} analytic light(s), target = {} of the path's RGB; {} bytes of \
                  reservoir per pixel and slot, {} slots",
                 index + 1,
                 s.candidates,
+                match plan.candidates_settled() {
+                    Some(m) => format!(
+                        " ({m} once the history is full, after {} frames in a row on which \
+                         nothing changed: candidates_settled; the history keeps its cap of {} \
+                         candidates)",
+                        plan.temporal_limit,
+                        u64::from(plan.temporal_limit) * u64::from(s.candidates)
+                    ),
+                    None => String::new(),
+                },
                 if plan.candidate_delta {
                     format!(
                         "delta tracking on the exact density, NEE marched on mip {}",

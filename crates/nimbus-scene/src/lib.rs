@@ -80,6 +80,7 @@
 //! | `box_estimator` | `"mcwvds"`, `"reds"`, `"rees"`, `"rm"`, `"mcds"`, `"me"` |
 //! | `moment_map_size` | a power of two in 16..=4096 |
 //! | restir `candidates` | 1..=4096 |
+//! | restir `candidates_settled` | 1..=4096 (at most `candidates` takes effect) |
 //! | restir `temporal` | `true`, `false`, or `"auto"` (off for a still of a static scene) |
 //! | restir `temporal_limit` | 1..=1024 or `"auto"` (60 where nothing moves, 20 in an animation; turn temporal reuse off with `temporal = false`) |
 //! | restir `temporal_limit_moving` | 1..=1024 (Q where the camera or the density moved: the smaller of it and `temporal_limit`) |

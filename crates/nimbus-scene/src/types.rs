@@ -849,6 +849,13 @@ pub enum TemporalReprojection {
 #[derive(Clone, Debug, PartialEq)]
 pub struct RestirSettings {
     pub candidates: u32,
+    /// M on the frames whose temporal history is full (`candidates_settled`): from the
+    /// Q-th frame in a row on which nothing changed (camera, lights, density), the history
+    /// holds Q·M candidates' worth, each frame's own M adds 1/(Q+1) of it, and a frame of
+    /// fewer candidates costs less; the history's cap stays Q·M candidates, so its length
+    /// is kept. The choice is made per frame from the frames alone, so the estimator stays
+    /// unbiased. At most `candidates` (a larger value is `candidates`).
+    pub candidates_settled: u32,
     /// Temporal reuse from the second frame on (`temporal`); `None` (`"auto"`, the
     /// default): on wherever each frame is a product (an animation, real-time frames,
     /// a profile or a per-frame study), off where the product is a still of a static
@@ -948,6 +955,7 @@ impl Default for RestirSettings {
     fn default() -> Self {
         Self {
             candidates: 4,
+            candidates_settled: 1,
             temporal: None,
             temporal_limit: None,
             temporal_limit_moving: 2,

@@ -302,6 +302,7 @@ mod tests {
             ("max_bounces", "2"),
             ("volume", "restir"),
             ("candidates", "8"),
+            ("candidates_settled", "2"),
             ("temporal", "false"),
             ("temporal_limit", "20"),
             ("temporal_limit_moving", "3"),

@@ -59,6 +59,14 @@ pub struct RestirPass {
     /// move, and on frames where one did (`temporal_limit`, `temporal_limit_moving`):
     /// `prepare` uploads the frame's.
     temporal_limits: [u32; 2],
+    /// This frame's Q from `temporal_limits` (set by `prepare`).
+    frame_temporal_limit: u32,
+    /// M on frames whose history is full (`candidates_settled`, fewer than M), and how
+    /// many frames in a row up to the last one recorded kept the previous frame's target
+    /// (`history_static`): from `temporal_limits[0]` of them on, a frame draws the
+    /// settled M, the cap of Q·M candidates kept (`record`).
+    candidates_settled: Option<u32>,
+    still_run: u32,
     /// `env_reuse = "map"` with a map: a turn of the map is a moving frame's.
     env_reuse_map: bool,
     /// Tracking reads the piecewise-constant levels from `res.pc_texels` (SC_PC_BUFFER).
@@ -304,6 +312,9 @@ impl RestirPass {
             spatial_when: plan.spatial_when,
             spatial_now: true,
             temporal_limits: [plan.temporal_limit, plan.temporal_limit_moving],
+            frame_temporal_limit: plan.temporal_limit,
+            candidates_settled: plan.candidates_settled(),
+            still_run: 0,
             env_reuse_map: plan.env_reuse_map,
             pc_buffer,
             density_buffer,
@@ -583,13 +594,12 @@ impl Pass for RestirPass {
                 self.env_change.as_ref(),
             )
         });
+        self.frame_temporal_limit = temporal_limit;
         if flag != self.restir_uniforms.history_static
             || confidence != self.restir_uniforms.history_confidence
-            || temporal_limit != self.restir_uniforms.temporal_limit
         {
             self.restir_uniforms.history_static = flag;
             self.restir_uniforms.history_confidence = confidence;
-            self.restir_uniforms.temporal_limit = temporal_limit;
             ctx.upload_buffer(
                 &self.objects[self.res.restir_uniforms],
                 0,
@@ -610,12 +620,37 @@ impl Pass for RestirPass {
         dispatch_index: u32,
         mut profiler: Option<&mut Profiler>,
     ) -> Result<()> {
+        // Frames in a row whose previous frame had this frame's target (none before the
+        // first frame): once Q of them have filled the history, the settled M.
+        self.still_run = match dispatch_index {
+            0 => 0,
+            _ if self.restir_uniforms.history_static != 0 => self.still_run.saturating_add(1),
+            _ => 0,
+        };
+        let (candidates, temporal_limit) = crate::plan::settled_candidates(
+            self.settings.candidates,
+            self.frame_temporal_limit,
+            self.candidates_settled
+                .filter(|_| self.still_run >= self.temporal_limits[0]),
+        );
+        if candidates != self.restir_uniforms.candidates
+            || temporal_limit != self.restir_uniforms.temporal_limit
+        {
+            self.restir_uniforms.candidates = candidates;
+            self.restir_uniforms.temporal_limit = temporal_limit;
+            ctx.upload_buffer(
+                &self.objects[self.res.restir_uniforms],
+                0,
+                bytemuck::bytes_of(&self.restir_uniforms),
+            )?;
+        }
         let settings = ScheduleSettings {
             spatial_neighbors: if self.spatial_now {
                 self.settings.spatial_neighbors
             } else {
                 0
             },
+            candidates,
             ..self.settings
         };
         let (dispatches, last) = schedule(dispatch_index, self.prev_slot, &settings);

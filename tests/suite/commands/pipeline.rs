@@ -590,6 +590,10 @@ fn restir_error_estimates_account_for_correlated_frames_slow() {
             // "auto"`): kept here, whose frames must be correlated.
             "--set",
             "integrator.restir.temporal=true",
+            // Every frame draws M = 4 (settled frames, from the Q-th on, would draw 1
+            // with Q = 16: batches of 68).
+            "--set",
+            "integrator.restir.candidates_settled=4",
             "--seed",
             seed,
             "--out",

@@ -91,6 +91,7 @@ pub const BASELINE_KEYS: &[&str] = &["nee", "density_fetch"];
 /// The fields of `[integrator.restir]`.
 pub const RESTIR_KEYS: &[&str] = &[
     "candidates",
+    "candidates_settled",
     "temporal",
     "temporal_limit",
     "temporal_limit_moving",
@@ -653,6 +654,7 @@ fn parse_restir(source: &Source, table: &toml::Table) -> Result<RestirSettings> 
     let d = RestirSettings::default();
     Ok(RestirSettings {
         candidates: f.u32_in("candidates", Some(d.candidates), 1..=4096)?,
+        candidates_settled: f.u32_in("candidates_settled", Some(d.candidates_settled), 1..=4096)?,
         temporal: f.bool_or_auto("temporal", d.temporal)?,
         temporal_limit: f.u32_or_auto("temporal_limit", d.temporal_limit, 1..=1024)?,
         temporal_limit_moving: f.u32_in(

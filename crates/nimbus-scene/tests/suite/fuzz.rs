@@ -70,6 +70,7 @@ const FIELDS: &[&str] = &[
     "box_estimator",
     "box_samples",
     "candidates",
+    "candidates_settled",
     "temporal",
     "temporal_limit",
     "spatial_neighbors",

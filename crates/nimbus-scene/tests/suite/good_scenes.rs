@@ -467,6 +467,7 @@ density_fetch = "image"
             moment_map_size: 256,
             restir: RestirSettings {
                 candidates: 16,
+                candidates_settled: 1,
                 temporal: Some(false),
                 temporal_limit: Some(20),
                 temporal_limit_moving: 6,
