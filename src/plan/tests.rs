@@ -358,13 +358,7 @@ fn auto_temporal_limit_follows_the_scene() {
         let scene = nimbus_scene::parse_str(&text, Path::new("q.toml")).unwrap();
         let plan = build(&scene, None).unwrap();
         let r = plan.restir().unwrap().clone();
-        let row = plan
-            .decisions
-            .iter()
-            .find(|d| d.name == "pass restir temporal")
-            .unwrap()
-            .reason
-            .clone();
+        let row = reason_of(&plan, "pass restir temporal");
         assert_eq!(r.settings.temporal_limit, Some(r.temporal_limit));
         assert_eq!(
             effective_scene(&scene, &plan)
@@ -418,13 +412,7 @@ fn candidates_settled_is_explained_where_it_takes_effect() {
         let scene = nimbus_scene::parse_str(&text, Path::new("s.toml")).unwrap();
         let plan = build(&scene, None).unwrap();
         let r = plan.restir().unwrap().clone();
-        let row = plan
-            .decisions
-            .iter()
-            .find(|d| d.name == "pass restir initial")
-            .unwrap()
-            .reason
-            .clone();
+        let row = reason_of(&plan, "pass restir initial");
         let effective = effective_scene(&scene, &plan)
             .integrator
             .restir
@@ -462,4 +450,14 @@ fn settled_candidates_keep_the_history_cap() {
     assert_eq!(settled_candidates(4, 60, Some(4)), (4, 60));
     assert_eq!(settled_candidates(4, 60, Some(9)), (4, 60));
     assert_eq!(settled_candidates(4096, 1024, Some(1)), (1, 4_194_304));
+}
+
+/// The reason `--explain` gives on `plan`'s decision row `name`.
+fn reason_of(plan: &RenderPlan, name: &str) -> String {
+    plan.decisions
+        .iter()
+        .find(|d| d.name == name)
+        .unwrap_or_else(|| panic!("no decision row {name}"))
+        .reason
+        .clone()
 }
