@@ -67,6 +67,9 @@ pub struct RestirPass {
     /// settled M, the cap of Q·M candidates kept (`record`).
     candidates_settled: Option<u32>,
     still_run: u32,
+    /// `restir_uniforms` changed since its last upload (`prepare` sets the history's
+    /// flags, `record` the frame's M and Q and uploads them together).
+    uniforms_stale: bool,
     /// `env_reuse = "map"` with a map: a turn of the map is a moving frame's.
     env_reuse_map: bool,
     /// Tracking reads the piecewise-constant levels from `res.pc_texels` (SC_PC_BUFFER).
@@ -315,6 +318,7 @@ impl RestirPass {
             frame_temporal_limit: plan.temporal_limit,
             candidates_settled: plan.candidates_settled(),
             still_run: 0,
+            uniforms_stale: false,
             env_reuse_map: plan.env_reuse_map,
             pc_buffer,
             density_buffer,
@@ -595,16 +599,13 @@ impl Pass for RestirPass {
             )
         });
         self.frame_temporal_limit = temporal_limit;
+        // Uploaded by `record` with the frame's M and Q, once.
         if flag != self.restir_uniforms.history_static
             || confidence != self.restir_uniforms.history_confidence
         {
             self.restir_uniforms.history_static = flag;
             self.restir_uniforms.history_confidence = confidence;
-            ctx.upload_buffer(
-                &self.objects[self.res.restir_uniforms],
-                0,
-                bytemuck::bytes_of(&self.restir_uniforms),
-            )?;
+            self.uniforms_stale = true;
         }
         Ok(())
     }
@@ -638,6 +639,9 @@ impl Pass for RestirPass {
         {
             self.restir_uniforms.candidates = candidates;
             self.restir_uniforms.temporal_limit = temporal_limit;
+            self.uniforms_stale = true;
+        }
+        if std::mem::take(&mut self.uniforms_stale) {
             ctx.upload_buffer(
                 &self.objects[self.res.restir_uniforms],
                 0,
