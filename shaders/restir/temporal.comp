@@ -127,6 +127,81 @@ bool path_motion_point(uint at, Reservoir cur, inout uint rng, out vec3 x1, out 
     return false;
 }
 
+// The still pipeline (SC_TEMPORAL_STILL; the pass dispatches it on the frames whose
+// camera, lights and density are the previous frame's): every pixel's neighbour is itself,
+// and the motion code is compiled out of it.
+layout(constant_id = SC_ID_TEMPORAL_STILL) const bool SC_TEMPORAL_STILL = false;
+
+// A static scene's temporal reuse (`still`: the previous frame's reservoir of this very
+// pixel, unshifted, with this frame's target function and full confidence) takes the
+// arithmetic of combine_candidates_talbot for two candidates that share their target
+// function (cand_same_target), written out: both samples' Talbot weights
+// m_i = M_i p(y) / sum_s M_s p(y) are M_i / (M_0 + M_1), as their pairwise weights are,
+// so w_i = p(y_i) / p_hat_i * w_sum_i. A target is evaluated only for a reservoir that does
+// not hold it already: the pixel's fresh one (its p_hat is the initial pass's target, not
+// the reuse target), and a history that was never combined (the first frame's). On
+// lavapipe every instruction outside a loop runs for all of a SIMD row's lanes, taken or
+// not, so the evaluations run in a loop over the reservoirs that need one (one, on every
+// frame after the second), and the generic combination's pairs are not compiled into the
+// still pipeline at all (docs/performance.md, "The temporal pass of a still frame").
+uint combine_still(inout uint rng, out Reservoir s) {
+    s = res_empty();
+    combine_here_anchor = cand_anchor[0];
+    float k = cand_M[0] + cand_M[1];
+    // Which reservoirs can give a sample, and which of those lack this frame's target.
+    float p[2];
+    uint usable = 0u;
+    uint evaluate = 0u;
+    for (uint i = 0u; i < 2u; ++i) {
+        Reservoir ri = res_load(cand_at[i]);
+        p[i] = ri.p_hat;
+        if (res_valid(ri) && ri.p_hat > 0.0 && ri.w_sum * cand_w_scale[i] > 0.0 && cand_M[i] > 0.0) {
+            usable |= 1u << i;
+            if ((ri.info & INFO_REUSE_TARGET) == 0u) {
+                evaluate |= 1u << i;
+            }
+        }
+    }
+    while (evaluate != 0u) {
+        uint i = uint(findLSB(evaluate));
+        evaluate &= evaluate - 1u;
+        Reservoir ri = res_load(cand_at[i]);
+        uint code = res_jitter(ri);
+        float anchor;
+        float sigma_here;
+        p[i] = shifted_target(cand_at[i], ri, candidate_ray_for(0u, i, code), candidate_ray(i, code), i == 0u, -1.0,
+                              1.0, anchor, sigma_here, rng);
+    }
+    uint chosen = 2u;
+    for (uint i = 0u; i < 2u; ++i) {
+        if ((usable & (1u << i)) == 0u) {
+            continue;
+        }
+        Reservoir ri = res_load(cand_at[i]);
+        ri.M = cand_M[i];
+        ri.w_sum *= cand_w_scale[i];
+        float pi = p[i];
+        float p_sum = 0.0;
+        if (cand_M[0] > 0.0) {
+            p_sum += pi * cand_M[0];
+        }
+        if (cand_M[1] > 0.0) {
+            p_sum += pi * cand_M[1];
+        }
+        if (!(p_sum > 0.0) || !(pi > 0.0)) {
+            continue;
+        }
+        float m = pi * k / p_sum;
+        // Domain: ri.p_hat > 0 (usable).
+        float w = pi / ri.p_hat * ri.w_sum * m;
+        if (combine_stream(s, ri, pi, w, rng)) {
+            chosen = i;
+        }
+    }
+    combine_finish(s, k, chosen != 2u);
+    return chosen;
+}
+
 void restir_main();
 
 // The stage, then its counters into the stats buffer.
@@ -148,8 +223,11 @@ void restir_main() {
     // The motion vector: where its particle was one frame ago, projected by the previous
     // camera. A static scene's aligned neighbour (history_static: camera, lights and
     // density as in the previous frame) is the pixel itself, unshifted, found without a
-    // walk.
-    bool still = SC_TEMPORAL_ALIGNED && u_restir.history_static != 0u;
+    // walk: the still pipeline (SC_TEMPORAL_STILL), which the pass dispatches on every
+    // such frame, so that the other pipeline carries none of the still code (on lavapipe,
+    // code outside loops costs every lane whether its branch is taken or not).
+    bool static_history = SC_TEMPORAL_STILL || u_restir.history_static != 0u;
+    bool still = SC_TEMPORAL_STILL;
     vec3 x = vec3(0.0);
     vec3 x_prev = vec3(0.0);
     bool in_medium = false;
@@ -190,7 +268,7 @@ void restir_main() {
     }
     // A static scene's history is this frame's: full confidence, nothing to compare.
     float confidence = 1.0;
-    if (u_restir.history_static == 0u) {
+    if (!static_history) {
         confidence = u_restir.history_confidence;
         if (confidence > 0.0) {
             confidence *= camera_confidence(pixel, q_prev, code_prev);
@@ -208,8 +286,7 @@ void restir_main() {
 
     // A static scene's previous frame at this very pixel has this frame's target function:
     // the samples' targets are evaluated once (3 path evaluations become 1).
-    cand_same_target[1] =
-        u_restir.history_static != 0u && all(equal(q_prev, pixel)) && cand_jitter_shift[1] == 0u;
+    cand_same_target[1] = static_history && all(equal(q_prev, pixel)) && cand_jitter_shift[1] == 0u;
     // Temporal limit: M_prev <= Q M, scaling w_sum alike so W_prev is unchanged.
     float m_cap = float(u_restir.temporal_limit) * float(u_restir.candidates);
     if (cand_M[1] > m_cap) {
@@ -221,7 +298,13 @@ void restir_main() {
     cand_M[1] *= confidence;
     cand_w_scale[1] *= confidence;
     Reservoir s;
-    uint chosen = combine_candidates(2u, rng, s);
+    // (still: q_prev is this pixel, unshifted, so cand_same_target[1].)
+    uint chosen;
+    if (still) {
+        chosen = combine_still(rng, s);
+    } else {
+        chosen = combine_candidates(2u, rng, s);
+    }
     uint src_at = chosen < 2u ? cand_at[chosen] : at;
     uint code = res_jitter(s);
     uint owner_i = chosen < 2u ? chosen : 0u;

@@ -21,7 +21,7 @@ pub fn specialization(
     two_level: bool,
     pc_buffer: bool,
     density_buffer: bool,
-) -> [(u32, SpecValue); 33] {
+) -> [(u32, SpecValue); 34] {
     [
         (SC_ID_PC_BUFFER, SpecValue::Bool(pc_buffer)),
         (SC_ID_DENSITY_BUFFER, SpecValue::Bool(density_buffer)),
@@ -90,6 +90,8 @@ pub fn specialization(
                     && plan.settings.camera_emission == nimbus_scene::CameraEmission::Stratified,
             ),
         ),
+        // The temporal stage's still pipeline sets it (resources::still_specialization).
+        (SC_ID_TEMPORAL_STILL, SpecValue::Bool(false)),
         (
             SC_ID_TEMPORAL_ALIGNED,
             SpecValue::Bool(

@@ -299,6 +299,7 @@ impl RestirPass {
             pc_buffer,
             density_buffer,
             march_quads,
+            still_temporal: resources::builds_still_temporal(plan),
         };
         let exact_spans =
             volumes.needs_exact_spans(&grid_gpu.p_to_world, FINAL_RATIO_MAJORANT_SCALE);
@@ -674,10 +675,19 @@ impl Pass for RestirPass {
             }
             let stage = d.stage as usize;
             let push: RestirPush = d.push;
-            self.objects[self.res.pipelines[stage]].dispatch(
+            // A still frame's temporal stage: the pipeline without the motion code.
+            let (pipeline, set) = match self.res.temporal_still {
+                Some(still)
+                    if d.stage == Stage::Temporal && self.restir_uniforms.history_static != 0 =>
+                {
+                    still
+                }
+                _ => (self.res.pipelines[stage], self.res.sets[stage]),
+            };
+            self.objects[pipeline].dispatch(
                 ctx,
                 cmd,
-                &self.objects[self.res.sets[stage]],
+                &self.objects[set],
                 bytemuck::bytes_of(&push),
                 image_groups(uniforms),
             )?;

@@ -28,6 +28,9 @@ pub struct Resources {
     /// One pipeline and one descriptor set per [`Stage`], in `Stage::ALL` order.
     pub pipelines: [Handle<ComputePipeline>; 4],
     pub sets: [Handle<DescriptorSet>; 4],
+    /// The temporal stage's pipeline for still frames (`SC_TEMPORAL_STILL`) and its set,
+    /// where [`Inputs::still_temporal`] asks for one.
+    pub temporal_still: Option<(Handle<ComputePipeline>, Handle<DescriptorSet>)>,
     /// The analytic lights of this frame, then those of the previous frame.
     pub lights: Handle<Buffer>,
     pub base_uniforms: Handle<Buffer>,
@@ -120,6 +123,10 @@ pub struct Inputs<'a> {
     pub density_buffer: bool,
     /// Where each march mip starts in the buffer of quads (the uniforms' `quad_base`s).
     pub march_quads: MarchQuads,
+    /// The plan runs temporal reuse with the aligned reprojection, whose still frames
+    /// (camera, lights and density as in the previous frame) the pass dispatches with
+    /// [`Resources::temporal_still`].
+    pub still_temporal: bool,
 }
 
 /// Whether regular tracking reads the piecewise-constant levels from a slot-major
@@ -223,21 +230,53 @@ fn spirv_of(stage: Stage) -> &'static [u8] {
     }
 }
 
-/// The four stages' pipelines as the pass creates them (without a device; see
-/// [`crate::passes::PipelineContract`]).
-pub fn pipeline_contracts(plan: &crate::plan::RestirPlan) -> Vec<crate::passes::PipelineContract> {
-    let specialization = super::specialization(plan, false, false, false, false);
-    Stage::ALL
-        .into_iter()
-        .map(|stage| {
-            crate::passes::PipelineContract::of::<RestirPush>(
-                &format!("restir {}", stage.name()),
-                spirv_of(stage),
-                layout(),
-                &specialization,
-            )
+/// The specialization of the temporal stage's still pipeline: the plan's, with
+/// `SC_TEMPORAL_STILL` set.
+fn still_specialization(
+    specialization: &[(u32, nimbus_gpu::SpecValue)],
+) -> Vec<(u32, nimbus_gpu::SpecValue)> {
+    let still = crate::shader_data::features::SC_ID_TEMPORAL_STILL;
+    specialization
+        .iter()
+        .map(|&(id, value)| match id == still {
+            true => (id, nimbus_gpu::SpecValue::Bool(true)),
+            false => (id, value),
         })
         .collect()
+}
+
+/// Whether a plan's pass builds the temporal stage's still pipeline: temporal reuse with
+/// the aligned reprojection (the paper's reprojection keeps its own walk on still frames).
+pub fn builds_still_temporal(plan: &crate::plan::RestirPlan) -> bool {
+    plan.temporal
+        && plan.settings.temporal_reprojection == nimbus_scene::TemporalReprojection::Aligned
+}
+
+/// The stages' pipelines as the pass creates them (without a device; see
+/// [`crate::passes::PipelineContract`]): the four stages, and the temporal stage's still
+/// pipeline where the plan builds it.
+pub fn pipeline_contracts(plan: &crate::plan::RestirPlan) -> Vec<crate::passes::PipelineContract> {
+    let specialization = super::specialization(plan, false, false, false, false);
+    let contract = |name: &str, stage: Stage, specialization: &[(u32, nimbus_gpu::SpecValue)]| {
+        crate::passes::PipelineContract::of::<RestirPush>(
+            name,
+            spirv_of(stage),
+            layout(),
+            specialization,
+        )
+    };
+    let mut contracts: Vec<_> = Stage::ALL
+        .into_iter()
+        .map(|stage| contract(&format!("restir {}", stage.name()), stage, &specialization))
+        .collect();
+    if builds_still_temporal(plan) {
+        contracts.push(contract(
+            "restir temporal (still)",
+            Stage::Temporal,
+            &still_specialization(&specialization),
+        ));
+    }
+    contracts
 }
 
 /// A 3D image for an atlas of `slots` per axis in `format`.
@@ -279,11 +318,13 @@ impl Resources {
             pc_buffer,
             density_buffer,
             march_quads: march_quads_at,
+            still_temporal,
         } = *inputs;
         let layout = layout();
         // The four passes' pipelines are built at once (about 4 s on lavapipe one after
         // the other).
-        let jobs: Vec<PipelineJob<'_>> = Stage::ALL
+        let still_specialization = still_specialization(specialization);
+        let mut jobs: Vec<PipelineJob<'_>> = Stage::ALL
             .into_iter()
             .enumerate()
             .map(|(slot, stage)| PipelineJob {
@@ -293,6 +334,15 @@ impl Resources {
                 name: format!("restir {}", stage.name()),
             })
             .collect();
+        if still_temporal {
+            // Counted in the temporal stage's slot.
+            jobs.push(PipelineJob {
+                spirv: spirv_of(Stage::Temporal),
+                specialization: &still_specialization,
+                film: targets.film_spec(Stage::Temporal as u32),
+                name: "restir temporal (still)".to_string(),
+            });
+        }
         let pipelines = compute_pipelines::<RestirPush>(ctx, o, &layout, &jobs)?;
 
         // Scene buffers. The light buffer holds this frame's and the previous frame's
@@ -494,8 +544,8 @@ impl Resources {
         let linear = ctx.create_sampler(&SamplerDesc::linear(), "restir linear")?;
         o.add(linear);
 
-        let mut sets = Vec::with_capacity(4);
-        for (stage, pipeline) in Stage::ALL.into_iter().zip(&pipelines) {
+        let mut sets = Vec::with_capacity(pipelines.len());
+        for (job, pipeline) in jobs.iter().zip(&pipelines) {
             let set = {
                 let buffer = |binding, handle: Handle<Buffer>| DescriptorWrite::StorageBuffer {
                     binding,
@@ -540,16 +590,13 @@ impl Resources {
                     buffer(bindings::MEDIUM_PLANES, planes),
                     buffer(bindings::EMITTERS, emitters),
                 ]);
-                ctx.create_descriptor_set(
-                    &o[*pipeline],
-                    &writes,
-                    &format!("restir {} set", stage.name()),
-                )?
+                ctx.create_descriptor_set(&o[*pipeline], &writes, &format!("{} set", job.name))?
             };
             sets.push(o.add(set));
         }
         Ok(Resources {
             pipelines: [pipelines[0], pipelines[1], pipelines[2], pipelines[3]],
+            temporal_still: pipelines.get(4).copied().zip(sets.get(4).copied()),
             sets: [sets[0], sets[1], sets[2], sets[3]],
             lights,
             base_uniforms,

@@ -125,6 +125,13 @@ gpu_consts! {
     /// instead of their linearly filtered atlases (restir/transmittance.glsl): the plan's
     /// choice on CPU devices, with SC_DENSITY_BUFFER.
     pub const SC_ID_MARCH_BUFFER: u32 = 42;
+    /// ReSTIR's temporal pass of a still frame (camera, lights and density as in the
+    /// previous frame, under the aligned reprojection): the pipeline the pass dispatches
+    /// on such frames, which combines each pixel with its own history and carries none of
+    /// the motion code (restir/temporal.comp). On lavapipe every instruction outside a
+    /// loop runs for all lanes whether its branch is taken or not, so code a frame does not
+    /// reach still costs it.
+    pub const SC_ID_TEMPORAL_STILL: u32 = 43;
     /// Values of SC_TARGET_SCALAR.
     pub const SC_TARGET_LUMINANCE: u32 = 0;
     pub const SC_TARGET_SUM: u32 = 1;

@@ -70,6 +70,7 @@ fn every_pass_pipeline_matches_its_spirv() {
             "restir shade",
             "restir spatial",
             "restir temporal",
+            "restir temporal (still)",
         ]),
         "every pass's pipelines are checked"
     );
