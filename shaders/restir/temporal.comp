@@ -55,6 +55,11 @@ float camera_confidence(uvec2 pixel, uvec2 q_prev, uint code_prev) {
 // motion point (SC_TEMPORAL_ALIGNED).
 #define MOTION_TAU 1.0
 
+// Values of u_restir.history_static (RestirUniforms): the previous frame's camera,
+// lights and density are this frame's; only its lights differ (no velocity field).
+#define HISTORY_STATIC 1u
+#define HISTORY_CAMERA_STILL 2u
+
 // The motion point of `pixel` (SC_TEMPORAL_ALIGNED): a deterministic point of what its
 // centre ray sees, whose motion between the frames decides the temporal neighbour, aligns
 // the two pixels' sub-pixel positions and anchors the reused paths' depths. Where the ray
@@ -226,14 +231,20 @@ void restir_main() {
     // walk: the still pipeline (SC_TEMPORAL_STILL), which the pass dispatches on every
     // such frame, so that the other pipeline carries none of the still code (on lavapipe,
     // code outside loops costs every lane whether its branch is taken or not).
-    bool static_history = SC_TEMPORAL_STILL || u_restir.history_static != 0u;
+    bool static_history = SC_TEMPORAL_STILL || u_restir.history_static == HISTORY_STATIC;
     bool still = SC_TEMPORAL_STILL;
+    // Only the lights changed (history_static = HISTORY_CAMERA_STILL: the camera and the
+    // density as in the previous frame, no velocity field): the aligned neighbour is the
+    // pixel itself, unshifted, and the two frames' centre rays are one ray, so the camera's
+    // confidence is 1 and their anchors agree; none of it is walked or marched. Decided
+    // from the two frames alone, as the motion point is.
+    bool camera_still = still || (SC_TEMPORAL_ALIGNED && u_restir.history_static == HISTORY_CAMERA_STILL);
     vec3 x = vec3(0.0);
     vec3 x_prev = vec3(0.0);
     bool in_medium = false;
     vec2 px = vec2(pixel) + 0.5;
     bool on_screen = true;
-    if (!still) {
+    if (!camera_still) {
         vec3 dir;
         bool anchored = SC_TEMPORAL_ALIGNED ? motion_point(pixel, x, in_medium, dir)
                                             : path_motion_point(at, res_load(at), rng, x, in_medium, dir);
@@ -258,7 +269,7 @@ void restir_main() {
     candidate_set(0u, at, pixel, SET_CURRENT);
     candidate_set(1u, res_at(u_push.aux, q_prev), q_prev, SET_PREVIOUS);
     uint code_prev = JITTER_CODE_CENTRE;
-    if (SC_TEMPORAL_ALIGNED && !still) {
+    if (SC_TEMPORAL_ALIGNED && !camera_still) {
         // The previous pixel's sub-pixel frame, translated so that its jitter code under
         // the motion point (fract(px)) is this pixel's centre code.
         uvec2 c = min(uvec2(fract(px) * 256.0), uvec2(255u));
@@ -270,7 +281,7 @@ void restir_main() {
     float confidence = 1.0;
     if (!static_history) {
         confidence = u_restir.history_confidence;
-        if (confidence > 0.0) {
+        if (confidence > 0.0 && !camera_still) {
             confidence *= camera_confidence(pixel, q_prev, code_prev);
             if (SC_TEMPORAL_ALIGNED && in_medium) {
                 // Depths past the motion point on both rays (each passes through it).

@@ -46,6 +46,11 @@ pub use crate::shader_data::reservoir_bytes;
 /// (`FINAL_RATIO_MAJORANT_SCALE` of `shaders/restir/transmittance.glsl`).
 pub const FINAL_RATIO_MAJORANT_SCALE: f32 = 4.0;
 
+/// Values of `RestirUniforms::history_static` (restir/temporal.comp): the previous
+/// frame's camera, lights and density are this frame's; only its lights differ.
+const HISTORY_STATIC: u32 = 1;
+const HISTORY_CAMERA_STILL: u32 = 2;
+
 /// The four stages, what they read, and the state carried from frame to frame.
 pub struct RestirPass {
     objects: GpuObjects,
@@ -55,6 +60,9 @@ pub struct RestirPass {
     /// the frame's spatial rounds run only then.
     spatial_when: nimbus_scene::SpatialWhen,
     spatial_now: bool,
+    /// The medium has a velocity field (its points move between frames even where the
+    /// density does not change).
+    has_velocity: bool,
     /// Q on frames whose camera, density and (under map reuse) environment map did not
     /// move, and on frames where one did (`temporal_limit`, `temporal_limit_moving`):
     /// `prepare` uploads the frame's.
@@ -315,6 +323,7 @@ impl RestirPass {
             settings: schedule_settings(plan, candidates_per_dispatch),
             spatial_when: plan.spatial_when,
             spatial_now: true,
+            has_velocity: plan.has_velocity,
             temporal_limits: [plan.temporal_limit, plan.temporal_limit_moving],
             frame_temporal_limit: plan.temporal_limit,
             candidates_settled: plan.candidates_settled(),
@@ -588,7 +597,13 @@ impl Pass for RestirPass {
         let same = !camera_moved
             && !density_moved
             && lights.as_ref().is_none_or(|(prev, cur)| prev == cur);
-        let flag = u32::from(same);
+        // 2: only the lights changed, and no velocity field moves the medium's points, so
+        // the aligned neighbour is the pixel itself at the camera's full confidence.
+        let flag = match (same, !camera_moved && !density_moved && !self.has_velocity) {
+            (true, _) => HISTORY_STATIC,
+            (false, true) => HISTORY_CAMERA_STILL,
+            (false, false) => 0,
+        };
         // The lights' confidence in the previous frame (1 when they did not change).
         let confidence = lights.as_ref().map_or(1.0, |(prev, cur)| {
             history::light_confidence(
@@ -626,7 +641,9 @@ impl Pass for RestirPass {
         // first frame): once Q of them have filled the history, the settled M.
         self.still_run = match dispatch_index {
             0 => 0,
-            _ if self.restir_uniforms.history_static != 0 => self.still_run.saturating_add(1),
+            _ if self.restir_uniforms.history_static == HISTORY_STATIC => {
+                self.still_run.saturating_add(1)
+            }
             _ => 0,
         };
         let (candidates, temporal_limit) = crate::plan::settled_candidates(
@@ -678,7 +695,8 @@ impl Pass for RestirPass {
             // A still frame's temporal stage: the pipeline without the motion code.
             let (pipeline, set) = match self.res.temporal_still {
                 Some(still)
-                    if d.stage == Stage::Temporal && self.restir_uniforms.history_static != 0 =>
+                    if d.stage == Stage::Temporal
+                        && self.restir_uniforms.history_static == HISTORY_STATIC =>
                 {
                     still
                 }

@@ -440,7 +440,10 @@ gpu_records! {
         /// the loop iterations of an invocation; its aux: the first).
         candidates_per_dispatch: u32,
         /// 1 when the previous frame's camera, lights and density are this frame's, so
-        /// that the temporal neighbour at the same pixel has this frame's target function.
+        /// that the temporal neighbour at the same pixel has this frame's target function;
+        /// 2 when only the lights differ (camera and density as before, no velocity
+        /// field): the aligned neighbour is the pixel itself, unshifted, at the camera's
+        /// full confidence; 0 otherwise (restir/temporal.comp).
         history_static: u32,
         /// M: random walks per pixel.
         candidates: u32,
