@@ -1,4 +1,5 @@
-//! The GPU objects of the ReSTIR passes, by name: four pipelines sharing one layout,
+//! The GPU objects of the ReSTIR passes, by name: four pipelines sharing one layout (and
+//! a fifth, the temporal stage's for still frames, where temporal reuse is aligned),
 //! their descriptor sets, the scene buffers, the reservoir slots and the atlases of the
 //! density and its derived levels for the current and the previous frame.
 

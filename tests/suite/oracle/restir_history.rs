@@ -64,6 +64,16 @@ fn mean(image: &ImageRgb) -> f64 {
         / (3 * image.data.len()) as f64
 }
 
+/// The mean of a scene's render (a converged reference: the baseline's, at its spp).
+fn render_mean(ctx: &nimbus_gpu::Context, s: &Scene) -> f64 {
+    let plan = plan::build(s, None).expect("plan");
+    mean(
+        &render(ctx, s, &plan, &RenderOptions::default())
+            .expect("render")
+            .image,
+    )
+}
+
 /// Root mean square difference of two images (all channels).
 fn rmse(a: &ImageRgb, b: &ImageRgb) -> f64 {
     let sum: f64 = a
@@ -200,13 +210,7 @@ fn a_moving_camera_keeps_each_frames_mean() {
          {}volume = \"baseline\"\n",
         body
     );
-    let r = scene(&reference, "dolly-ref.toml");
-    let plan = plan::build(&r, None).expect("plan");
-    let expected = mean(
-        &render(&ctx, &r, &plan, &RenderOptions::default())
-            .expect("render")
-            .image,
-    );
+    let expected = render_mean(&ctx, &scene(&reference, "dolly-ref.toml"));
     // The defaults (temporal reuse aligned at each pixel's motion point, and spatial reuse
     // on the frames whose camera or density moved), the paper's reprojection of x_1,
     // and spatial reuse by the optical-depth shift on the pixels whose history is short
@@ -453,13 +457,7 @@ fn camera_sun_and_density_changing_together_keep_each_frames_mean() {
          [integrator]\nmax_bounces = 2\nvolume = \"baseline\"\n",
         medium(9)
     );
-    let r = scene(&reference, "together-ref.toml");
-    let plan = plan::build(&r, None).expect("plan");
-    let expected = mean(
-        &render(&ctx, &r, &plan, &RenderOptions::default())
-            .expect("render")
-            .image,
-    );
+    let expected = render_mean(&ctx, &scene(&reference, "together-ref.toml"));
     let s = scene(&animated, "together.toml");
     let restir = plan::build(&s, None).expect("plan");
     assert!(
@@ -547,12 +545,7 @@ fn settled_frames_draw_fewer_candidates_and_keep_the_mean() {
         "settled-ref.toml",
     );
     reference.render.frames = 1;
-    let plan = plan::build(&reference, None).expect("plan");
-    let expected = mean(
-        &render(&ctx, &reference, &plan, &RenderOptions::default())
-            .expect("render")
-            .image,
-    );
+    let expected = render_mean(&ctx, &reference);
     assert_frame6_mean(&ctx, &settled, expected, "settled M = 1 from frame 2");
     assert_no_validation_errors(&ctx);
 }
@@ -584,13 +577,7 @@ fn a_sun_turning_over_a_still_camera_keeps_each_frames_mean() {
          [[light]]\ntype = \"directional\"\nirradiance = 4.0\ndirection = [-0.2, -0.6, -0.77]\n\
          [integrator]\nmax_bounces = 2\nvolume = \"baseline\"\n"
     );
-    let r = scene(&reference, "sun-turning-ref.toml");
-    let plan = plan::build(&r, None).expect("plan");
-    let expected = mean(
-        &render(&ctx, &r, &plan, &RenderOptions::default())
-            .expect("render")
-            .image,
-    );
+    let expected = render_mean(&ctx, &scene(&reference, "sun-turning-ref.toml"));
     let s = scene(&animated, "sun-turning.toml");
     assert_frame6_mean(&ctx, &s, expected, "a sun turning over a still camera");
     assert_no_validation_errors(&ctx);
