@@ -428,6 +428,15 @@ for k in 1 3; do
     step "profile baseline k$k" profile "bench-baseline-hd-k$k" assets/scenes/bench/cloud-g0.toml "${hd[@]}" \
         --set "integrator.max_bounces=$k" --set integrator.volume=baseline
 done
+# The settled still frame (64 frames of warm-up: one candidate a frame, Q = 240) with the
+# shade cache (the default) and without: on lavapipe shading took 0.12-0.13x and the
+# frame 0.48-0.71x with it (docs/performance.md, "Shading a kept path once"); a warp skips
+# the evaluation only where all its lanes kept their paths.
+for cache in true false; do
+    step "profile restir settled k3 shade_cache=$cache" profile "bench-restir-settled-cache-$cache-hd-k3" \
+        assets/scenes/bench/cloud-g0.toml "${hd[@]}" --warmup 64 --set "integrator.max_bounces=3" \
+        --set "integrator.restir.shade_cache=$cache"
+done
 # The one-off diagnostics below were measured on an H200 (docs/performance.md) and are
 # left out of --lent, which must fit one lent-machine command.
 if [[ $mode != lent ]]; then

@@ -109,6 +109,12 @@ layout(std430, set = 0, binding = BINDING_MARCH_QUADS) readonly buffer MarchQuad
 layout(std430, set = 0, binding = BINDING_RESERVOIRS) buffer ReservoirBlock {
     uint reservoirs[];
 };
+// The shade cache's entry of `pixel` in reservoirs[] (u_restir.shade_cache_base != 0):
+// the RGB F (float bits) that final shading last evaluated for the pixel's path, and a
+// flag, 1 while that path is still the pixel's.
+uint shade_cache_at(uvec2 pixel) {
+    return u_restir.shade_cache_base + 4u * (pixel.y * u_frame.width + pixel.x);
+}
 
 // This frame's density is read from a storage buffer where SC_DENSITY_BUFFER (grid.glsl;
 // `[integrator.restir] density_fetch`); the previous frame's from its atlas.

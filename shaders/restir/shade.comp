@@ -112,9 +112,35 @@ void restir_main() {
     if (aov_paths_on()) {
         aov_sample_begin();
     }
+    // The shade cache (restir/resources.glsl: shade_cache_at), where F is a function of
+    // the path alone (no path AOVs, the closed-form transmittance, direction reuse; the
+    // pass allocates it only then, keeps_shade_cache): u_push.aux = 1 on a still frame
+    // after a frame that shaded its history, where a set flag says that the temporal
+    // stage kept this pixel's path, whose F the previous frame evaluated.
+    bool cache = !aov_paths_on() && !SC_FINAL_RATIO_TRACKING && !SC_REUSE_VERTEX && u_restir.shade_cache_base != 0u;
+    uint cache_at = cache ? shade_cache_at(pixel) : 0u;
     // An empty reservoir (no candidate with a positive target) estimates 0.
     if (res_valid(r) && r.p_hat > 0.0 && r.M > 0.0 && r.w_sum > 0.0) {
-        vec3 f = path_value(at, r, cam, cam, MODE_FINAL, rng);
+        vec3 f = vec3(0.0);
+        bool evaluate = true;
+        if (cache && u_push.aux == 1u && reservoirs[cache_at + 3u] == 1u) {
+            f = uintBitsToFloat(uvec3(reservoirs[cache_at], reservoirs[cache_at + 1u], reservoirs[cache_at + 2u]));
+            evaluate = false;
+        }
+        // A loop, not an if: on lavapipe code outside loops runs for every lane of a SIMD
+        // row whether its branch is taken or not (docs/performance.md, "The temporal pass
+        // of a still frame"), and a loop that no lane enters is skipped.
+        while (evaluate) {
+            f = path_value(at, r, cam, cam, MODE_FINAL, rng);
+            if (cache) {
+                uvec3 bits = floatBitsToUint(f);
+                reservoirs[cache_at] = bits.x;
+                reservoirs[cache_at + 1u] = bits.y;
+                reservoirs[cache_at + 2u] = bits.z;
+                reservoirs[cache_at + 3u] = 1u;
+            }
+            evaluate = false;
+        }
         // Domain: p_hat > 0 and M > 0 (checked).
         if (aov_paths_on()) {
             // The terms times W; the RGB is the sum of the weighted slots.
@@ -123,6 +149,8 @@ void restir_main() {
         } else {
             L = f * (r.w_sum / (r.p_hat * r.M));
         }
+    } else if (cache) {
+        reservoirs[cache_at + 3u] = 0u;
     }
     if (SC_CAMERA_EMISSION) {
         // Emitted with no scattering: the emission AOV's slot (and the default group).

@@ -313,6 +313,11 @@ void restir_main() {
     uint chosen;
     if (still) {
         chosen = combine_still(rng, s);
+        // The shade cache holds F of the history's path (the previous frame shaded it):
+        // where this pixel's path is now another, its flag says so (restir/shade.comp).
+        if (chosen != 1u && u_restir.shade_cache_base != 0u) {
+            reservoirs[shade_cache_at(pixel) + 3u] = 0u;
+        }
     } else {
         chosen = combine_candidates(2u, rng, s);
     }

@@ -212,7 +212,11 @@ fn restir(scene: &Scene, p: &RestirPlan, f: &mut Footprint) -> Result<()> {
     let file = scene.source.display();
     let r = &scene.render;
     let pixels = u64::from(r.width) * u64::from(r.height);
-    let reservoirs = u64::from(p.reservoir_slots()) * pixels * reservoir_bytes(p.max_bounces);
+    let mut reservoirs = u64::from(p.reservoir_slots()) * pixels * reservoir_bytes(p.max_bounces);
+    // The shade cache shares the reservoirs' buffer.
+    if p.keeps_shade_cache(&super::AovPlan::of(scene)) {
+        reservoirs += pixels * super::SHADE_CACHE_BYTES_PER_PIXEL;
+    }
     f.add(
         format!("{file}: [render] `width` x `height` with [integrator] `max_bounces` = {} (ReSTIR reservoirs)", p.max_bounces),
         Binding::Storage,

@@ -326,7 +326,27 @@ impl RestirPlan {
             self.history_before_spatial,
         )
     }
+
+    /// Whether the pass keeps the shade cache (`shade_cache`, on by default): the RGB F that final shading evaluated for
+    /// each pixel's path, reused on a still frame whose temporal stage kept that path
+    /// (restir/shade.comp). F must then be a function of the path alone: the closed-form
+    /// transmittance (ratio tracking draws random numbers), direction reuse (vertex reuse
+    /// re-expresses x_2 when it stores a kept path, which may round), and no path AOVs
+    /// (they split F into slots the cache does not hold). Still frames have a temporal
+    /// stage of their own only with the aligned reprojection (the still pipeline).
+    pub fn keeps_shade_cache(&self, aov: &AovPlan) -> bool {
+        self.temporal
+            && self.settings.temporal_reprojection == nimbus_scene::TemporalReprojection::Aligned
+            && !self.settings.final_ratio_tracking
+            && self.settings.reuse == nimbus_scene::ReuseMode::Direction
+            && aov.path_slots() == 0
+            && self.settings.shade_cache
+    }
 }
+
+/// Bytes per pixel of ReSTIR's shade cache ([`RestirPlan::keeps_shade_cache`]): RGB F and
+/// a flag, four u32s.
+pub const SHADE_CACHE_BYTES_PER_PIXEL: u64 = 16;
 
 /// The reservoir slots ReSTIR's schedule needs: 2 (initial and temporal in one, the
 /// previous frame's history in the other, spatial rounds alternating between them), or 3

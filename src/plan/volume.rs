@@ -1026,6 +1026,27 @@ fn restir_plan(
                 "direction reuse (z_i, omega_i)".into()
             },
         ),
+        {
+            let cache = plan.keeps_shade_cache(&super::AovPlan::of(scene));
+            on(
+                "  shade cache",
+                cache,
+                if cache {
+                    "[integrator.restir] shade_cache = true: on a still frame (camera, lights \
+                     and density as before) whose temporal reuse keeps a pixel's path, final \
+                     shading reuses the F it evaluated for that path on the previous frame (16 \
+                     bytes a pixel; the same images)"
+                        .into()
+                } else if !plan.settings.shade_cache {
+                    "[integrator.restir] shade_cache = false: every frame evaluates F".into()
+                } else {
+                    "F is evaluated every frame: the cache needs temporal reuse with the aligned \
+                     reprojection, the closed-form final transmittance, direction reuse and no \
+                     path AOVs"
+                        .into()
+                },
+            )
+        },
         on(
             "  SC_HAS_VELOCITY",
             plan.has_velocity,

@@ -913,6 +913,10 @@ pub struct RestirSettings {
     /// Spatial reuse moves x_1 between pixels by its depth past where each pixel's
     /// centre ray enters the medium, as temporal reuse does (`spatial_anchor`).
     pub spatial_anchor: bool,
+    /// Final shading reuses the F it evaluated for a pixel's path on the previous frame
+    /// where a still frame's temporal reuse kept that path (`shade_cache`): the same
+    /// images at a fraction of the shading.
+    pub shade_cache: bool,
     /// What the next frame reuses temporally (`temporal_history`).
     pub temporal_history: HistoryMode,
     /// σ* of candidate generation is at least this fraction of the largest density in
@@ -975,6 +979,7 @@ impl Default for RestirSettings {
             spatial_max_history: 0.0,
             spatial_feature_tolerance: 0.0,
             spatial_anchor: false,
+            shade_cache: true,
             temporal_history: HistoryMode::Temporal,
             sigma_star_floor: 0.0,
             nee: NeeMode::Auto,

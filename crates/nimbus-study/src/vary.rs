@@ -322,6 +322,7 @@ mod tests {
             ("spatial_max_history", "8"),
             ("spatial_feature_tolerance", "0.3"),
             ("spatial_anchor", "true"),
+            ("shade_cache", "false"),
             ("temporal_history", "temporal"),
             ("sigma_star_floor", "0.25"),
             ("nee", "one"),
@@ -378,6 +379,7 @@ mod tests {
             (nimbus_scene::SpatialShift::OpticalDepth, 8.0)
         );
         assert_eq!((r.spatial_feature_tolerance, r.spatial_anchor), (0.3, true));
+        assert!(!r.shade_cache);
         assert_eq!(
             scene_with(&[("spatial_radius_px", "auto")])
                 .unwrap()
@@ -396,6 +398,7 @@ mod tests {
             ("sigma_star_floor", "1.5"),
             ("spatial_feature_tolerance", "2"),
             ("spatial_anchor", "1.5"),
+            ("shade_cache", "sometimes"),
             ("nee", "all"),
             ("direct", "never"),
             ("candidate_tracking", "ratio"),

@@ -75,6 +75,13 @@ pub struct RestirPass {
     /// settled M, the cap of Q·M candidates kept (`record`).
     candidates_settled: Option<u32>,
     still_run: u32,
+    /// The pass keeps the shade cache
+    /// ([`crate::plan::RestirPlan::keeps_shade_cache`]), and whether the last frame
+    /// recorded shaded the reservoirs it left as the history: then a still frame whose
+    /// temporal stage keeps a pixel's path (and runs no spatial round) reuses the F
+    /// cached for it (the shade dispatch's `aux` = 1).
+    shade_cache: bool,
+    shaded_history: bool,
     /// `restir_uniforms` changed since its last upload (`prepare` sets the history's
     /// flags, `record` the frame's M and Q and uploads them together).
     uniforms_stale: bool,
@@ -127,7 +134,28 @@ impl RestirPass {
         let r = &scene.render;
         let pixels = u64::from(r.width) * u64::from(r.height);
         let stride_bytes = reservoir_bytes(plan.max_bounces);
-        let reservoir_total = u64::from(plan.reservoir_slots()) * pixels * stride_bytes;
+        let slots_bytes = u64::from(plan.reservoir_slots()) * pixels * stride_bytes;
+        // The shade cache follows the slots in the same buffer (its first u32 in the
+        // uniforms; 0 when there is none).
+        let shade_cache = plan.keeps_shade_cache(targets.aov);
+        let reservoir_total = slots_bytes
+            + if shade_cache {
+                pixels * crate::plan::SHADE_CACHE_BYTES_PER_PIXEL
+            } else {
+                0
+            };
+        let shade_cache_base = if shade_cache {
+            u32::try_from(slots_bytes / 4).map_err(|_| {
+                anyhow::anyhow!(
+                    "{}: the ReSTIR reservoirs ({slots_bytes} bytes) exceed the 16 GiB a \
+                     32-bit index reaches: lower [render] width x height or [integrator] \
+                     max_bounces",
+                    scene.source.display()
+                )
+            })?
+        } else {
+            0
+        };
         let (velocity, velocity_note) = if plan.has_velocity {
             match velocity_texels(grid, &grid_label, grid.density.dims()?)? {
                 Some((dims, texels, note)) => (Some((dims, texels)), note),
@@ -283,6 +311,7 @@ impl RestirPass {
             history_confidence: 1.0,
             spatial_feature_tolerance: plan.settings.spatial_feature_tolerance,
             spatial_anchor: u32::from(plan.settings.spatial_anchor),
+            shade_cache_base,
             ..RestirUniformsGpu::default()
         };
         let meshes = MeshBuffers::build(scene);
@@ -328,6 +357,8 @@ impl RestirPass {
             frame_temporal_limit: plan.temporal_limit,
             candidates_settled: plan.candidates_settled(),
             still_run: 0,
+            shade_cache,
+            shaded_history: false,
             uniforms_stale: false,
             env_reuse_map: plan.env_reuse_map,
             pc_buffer,
@@ -676,6 +707,22 @@ impl Pass for RestirPass {
             ..self.settings
         };
         let (dispatches, last) = schedule(dispatch_index, self.prev_slot, &settings);
+        // Shading may reuse the cached F where the temporal stage kept the history's path:
+        // on a still frame (its still pipeline, which clears the cache's flag where the
+        // path changed) after a frame that shaded its history, with no spatial round
+        // between the temporal stage and shading. Decided from the two frames alone.
+        let temporal_still = self.res.temporal_still.is_some()
+            && self.restir_uniforms.history_static == HISTORY_STATIC
+            && dispatches.iter().any(|d| d.stage == Stage::Temporal);
+        let spatial = dispatches.iter().any(|d| d.stage == Stage::Spatial);
+        let shade_reuse = self.shade_cache
+            && std::mem::take(&mut self.shaded_history)
+            && temporal_still
+            && !spatial;
+        self.shaded_history = self.shade_cache
+            && dispatches
+                .last()
+                .is_some_and(|d| d.stage == Stage::Shade && d.push.src == last);
         let mut open: Option<Stage> = None;
         for (n, d) in dispatches.iter().enumerate() {
             if n > 0 {
@@ -691,7 +738,10 @@ impl Pass for RestirPass {
                 open = Some(d.stage);
             }
             let stage = d.stage as usize;
-            let push: RestirPush = d.push;
+            let mut push: RestirPush = d.push;
+            if d.stage == Stage::Shade {
+                push.aux = u32::from(shade_reuse);
+            }
             // A still frame's temporal stage: the pipeline without the motion code.
             let (pipeline, set) = match self.res.temporal_still {
                 Some(still)

@@ -479,7 +479,12 @@ gpu_records! {
         /// The previous frame's reuse mip's first slot in the buffer of march quads
         /// (SC_MARCH_BUFFER; the current frame's when the density does not change).
         march_reuse_prev_quad_base: u32,
-        _pad1: u32,
+        /// Where the shade cache starts in the reservoir buffer (in u32s; 0: no cache):
+        /// per pixel the RGB F of the path its last shading evaluated and a flag that it
+        /// is still the pixel's path (restir/shade.comp reuses it on a still frame whose
+        /// temporal stage kept the history's sample; restir/temporal.comp clears the flag
+        /// where it did not).
+        shade_cache_base: u32,
     }
 
     /// Push constants of every dispatch of the denoiser (src/denoise, shaders/denoise).
@@ -526,7 +531,8 @@ gpu_records! {
         src: u32,
         /// Reservoir slot written.
         dst: u32,
-        /// Initial: first candidate; temporal: previous slot; spatial: the round.
+        /// Initial: first candidate; temporal: previous slot; spatial: the round; shade: 1
+        /// where the shade cache's F may stand in for a kept path's (else 0).
         aux: u32,
     }
 }

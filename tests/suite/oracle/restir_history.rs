@@ -180,6 +180,16 @@ fn a_sun_that_goes_out_leaves_nothing_behind() {
     assert_no_validation_errors(&ctx);
 }
 
+/// The lights, cloud and integrator of the moving-camera tests (a sun, a sky, a
+/// procedural cloud, K = 2).
+const DOLLY_BODY: &str =
+    "[[light]]\ntype = \"directional\"\ndirection = [0.6, -0.5, -0.6]\nirradiance = 4.0\n\
+     [[light]]\ntype = \"environment\"\nradiance = [0.25, 0.35, 0.55]\n\
+     [[medium]]\ntype = \"grid\"\nbounds_min = [-1.0, -0.6, -1.0]\nbounds_max = [1.0, 0.6, 1.0]\n\
+     density = { procedural = \"cloud\", dims = [32, 20, 32], noise_seed = 7 }\n\
+     density_scale = 12.0\nalbedo = 0.9\n\
+     [integrator]\nmax_bounces = 2\n";
+
 /// A camera dollying towards a procedural cloud and turning around it (8 frames), under
 /// a sun and a sky: the mean of frame 6 over 12 seeds (its history from frame 0 on)
 /// agrees with the baseline's converged mean of that frame's static scene. Temporal
@@ -191,12 +201,7 @@ fn a_sun_that_goes_out_leaves_nothing_behind() {
 #[test]
 fn a_moving_camera_keeps_each_frames_mean() {
     let ctx = context();
-    let body = "[[light]]\ntype = \"directional\"\ndirection = [0.6, -0.5, -0.6]\nirradiance = 4.0\n\
-         [[light]]\ntype = \"environment\"\nradiance = [0.25, 0.35, 0.55]\n\
-         [[medium]]\ntype = \"grid\"\nbounds_min = [-1.0, -0.6, -1.0]\nbounds_max = [1.0, 0.6, 1.0]\n\
-         density = { procedural = \"cloud\", dims = [32, 20, 32], noise_seed = 7 }\n\
-         density_scale = 12.0\nalbedo = 0.9\n\
-         [integrator]\nmax_bounces = 2\n";
+    let body = DOLLY_BODY;
     let animated = format!(
         "[render]\nwidth = 24\nheight = 18\nframes = 8\n\
          [camera]\nhorizontal_fov_deg = 55\n\
@@ -580,5 +585,83 @@ fn a_sun_turning_over_a_still_camera_keeps_each_frames_mean() {
     let expected = render_mean(&ctx, &scene(&reference, "sun-turning-ref.toml"));
     let s = scene(&animated, "sun-turning.toml");
     assert_frame6_mean(&ctx, &s, expected, "a sun turning over a still camera");
+    assert_no_validation_errors(&ctx);
+}
+
+/// The shade cache: on a still frame whose temporal stage keeps a pixel's path, final
+/// shading reuses the F it evaluated for that path on the previous frame. F is a function
+/// of the path and the scene alone (closed-form transmittance), so the images are the
+/// cache-less ones bit for bit: on still frames, on the first still frame after the camera
+/// moved (whose previous frame shaded the spatial pass's output, not the history: no
+/// reuse), and on the moving frames. The shading's work per sample on a still scene falls
+/// to a fraction (most pixels keep their path).
+#[test]
+fn still_frames_reuse_the_shaded_f_of_kept_paths_and_render_the_same_images() {
+    let ctx = context();
+    let body = DOLLY_BODY;
+    // Still on frames 0-2, moving on 3-4 (spatial reuse runs there), still from 5 on.
+    let animated = |cache: bool| {
+        format!(
+            "[render]\nwidth = 24\nheight = 18\nframes = 8\n\
+             [camera]\nhorizontal_fov_deg = 55\n\
+             [[camera.keyframe]]\nframe = 0\nposition = [0.0, 0.3, 2.6]\nlook_at = [0.0, 0.0, 0.0]\n\
+             [[camera.keyframe]]\nframe = 2\nposition = [0.0, 0.3, 2.6]\nlook_at = [0.0, 0.0, 0.0]\n\
+             [[camera.keyframe]]\nframe = 4\nposition = [0.4, 0.3, 2.0]\nlook_at = [0.0, 0.0, 0.0]\n\
+             {body}[integrator.restir]\nshade_cache = {cache}\n"
+        )
+    };
+    let (on, off) = (
+        scene(&animated(true), "cache-on.toml"),
+        scene(&animated(false), "cache-off.toml"),
+    );
+    let aov = plan::AovPlan::of(&on);
+    assert!(plan::build(&on, None)
+        .unwrap()
+        .restir()
+        .unwrap()
+        .keeps_shade_cache(&aov));
+    assert!(!plan::build(&off, None)
+        .unwrap()
+        .restir()
+        .unwrap()
+        .keeps_shade_cache(&aov));
+    for frame in [2, 4, 5, 7] {
+        assert!(
+            frame_image(&ctx, &on, frame, frame, 5).data
+                == frame_image(&ctx, &off, frame, frame, 5).data,
+            "frame {frame}: the cached F must render the image the evaluated F renders"
+        );
+    }
+    // A still scene: the shading's shadow-ray steps per sample over 8 frames after 8.
+    let still = |cache: bool| {
+        scene(
+            &format!(
+                "[render]\nwidth = 24\nheight = 18\nframes = 8\n\
+                 [camera]\nhorizontal_fov_deg = 55\nposition = [0.0, 0.3, 2.6]\nlook_at = [0.0, 0.0, 0.0]\n\
+                 {body}[integrator.restir]\ntemporal = true\nshade_cache = {cache}\n"
+            ),
+            "cache-still.toml",
+        )
+    };
+    let shade_steps = |s: &Scene| {
+        let plan = plan::build(s, None).expect("plan");
+        let opts = RenderOptions {
+            warmup_frames: 8,
+            counters: true,
+            ..Default::default()
+        };
+        let r = render(&ctx, s, &plan, &opts).expect("render");
+        r.work
+            .expect("counts")
+            .slot("restir/shade")
+            .expect("shade counters")
+            .per_sample("shadow_steps")
+    };
+    let (cached, evaluated) = (shade_steps(&still(true)), shade_steps(&still(false)));
+    println!("shadow steps per sample in shading: {cached} cached, {evaluated} evaluated");
+    assert!(
+        evaluated > 0.0 && cached < 0.3 * evaluated,
+        "shadow steps per sample in shading: {cached} with the cache, {evaluated} without"
+    );
     assert_no_validation_errors(&ctx);
 }

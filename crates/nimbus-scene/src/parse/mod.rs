@@ -111,6 +111,7 @@ pub const RESTIR_KEYS: &[&str] = &[
     "spatial_max_history",
     "spatial_feature_tolerance",
     "spatial_anchor",
+    "shade_cache",
     "temporal_history",
     "sigma_star_floor",
     "nee",
@@ -719,6 +720,7 @@ fn parse_restir(source: &Source, table: &toml::Table) -> Result<RestirSettings> 
             0.0..=1.0,
         )?,
         spatial_anchor: f.opt_bool("spatial_anchor")?.unwrap_or(d.spatial_anchor),
+        shade_cache: f.opt_bool("shade_cache")?.unwrap_or(d.shade_cache),
         spatial_shift: f.choice(
             "spatial_shift",
             Some(d.spatial_shift),

@@ -251,6 +251,7 @@ spatial_rounds = 2
 spatial_max_history = 2.5
 spatial_feature_tolerance = 0.25
 spatial_anchor = true
+shade_cache = false
 reuse = "vertex"
 mip_candidates = 2
 mip_indirect = 3
@@ -487,6 +488,7 @@ density_fetch = "image"
                 spatial_max_history: 2.5,
                 spatial_feature_tolerance: 0.25,
                 spatial_anchor: true,
+                shade_cache: false,
                 temporal_history: HistoryMode::Temporal,
                 sigma_star_floor: 0.125,
                 nee: NeeMode::Split,
