@@ -327,16 +327,22 @@ impl RestirPlan {
         )
     }
 
-    /// Whether the pass keeps the shade cache (`shade_cache`, on by default): the RGB F that final shading evaluated for
-    /// each pixel's path, reused on a still frame whose temporal stage kept that path
+    /// Whether the pass builds the temporal stage's still pipeline: temporal reuse with the
+    /// aligned reprojection (the paper's reprojection keeps its own walk on still frames).
+    pub fn builds_still_temporal(&self) -> bool {
+        self.temporal
+            && self.settings.temporal_reprojection == nimbus_scene::TemporalReprojection::Aligned
+    }
+
+    /// Whether the pass keeps the shade cache (`shade_cache`, on by default): the RGB F
+    /// that final shading evaluated for each pixel's path, reused on a still frame whose
+    /// temporal stage (the still pipeline, [`Self::builds_still_temporal`]) kept that path
     /// (restir/shade.comp). F must then be a function of the path alone: the closed-form
     /// transmittance (ratio tracking draws random numbers), direction reuse (vertex reuse
     /// re-expresses x_2 when it stores a kept path, which may round), and no path AOVs
-    /// (they split F into slots the cache does not hold). Still frames have a temporal
-    /// stage of their own only with the aligned reprojection (the still pipeline).
+    /// (they split F into slots the cache does not hold).
     pub fn keeps_shade_cache(&self, aov: &AovPlan) -> bool {
-        self.temporal
-            && self.settings.temporal_reprojection == nimbus_scene::TemporalReprojection::Aligned
+        self.builds_still_temporal()
             && !self.settings.final_ratio_tracking
             && self.settings.reuse == nimbus_scene::ReuseMode::Direction
             && aov.path_slots() == 0

@@ -249,8 +249,7 @@ fn still_specialization(
 /// Whether a plan's pass builds the temporal stage's still pipeline: temporal reuse with
 /// the aligned reprojection (the paper's reprojection keeps its own walk on still frames).
 pub fn builds_still_temporal(plan: &crate::plan::RestirPlan) -> bool {
-    plan.temporal
-        && plan.settings.temporal_reprojection == nimbus_scene::TemporalReprojection::Aligned
+    plan.builds_still_temporal()
 }
 
 /// The stages' pipelines as the pass creates them (without a device; see
