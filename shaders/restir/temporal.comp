@@ -137,22 +137,53 @@ bool path_motion_point(uint at, Reservoir cur, inout uint rng, out vec3 x1, out 
 // and the motion code is compiled out of it.
 layout(constant_id = SC_ID_TEMPORAL_STILL) const bool SC_TEMPORAL_STILL = false;
 
+// Whether the still pipeline combines each reservoir with its own stored target
+// (`still_target = "initial"`): see combine_still.
+layout(constant_id = SC_ID_STILL_INITIAL_TARGET) const bool SC_STILL_INITIAL_TARGET = false;
+
 // A static scene's temporal reuse (`still`: the previous frame's reservoir of this very
-// pixel, unshifted, with this frame's target function and full confidence) takes the
-// arithmetic of combine_candidates_talbot for two candidates that share their target
-// function (cand_same_target), written out: both samples' Talbot weights
-// m_i = M_i p(y) / sum_s M_s p(y) are M_i / (M_0 + M_1), as their pairwise weights are,
-// so w_i = p(y_i) / p_hat_i * w_sum_i. A target is evaluated only for a reservoir that does
-// not hold it already: the pixel's fresh one (its p_hat is the initial pass's target, not
-// the reuse target), and a history that was never combined (the first frame's). On
-// lavapipe every instruction outside a loop runs for all of a SIMD row's lanes, taken or
-// not, so the evaluations run in a loop over the reservoirs that need one (one, on every
-// frame after the second), and the generic combination's pairs are not compiled into the
-// still pipeline at all (docs/performance.md, "The temporal pass of a still frame").
+// pixel, unshifted, with full confidence) takes the arithmetic of
+// combine_candidates_talbot for two candidates, written out. The generic combination's
+// pairs are not compiled into the still pipeline at all (docs/performance.md, "The
+// temporal pass of a still frame").
+//
+// Both samples' MIS weights are m_i = M_i / (M_0 + M_1): Talbot's weights where the two
+// reservoirs share one target function (a still frame's previous target is this
+// frame's), and a partition of unity whatever the targets are. With constant weights the
+// target cancels sample by sample: w_i = m_i p_i(X_i) W_i and the result's
+// W = sum w / p_Y(Y) give E[g(Y) W] = sum_i E[m_i g(X_i) W_i] for any positive p_i, so
+// each sample may keep a target of its own, provided the combined reservoir stores the
+// chosen sample's (its p_hat) with the sums. The target decides only which sample is
+// selected, so how close p_i is to F/W decides the variance, not the mean.
+// - SC_STILL_INITIAL_TARGET (`still_target = "initial"`, the default where candidates are
+//   delta tracked): each reservoir's stored target, the fresh one's the initial pass's
+//   (F with the walked segments' closed-form T and the NEE segment's T~ on mip_indirect)
+//   and the history's whatever it kept (that of the fresh sample it once was on a still
+//   scene, the reuse target where a moving frame chose it). w_i = w_sum_i; nothing is
+//   evaluated (the fresh sample's reuse target was 60 of the pass's 70 ms on lavapipe at
+//   320x240).
+// - Else the reuse target for both, evaluated for a reservoir that does not hold it
+//   already (the pixel's fresh one, and a history that was never combined), in a loop
+//   over those: on lavapipe every instruction outside a loop runs for all of a SIMD row's
+//   lanes, taken or not.
 uint combine_still(inout uint rng, out Reservoir s) {
     s = res_empty();
     combine_here_anchor = cand_anchor[0];
     float k = cand_M[0] + cand_M[1];
+    uint chosen = 2u;
+    if (SC_STILL_INITIAL_TARGET) {
+        for (uint i = 0u; i < 2u; ++i) {
+            Reservoir ri = res_load(cand_at[i]);
+            // res_update keeps the chosen sample's p_hat and info (whether p_hat is the
+            // reuse target: the generic combination's own-target shortcut reads it).
+            if (res_valid(ri) && ri.p_hat > 0.0 && cand_M[i] > 0.0 &&
+                res_update(s, ri, ri.w_sum * cand_w_scale[i], rng)) {
+                chosen = i;
+            }
+        }
+        combine_finish(s, k, chosen != 2u);
+        return chosen;
+    }
     // Which reservoirs can give a sample, and which of those lack this frame's target.
     float p[2];
     uint usable = 0u;
@@ -177,7 +208,6 @@ uint combine_still(inout uint rng, out Reservoir s) {
         p[i] = shifted_target(cand_at[i], ri, candidate_ray_for(0u, i, code), candidate_ray(i, code), i == 0u, -1.0,
                               1.0, anchor, sigma_here, rng);
     }
-    uint chosen = 2u;
     for (uint i = 0u; i < 2u; ++i) {
         if ((usable & (1u << i)) == 0u) {
             continue;

@@ -348,6 +348,21 @@ impl RestirPlan {
             && aov.path_slots() == 0
             && self.settings.shade_cache
     }
+
+    /// Whether the still temporal pipeline resamples each reservoir by its own stored
+    /// target, the fresh one's the initial pass's (SC_STILL_INITIAL_TARGET;
+    /// restir/temporal.comp, combine_still), so that it evaluates no target:
+    /// `still_target = "initial"`, or `"auto"` where the candidates are delta tracked
+    /// (their target has the walked segments' exact T; regular tracking's has T*, far
+    /// below T in dense voxels, and final shading divides by it).
+    pub fn still_initial_target(&self) -> bool {
+        self.builds_still_temporal()
+            && match self.settings.still_target {
+                nimbus_scene::StillTarget::Auto => self.candidate_delta,
+                nimbus_scene::StillTarget::Initial => true,
+                nimbus_scene::StillTarget::Reuse => false,
+            }
+    }
 }
 
 /// Bytes per pixel of ReSTIR's shade cache ([`RestirPlan::keeps_shade_cache`]): RGB F and

@@ -1047,6 +1047,30 @@ fn restir_plan(
                 },
             )
         },
+        {
+            let initial = plan.still_initial_target();
+            on(
+                "  SC_STILL_INITIAL_TARGET",
+                initial,
+                if initial {
+                    "a still frame's temporal reuse resamples each reservoir by its own stored \
+                     target (the fresh sample's initial target): no target evaluated"
+                        .into()
+                } else if !plan.builds_still_temporal() {
+                    "no still temporal pipeline (temporal reuse off, or the paper's reprojection)"
+                        .into()
+                } else if plan.settings.still_target == nimbus_scene::StillTarget::Reuse {
+                    "[integrator.restir] still_target = \"reuse\": a still frame's temporal \
+                     reuse evaluates the fresh sample's reuse target"
+                        .into()
+                } else {
+                    "still_target = \"auto\" with regularly tracked candidates (T* is in their \
+                     target): a still frame's temporal reuse evaluates the fresh sample's reuse \
+                     target"
+                        .into()
+                },
+            )
+        },
         on(
             "  SC_HAS_VELOCITY",
             plan.has_velocity,

@@ -829,6 +829,23 @@ pub enum CameraEmission {
     Stratified,
 }
 
+/// Which target functions the temporal reuse of a still frame resamples with
+/// (`still_target`). Both are unbiased: the two samples' MIS weights there are constant
+/// (M_i / ΣM), and under constant weights each sample may keep a target of its own.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StillTarget {
+    /// `Initial` where the candidates are delta tracked (their target has the walked
+    /// segments' exact transmittance), `Reuse` where regular tracking's T* is in it.
+    Auto,
+    /// Each reservoir's own: the fresh sample's initial target (what the initial pass
+    /// selected it by) and the history's stored one. A still frame's temporal reuse
+    /// evaluates no target.
+    Initial,
+    /// The reuse passes' target (every segment's T~ ray marched on `mip_reuse`), evaluated
+    /// for each frame's fresh sample.
+    Reuse,
+}
+
 /// How temporal reuse finds a pixel's previous-frame neighbour and moves its path
 /// (`temporal_reprojection`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -917,6 +934,8 @@ pub struct RestirSettings {
     /// where a still frame's temporal reuse kept that path (`shade_cache`): the same
     /// images at a fraction of the shading.
     pub shade_cache: bool,
+    /// The target function of a still frame's temporal reuse (`still_target`).
+    pub still_target: StillTarget,
     /// What the next frame reuses temporally (`temporal_history`).
     pub temporal_history: HistoryMode,
     /// σ* of candidate generation is at least this fraction of the largest density in
@@ -980,6 +999,7 @@ impl Default for RestirSettings {
             spatial_feature_tolerance: 0.0,
             spatial_anchor: false,
             shade_cache: true,
+            still_target: StillTarget::Auto,
             temporal_history: HistoryMode::Temporal,
             sigma_star_floor: 0.0,
             nee: NeeMode::Auto,

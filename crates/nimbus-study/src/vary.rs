@@ -323,6 +323,7 @@ mod tests {
             ("spatial_feature_tolerance", "0.3"),
             ("spatial_anchor", "true"),
             ("shade_cache", "false"),
+            ("still_target", "reuse"),
             ("temporal_history", "temporal"),
             ("sigma_star_floor", "0.25"),
             ("nee", "one"),
@@ -380,6 +381,7 @@ mod tests {
         );
         assert_eq!((r.spatial_feature_tolerance, r.spatial_anchor), (0.3, true));
         assert!(!r.shade_cache);
+        assert_eq!(r.still_target, nimbus_scene::StillTarget::Reuse);
         assert_eq!(
             scene_with(&[("spatial_radius_px", "auto")])
                 .unwrap()
@@ -399,6 +401,7 @@ mod tests {
             ("spatial_feature_tolerance", "2"),
             ("spatial_anchor", "1.5"),
             ("shade_cache", "sometimes"),
+            ("still_target", "fresh"),
             ("nee", "all"),
             ("direct", "never"),
             ("candidate_tracking", "ratio"),

@@ -21,7 +21,7 @@ pub fn specialization(
     two_level: bool,
     pc_buffer: bool,
     density_buffer: bool,
-) -> [(u32, SpecValue); 34] {
+) -> [(u32, SpecValue); 35] {
     [
         (SC_ID_PC_BUFFER, SpecValue::Bool(pc_buffer)),
         (SC_ID_DENSITY_BUFFER, SpecValue::Bool(density_buffer)),
@@ -92,6 +92,10 @@ pub fn specialization(
         ),
         // The temporal stage's still pipeline sets it (resources::still_specialization).
         (SC_ID_TEMPORAL_STILL, SpecValue::Bool(false)),
+        (
+            SC_ID_STILL_INITIAL_TARGET,
+            SpecValue::Bool(plan.still_initial_target()),
+        ),
         (
             SC_ID_TEMPORAL_ALIGNED,
             SpecValue::Bool(

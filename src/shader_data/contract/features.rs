@@ -132,6 +132,10 @@ gpu_consts! {
     /// loop runs for all lanes whether its branch is taken or not, so code a frame does not
     /// reach still costs it.
     pub const SC_ID_TEMPORAL_STILL: u32 = 43;
+    /// The still pipeline's combination keeps the initial pass's target where both
+    /// reservoirs hold it (`still_target = "initial"`; restir/temporal.comp,
+    /// combine_still), so that it evaluates no target.
+    pub const SC_ID_STILL_INITIAL_TARGET: u32 = 44;
     /// Values of SC_TARGET_SCALAR.
     pub const SC_TARGET_LUMINANCE: u32 = 0;
     pub const SC_TARGET_SUM: u32 = 1;

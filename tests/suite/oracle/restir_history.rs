@@ -665,3 +665,95 @@ fn still_frames_reuse_the_shaded_f_of_kept_paths_and_render_the_same_images() {
     );
     assert_no_validation_errors(&ctx);
 }
+
+/// `still_target = "initial"`: a still frame's temporal reuse resamples each reservoir by
+/// its own stored target (the fresh sample's initial target, the history's whatever it
+/// kept), under the constant MIS weights M_i / ΣM, so it evaluates no target at all: the
+/// temporal pass of a still scene marches no shadow ray. Frame 6 of a camera that holds
+/// still, moves (spatial reuse runs there) and holds still again, whose first still frames
+/// combine histories holding the reuse target with fresh samples holding the initial one,
+/// keeps the baseline's mean over 12 seeds: with the delta-tracked candidates' target,
+/// and with regular tracking's T* in it and the NEE segments marched on mip 3, far from
+/// the reuse target.
+#[test]
+fn still_frames_combine_with_the_initial_target_and_keep_each_frames_mean() {
+    let ctx = context();
+    let body = DOLLY_BODY;
+    let still = |target: &str| {
+        scene(
+            &format!(
+                "[render]\nwidth = 24\nheight = 18\nframes = 8\n\
+                 [camera]\nhorizontal_fov_deg = 55\nposition = [0.0, 0.3, 2.6]\nlook_at = [0.0, 0.0, 0.0]\n\
+                 {body}[integrator.restir]\ntemporal = true\nstill_target = \"{target}\"\n"
+            ),
+            "still-target.toml",
+        )
+    };
+    let builds = |s: &Scene| {
+        plan::build(s, None)
+            .expect("plan")
+            .restir()
+            .expect("restir")
+            .still_initial_target()
+    };
+    assert!(builds(&still("initial")) && !builds(&still("reuse")));
+    // "auto": the initial target where the candidates are delta tracked.
+    let auto = plan::build(&still("auto"), None).expect("plan");
+    let auto = auto.restir().expect("restir");
+    assert_eq!(auto.still_initial_target(), auto.candidate_delta);
+    let temporal_steps = |s: &Scene| {
+        let plan = plan::build(s, None).expect("plan");
+        let opts = RenderOptions {
+            warmup_frames: 8,
+            counters: true,
+            ..Default::default()
+        };
+        let r = render(&ctx, s, &plan, &opts).expect("render");
+        r.work
+            .expect("counts")
+            .slot("restir/temporal")
+            .expect("temporal counters")
+            .per_sample("shadow_steps")
+    };
+    let (initial, reuse) = (
+        temporal_steps(&still("initial")),
+        temporal_steps(&still("reuse")),
+    );
+    println!(
+        "shadow steps per sample in the still temporal pass: {initial} initial, {reuse} reuse"
+    );
+    assert!(
+        initial == 0.0 && reuse > 0.0,
+        "shadow steps per sample in the still temporal pass: {initial} with the initial target, {reuse} with the reuse target"
+    );
+    // Still on frames 0-2, moving on 3-4, still from 5 on; frame 6 against the baseline's
+    // converged mean at the last camera.
+    let reference = format!(
+        "[render]\nwidth = 24\nheight = 18\nframes = 1\nspp = 4096\n\
+         [camera]\nhorizontal_fov_deg = 55\nposition = [0.4, 0.3, 2.0]\nlook_at = [0.0, 0.0, 0.0]\n\
+         {body}volume = \"baseline\"\n"
+    );
+    let expected = render_mean(&ctx, &scene(&reference, "still-target-ref.toml"));
+    for (label, extra) in [
+        ("delta-tracked candidates", ""),
+        (
+            "regular tracking, NEE on mip 3",
+            "candidate_tracking = \"regular\"\nmip_indirect = 3\n",
+        ),
+    ] {
+        let s = scene(
+            &format!(
+                "[render]\nwidth = 24\nheight = 18\nframes = 8\n\
+                 [camera]\nhorizontal_fov_deg = 55\n\
+                 [[camera.keyframe]]\nframe = 0\nposition = [0.0, 0.3, 2.6]\nlook_at = [0.0, 0.0, 0.0]\n\
+                 [[camera.keyframe]]\nframe = 2\nposition = [0.0, 0.3, 2.6]\nlook_at = [0.0, 0.0, 0.0]\n\
+                 [[camera.keyframe]]\nframe = 4\nposition = [0.4, 0.3, 2.0]\nlook_at = [0.0, 0.0, 0.0]\n\
+                 {body}[integrator.restir]\nstill_target = \"initial\"\n{extra}"
+            ),
+            "still-target-dolly.toml",
+        );
+        assert!(builds(&s), "{label}");
+        assert_frame6_mean(&ctx, &s, expected, label);
+    }
+    assert_no_validation_errors(&ctx);
+}

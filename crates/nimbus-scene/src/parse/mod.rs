@@ -112,6 +112,7 @@ pub const RESTIR_KEYS: &[&str] = &[
     "spatial_feature_tolerance",
     "spatial_anchor",
     "shade_cache",
+    "still_target",
     "temporal_history",
     "sigma_star_floor",
     "nee",
@@ -721,6 +722,15 @@ fn parse_restir(source: &Source, table: &toml::Table) -> Result<RestirSettings> 
         )?,
         spatial_anchor: f.opt_bool("spatial_anchor")?.unwrap_or(d.spatial_anchor),
         shade_cache: f.opt_bool("shade_cache")?.unwrap_or(d.shade_cache),
+        still_target: f.choice(
+            "still_target",
+            Some(d.still_target),
+            &[
+                ("auto", StillTarget::Auto),
+                ("initial", StillTarget::Initial),
+                ("reuse", StillTarget::Reuse),
+            ],
+        )?,
         spatial_shift: f.choice(
             "spatial_shift",
             Some(d.spatial_shift),

@@ -252,6 +252,7 @@ spatial_max_history = 2.5
 spatial_feature_tolerance = 0.25
 spatial_anchor = true
 shade_cache = false
+still_target = "reuse"
 reuse = "vertex"
 mip_candidates = 2
 mip_indirect = 3
@@ -489,6 +490,7 @@ density_fetch = "image"
                 spatial_feature_tolerance: 0.25,
                 spatial_anchor: true,
                 shade_cache: false,
+                still_target: StillTarget::Reuse,
                 temporal_history: HistoryMode::Temporal,
                 sigma_star_floor: 0.125,
                 nee: NeeMode::Split,
