@@ -437,6 +437,12 @@ for cache in true false; do
         assets/scenes/bench/cloud-g0.toml "${hd[@]}" --warmup 64 --set "integrator.max_bounces=3" \
         --set "integrator.restir.shade_cache=$cache"
 done
+# The still temporal pass with the fresh sample's reuse target evaluated (the default,
+# "initial" under delta-tracked candidates, evaluates none: 0.10-0.15x that pass on
+# lavapipe; docs/performance.md, "The still temporal pass without a target evaluation").
+step "profile restir settled k3 still_target=reuse" profile "bench-restir-settled-reuse-target-hd-k3" \
+    assets/scenes/bench/cloud-g0.toml "${hd[@]}" --warmup 64 --set "integrator.max_bounces=3" \
+    --set 'integrator.restir.still_target="reuse"'
 # The one-off diagnostics below were measured on an H200 (docs/performance.md) and are
 # left out of --lent, which must fit one lent-machine command.
 if [[ $mode != lent ]]; then

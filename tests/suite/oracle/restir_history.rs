@@ -85,6 +85,29 @@ fn rmse(a: &ImageRgb, b: &ImageRgb) -> f64 {
     (sum / (3 * a.data.len()) as f64).sqrt()
 }
 
+/// Counter `counter` of pass `slot` per sample over the frames of `s` after `warmup`
+/// frames (`nimbus profile --counters`'s numbers).
+fn work_per_sample(
+    ctx: &nimbus_gpu::Context,
+    s: &Scene,
+    warmup: u32,
+    slot: &str,
+    counter: &str,
+) -> f64 {
+    let plan = plan::build(s, None).expect("plan");
+    let opts = RenderOptions {
+        warmup_frames: warmup,
+        counters: true,
+        ..Default::default()
+    };
+    let r = render(ctx, s, &plan, &opts).expect("render");
+    r.work
+        .expect("counts")
+        .slot(slot)
+        .unwrap_or_else(|| panic!("{slot} counters"))
+        .per_sample(counter)
+}
+
 /// Writes an 8³ raw grid of `value` and returns its path as a TOML string.
 fn grid_file(name: &str, value: f32) -> String {
     let path = scratch("restir-history", name).join("density.raw");
@@ -525,19 +548,7 @@ fn settled_frames_draw_fewer_candidates_and_keep_the_mean() {
         "frame 2: Q frames in a row, M = 1"
     );
     // The work per sample of 8 frames after 4, all settled, against M = 4 throughout.
-    let initial_steps = |s: &Scene| {
-        let plan = plan::build(s, None).expect("plan");
-        let opts = RenderOptions {
-            warmup_frames: 4,
-            counters: true,
-            ..Default::default()
-        };
-        let r = render(&ctx, s, &plan, &opts).expect("render");
-        let work = r.work.expect("counts");
-        work.slot("restir/initial")
-            .expect("initial counters")
-            .per_sample("steps")
-    };
+    let initial_steps = |s: &Scene| work_per_sample(&ctx, s, 4, "restir/initial", "steps");
     let (settled_steps, full_steps) = (initial_steps(&settled), initial_steps(&full));
     assert!(
         settled_steps < 0.7 * full_steps && settled_steps > 0.1 * full_steps,
@@ -643,20 +654,7 @@ fn still_frames_reuse_the_shaded_f_of_kept_paths_and_render_the_same_images() {
             "cache-still.toml",
         )
     };
-    let shade_steps = |s: &Scene| {
-        let plan = plan::build(s, None).expect("plan");
-        let opts = RenderOptions {
-            warmup_frames: 8,
-            counters: true,
-            ..Default::default()
-        };
-        let r = render(&ctx, s, &plan, &opts).expect("render");
-        r.work
-            .expect("counts")
-            .slot("restir/shade")
-            .expect("shade counters")
-            .per_sample("shadow_steps")
-    };
+    let shade_steps = |s: &Scene| work_per_sample(&ctx, s, 8, "restir/shade", "shadow_steps");
     let (cached, evaluated) = (shade_steps(&still(true)), shade_steps(&still(false)));
     println!("shadow steps per sample in shading: {cached} cached, {evaluated} evaluated");
     assert!(
@@ -701,20 +699,7 @@ fn still_frames_combine_with_the_initial_target_and_keep_each_frames_mean() {
     let auto = plan::build(&still("auto"), None).expect("plan");
     let auto = auto.restir().expect("restir");
     assert_eq!(auto.still_initial_target(), auto.candidate_delta);
-    let temporal_steps = |s: &Scene| {
-        let plan = plan::build(s, None).expect("plan");
-        let opts = RenderOptions {
-            warmup_frames: 8,
-            counters: true,
-            ..Default::default()
-        };
-        let r = render(&ctx, s, &plan, &opts).expect("render");
-        r.work
-            .expect("counts")
-            .slot("restir/temporal")
-            .expect("temporal counters")
-            .per_sample("shadow_steps")
-    };
+    let temporal_steps = |s: &Scene| work_per_sample(&ctx, s, 8, "restir/temporal", "shadow_steps");
     let (initial, reuse) = (
         temporal_steps(&still("initial")),
         temporal_steps(&still("reuse")),
