@@ -180,6 +180,9 @@ pub fn run_case(ctx: &Context, case: &Case) -> Result<CaseResult> {
     let plan = crate::plan::build(&scene, None)?;
     let opts = RenderOptions {
         warmup_frames: case.warmup,
+        // The moving case's warm-up renders its first scene frames and the measured
+        // frames follow them (all of them moving frames).
+        first_frame: case.warmup,
         counters: true,
         skip_alpha: true,
         // A GPU at its working clocks (renderer::settle); nothing on lavapipe.

@@ -352,10 +352,11 @@ struct MergeArgs {
 struct ProfileArgs {
     /// Scene file (TOML); without one, the embedded default scene.
     scene: Option<PathBuf>,
-    /// Measured frames.
+    /// Measured frames (of an animation: its scene frames W..W+N-1 after a warm-up of W).
     #[arg(long, default_value_t = 32, value_parser = clap::value_parser!(u32).range(1..=100_000))]
     frames: u32,
-    /// Frames rendered before measuring.
+    /// Frames rendered before measuring (of an animation: its scene frames 0..W-1, so
+    /// that the measured frames continue the motion).
     #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(0..=100_000))]
     warmup: u32,
     /// Write the per-pass statistics as JSON.
@@ -535,6 +536,9 @@ fn profile_cmd(args: ProfileArgs) -> Result<()> {
         &renderer::RenderOptions {
             progress: true,
             warmup_frames: args.warmup,
+            // An animation's warm-up renders its first frames, and the measured frames
+            // follow them.
+            first_frame: args.warmup,
             counters: args.counters,
             skip_alpha: true,
             coherent_lanes: args.coherent_lanes,

@@ -395,6 +395,8 @@ pub(super) fn render(args: RenderArgs) -> Result<ExitCode> {
     let opts_for = |frames: FrameSelection, warmup: u32| RenderOptions {
         progress: true,
         warmup_frames: warmup,
+        // The mean of an animation is of its frames from 0 (its warm-up repeats frame 0).
+        first_frame: 0,
         sequence: if picked.is_some() {
             None
         } else {

@@ -49,8 +49,10 @@ const HOST_MARK_AFTER_FRAMES: u32 = 2;
 /// Which scene frames the render draws, and which images they make.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub enum FrameSelection {
-    /// Frame i of the render is scene frame i, for i in 0..`[render] frames`; one
-    /// image, the mean of all of them (warm-up frames render scene frame 0).
+    /// Frame i of the render is scene frame [`RenderOptions::first_frame`] + i, for i in
+    /// 0..`[render] frames`; one image, the mean of all of them. Warm-up frames render
+    /// the scene frames just before the first one (scene frame 0 in place of those
+    /// before it: with `first_frame` 0, every warm-up frame is scene frame 0).
     #[default]
     Mean,
     /// Each listed scene frame is its own image, the mean of `passes` dispatches of that
@@ -66,6 +68,13 @@ pub struct RenderOptions {
     /// Frames to render and discard before the measured ones (for profiling, and to
     /// fill ReSTIR's temporal history before measuring).
     pub warmup_frames: u32,
+    /// `Mean` mode: the scene frame of the first measured frame. 0 for a render of an
+    /// animation from its start (its warm-up repeats scene frame 0); the timing commands
+    /// (`nimbus profile`, `nimbus bench`) set it to `warmup_frames`, so that an
+    /// animation's warm-up renders its scene frames 0, 1, ... and the measured frames
+    /// continue it: a moving camera is measured on moving frames with the history of
+    /// moving frames, never on a repeat of the warm-up's still frame.
+    pub first_frame: u32,
     /// `Mean` mode: write every measured frame's image into this directory as
     /// `frame_NNNN.<sequence_ext>` (the result is still the mean of all frames).
     pub sequence: Option<std::path::PathBuf>,
@@ -421,7 +430,11 @@ impl Run<'_> {
                 } else {
                     r.frames
                 };
-                (vec![0; opts.warmup_frames as usize], vec![(None, count)])
+                let first = opts.first_frame;
+                let warmup = (0..opts.warmup_frames)
+                    .map(|j| (first + j).saturating_sub(opts.warmup_frames))
+                    .collect();
+                (warmup, vec![(None, count)])
             }
             FrameSelection::Each { frames, passes } => {
                 let first = frames.first().copied().unwrap_or(0);
@@ -534,7 +547,8 @@ impl Run<'_> {
     }
 
     /// Renders one image: up to `count` frames of scene frame `scene_frame` (`Mean`
-    /// mode: scene frames 0, 1, ...), stopping early by the stop rule or an interrupt.
+    /// mode: scene frames `first_frame`, `first_frame` + 1, ...), stopping early by the
+    /// stop rule or an interrupt.
     fn image(
         &mut self,
         pass: &mut dyn Pass,
@@ -578,7 +592,7 @@ impl Run<'_> {
                 }
             }
             let frame_start = Instant::now();
-            let frame = scene_frame.unwrap_or(state.frames);
+            let frame = scene_frame.unwrap_or(opts.first_frame + state.frames);
             if let Some(scopes) = self.dispatch(pass, frame)? {
                 state.timings.push(scopes);
             }

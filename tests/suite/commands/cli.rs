@@ -152,6 +152,59 @@ fn profile_reports_the_crepuscular_pass_from_timestamps() {
     );
 }
 
+/// `nimbus profile` of an animation renders its first scene frames as the warm-up and
+/// measures the frames after them: a moving camera is measured on moving frames only.
+/// (Before, the warm-up repeated scene frame 0 and the measured frames restarted at it,
+/// so the first measured frame was a still frame: spatial reuse, which runs on the
+/// frames whose camera moved, then counted 2 frames' pixels of 3.)
+#[test]
+fn profile_of_an_animation_measures_the_frames_after_its_warmup() {
+    let dir = scratch("profile-motion");
+    let scene = dir.join("dolly.toml");
+    std::fs::write(
+        &scene,
+        "[render]\nwidth = 16\nheight = 12\nframes = 8\n\
+         [camera]\nhorizontal_fov_deg = 55\n\
+         [[camera.keyframe]]\nframe = 0\nposition = [0.0, 0.3, 2.6]\nlook_at = [0.0, 0.0, 0.0]\n\
+         [[camera.keyframe]]\nframe = 8\nposition = [0.5, 0.3, 1.5]\nlook_at = [0.0, 0.0, 0.0]\n\
+         [[light]]\ntype = \"directional\"\ndirection = [0.6, -0.5, -0.6]\nirradiance = 4.0\n\
+         [[medium]]\ntype = \"grid\"\nbounds_min = [-1.0, -0.6, -1.0]\nbounds_max = [1.0, 0.6, 1.0]\n\
+         density = { procedural = \"cloud\", dims = [16, 10, 16], noise_seed = 7 }\n\
+         density_scale = 12.0\nalbedo = 0.9\n\
+         [integrator]\nvolume = \"restir\"\nmax_bounces = 2\n",
+    )
+    .unwrap();
+    let json = dir.join("profile.json");
+    let out = nimbus(&[
+        "profile",
+        scene.to_str().unwrap(),
+        "--frames",
+        "3",
+        "--warmup",
+        "2",
+        "--counters",
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).expect("JSON report");
+    let samples = |stage: &str| {
+        report["work"]["stages"]
+            .as_array()
+            .expect("work stages")
+            .iter()
+            .find(|s| s["stage"] == stage)
+            .unwrap_or_else(|| panic!("{stage} in {report}"))["totals"]["samples"]
+            .as_u64()
+            .unwrap()
+    };
+    let pixels = 16 * 12;
+    // Scene frames 2, 3 and 4: the camera moves on each, so spatial reuse runs on each.
+    assert_eq!(samples("restir/initial"), 3 * pixels, "{report}");
+    assert_eq!(samples("restir/spatial"), 3 * pixels, "{report}");
+}
+
 /// Bad input ends in an error that names the file, the table and the field.
 #[test]
 fn bad_scenes_give_clear_errors() {
