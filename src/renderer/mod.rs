@@ -401,6 +401,14 @@ struct Run<'a> {
     last_aov_uniforms: Option<Vec<u8>>,
 }
 
+/// The scene frames of a warm-up of `count` frames before scene frame `first`: the
+/// `count` frames just before it, scene frame 0 in place of those before 0.
+fn warmup_scene_frames(first: u32, count: u32) -> Vec<u32> {
+    (0..count)
+        .map(|j| first.saturating_add(j).saturating_sub(count))
+        .collect()
+}
+
 impl Run<'_> {
     fn interrupted(&self) -> bool {
         self.opts
@@ -430,17 +438,14 @@ impl Run<'_> {
                 } else {
                     r.frames
                 };
-                let first = opts.first_frame;
-                let warmup = (0..opts.warmup_frames)
-                    .map(|j| (first + j).saturating_sub(opts.warmup_frames))
-                    .collect();
-                (warmup, vec![(None, count)])
+                (
+                    warmup_scene_frames(opts.first_frame, opts.warmup_frames),
+                    vec![(None, count)],
+                )
             }
             FrameSelection::Each { frames, passes } => {
                 let first = frames.first().copied().unwrap_or(0);
-                let warmup = (0..opts.warmup_frames)
-                    .map(|j| (first + j).saturating_sub(opts.warmup_frames))
-                    .collect();
+                let warmup = warmup_scene_frames(first, opts.warmup_frames);
                 let count = if stop_set {
                     MAX_STOP_RULE_FRAMES
                 } else {
@@ -592,7 +597,7 @@ impl Run<'_> {
                 }
             }
             let frame_start = Instant::now();
-            let frame = scene_frame.unwrap_or(opts.first_frame + state.frames);
+            let frame = scene_frame.unwrap_or(opts.first_frame.saturating_add(state.frames));
             if let Some(scopes) = self.dispatch(pass, frame)? {
                 state.timings.push(scopes);
             }
@@ -811,4 +816,23 @@ fn clear_targets(ctx: &Context, targets: &Targets) -> Result<()> {
         ctx.fill_buffer(targets.aov_accum_sq, 0)?;
     }
     ctx.fill_buffer(targets.stats, 0)
+}
+
+#[cfg(test)]
+mod warmup_tests {
+    use super::warmup_scene_frames;
+
+    #[test]
+    fn a_warmup_renders_the_scene_frames_just_before_the_first() {
+        // A render from the start repeats scene frame 0.
+        assert_eq!(warmup_scene_frames(0, 3), vec![0, 0, 0]);
+        // Profile and bench (first = warm-up): the animation's first frames.
+        assert_eq!(warmup_scene_frames(2, 2), vec![0, 1]);
+        // A per-frame image after a longer warm-up than frames before it.
+        assert_eq!(warmup_scene_frames(2, 4), vec![0, 0, 0, 1]);
+        assert_eq!(warmup_scene_frames(80, 2), vec![78, 79]);
+        // At the top of the range the frames saturate instead of overflowing.
+        assert_eq!(warmup_scene_frames(u32::MAX, 2), vec![u32::MAX - 2; 2]);
+        assert!(warmup_scene_frames(7, 0).is_empty());
+    }
 }
