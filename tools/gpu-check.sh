@@ -276,6 +276,11 @@ if [[ $mode == motion ]]; then
     # lavapipe at 160x120 aligned won 1.15-1.30x and spatial reuse lost there).
     motion_study camera-g0-k3-reprojection 120 $m/camera-g0.toml 3 \
         --vary temporal_reprojection=aligned,path --vary spatial_neighbors=0,3
+    # Temporal reuse by optical depth against the anchors, at Q = 2 and 8 on the moving
+    # frames (on lavapipe at 160x120 it halved a long history's error but lost at Q = 2 for
+    # 1.10-1.14x the frame: docs/restir.md, "Temporal reuse by optical depth").
+    motion_study camera-g0-k3-tau-shift 110 $m/camera-g0.toml 3 \
+        --vary temporal_shift=anchor,optical_depth --vary temporal_limit_moving=2,8
     if [[ -x $plume_bin && ( -z ${NIMBUS_MOTION_ONLY:-} || " $NIMBUS_MOTION_ONLY " == *" plume-k"* ) ]]; then
         step "make plume" "$plume_bin" "$out/plume" 64 96 >"$out/make-plume.log" 2>&1
         motion_study plume-k3 170 "$out/plume/plume-motion-64.toml" 3 \

@@ -56,9 +56,21 @@ uint jitter_code_move(uint code, uint from, uint to) {
 #define COMBINE_SPATIAL 0
 #endif
 
+// The optical-depth shift of temporal reuse (SC_TEMPORAL_TAU_SHIFT; temporal.comp sets
+// this per frame: a moving camera over the density of the previous frame). The same
+// structure as the spatial one, with tau_1 the exact optical depth through the grid's own
+// trilinear density (grid_optical_depth, grid_invert_optical_depth) instead of tau* through
+// the conservative grid, and sigma_t at x_1 as the measure's density. A target then
+// per unit of tau_1 is sigma_s T~ L / sigma_t: the camera segment's T~ and the density at
+// x_1 nearly cancel between the two frames (both rays reach x_1 at one optical depth),
+// so a reused path's target changes only by the light at its vertices. The distance
+// shift (with anchors) carries the change of the camera segment's optical depth into the
+// target ratio, frame after frame.
+bool combine_tau_exact = false;
+
 // Whether this combination shifts x_1 by optical depth.
 bool tau_shift() {
-    return COMBINE_SPATIAL != 0 && SC_SPATIAL_TAU_SHIFT;
+    return (COMBINE_SPATIAL != 0 && SC_SPATIAL_TAU_SHIFT) || combine_tau_exact;
 }
 
 // The anchor of the pixel's camera ray that puts the chosen sample's x_1 where the
@@ -79,6 +91,15 @@ float path_tau(uint at, Reservoir r, CameraRay owner, out float sigma_star) {
     }
     // x_1 on the owner's own ray (path_value's translation by the owner's anchor is 0).
     vec3 x1 = owner.o + z1 * owner.d;
+    if (combine_tau_exact) {
+        // sigma_t = 0 at x_1: nothing scatters or emits there (the grid is the only
+        // medium), so the path's target is 0 on every ray.
+        sigma_star = grid_sigma_t(x1);
+        if (!(sigma_star > 0.0)) {
+            return -2.0;
+        }
+        return grid_optical_depth(owner.o, owner.d, 0.0, z1);
+    }
     sigma_star = pc_sigma_star_at(LEVEL_PRIMARY, x1);
     if (!(sigma_star > 0.0)) {
         return -2.0;
@@ -102,8 +123,14 @@ float shifted_target(uint at, Reservoir r, CameraRay ray, CameraRay owner, bool 
         if (same) {
             sigma_here = sigma_own;
         } else {
-            float tau;
-            float z = pc_track(LEVEL_PRIMARY, ray.o, ray.d, FAR, tau1, sigma_here, tau);
+            float z;
+            if (combine_tau_exact) {
+                z = grid_invert_optical_depth(ray.o, ray.d, 0.0, FAR, tau1);
+                sigma_here = z < FAR ? grid_sigma_t(ray.o + z * ray.d) : 0.0;
+            } else {
+                float tau;
+                z = pc_track(LEVEL_PRIMARY, ray.o, ray.d, FAR, tau1, sigma_here, tau);
+            }
             // This ray's optical depth stays below tau_1: the shifted path does not exist.
             if (z >= FAR || !(sigma_here > 0.0)) {
                 return 0.0;

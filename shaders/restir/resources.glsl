@@ -53,6 +53,9 @@ layout(constant_id = SC_ID_CAMERA_EMISSION) const bool SC_CAMERA_EMISSION = fals
 // pixels' sub-pixel positions there (`temporal_reprojection = "aligned"`), else by the
 // selected path's x_1 (the paper's).
 layout(constant_id = SC_ID_TEMPORAL_ALIGNED) const bool SC_TEMPORAL_ALIGNED = false;
+// Temporal reuse moves a medium x_1 by its optical depth through the grid's own density
+// (`temporal_shift = "optical_depth"`; restir/combine.glsl) where the density did not change.
+layout(constant_id = SC_ID_TEMPORAL_TAU_SHIFT) const bool SC_TEMPORAL_TAU_SHIFT = false;
 // Opaque shapes beside the grid: paths may have surface vertices (restir/path_surfaces.glsl).
 layout(constant_id = SC_ID_HAS_SHAPES) const bool SC_HAS_SHAPES = false;
 // Homogeneous box media beside the grid (restir/vertex_media.glsl).

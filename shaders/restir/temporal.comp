@@ -325,6 +325,11 @@ void restir_main() {
         }
     }
 
+    // The optical-depth shift where the camera moved over the previous frame's density (a
+    // choice from the two frames alone). A still camera's rays are the previous frame's:
+    // there the shift is the identity, and the distance shift costs no walk.
+    combine_tau_exact = SC_TEMPORAL_TAU_SHIFT && !camera_still && !static_history &&
+                        u_restir.history_same_density != 0u;
     // A static scene's previous frame at this very pixel has this frame's target function:
     // the samples' targets are evaluated once (3 path evaluations become 1).
     cand_same_target[1] = static_history && all(equal(q_prev, pixel)) && cand_jitter_shift[1] == 0u;
@@ -359,5 +364,8 @@ void restir_main() {
         // The path's jitter code in this pixel's sub-pixel frame.
         s.info = (s.info & 0xffffu) | (jitter_code_move(code, owner_i, 0u) << 16u);
     }
-    store_combined(at, s, src_at, owner, candidate_ray_for(0u, owner_i, code));
+    // Under the optical-depth shift, the anchor that puts x_1 where it was evaluated.
+    CameraRay here = candidate_ray_for(0u, owner_i, code);
+    here.anchor = combine_here_anchor;
+    store_combined(at, s, src_at, owner, here);
 }

@@ -218,6 +218,10 @@ pub struct RestirPlan {
     /// (`spatial_shift = "optical_depth"`; the grid alone carries the majorant: with box
     /// or convex media the distance shift is kept).
     pub spatial_tau_shift: bool,
+    /// Temporal reuse moves a medium x_1 by its optical depth through the grid's own
+    /// density on the frames whose density did not change (`temporal_shift =
+    /// "optical_depth"`, with the grid as the only medium; SC_TEMPORAL_TAU_SHIFT).
+    pub temporal_tau_shift: bool,
     /// Emission folded into the split-NEE candidates (`emission = "folded"`, with split
     /// NEE and an emitting grid only).
     pub fold_emission: bool,

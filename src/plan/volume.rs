@@ -615,6 +615,8 @@ fn restir_plan(
         // `boxes`: the media beside the grid (box and convex).
         spatial_tau_shift: s.spatial_shift == nimbus_scene::SpatialShift::OpticalDepth
             && boxes == 0,
+        temporal_tau_shift: s.temporal_shift == nimbus_scene::TemporalShift::OpticalDepth
+            && boxes == 0,
         // Set below, once split NEE is known.
         fold_emission: false,
         env_reuse_map,
@@ -715,7 +717,7 @@ fn restir_plan(
                 "[integrator.restir] temporal = false".into()
             } else if frames > 1 {
                 format!(
-                    "from the second frame: reprojection of {}{}, Q = {}{}{}, history = the {} output",
+                    "from the second frame: reprojection of {}{}, x1 moved by its {}, Q = {}{}{}, history = the {} output",
                     match s.temporal_reprojection {
                         nimbus_scene::TemporalReprojection::Path =>
                             "the selected path's x1 (temporal_reprojection = \"path\", the paper's)",
@@ -727,6 +729,14 @@ fn restir_plan(
                         " through the velocity field"
                     } else {
                         ""
+                    },
+                    if plan.temporal_tau_shift {
+                        "optical depth through the density where the camera moved over an unchanged \
+                         density (temporal_shift = \"optical_depth\", SC_TEMPORAL_TAU_SHIFT), else its depth past the anchors"
+                    } else if s.temporal_shift == nimbus_scene::TemporalShift::OpticalDepth {
+                        "depth past the anchors (temporal_shift = \"optical_depth\" needs the grid to be the only medium)"
+                    } else {
+                        "depth past the anchors"
                     },
                     plan.temporal_limit,
                     match s.temporal_limit {

@@ -104,6 +104,7 @@
 //! | restir `target` | `"luminance"`, `"sum"`, `"max"` |
 //! | restir `camera_emission` | `"reservoir"`, `"stratified"` |
 //! | restir `temporal_reprojection` | `"path"`, `"aligned"` |
+//! | restir `temporal_shift` | `"anchor"`, `"optical_depth"` (the anchors where box or convex media are beside the grid) |
 //! | restir `pc_fetch` | `"auto"`, `"image"`, `"buffer"` (refused where the buffer exceeds the device's storage-buffer range) |
 //! | restir `density_fetch` | `"auto"`, `"image"`, `"buffer"` (refused where the buffer exceeds the device's storage-buffer range) |
 //! | baseline `nee` | `"auto"`, `"one"`, `"split"` |

@@ -862,6 +862,21 @@ pub enum TemporalReprojection {
     Aligned,
 }
 
+/// How temporal reuse moves a reused path's first medium vertex x_1 from the previous
+/// frame's camera ray onto this frame's (`temporal_shift`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TemporalShift {
+    /// x_1 keeps its depth past the two rays' anchors (the motion point under
+    /// `temporal_reprojection = "aligned"`, where the rays enter the medium under
+    /// `"path"`): a translation along the ray, Jacobian 1.
+    Anchor,
+    /// x_1 keeps its optical depth from the camera through the grid's own density, on the
+    /// frames whose density is the previous frame's (the anchors elsewhere): both frames'
+    /// camera segments then carry one transmittance, and the Jacobian is the ratio of
+    /// sigma_t at the two vertices. Only where the grid is the only medium.
+    OpticalDepth,
+}
+
 /// `[integrator.restir]`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RestirSettings {
@@ -963,6 +978,9 @@ pub struct RestirSettings {
     /// How temporal reuse finds the previous frame's pixel and moves its path there
     /// (`temporal_reprojection`).
     pub temporal_reprojection: TemporalReprojection,
+    /// How temporal reuse moves a reused path's x_1 onto this frame's camera ray
+    /// (`temporal_shift`).
+    pub temporal_shift: TemporalShift,
 }
 
 /// The defaults are what measured best at equal GPU time on the benchmark scenes
@@ -1010,6 +1028,7 @@ impl Default for RestirSettings {
             target: TargetScalar::Sum,
             camera_emission: CameraEmission::Stratified,
             temporal_reprojection: TemporalReprojection::Aligned,
+            temporal_shift: TemporalShift::Anchor,
         }
     }
 }

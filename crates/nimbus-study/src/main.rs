@@ -27,7 +27,7 @@ struct StudyArgs {
     /// box_estimator, spp, box_samples, frames, seed, max_bounces, volume, and the
     /// [integrator.restir] fields candidates, candidates_settled, temporal, temporal_limit,
     /// temporal_limit_moving, spatial_neighbors, spatial_radius_px, spatial_when, spatial_rounds, spatial_shift,
-    /// env_reuse, spatial_max_history, spatial_feature_tolerance, spatial_anchor, shade_cache, still_target, emission, reuse, mis, temporal_history, sigma_star_floor, nee, direct, candidate_tracking, pc_fetch, density_fetch, target, camera_emission, temporal_reprojection, mip_candidates, mip_indirect, mip_reuse (a level or
+    /// env_reuse, spatial_max_history, spatial_feature_tolerance, spatial_anchor, shade_cache, still_target, emission, reuse, mis, temporal_history, sigma_star_floor, nee, direct, candidate_tracking, pc_fetch, density_fetch, target, camera_emission, temporal_reprojection, temporal_shift, mip_candidates, mip_indirect, mip_reuse (a level or
     /// auto), final_transmittance. Each max_bounces gets its own reference; configurations that render the same
     /// image are measured and listed once. ReSTIR renders one path per pixel per frame,
     /// so spp varies the other integrators only (its spp > 1 configurations are left out

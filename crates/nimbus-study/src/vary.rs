@@ -334,6 +334,7 @@ mod tests {
             ("target", "sum"),
             ("camera_emission", "reservoir"),
             ("temporal_reprojection", "path"),
+            ("temporal_shift", "optical_depth"),
         ];
         assert_eq!(values.len(), keys().len());
         for (key, _) in values {
@@ -374,6 +375,7 @@ mod tests {
             r.temporal_reprojection,
             nimbus_scene::TemporalReprojection::Path
         );
+        assert_eq!(r.temporal_shift, nimbus_scene::TemporalShift::OpticalDepth);
         assert_eq!(r.env_reuse, nimbus_scene::EnvReuse::World);
         assert_eq!(
             (r.spatial_shift, r.spatial_max_history),
@@ -409,6 +411,7 @@ mod tests {
             ("target", "rgb"),
             ("camera_emission", "marched"),
             ("temporal_reprojection", "motion"),
+            ("temporal_shift", "tau"),
         ] {
             assert!(scene_with(&[(key, value)]).is_err(), "{key}={value}");
         }

@@ -21,7 +21,7 @@ pub fn specialization(
     two_level: bool,
     pc_buffer: bool,
     density_buffer: bool,
-) -> [(u32, SpecValue); 35] {
+) -> [(u32, SpecValue); 36] {
     [
         (SC_ID_PC_BUFFER, SpecValue::Bool(pc_buffer)),
         (SC_ID_DENSITY_BUFFER, SpecValue::Bool(density_buffer)),
@@ -95,6 +95,10 @@ pub fn specialization(
         (
             SC_ID_STILL_INITIAL_TARGET,
             SpecValue::Bool(plan.still_initial_target()),
+        ),
+        (
+            SC_ID_TEMPORAL_TAU_SHIFT,
+            SpecValue::Bool(plan.temporal && plan.temporal_tau_shift),
         ),
         (
             SC_ID_TEMPORAL_ALIGNED,

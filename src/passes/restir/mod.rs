@@ -647,11 +647,14 @@ impl Pass for RestirPass {
         });
         self.frame_temporal_limit = temporal_limit;
         // Uploaded by `record` with the frame's M and Q, once.
+        let same_density = u32::from(!density_moved);
         if flag != self.restir_uniforms.history_static
             || confidence != self.restir_uniforms.history_confidence
+            || same_density != self.restir_uniforms.history_same_density
         {
             self.restir_uniforms.history_static = flag;
             self.restir_uniforms.history_confidence = confidence;
+            self.restir_uniforms.history_same_density = same_density;
             self.uniforms_stale = true;
         }
         Ok(())

@@ -136,6 +136,11 @@ gpu_consts! {
     /// reservoirs hold it (`still_target = "initial"`; restir/temporal.comp,
     /// combine_still), so that it evaluates no target.
     pub const SC_ID_STILL_INITIAL_TARGET: u32 = 44;
+    /// Temporal reuse moves a reused path's medium x_1 between the two frames' camera rays
+    /// by its optical depth through the grid's own density (`temporal_shift =
+    /// "optical_depth"`; restir/combine.glsl), on the frames whose density is the previous
+    /// frame's; else by its depth past the anchors.
+    pub const SC_ID_TEMPORAL_TAU_SHIFT: u32 = 45;
     /// Values of SC_TARGET_SCALAR.
     pub const SC_TARGET_LUMINANCE: u32 = 0;
     pub const SC_TARGET_SUM: u32 = 1;

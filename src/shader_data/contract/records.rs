@@ -485,6 +485,13 @@ gpu_records! {
         /// temporal stage kept the history's sample; restir/temporal.comp clears the flag
         /// where it did not).
         shade_cache_base: u32,
+        /// 1 when the previous frame's density is this frame's (the same density frame):
+        /// temporal reuse's optical-depth shift (SC_TEMPORAL_TAU_SHIFT) walks both frames'
+        /// rays through the one density it has at full resolution.
+        history_same_density: u32,
+        _pad0: u32,
+        _pad1: u32,
+        _pad2: u32,
     }
 
     /// Push constants of every dispatch of the denoiser (src/denoise, shaders/denoise).

@@ -253,6 +253,14 @@ fn a_moving_camera_keeps_each_frames_mean() {
             "the paper's reprojection",
             "[integrator.restir]\ntemporal_reprojection = \"path\"\n",
         ),
+        (
+            "temporal reuse by the optical-depth shift, a long history",
+            "[integrator.restir]\ntemporal_shift = \"optical_depth\"\ntemporal_limit_moving = 20\n",
+        ),
+        (
+            "the optical-depth shift under the paper's reprojection",
+            "[integrator.restir]\ntemporal_shift = \"optical_depth\"\ntemporal_reprojection = \"path\"\n",
+        ),
         ("temporal + short-history spatial", spatial),
         (
             "temporal + spatial with depth anchors and the neighbour test",

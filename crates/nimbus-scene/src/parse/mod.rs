@@ -123,6 +123,7 @@ pub const RESTIR_KEYS: &[&str] = &[
     "target",
     "camera_emission",
     "temporal_reprojection",
+    "temporal_shift",
 ];
 
 /// One table of the scene format and every field the parser accepts in it.
@@ -796,6 +797,14 @@ fn parse_restir(source: &Source, table: &toml::Table) -> Result<RestirSettings> 
             &[
                 ("path", TemporalReprojection::Path),
                 ("aligned", TemporalReprojection::Aligned),
+            ],
+        )?,
+        temporal_shift: f.choice(
+            "temporal_shift",
+            Some(d.temporal_shift),
+            &[
+                ("anchor", TemporalShift::Anchor),
+                ("optical_depth", TemporalShift::OpticalDepth),
             ],
         )?,
     })

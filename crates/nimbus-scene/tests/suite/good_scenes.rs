@@ -41,6 +41,7 @@ fn minimal_scene_gets_every_default() {
     assert_eq!(restir.target, TargetScalar::Sum);
     assert_eq!(restir.camera_emission, CameraEmission::Stratified);
     assert_eq!(restir.temporal_reprojection, TemporalReprojection::Aligned);
+    assert_eq!(restir.temporal_shift, TemporalShift::Anchor);
     assert_eq!(restir.spatial_radius_px, None);
     assert_eq!(restir.spatial_rounds, 1);
     assert_eq!(restir.reuse, ReuseMode::Direction);
@@ -266,6 +267,7 @@ density_fetch = "image"
 target = "max"
 camera_emission = "reservoir"
 temporal_reprojection = "path"
+temporal_shift = "optical_depth"
 mis = "pairwise"
 spatial_shift = "optical_depth"
 env_reuse = "world"
@@ -501,6 +503,7 @@ density_fetch = "image"
                 target: TargetScalar::Max,
                 camera_emission: CameraEmission::Reservoir,
                 temporal_reprojection: TemporalReprojection::Path,
+                temporal_shift: TemporalShift::OpticalDepth,
             },
             baseline: BaselineSettings {
                 nee: NeeMode::One,
