@@ -281,6 +281,10 @@ if [[ $mode == motion ]]; then
     # 1.10-1.14x the frame: docs/restir.md, "Temporal reuse by optical depth").
     motion_study camera-g0-k3-tau-shift 110 $m/camera-g0.toml 3 \
         --vary temporal_shift=anchor,optical_depth --vary temporal_limit_moving=2,8
+    # Spatial reuse by distance (the default) and by exact optical depth (on lavapipe the
+    # exact shift had the lowest error at 1.33x the frame: docs/restir.md, same section).
+    motion_study camera-g0-k3-spatial-shift 110 $m/camera-g0.toml 3 \
+        --vary spatial_shift=distance,optical_depth_exact
     if [[ -x $plume_bin && ( -z ${NIMBUS_MOTION_ONLY:-} || " $NIMBUS_MOTION_ONLY " == *" plume-k"* ) ]]; then
         step "make plume" "$plume_bin" "$out/plume" 64 96 >"$out/make-plume.log" 2>&1
         motion_study plume-k3 170 "$out/plume/plume-motion-64.toml" 3 \

@@ -34,6 +34,8 @@ layout(constant_id = SC_ID_HAS_VELOCITY) const bool SC_HAS_VELOCITY = false;
 layout(constant_id = SC_ID_MIS_PAIRWISE) const bool SC_MIS_PAIRWISE = false;
 // Spatial reuse shifts x_1 by its optical depth tau_1 (restir/combine.glsl).
 layout(constant_id = SC_ID_SPATIAL_TAU_SHIFT) const bool SC_SPATIAL_TAU_SHIFT = false;
+// ... by its exact optical depth through the grid's own density (`"optical_depth_exact"`).
+layout(constant_id = SC_ID_SPATIAL_TAU_EXACT) const bool SC_SPATIAL_TAU_EXACT = false;
 // Spatial reuse reads its pixels' camera features (the neighbour test, depth anchors).
 layout(constant_id = SC_ID_SPATIAL_FEATURES) const bool SC_SPATIAL_FEATURES = false;
 // A medium vertex's emission is part of its split-NEE candidate (restir/path_lights.glsl).

@@ -8,7 +8,9 @@
 // One round: reads slot u_push.src, writes slot u_push.dst (u_push.aux = round).
 
 #extension GL_GOOGLE_include_directive : require
-// The optical-depth shift of x_1 (SC_SPATIAL_TAU_SHIFT) applies here, not in temporal reuse.
+// The spatial optical-depth shift of x_1 (SC_SPATIAL_TAU_SHIFT, through the conservative
+// grid or, SC_SPATIAL_TAU_EXACT, the density itself) applies here; temporal reuse has its
+// own (SC_TEMPORAL_TAU_SHIFT).
 #define COMBINE_SPATIAL 1
 #include "combine.glsl"
 
@@ -28,6 +30,8 @@ void restir_main() {
     }
     COUNT(CTR_SAMPLES, 1);
     uint rng = rng_init(pixel, u_push.frame, 2u + u_push.aux, u_frame.seed);
+    // Every candidate is of this frame: the exact optical depth is one density's.
+    combine_tau_exact = SC_SPATIAL_TAU_SHIFT && SC_SPATIAL_TAU_EXACT;
 
     candidate_set(0u, res_at(u_push.src, pixel), pixel, SET_CURRENT);
     uint n = 1u;

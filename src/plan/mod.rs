@@ -218,6 +218,9 @@ pub struct RestirPlan {
     /// (`spatial_shift = "optical_depth"`; the grid alone carries the majorant: with box
     /// or convex media the distance shift is kept).
     pub spatial_tau_shift: bool,
+    /// ... by the exact optical depth through the grid's own density
+    /// (`spatial_shift = "optical_depth_exact"`; SC_SPATIAL_TAU_EXACT).
+    pub spatial_tau_exact: bool,
     /// Temporal reuse moves a medium x_1 by its optical depth through the grid's own
     /// density on the frames whose density did not change (`temporal_shift =
     /// "optical_depth"`, with the grid as the only medium; SC_TEMPORAL_TAU_SHIFT).

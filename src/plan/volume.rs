@@ -613,7 +613,12 @@ fn restir_plan(
         pairwise_mis: s.mis == nimbus_scene::MisMode::Pairwise,
         spatial_max_history: s.spatial_max_history,
         // `boxes`: the media beside the grid (box and convex).
-        spatial_tau_shift: s.spatial_shift == nimbus_scene::SpatialShift::OpticalDepth
+        spatial_tau_shift: matches!(
+            s.spatial_shift,
+            nimbus_scene::SpatialShift::OpticalDepth
+                | nimbus_scene::SpatialShift::ExactOpticalDepth
+        ) && boxes == 0,
+        spatial_tau_exact: s.spatial_shift == nimbus_scene::SpatialShift::ExactOpticalDepth
             && boxes == 0,
         temporal_tau_shift: s.temporal_shift == nimbus_scene::TemporalShift::OpticalDepth
             && boxes == 0,
@@ -805,10 +810,12 @@ fn restir_plan(
                         String::new()
                     },
                     if plan.pairwise_mis { "pairwise" } else { "Talbot" },
-                    if plan.spatial_tau_shift {
-                        "optical depth"
-                    } else if s.spatial_shift == nimbus_scene::SpatialShift::OpticalDepth {
-                        "distance (spatial_shift = \"optical_depth\" needs the grid to be the only medium)"
+                    if plan.spatial_tau_exact {
+                        "exact optical depth through the density"
+                    } else if plan.spatial_tau_shift {
+                        "optical depth through the conservative grid"
+                    } else if s.spatial_shift != nimbus_scene::SpatialShift::Distance {
+                        "distance (the optical-depth shifts need the grid to be the only medium)"
                     } else {
                         "distance"
                     },

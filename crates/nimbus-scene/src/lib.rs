@@ -93,7 +93,7 @@
 //! | restir `mis` | `"talbot"`, `"pairwise"` |
 //! | restir `temporal_history` | `"spatial"`, `"temporal"` |
 //! | restir `sigma_star_floor` | [0, 1] |
-//! | restir `spatial_shift` | `"distance"`, `"optical_depth"` |
+//! | restir `spatial_shift` | `"distance"`, `"optical_depth"`, `"optical_depth_exact"` (the distance where box or convex media are beside the grid) |
 //! | restir `env_reuse` | `"map"`, `"world"` |
 //! | restir `emission` | `"separate"`, `"folded"` (folded only takes effect with split NEE) |
 //! | restir `spatial_max_history` | [0, 1025] (0: spatial reuse on every pixel) |

@@ -694,6 +694,11 @@ pub enum SpatialShift {
     /// (the Exp(1) draw of regular tracking, replayed along the other ray), so it stays
     /// in the medium; the Jacobian is the ratio of the two rays' σ* at the vertices.
     OpticalDepth,
+    /// x_1 keeps its exact optical depth through the grid's own trilinear density (the
+    /// closed-form integral, inverted along the other ray), as `temporal_shift =
+    /// "optical_depth"` does between frames; the Jacobian is the ratio of σ_t at the
+    /// vertices, continuous along a ray where σ* jumps between coarse cells.
+    ExactOpticalDepth,
 }
 
 /// Where a reused path keeps the direction of its environment sample (`env_reuse`).

@@ -21,7 +21,7 @@ pub fn specialization(
     two_level: bool,
     pc_buffer: bool,
     density_buffer: bool,
-) -> [(u32, SpecValue); 36] {
+) -> [(u32, SpecValue); 37] {
     [
         (SC_ID_PC_BUFFER, SpecValue::Bool(pc_buffer)),
         (SC_ID_DENSITY_BUFFER, SpecValue::Bool(density_buffer)),
@@ -60,6 +60,10 @@ pub fn specialization(
         (
             SC_ID_SPATIAL_TAU_SHIFT,
             SpecValue::Bool(plan.spatial_tau_shift),
+        ),
+        (
+            SC_ID_SPATIAL_TAU_EXACT,
+            SpecValue::Bool(plan.spatial_tau_exact),
         ),
         (
             SC_ID_SPATIAL_FEATURES,

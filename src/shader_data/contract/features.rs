@@ -141,6 +141,10 @@ gpu_consts! {
     /// "optical_depth"`; restir/combine.glsl), on the frames whose density is the previous
     /// frame's; else by its depth past the anchors.
     pub const SC_ID_TEMPORAL_TAU_SHIFT: u32 = 45;
+    /// Spatial reuse's optical-depth shift (SC_SPATIAL_TAU_SHIFT) takes the exact optical
+    /// depth through the grid's own density instead of tau* through the conservative grid
+    /// (`spatial_shift = "optical_depth_exact"`; restir/combine.glsl).
+    pub const SC_ID_SPATIAL_TAU_EXACT: u32 = 46;
     /// Values of SC_TARGET_SCALAR.
     pub const SC_TARGET_LUMINANCE: u32 = 0;
     pub const SC_TARGET_SUM: u32 = 1;

@@ -261,6 +261,11 @@ fn a_moving_camera_keeps_each_frames_mean() {
             "the optical-depth shift under the paper's reprojection",
             "[integrator.restir]\ntemporal_shift = \"optical_depth\"\ntemporal_reprojection = \"path\"\n",
         ),
+        (
+            "spatial and temporal reuse, both by the exact optical-depth shift",
+            "[integrator.restir]\nspatial_neighbors = 3\nspatial_radius_px = 4\nspatial_when = \"always\"\n\
+             spatial_shift = \"optical_depth_exact\"\ntemporal_shift = \"optical_depth\"\n",
+        ),
         ("temporal + short-history spatial", spatial),
         (
             "temporal + spatial with depth anchors and the neighbour test",

@@ -738,6 +738,7 @@ fn parse_restir(source: &Source, table: &toml::Table) -> Result<RestirSettings> 
             &[
                 ("distance", SpatialShift::Distance),
                 ("optical_depth", SpatialShift::OpticalDepth),
+                ("optical_depth_exact", SpatialShift::ExactOpticalDepth),
             ],
         )?,
         env_reuse: f.choice(

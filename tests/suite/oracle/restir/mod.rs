@@ -439,10 +439,13 @@ const ANCHORED: Case = Case {
     restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 1\nspatial_neighbors = 3\nspatial_when = \"always\"\nspatial_radius_px = 10\n\
              spatial_anchor = true\nspatial_feature_tolerance = 0.3",
 };
+/// Spatial reuse by the exact optical-depth shift (`LEVERS` runs the one through the
+/// conservative grid; the temporal shift acts under a moving camera only, and
+/// restir_history.rs checks it there).
 const TAU_SHIFT: Case = Case {
-    label: "temporal + spatial, x_1 shifted by its optical depth",
+    label: "temporal + spatial, x_1 shifted by its exact optical depth",
     restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 1\nspatial_neighbors = 3\nspatial_when = \"always\"\nspatial_radius_px = 10\n\
-             spatial_shift = \"optical_depth\"",
+             spatial_shift = \"optical_depth_exact\"",
 };
 const TARGET_LUMINANCE: Case = Case {
     label: "temporal + spatial, the target the luminance (the paper's)",

@@ -6,7 +6,7 @@
 use super::*;
 
 /// Single scattering (K = 1): no reuse, temporal only, spatial only, both, and both with
-/// pairwise MIS (candidates by regular tracking), the optical-depth shift, or depth anchors
+/// pairwise MIS (candidates by regular tracking), the exact optical-depth shift, or depth anchors
 /// and the neighbour test converge to the baseline (criteria in the module docs).
 /// Temporal only and spatial only ask for delta-tracked candidates; the others take what
 /// `candidate_tracking = "auto"` chooses for this cloud.
