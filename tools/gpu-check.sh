@@ -36,8 +36,9 @@
 # camera at K = 7, the animated plume (written first by the make_plume example: set
 # NIMBUS_MAKE_PLUME to its binary, target/release/examples/make_plume by default; at K = 3
 # with spatial reuse on its density's frames and without), the
-# moving sun at K = 1 and 7. Each study is cut at its own time limit so that a slow one
-# leaves the others their time; steps.txt says which finished.
+# moving sun at K = 1 and 7; last, the moving camera under the optical-depth shifts
+# (camera-g0-k3-tau-shift, camera-g0-k3-spatial-shift). Each study is cut at its own time
+# limit so that a slow one leaves the others their time; steps.txt says which finished.
 #
 # --gallery renders docs/gallery.md's scenes at 1920x1080 (gallery/NAME.png, NAME.log
 # with the render's GPU time) and profiles each at 1080p (gallery/profile-NAME.txt: median
@@ -276,15 +277,6 @@ if [[ $mode == motion ]]; then
     # lavapipe at 160x120 aligned won 1.15-1.30x and spatial reuse lost there).
     motion_study camera-g0-k3-reprojection 120 $m/camera-g0.toml 3 \
         --vary temporal_reprojection=aligned,path --vary spatial_neighbors=0,3
-    # Temporal reuse by optical depth against the anchors, at Q = 2 and 8 on the moving
-    # frames (on lavapipe at 160x120 it halved a long history's error but lost at Q = 2 for
-    # 1.10-1.14x the frame: docs/restir.md, "Temporal reuse by optical depth").
-    motion_study camera-g0-k3-tau-shift 110 $m/camera-g0.toml 3 \
-        --vary temporal_shift=anchor,optical_depth --vary temporal_limit_moving=2,8
-    # Spatial reuse by distance (the default) and by exact optical depth (on lavapipe the
-    # exact shift had the lowest error at 1.33x the frame: docs/restir.md, same section).
-    motion_study camera-g0-k3-spatial-shift 110 $m/camera-g0.toml 3 \
-        --vary spatial_shift=distance,optical_depth_exact
     if [[ -x $plume_bin && ( -z ${NIMBUS_MOTION_ONLY:-} || " $NIMBUS_MOTION_ONLY " == *" plume-k"* ) ]]; then
         step "make plume" "$plume_bin" "$out/plume" 64 96 >"$out/make-plume.log" 2>&1
         motion_study plume-k3 170 "$out/plume/plume-motion-64.toml" 3 \
@@ -295,6 +287,17 @@ if [[ $mode == motion ]]; then
     motion_study sun-g0-k7 70 $m/sun-g0.toml 7
     motion_study sky-g06-k1 60 $m/sky-g06.toml 1
     motion_study sky-g06-k7 70 $m/sky-g06.toml 7
+    # Last, so that they take no time from the studies above when the command's time runs
+    # out (NIMBUS_MOTION_ONLY picks them in a session of their own):
+    # Temporal reuse by optical depth against the anchors, at Q = 2 and 8 on the moving
+    # frames (on lavapipe at 160x120 it halved a long history's error but lost at Q = 2 for
+    # 1.10-1.14x the frame: docs/restir.md, "Temporal reuse by optical depth").
+    motion_study camera-g0-k3-tau-shift 110 $m/camera-g0.toml 3 \
+        --vary temporal_shift=anchor,optical_depth --vary temporal_limit_moving=2,8
+    # Spatial reuse by distance (the default) and by exact optical depth (on lavapipe the
+    # exact shift had the lowest error at 1.33x the frame: docs/restir.md, same section).
+    motion_study camera-g0-k3-spatial-shift 110 $m/camera-g0.toml 3 \
+        --vary spatial_shift=distance,optical_depth_exact
     rm -rf "$out/references" "$out/plume"
     echo "wrote $out"
     exit 0

@@ -56,16 +56,17 @@ uint jitter_code_move(uint code, uint from, uint to) {
 #define COMBINE_SPATIAL 0
 #endif
 
-// The optical-depth shift of temporal reuse (SC_TEMPORAL_TAU_SHIFT; temporal.comp sets
-// this per frame: a moving camera over the density of the previous frame). The same
-// structure as the spatial one, with tau_1 the exact optical depth through the grid's own
+// The exact optical-depth shift: set by temporal.comp per frame (SC_TEMPORAL_TAU_SHIFT, a
+// moving camera over the density of the previous frame) and by spatial.comp
+// (SC_SPATIAL_TAU_EXACT, every frame). The same structure as the shift through the
+// conservative grid above, with tau_1 the exact optical depth through the grid's own
 // trilinear density (grid_optical_depth, grid_invert_optical_depth) instead of tau* through
 // the conservative grid, and sigma_t at x_1 as the measure's density. A target then
 // per unit of tau_1 is sigma_s T~ L / sigma_t: the camera segment's T~ and the density at
-// x_1 nearly cancel between the two frames (both rays reach x_1 at one optical depth),
-// so a reused path's target changes only by the light at its vertices. The distance
-// shift (with anchors) carries the change of the camera segment's optical depth into the
-// target ratio, frame after frame.
+// x_1 nearly cancel between the two rays (both reach x_1 at one optical depth), so a
+// reused path's target changes by the light at its vertices (along its stored
+// directions) alone. The distance shift (with anchors) also carries the change of the
+// camera segment's optical depth into the target ratio, frame after frame.
 bool combine_tau_exact = false;
 
 // Whether this combination shifts x_1 by optical depth.
@@ -78,8 +79,9 @@ bool tau_shift() {
 float combine_here_anchor = 0.0;
 
 // tau_1 of the path stored at `at` on its owner's ray (< 0: no medium x_1 to shift; the
-// path keeps its distance) and sigma* at its x_1 (1 without the shift). sigma* = 0 (no
-// majorant at x_1, so no density: the path's target is 0 everywhere) gives tau_1 = -2.
+// path keeps its distance) and sigma* at its x_1 (1 without the shift; sigma_t under the
+// exact shift, combine_tau_exact). sigma* = 0 (no majorant at x_1, so no density: the
+// path's target is 0 everywhere) gives tau_1 = -2.
 float path_tau(uint at, Reservoir r, CameraRay owner, out float sigma_star) {
     sigma_star = 1.0;
     if (!tau_shift() || res_vertices(r) < 1u) {
