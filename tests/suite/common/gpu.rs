@@ -10,8 +10,10 @@ use nimbus_scene::Scene;
 
 use super::check_adapter;
 
-/// A context with validation layers on, on the device CI uses (checked under CI).
+/// A context with validation layers on, on the device CI uses (checked under CI); the
+/// test is named if the suite dies of a signal while it runs ([`super::crash`]).
 pub fn context() -> Context {
+    super::crash::enter();
     let ctx = Context::new(&ContextDesc {
         validation: true,
         device_filter: std::env::var("NIMBUS_DEVICE").ok(),

@@ -23,6 +23,7 @@
 #![allow(dead_code)]
 
 pub mod cli;
+pub mod crash;
 pub mod gpu;
 pub mod kernel;
 pub mod rng;
