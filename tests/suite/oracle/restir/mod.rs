@@ -439,13 +439,22 @@ const ANCHORED: Case = Case {
     restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 1\nspatial_neighbors = 3\nspatial_when = \"always\"\nspatial_radius_px = 10\n\
              spatial_anchor = true\nspatial_feature_tolerance = 0.3",
 };
-/// Spatial reuse by the exact optical-depth shift (`LEVERS` runs the one through the
-/// conservative grid; the temporal shift acts under a moving camera only, and
-/// restir_history.rs checks it there).
-const TAU_SHIFT: Case = Case {
-    label: "temporal + spatial, x_1 shifted by its exact optical depth",
-    restir: "temporal = true\ntemporal_limit = 4\nspatial_rounds = 1\nspatial_neighbors = 3\nspatial_when = \"always\"\nspatial_radius_px = 10\n\
+/// Spatial reuse alone by the exact optical-depth shift, two rounds of four neighbours
+/// within 10 px (the image is 24 px wide): where no temporal history dilutes it, a wrong
+/// Jacobian of the shift (sigma_t at the shifted x_1) shows (single_scattering_matches_...).
+/// The temporal optical-depth shift acts under a moving camera only: restir_history.rs
+/// checks both exact shifts there.
+const SPATIAL_TAU_EXACT: Case = Case {
+    label: "spatial only, 2 rounds of 4 neighbours, x_1 shifted by its exact optical depth",
+    restir: "temporal = false\nspatial_rounds = 2\nspatial_neighbors = 4\nspatial_when = \"always\"\nspatial_radius_px = 10\n\
              spatial_shift = \"optical_depth_exact\"",
+};
+/// The same through the conservative grid (tau* of regular tracking, sigma* the Jacobian);
+/// `LEVERS` runs this shift under temporal reuse too.
+const SPATIAL_TAU_STAR: Case = Case {
+    label: "spatial only, 2 rounds of 4 neighbours, x_1 shifted by its optical depth through the conservative grid",
+    restir: "temporal = false\nspatial_rounds = 2\nspatial_neighbors = 4\nspatial_when = \"always\"\nspatial_radius_px = 10\n\
+             spatial_shift = \"optical_depth\"",
 };
 const TARGET_LUMINANCE: Case = Case {
     label: "temporal + spatial, the target the luminance (the paper's)",
