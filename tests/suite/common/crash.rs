@@ -5,9 +5,10 @@
 //! prints the signal and nothing else: not which test, not which thread. Every test that
 //! takes a device ([`super::gpu::context`]) enters its thread's name (libtest names a test's
 //! thread after the test) in a fixed table, cleared when the thread ends; a handler for
-//! SIGSEGV, SIGBUS, SIGILL and SIGFPE writes the table and the faulting thread's name to
-//! standard error with async-signal-safe calls only (atomic loads, `write`,
-//! `pthread_getname_np` on the current thread), then hands the signal to the handler that
+//! SIGSEGV, SIGBUS, SIGILL and SIGFPE writes the table, the faulting thread's name and its
+//! backtrace to standard error with async-signal-safe calls only (atomic loads, `write`,
+//! `pthread_getname_np` on the current thread, `backtrace_symbols_fd`; the unwinder is
+//! loaded beforehand), then hands the signal to the handler that
 //! was there before it (Rust's stack-overflow report), or to the default action (a core
 //! dump where they are enabled).
 
@@ -87,6 +88,11 @@ pub fn enter() {
 }
 
 fn install() {
+    // backtrace(3) loads libgcc's unwinder on its first call, which is not
+    // async-signal-safe: make that call here, so the handler's is not the first.
+    let mut frames = [std::ptr::null_mut::<libc::c_void>(); 4];
+    // SAFETY: `frames` has room for the 4 entries asked for.
+    unsafe { libc::backtrace(frames.as_mut_ptr(), 4) };
     for (i, &signal) in SIGNALS.iter().enumerate() {
         // SAFETY: `action` is zeroed and then filled as sigaction(2) asks (a handler taking
         // siginfo, SA_SIGINFO | SA_ONSTACK, an emptied mask); `old` receives the previous
@@ -156,6 +162,19 @@ extern "C" fn handler(signal: libc::c_int, info: *mut libc::siginfo_t, context: 
             say(b"\n");
         }
     }
+    // The faulting thread's frames, after the table (a stack the fault left unreadable
+    // may fault again here, which ends the process at once). backtrace_symbols_fd names
+    // exported symbols only: the others print as `library(+offset)`, which addr2line
+    // resolves against the same build of that library (its debug symbols package).
+    say(b"[nimbus tests] backtrace of the faulting thread:\n");
+    let mut frames = [std::ptr::null_mut::<libc::c_void>(); 64];
+    // SAFETY: `frames` has room for 64 entries; backtrace_symbols_fd writes to fd 2
+    // without allocating (glibc documents it for this use), and backtrace's unwinder
+    // was loaded by `install`.
+    unsafe {
+        let n = libc::backtrace(frames.as_mut_ptr(), 64);
+        libc::backtrace_symbols_fd(frames.as_ptr(), n, 2);
+    }
     let i = SIGNALS.iter().position(|&s| s == signal).unwrap_or(0);
     let previous = PREVIOUS[i].load(Ordering::Acquire);
     let flags = PREVIOUS_FLAGS[i].load(Ordering::Acquire) as libc::c_int;
@@ -224,6 +243,21 @@ mod tests {
         assert!(
             stderr.contains("[nimbus tests]   common::crash::tests::crashes_on_purpose\n"),
             "the test is not named:\n{stderr}"
+        );
+        // Frames of the suite's own binary, as `path(+offset)[address]` or
+        // `path(symbol+offset)[address]`.
+        let exe_name = std::env::current_exe()
+            .ok()
+            .and_then(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
+            .expect("the test binary's name");
+        let (_, trace) = stderr
+            .split_once("[nimbus tests] backtrace of the faulting thread:\n")
+            .unwrap_or_else(|| panic!("no backtrace:\n{stderr}"));
+        assert!(
+            trace
+                .lines()
+                .any(|l| l.contains(&exe_name) && l.contains("+0x") && l.ends_with(']')),
+            "no frame of {exe_name} in the backtrace:\n{stderr}"
         );
     }
 
