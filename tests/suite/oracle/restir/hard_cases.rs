@@ -1,6 +1,6 @@
 //! Hard cases: empty and extremely dense grids, g = ±0.99, a camera inside the medium,
-//! black lights, a 1×1 image, a 1-voxel grid, degenerate reuse settings and M at its
-//! limit render finite, non-negative images with no non-finite sample.
+//! black lights, a 1×1 image, a 1-voxel grid, degenerate reuse settings, the optical-depth
+//! shifts in those media and M at its limit render finite, non-negative images with no non-finite sample.
 
 use super::*;
 
@@ -168,6 +168,81 @@ fn degenerate_reuse_settings_stay_finite() {
     ] {
         let image = hard(&ctx, Cloud { restir, ..small() }, label);
         assert!(image.mean()[0] > 0.0);
+    }
+    assert_no_validation_errors(&ctx);
+}
+
+/// The optical-depth shifts in hard media: spatial reuse on every frame by the exact shift
+/// and by the one through the conservative grid, temporal reuse by the exact shift under a
+/// camera that moves every frame (so it acts on every frame after the first), in a cloud of
+/// density_scale 1e4 (optical depths in the thousands: tau_1 beyond what most neighbour
+/// rays reach), at g = 0.99, with the camera inside the medium, and in a one-voxel grid
+/// (sigma_t constant, so the Jacobian is 1 wherever x_1 lands): finite, non-negative, lit.
+#[test]
+fn optical_depth_shifts_stay_finite_in_hard_media() {
+    let ctx = context();
+    let voxel = raw_grid("one-voxel-shift", [1, 1, 1], &[1.0]);
+    // Keyframes after [camera]'s own fields (the `lights` text follows them): the eye
+    // moves 0.06 m a frame from `position`'s neighbourhood.
+    let moving = |from: &str, to: &str| {
+        format!(
+            "[[camera.keyframe]]\nframe = 0\nposition = {from}\nlook_at = [0.0, 0.0, 0.0]\n\
+             [[camera.keyframe]]\nframe = 3\nposition = {to}\nlook_at = [0.0, 0.0, 0.0]\n{SUN_AND_SKY}"
+        )
+    };
+    let outside = moving("[0.0, 0.25, 2.3]", "[0.18, 0.25, 2.2]");
+    let inside = moving("[0.05, 0.0, 0.1]", "[0.2, 0.05, 0.15]");
+    for shift in ["optical_depth_exact", "optical_depth"] {
+        let restir = format!(
+            "spatial_when = \"always\"\nspatial_rounds = 1\nspatial_neighbors = 3\n\
+             spatial_shift = \"{shift}\"\ntemporal_shift = \"optical_depth\""
+        );
+        let cases: [(Cloud, &str); 4] = [
+            (
+                Cloud {
+                    scale: 1e4,
+                    lights: &outside,
+                    ..small()
+                },
+                "dense",
+            ),
+            (
+                Cloud {
+                    g: 0.99,
+                    lights: &outside,
+                    ..small()
+                },
+                "g0.99",
+            ),
+            (
+                Cloud {
+                    position: "[0.05, 0.0, 0.1]",
+                    lights: &inside,
+                    ..small()
+                },
+                "camera-inside",
+            ),
+            (
+                Cloud {
+                    density: &voxel,
+                    scale: 4.0,
+                    lights: &outside,
+                    ..small()
+                },
+                "one-voxel",
+            ),
+        ];
+        for (cloud, label) in cases {
+            let image = hard(
+                &ctx,
+                Cloud {
+                    restir: &restir,
+                    ..cloud
+                },
+                &format!("{label}-{shift}"),
+            );
+            assert!(image.mean()[2] > 0.0, "{label}-{shift}: black");
+        }
     }
     assert_no_validation_errors(&ctx);
 }
